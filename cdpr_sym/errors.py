@@ -1,0 +1,42 @@
+"""Exception classes of cdpr_sym.
+
+Each failure kind has its own class, subclassing the builtin it refines, so callers
+can catch either the precise class or the builtin.
+"""
+
+from __future__ import annotations
+
+
+class CdprError(Exception):
+    """Base class of every error raised by cdpr_sym."""
+
+
+class InvalidRobot(CdprError, ValueError):
+    """A robot description is malformed; the message names the offending field."""
+
+    def __init__(self, field: str, message: str) -> None:
+        self.field = field
+        super().__init__(f"{field}: {message}")
+
+
+class InvalidCase(CdprError, ValueError):
+    """A start, goal, gain or option is outside what the robot or controller accepts."""
+
+    def __init__(self, field: str, message: str) -> None:
+        self.field = field
+        super().__init__(f"{field}: {message}")
+
+
+class CompilerNotFound(CdprError, RuntimeError):
+    """No working C compiler is available to build generated code."""
+
+
+class CompilationFailed(CdprError, RuntimeError):
+    """The C compiler rejected generated code; the message carries its output."""
+
+
+class UnknownName(CdprError, KeyError):
+    """A preset, controller or study name that does not exist."""
+
+    def __str__(self) -> str:  # KeyError quotes its argument; keep the message readable
+        return str(self.args[0]) if self.args else ""

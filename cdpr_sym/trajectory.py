@@ -1,0 +1,134 @@
+"""Closed-loop trajectories and their metrics."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cdpr_sym.controllers import FALLBACK_FLAGS, FLAG_ALPHA, FLAG_NAMES
+
+#: Settling band on ||q - q_goal||, m.
+SETTLE_TOLERANCE = 0.01
+#: Slack on the tension bounds when judging feasibility, N (round-off only).
+FEASIBILITY_SLACK = 1e-9
+
+
+@dataclasses.dataclass(frozen=True)
+class Trajectory:
+    """A simulated closed-loop run.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N + 1,)
+        Sample times, s. Row k of ``q``/``dq`` is the state at t[k]; row k of the per-step
+        arrays is the command computed at t[k] and held until t[k + 1].
+    q, dq : ndarray, shape (N + 1, n)
+        Position (m) and velocity (m/s).
+    tau : ndarray, shape (N, n)
+        Commanded tension, N (the plant may apply it clipped, see ``Plant.slack``).
+    alpha, beta : ndarray, shape (N,)
+        Scale on the PD part (24) and margin beta of (20), N.
+    j : ndarray, shape (N, n(n-1)/2)
+        Free entries of J_d.
+    flags : ndarray of int, shape (N,)
+        Bit set of ``cdpr_sym.controllers.FLAG_*`` per step.
+    q_goal : ndarray, shape (n,)
+        Goal, m.
+    t_min, t_max : float
+        Tension bounds, N.
+    stop_reason : str or None
+        Why the run ended before its duration (``"singular"``, ``"non_finite"``,
+        ``"left_frame"``), or None when it ran to the end.
+    info : dict
+        Robot, controller, options and integrator, for the record.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+    alpha: np.ndarray
+    beta: np.ndarray
+    j: np.ndarray
+    flags: np.ndarray
+    q_goal: np.ndarray
+    t_min: float
+    t_max: float
+    stop_reason: str | None = None
+    info: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+    @property
+    def error(self) -> np.ndarray:
+        """||q(t) - q_goal||, m, shape (N + 1,)."""
+        return np.linalg.norm(self.q - self.q_goal, axis=1)
+
+    def settle_time(self, tolerance: float = SETTLE_TOLERANCE) -> float | None:
+        """First time after which the error stays within ``tolerance`` (m), or None."""
+        outside = np.flatnonzero(self.error > tolerance)
+        if self.stop_reason is not None:
+            return None
+        if outside.size == 0:
+            return float(self.t[0])
+        if outside[-1] == len(self.t) - 1:
+            return None
+        return float(self.t[outside[-1] + 1])
+
+    def flag_share(self, mask: int) -> float:
+        """Share of control steps with any of the bits in ``mask`` set."""
+        return float(np.mean((self.flags & mask) != 0)) if len(self.flags) else 0.0
+
+    def flag_counts(self) -> dict[str, int]:
+        """Number of control steps per flag name."""
+        return {name: int(np.count_nonzero(self.flags & bit)) for bit, name in FLAG_NAMES.items()}
+
+    def metrics(self, *, static_tension: np.ndarray | None = None) -> dict[str, Any]:
+        """Summary numbers (SI units); tensions are judged over t > 0 (steps k >= 1).
+
+        ``start_jump`` (N) needs the static tension W^{-1} grad V at the start.
+        """
+        after_start = self.tau[1:]
+        steps = np.abs(np.diff(self.tau, axis=0))
+        settle = self.settle_time()
+        feasible = bool(after_start.size == 0 or (
+            after_start.min() >= self.t_min - FEASIBILITY_SLACK
+            and after_start.max() <= self.t_max + FEASIBILITY_SLACK))
+        out: dict[str, Any] = {
+            "min_tension": _float(after_start.min()) if after_start.size else None,
+            "max_tension": _float(after_start.max()) if after_start.size else None,
+            "settle_time": settle,
+            "final_error": float(self.error[-1]),
+            "min_alpha": _float(self.alpha.min()) if self.alpha.size else None,
+            "tension_feasible": feasible,
+            "converged": settle is not None,
+            "share_alpha_below_one": self.flag_share(FLAG_ALPHA),
+            "share_fallback": self.flag_share(FALLBACK_FLAGS),
+            "fallback_steps": int(np.count_nonzero(self.flags & FALLBACK_FLAGS)),
+            "tension_total_variation": float(steps.sum()),
+            "max_tension_step": float(steps.max()) if steps.size else 0.0,
+            "flag_counts": self.flag_counts(),
+            "stop_reason": self.stop_reason,
+            "duration": float(self.t[-1] - self.t[0]),
+        }
+        if static_tension is not None and len(self.tau):
+            out["start_jump"] = float(np.max(np.abs(self.tau[0] - static_tension)))
+        return out
+
+    def save(self, path: str | Path) -> Path:
+        """Write the run to an ``.npz`` file that ``numpy.load`` reads directly."""
+        path = Path(path)
+        np.savez_compressed(
+            path, t=self.t, q=self.q, dq=self.dq, tau=self.tau, alpha=self.alpha,
+            beta=self.beta, j=self.j, flags=self.flags, q_goal=self.q_goal,
+            t_min=self.t_min, t_max=self.t_max,
+            stop_reason=np.array(self.stop_reason or ""),
+            info=np.array(json.dumps(self.info, default=str)))
+        return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
+
+
+def _float(value: Any) -> float | None:
+    value = float(value)
+    return value if np.isfinite(value) else None
