@@ -108,7 +108,7 @@ def _clip(model: SymbolicModel, tau: ca.SX) -> tuple[ca.SX, ca.SX]:
     """Tension clipped to the robot's box, and whether any entry was clipped."""
     t_min, t_max = model.robot.t_min, model.robot.t_max
     clipped = ca.fmin(ca.fmax(tau, t_min), t_max)
-    return clipped, ca.mmax(ca.fabs(clipped - tau)) > 0
+    return clipped, ca.sum1(tau < t_min) + ca.sum1(tau > t_max) > 0
 
 
 def _flag(condition: ca.SX, bit: int) -> ca.SX:

@@ -1,0 +1,80 @@
+"""Figures drawn from stored trajectories (matplotlib, written as PNG files)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402  (backend must be chosen first)
+import numpy as np  # noqa: E402
+
+from cdpr_sym.trajectory import Trajectory  # noqa: E402
+
+_AXES = {2: ("x", "z"), 3: ("x", "y", "z")}
+
+
+def _coordinate_names(n: int) -> Sequence[str]:
+    return _AXES.get(n, [f"q{i + 1}" for i in range(n)])
+
+
+def plot_positions(ax: plt.Axes, run: Trajectory) -> None:
+    """Coordinates (solid) and their goals (dashed) against time."""
+    for i, name in enumerate(_coordinate_names(run.q.shape[1])):
+        line, = ax.plot(run.t, run.q[:, i], label=name)
+        ax.axhline(run.q_goal[i], color=line.get_color(), linestyle="--", linewidth=0.8)
+    ax.set_ylabel("position [m]")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+
+
+def plot_tensions(ax: plt.Axes, run: Trajectory, *, symlog: bool = False) -> None:
+    """Commanded tensions against time, with the bounds T_min and T_max."""
+    for i in range(run.tau.shape[1]):
+        ax.plot(run.t[:-1], run.tau[:, i], label=f"τ{i + 1}", linewidth=1.0)
+    for bound in (run.t_min, run.t_max):
+        ax.axhline(bound, color="k", linestyle=":", linewidth=0.9)
+    if symlog:
+        ax.set_yscale("symlog", linthresh=100.0)
+    ax.set_ylabel("tension [N]")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+
+
+def figure_run(run: Trajectory, path: Path, *, title: str, alpha: bool = False,
+               symlog: bool = False) -> Path:
+    """Positions and tensions (and optionally alpha) of one run, in stacked panels."""
+    rows = 3 if alpha else 2
+    fig, axes = plt.subplots(rows, 1, figsize=(7.5, 2.6 * rows), sharex=True)
+    plot_positions(axes[0], run)
+    axes[0].set_title(title, fontsize=10)
+    plot_tensions(axes[1], run, symlog=symlog)
+    if alpha:
+        axes[2].semilogy(run.t[:-1], np.maximum(run.alpha, 1e-12), linewidth=1.0)
+        axes[2].set_ylabel("α (log)")
+        axes[2].grid(alpha=0.3)
+    axes[-1].set_xlabel("time [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def figure_errors(runs: dict[str, Trajectory], path: Path, *, title: str) -> Path:
+    """||q - q_goal|| against time for several runs on one axis."""
+    fig, ax = plt.subplots(figsize=(7.5, 3.2))
+    for label, run in runs.items():
+        ax.plot(run.t, run.error, label=label, linewidth=1.0)
+    ax.axhline(0.01, color="k", linestyle=":", linewidth=0.9)
+    ax.set_yscale("log")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("‖q − q_goal‖ [m]")
+    ax.set_title(title, fontsize=10)
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path

@@ -1,0 +1,80 @@
+"""Shared fixtures: the two preset robots, their models, a private build cache, random states.
+
+Every test that compiles uses ``build_options``, so generated libraries land in a
+session-private cache folder (compiled once per session, never in the user's cache).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cdpr_sym import BuildOptions, Robot, SymbolicModel, preset
+
+#: Seed of every random draw in the suite (reproducible failures).
+SEED = 20240611
+
+
+@pytest.fixture(scope="session")
+def aras3() -> Robot:
+    """The paper's Section IV robot (3 cables, 3 DOF)."""
+    return preset("aras3")
+
+
+@pytest.fixture(scope="session")
+def planar2() -> Robot:
+    """A planar point mass on two cables."""
+    return preset("planar2")
+
+
+@pytest.fixture(scope="session")
+def aras3_model(aras3: Robot) -> SymbolicModel:
+    return SymbolicModel(aras3)
+
+
+@pytest.fixture(scope="session")
+def planar2_model(planar2: Robot) -> SymbolicModel:
+    return SymbolicModel(planar2)
+
+
+@pytest.fixture(scope="session")
+def cache_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A build cache private to this test session."""
+    return tmp_path_factory.mktemp("cdpr_sym_cache")
+
+
+@pytest.fixture(scope="session")
+def build_options(cache_dir: Path) -> BuildOptions:
+    """Default build options, compiling into the session's private cache."""
+    return BuildOptions(cache_dir=cache_dir)
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    """A freshly seeded generator (each test sees the same stream)."""
+    return np.random.default_rng(SEED)
+
+
+def draw_states(robot: Robot, rng: np.random.Generator, count: int, *,
+                margin: float = 0.1, speed: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` random states (q, dq) with q inside the frame, away from the anchors.
+
+    q is uniform in the frame shrunk by ``margin`` (a fraction of the frame's span) on every
+    side, which keeps it off the anchor plane (det W = 0 there). dq is Gaussian, scaled by
+    ``speed`` (m/s) times a log-uniform factor in [1e-3, 3] so slow and fast states both occur.
+    """
+    lower, upper = robot.frame_lower, robot.frame_upper
+    span = upper - lower
+    q = lower + margin * span + rng.random((count, robot.n)) * (1 - 2 * margin) * span
+    scale = speed * 10.0 ** rng.uniform(-3.0, np.log10(3.0), size=(count, 1))
+    dq = rng.normal(size=(count, robot.n)) * scale
+    return q, dq
+
+
+@pytest.fixture
+def random_states() -> Callable[..., tuple[np.ndarray, np.ndarray]]:
+    """The state sampler :func:`draw_states` (call it with a robot, a generator, a count)."""
+    return draw_states
