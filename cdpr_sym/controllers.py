@@ -40,12 +40,15 @@ FLAG_ALPHA = 8
 #: |det W| fell below the singularity threshold; the simulation stops here.
 FLAG_SINGULAR = 16
 
+#: The exact tension box is unreachable for every alpha in (0, 1] (box and l∞ designs).
+FLAG_INFEASIBLE = 32
+
 FLAG_NAMES = {FLAG_LOW_SPEED: "low_speed", FLAG_BETA: "beta_nonpositive",
               FLAG_SATURATED: "saturated", FLAG_ALPHA: "alpha_below_one",
-              FLAG_SINGULAR: "singular"}
+              FLAG_SINGULAR: "singular", FLAG_INFEASIBLE: "infeasible"}
 
 #: Only these flags mean "the designed law did not apply as stated"; alpha < 1 is the design.
-FALLBACK_FLAGS = FLAG_LOW_SPEED | FLAG_BETA
+FALLBACK_FLAGS = FLAG_LOW_SPEED | FLAG_BETA | FLAG_INFEASIBLE
 
 
 class ControlLaw(NamedTuple):
@@ -283,6 +286,16 @@ CONTROLLERS: dict[str, Controller] = {
     "l2": L2Design(),
     "l2-minnorm": L2Design(construction="min_norm"),
 }
+
+
+def _register_exact_box_designs() -> None:
+    from cdpr_sym.box_designs import BoxDesign, LinfDesign
+
+    CONTROLLERS["linf"] = LinfDesign()
+    CONTROLLERS["box"] = BoxDesign()
+
+
+_register_exact_box_designs()
 
 
 def controller_by_name(name: str) -> Controller:
