@@ -42,8 +42,13 @@ def default_cache_dir() -> Path:
 
 
 def find_compiler(preferred: str | None = None) -> str | None:
-    """The first C compiler found among ``preferred``, ``$CC``, cc, gcc, clang, or None."""
-    for candidate in (preferred, os.environ.get("CC"), "cc", "gcc", "clang"):
+    """``preferred`` if given and found, else the first of $CC, cc, gcc, clang; or None.
+
+    A ``preferred`` compiler that is not found gives None (never a silent substitute).
+    """
+    if preferred:
+        return shutil.which(preferred)
+    for candidate in (os.environ.get("CC"), "cc", "gcc", "clang"):
         if candidate and shutil.which(candidate):
             return shutil.which(candidate)
     return None

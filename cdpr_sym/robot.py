@@ -145,28 +145,26 @@ class Robot:
 
 def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
     """Build a :class:`Robot` from the TOML layout documented in ``presets/aras3.toml``."""
-    try:
-        tension = data["tension"]
-        frame = data["frame"]
-        case = data["case"]
-        return Robot(
-            name=str(data.get("name", Path(source).stem)),
-            anchors=data["anchors"],
-            mass=data["mass"],
-            gravity=data.get("gravity", 9.81),
-            t_min=tension["min"],
-            t_max=tension["max"],
-            frame_lower=frame["lower"],
-            frame_upper=frame["upper"],
-            start=case["start"],
-            goal=case["goal"],
-            k=case["k"],
-            r_d=case["r_d"],
-        )
-    except KeyError as missing:
-        raise InvalidRobot(str(missing.args[0]), f"required field missing in {source}") from None
-    except TypeError as wrong:
-        raise InvalidRobot("<table>", f"expected a table in {source}: {wrong}") from None
+
+    def get(path: str, default: Any = None) -> Any:
+        node: Any = data
+        for key in path.split("."):
+            if not isinstance(node, dict):
+                raise InvalidRobot(path, f"expected a table above {key!r} in {source}")
+            if key not in node:
+                if default is not None:
+                    return default
+                raise InvalidRobot(path, f"required field missing in {source}")
+            node = node[key]
+        return node
+
+    return Robot(
+        name=str(data.get("name", Path(source).stem)),
+        anchors=get("anchors"), mass=get("mass"), gravity=get("gravity", 9.81),
+        t_min=get("tension.min"), t_max=get("tension.max"),
+        frame_lower=get("frame.lower"), frame_upper=get("frame.upper"),
+        start=get("case.start"), goal=get("case.goal"), k=get("case.k"), r_d=get("case.r_d"),
+    )
 
 
 def load_robot(path: str | Path) -> Robot:

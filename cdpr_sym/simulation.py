@@ -118,7 +118,9 @@ def step_function(model: SymbolicModel, controller: Controller) -> ca.Function:
     law = controller.law(model, q, dq, q_goal, k, r_d)
     applied = ca.if_else(slack > 0.5, ca.fmax(law.tau, 0), law.tau)
     z_next = rk4(_closed_loop_rhs(model, applied, mass_scale), x[: 2 * n], dt)
-    singular = ca.fmod(ca.floor(law.flags / FLAG_SINGULAR), 2) > 0.5
+    # singular at the sample, or det W changes sign within the step (the plane was crossed)
+    crossed = ca.det(model.structure_matrix(q)) * ca.det(model.structure_matrix(z_next[:n])) <= 0
+    singular = ca.logic_or(ca.fmod(ca.floor(law.flags / FLAG_SINGULAR), 2) > 0.5, crossed)
     finite = ca.sum1(ca.fabs(z_next) <= 1e300) > 2 * n - 0.5
     lower, upper = model.robot.frame_lower, model.robot.frame_upper
     outside = ca.sum1(z_next[:n] < lower) + ca.sum1(z_next[:n] > upper) > 0
@@ -229,7 +231,7 @@ class Simulator:
             self._chunk_function = chunk_function(self.step, chunk)
 
     def compiled_function(self, name: str) -> ca.Function:
-        """A model term, ``law_*``, ``step`` or ``chunk`` loaded from the compiled library."""
+        """A model term, ``law_*`` or ``step`` loaded from the compiled library."""
         if self.library is None:
             raise InvalidCase("backend", "this simulator runs CasADi's virtual machine; "
                               "there is no compiled library")
@@ -295,7 +297,8 @@ _SIMULATORS: dict[tuple, Simulator] = {}
 def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
                   build_options: BuildOptions = BuildOptions()) -> Simulator:
     """A :class:`Simulator`, reused within the process for equal robots and options."""
-    key = (json.dumps(robot.as_dict(), sort_keys=True), controller, chunk, build_options)
+    key = (json.dumps(robot.as_dict(), sort_keys=True), controller, chunk, build_options,
+           build_options.resolved_backend())
     if key not in _SIMULATORS:
         _SIMULATORS[key] = Simulator(robot, controller, chunk=chunk,
                                      build_options=build_options)

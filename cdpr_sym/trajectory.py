@@ -88,7 +88,10 @@ class Trajectory:
     def metrics(self, *, static_tension: np.ndarray | None = None) -> dict[str, Any]:
         """Summary numbers (SI units); tensions are judged over t > 0 (steps k >= 1).
 
-        ``start_jump`` (N) needs the static tension W^{-1} grad V at the start.
+        ``max_tension_step`` and ``tension_total_variation`` cover every change of command,
+        |tau_k - tau_{k-1}| for k >= 1 (the first change happens at t = dt > 0).
+        ``start_jump`` (N), max_i |tau_0 - tau_static|, needs the static tension
+        W^{-1} grad V at the start.
         """
         after_start = self.tau[1:]
         steps = np.abs(np.diff(self.tau, axis=0))

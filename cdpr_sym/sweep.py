@@ -1,0 +1,274 @@
+"""Batch start/goal sweeps: many closed-loop runs, written as they finish, resumable.
+
+A sweep draws ``pairs`` start/goal pairs from the static workspace (seeded), runs every
+listed controller from each start to its goal, and appends one CSV row per (pair,
+controller) with the metrics of ``cdpr-sym simulate --json`` plus start, goal, run status
+and stop reason. A JSON sidecar records the configuration, package versions and seed so any
+row can be re-run exactly. Work is spread over local processes by default, or over an
+existing Dask cluster; an interrupted sweep resumes from the rows already written.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import csv
+import dataclasses
+import json
+import math
+import os
+import platform
+import sys
+import time
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cdpr_sym.controllers import CONTROLLERS, controller_by_name
+from cdpr_sym.errors import CdprError, InvalidCase
+from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot import Robot, resolve_robot
+from cdpr_sym.simulation import Plant, get_simulator
+from cdpr_sym.workspace import WorkspaceEvaluator, sample_static_workspace
+
+METRIC_COLUMNS = ("min_tension", "max_tension", "settle_time", "final_error", "min_alpha",
+                  "tension_feasible", "converged", "share_alpha_below_one", "share_fallback",
+                  "fallback_steps", "tension_total_variation", "max_tension_step",
+                  "start_jump", "stop_reason", "duration")
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepConfig:
+    """Everything that determines a sweep's rows.
+
+    Parameters
+    ----------
+    robot : str
+        Preset name or robot TOML path.
+    controllers : tuple of str
+        Controller names (see ``cdpr_sym.controllers.CONTROLLERS``).
+    pairs : int
+        Number of start/goal pairs.
+    seed : int
+        Seed of the pair draw.
+    duration, dt : float
+        Run length and control period, s.
+    mass_scale : float
+        Plant mass / model mass.
+    margin : float
+        Share of the frame size kept free on each side when drawing poses.
+    """
+
+    robot: str
+    controllers: tuple[str, ...]
+    pairs: int
+    seed: int = 0
+    duration: float = 10.0
+    dt: float = 1e-3
+    mass_scale: float = 1.0
+    margin: float = 0.05
+
+    def __post_init__(self) -> None:
+        if isinstance(self.pairs, bool) or not isinstance(self.pairs, int) or self.pairs <= 0:
+            raise InvalidCase("pairs", f"expected a positive number of pairs, got {self.pairs}")
+        if not self.controllers:
+            raise InvalidCase("controllers", "expected at least one controller")
+        for name in self.controllers:
+            controller_by_name(name)
+        if not (math.isfinite(self.duration) and self.duration > 0):
+            raise InvalidCase("duration", f"expected a positive duration, got {self.duration}")
+        if not (math.isfinite(self.dt) and 0 < self.dt <= self.duration):
+            raise InvalidCase("dt", f"expected 0 < dt <= duration, got {self.dt}")
+        Plant(mass_scale=self.mass_scale)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {**dataclasses.asdict(self), "controllers": list(self.controllers)}
+
+
+def draw_pairs(robot: Robot, config: SweepConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Seeded start and goal poses, each (pairs, n), from the static workspace."""
+    rng = np.random.default_rng(config.seed)
+    evaluator = WorkspaceEvaluator(robot)
+    poses = sample_static_workspace(robot, 2 * config.pairs, rng, margin=config.margin,
+                                    evaluator=evaluator)
+    return poses[: config.pairs], poses[config.pairs:]
+
+
+def columns(n: int) -> list[str]:
+    """CSV header for an n-DOF robot."""
+    axes = [f"{i}" for i in range(n)]
+    return (["pair", "controller", *[f"start_{a}" for a in axes], *[f"goal_{a}" for a in axes],
+             "status", "error"] + list(METRIC_COLUMNS))
+
+
+def run_one(robot: Robot, controller_name: str, start: np.ndarray, goal: np.ndarray, *,
+            duration: float, dt: float, mass_scale: float) -> dict[str, Any]:
+    """One closed-loop run as a row of metrics (status ``ok``, ``stopped`` or ``error``)."""
+    row: dict[str, Any] = {"status": "ok", "error": ""}
+    try:
+        simulator = get_simulator(robot, controller_by_name(controller_name))
+        run = simulator.run(start, goal, robot.k, robot.r_d, duration=duration, dt=dt,
+                            plant=Plant(mass_scale=mass_scale))
+        static = _static_tension(robot, start)
+        row.update(run.metrics(static_tension=static))
+        if run.stop_reason is not None:
+            row["status"] = "stopped"
+    except (CdprError, RuntimeError, ValueError, FloatingPointError) as failure:
+        row.update(status="error", error=f"{type(failure).__name__}: {failure}")
+    return row
+
+
+_STATIC: dict[str, Any] = {}
+
+
+def _static_tension(robot: Robot, q: np.ndarray) -> np.ndarray:
+    key = robot.name + json.dumps(robot.anchors.tolist())
+    if key not in _STATIC:
+        _STATIC[key] = SymbolicModel(robot).functions["static_tension"]
+    return np.array(_STATIC[key](q)).ravel()
+
+
+def run_items(config_dict: dict[str, Any], items: Sequence[tuple[int, str, list, list]]
+              ) -> list[dict[str, Any]]:
+    """Worker entry point: run (pair, controller, start, goal) items, return CSV rows."""
+    config = SweepConfig(**{**config_dict, "controllers": tuple(config_dict["controllers"])})
+    robot = resolve_robot(config.robot)
+    rows = []
+    for pair, name, start, goal in items:
+        row = run_one(robot, name, np.array(start), np.array(goal), duration=config.duration,
+                      dt=config.dt, mass_scale=config.mass_scale)
+        row.update(pair=pair, controller=name)
+        row.update({f"start_{i}": value for i, value in enumerate(start)})
+        row.update({f"goal_{i}": value for i, value in enumerate(goal)})
+        rows.append(row)
+    return rows
+
+
+def sidecar_path(out: Path) -> Path:
+    return out.with_name(out.name + ".json")
+
+
+def read_rows(out: Path) -> list[dict[str, str]]:
+    """Complete rows already in a results file (a torn last line is dropped)."""
+    if not out.exists():
+        return []
+    text = out.read_text()
+    if text and not text.endswith("\n"):
+        text = text[: text.rfind("\n") + 1]
+        out.write_text(text)
+    return list(csv.DictReader(text.splitlines()))
+
+
+def _versions() -> dict[str, str]:
+    import casadi
+    import cvxpy
+
+    from cdpr_sym import __version__
+    return {"python": platform.python_version(), "numpy": np.__version__,
+            "casadi": casadi.__version__, "cvxpy": cvxpy.__version__, "cdpr_sym": __version__}
+
+
+def _prepare_output(config: SweepConfig, out: Path) -> set[tuple[int, str]]:
+    sidecar = sidecar_path(out)
+    if sidecar.exists():
+        stored = json.loads(sidecar.read_text())["config"]
+        if stored != config.as_dict():
+            raise InvalidCase("out", f"{out} holds a sweep with another configuration "
+                              f"({stored}); choose another --out or the same options")
+    elif out.exists():
+        raise InvalidCase("out", f"{out} exists without its sidecar {sidecar.name}; refusing "
+                          "to append to an unknown file")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    sidecar.write_text(json.dumps({"config": config.as_dict(), "versions": _versions(),
+                                   "columns": "see header", "created": time.time()},
+                                  indent=2) + "\n")
+    return {(int(row["pair"]), row["controller"]) for row in read_rows(out)}
+
+
+class Progress:
+    """A one-line progress bar on stderr: runs done, rate and time left."""
+
+    def __init__(self, total: int, *, enabled: bool) -> None:
+        self.total, self.enabled, self.done = total, enabled, 0
+        self.start = time.perf_counter()
+
+    def advance(self, count: int) -> None:
+        self.done += count
+        if not self.enabled:
+            return
+        elapsed = time.perf_counter() - self.start
+        rate = self.done / elapsed if elapsed > 0 else 0.0
+        left = (self.total - self.done) / rate if rate > 0 else float("nan")
+        width = 30
+        filled = int(width * self.done / max(self.total, 1))
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total}"
+                         f" runs  {rate:7.0f} runs/s  {left:5.1f} s left ")
+        if self.done >= self.total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def _chunks(items: list, size: int) -> list[list]:
+    return [items[i: i + size] for i in range(0, len(items), size)]
+
+
+def _local_map(function: Callable, config_dict: dict, chunks: list[list], workers: int
+               ) -> Iterable[list[dict[str, Any]]]:
+    if workers <= 1:
+        for chunk in chunks:
+            yield function(config_dict, chunk)
+        return
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = [pool.submit(function, config_dict, chunk) for chunk in chunks]
+        for future in concurrent.futures.as_completed(futures):
+            yield future.result()
+
+
+def _dask_map(address: str, function: Callable, config_dict: dict, chunks: list[list]
+              ) -> Iterable[list[dict[str, Any]]]:
+    try:
+        from dask.distributed import Client, as_completed
+    except ImportError:
+        raise InvalidCase("dask", "dask.distributed is not installed; "
+                          "pip install 'cdpr_sym[dask]'") from None
+    with Client(address) as client:
+        futures = client.map(function, [config_dict] * len(chunks), chunks, pure=False)
+        for future in as_completed(futures):
+            yield future.result()
+
+
+def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
+              dask_address: str | None = None, progress: bool = True,
+              chunk_size: int | None = None) -> Path:
+    """Run (or resume) a sweep, appending rows to the CSV file ``out``; returns ``out``."""
+    robot = resolve_robot(config.robot)
+    done = _prepare_output(config, out)
+    starts, goals = draw_pairs(robot, config)
+    items = [(pair, name, starts[pair].tolist(), goals[pair].tolist())
+             for pair in range(config.pairs) for name in config.controllers
+             if (pair, name) not in done]
+    workers = workers or os.cpu_count() or 1
+    size = chunk_size or max(1, min(400, math.ceil(len(items) / (8 * workers))))
+    chunks = _chunks(items, size)
+    if items and dask_address is None:
+        _warm_cache(robot, config.controllers)
+    header = columns(robot.n)
+    bar = Progress(len(items), enabled=progress)
+    results = (_dask_map(dask_address, run_items, config.as_dict(), chunks) if dask_address
+               else _local_map(run_items, config.as_dict(), chunks, workers))
+    with open(out, "a", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=header, extrasaction="ignore")
+        if handle.tell() == 0:
+            writer.writeheader()
+        for rows in results:
+            writer.writerows(rows)
+            handle.flush()
+            bar.advance(len(rows))
+    return out
+
+
+def _warm_cache(robot: Robot, names: Sequence[str]) -> None:
+    """Compile each controller once in this process so workers only load the library."""
+    for name in names:
+        get_simulator(robot, CONTROLLERS[name])
