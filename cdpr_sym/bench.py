@@ -39,7 +39,7 @@ def bench_controllers(robot: Robot, *, duration: float = 5.0, dt: float = 1e-3,
             simulator.run(robot.start, robot.goal, robot.k, robot.r_d, duration=duration,
                           dt=dt, plant=Plant())
         rate = _rate(run, min_seconds=min_seconds)
-        steps = int(round(duration / dt))
+        steps = round(duration / dt)
         out[name] = {"sims_per_s": rate, "us_per_step": 1e6 / (rate * steps)}
     return out
 

@@ -29,7 +29,8 @@ from cdpr_sym.box_designs import _ExactBoxDesign
 from cdpr_sym.controllers import FLAG_INFEASIBLE, ControlOutput
 from cdpr_sym.model import SymbolicModel
 
-SOLVER_OPTIONS = {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10, "max_iter": 400}
+SOLVER_OPTIONS = {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12,
+                  "tol_ktratio": 1e-10, "max_iter": 400}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -8,10 +8,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402  (backend must be chosen first)
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from cdpr_sym.trajectory import Trajectory  # noqa: E402
+from cdpr_sym.trajectory import Trajectory
 
 _AXES = {2: ("x", "z"), 3: ("x", "y", "z")}
 

@@ -242,7 +242,7 @@ class Simulator:
             ) -> Trajectory:
         """Simulate from rest (or ``dq0``) at ``start`` towards ``goal`` for ``duration`` s."""
         layout, n = self.layout, self.robot.n
-        n_steps = max(1, int(round(duration / dt)))
+        n_steps = max(1, round(duration / dt))
         padded = n_steps if self.backend == "c" else -(-n_steps // self.chunk) * self.chunk
         states = np.zeros((padded + 1, layout.n_x))
         logs = np.zeros((padded, layout.n_log))
@@ -385,7 +385,7 @@ def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=
     law = controller.law(model, z[:n], z[n:], p[:n], p[n: 2 * n], p[2 * n: 3 * n])
     applied = ca.if_else(p[3 * n + 2] > 0.5, ca.fmax(law.tau, 0), law.tau)
     ode = _closed_loop_rhs(model, applied, p[3 * n + 1])(z)
-    n_steps = max(1, int(round(duration / dt)))
+    n_steps = max(1, round(duration / dt))
     grid = np.arange(1, n_steps + 1) * dt
     integrator = ca.integrator("adaptive", "cvodes", {"x": z, "p": p, "ode": ode}, 0.0, grid,
                                {"reltol": rtol, "abstol": atol, "max_num_steps": 200000})

@@ -98,8 +98,8 @@ def draw_pairs(robot: Robot, config: SweepConfig) -> tuple[np.ndarray, np.ndarra
 def columns(n: int) -> list[str]:
     """CSV header for an n-DOF robot."""
     axes = [f"{i}" for i in range(n)]
-    return (["pair", "controller", *[f"start_{a}" for a in axes], *[f"goal_{a}" for a in axes],
-             "status", "error"] + list(METRIC_COLUMNS))
+    return ["pair", "controller", *[f"start_{a}" for a in axes], *[f"goal_{a}" for a in axes],
+            "status", "error", *METRIC_COLUMNS]
 
 
 def run_one(robot: Robot, controller_name: str, start: np.ndarray, goal: np.ndarray, *,

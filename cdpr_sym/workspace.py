@@ -7,7 +7,6 @@ in [T_min, T_max], and satisfies the *ball condition* (13) when
 
 from __future__ import annotations
 
-import ctypes
 import dataclasses
 
 import casadi as ca
