@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from cdpr_sym.controllers import FALLBACK_FLAGS, FLAG_ALPHA, FLAG_NAMES
+from cdpr_sym.controllers import FALLBACK_FLAGS, FLAG_ALPHA, FLAG_INFEASIBLE, FLAG_NAMES
 
 #: Settling band on ||q - q_goal||, m.
 SETTLE_TOLERANCE = 0.01
@@ -110,6 +110,7 @@ class Trajectory:
             "share_alpha_below_one": self.flag_share(FLAG_ALPHA),
             "share_fallback": self.flag_share(FALLBACK_FLAGS),
             "fallback_steps": int(np.count_nonzero(self.flags & FALLBACK_FLAGS)),
+            "infeasible_steps": int(np.count_nonzero(self.flags & FLAG_INFEASIBLE)),
             "tension_total_variation": float(steps.sum()),
             "max_tension_step": float(steps.max()) if steps.size else 0.0,
             "flag_counts": self.flag_counts(),

@@ -1,0 +1,719 @@
+"""Export a robot's controller, model and closed-loop step as a self-contained C99 package.
+
+The package needs neither Python nor CasADi to build or run. Staged as a build:
+the functions are made consistent (renamed with a C prefix, outputs made dense, matrices
+row-major), CasADi generates their C, the public header, wrappers, example and build files
+are rendered around it, and a JSON manifest records the robot, the controller and a hash of
+every file. One package is one folder:
+
+===========================  ==========================================================
+``<prefix>.h``               the one public header: documented wrapper functions
+``<prefix>.c``               the wrappers; includes the generated code
+``<prefix>_generated.inc``   CasADi's generated code (not compiled on its own)
+``main.c``                   the example: the closed loop from the case's start to goal
+``Makefile``, ``CMakeLists.txt``  a static library ``lib<prefix>.a`` and ``example``
+``README.md``, ``manifest.json``
+===========================  ==========================================================
+
+``<prefix>`` defaults to ``cdpr_<robot>_<controller>``, so packages of two robots (or two
+controllers) link into one program without a clash. Every call is CasADi SX code: straight
+line, no loops, no heap, no printing; the caller provides the work memory.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import re
+import subprocess
+import tempfile
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.compiled import find_compiler
+from cdpr_sym.controllers import FLAG_NAMES, Controller, controller_by_name, law_function
+from cdpr_sym.errors import CompilationFailed, CompilerNotFound, InvalidCase
+from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot import Robot, resolve_robot
+from cdpr_sym.simulation import STOP_REASONS, Plant, _Layout, step_function
+
+#: The model terms that always get a wrapper (every ``SymbolicModel.functions`` entry does).
+REQUIRED_MODEL_TERMS = ("cable_lengths", "structure_matrix", "mass_matrix", "potential",
+                        "p_matrix", "a_matrix")
+
+_INPUT_DOCS = {
+    "q": "position of the end-effector, m", "dq": "velocity, m/s",
+    "q_goal": "goal position, m", "k": "stiffness gains K (diagonal), N/m",
+    "r_d": "damping gains R_d (diagonal), N s/m", "tau": "cable tensions, N (> 0 pulls)",
+    "j": "free entries of J_d (row-major strict upper triangle), N s/m",
+}
+_MODEL_DOCS = {
+    "cable_lengths": "cable lengths l_i = |q - a_i|, m",
+    "structure_matrix": "structure matrix W (column i = unit vector towards anchor i), -",
+    "jacobian_ja": "the paper's J_a = -W^T (l_dot = J_a dq), -",
+    "mass_matrix": "inertia matrix M, kg",
+    "coriolis_matrix": "Coriolis matrix C, kg/s",
+    "potential": "potential energy V, J",
+    "grad_potential": "gradient of V, N",
+    "static_tension": "gravity-holding tension tau_1 = W^-1 grad V, N",
+    "p_matrix": "P(dq) with J_d dq = P j, m/s",
+    "interconnection_matrix": "skew matrix J_d(j), N s/m",
+    "a_matrix": "A = W^-1 P(dq) (tau_3 = A j), m/s",
+    "hamiltonian": "energy H = dq^T M dq / 2 + V, J",
+    "hamiltonian_d": "desired energy H_d = dq^T M dq / 2 + sum k_i e_i^2 / 2, J",
+    "acceleration": "acceleration ddq = M^-1 (W tau - C dq - grad V), m/s^2",
+}
+_FLAG_DOCS = {
+    "low_speed": "|dq| below the low-speed threshold (Remark 2); fallback law applied",
+    "beta_nonpositive": "beta <= 0 in (20): no certified margin; the law saturates",
+    "saturated": "the commanded tension was clipped to [T_MIN, T_MAX]",
+    "alpha_below_one": "alpha < 1: the PD action was scaled down (the design, not a fault)",
+    "singular": "|det W| below 1e-6: singular configuration; the step stops the loop",
+    "infeasible": "no alpha in (0, 1] reaches the tension box (box / linf designs)",
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class ExportResult:
+    """The files of one exported C package.
+
+    Attributes
+    ----------
+    out_dir : Path
+        The package folder.
+    prefix : str
+        The C prefix of every public symbol (``<prefix>_control``, ...).
+    header, source, generated, example, makefile, cmake, readme, manifest : Path
+        The files written (see the module docstring).
+    """
+
+    out_dir: Path
+    prefix: str
+    header: Path
+    source: Path
+    generated: Path
+    example: Path
+    makefile: Path
+    cmake: Path
+    readme: Path
+    manifest: Path
+
+    @property
+    def paths(self) -> tuple[Path, ...]:
+        """Every file written."""
+        return tuple(getattr(self, field.name) for field in dataclasses.fields(self)
+                     if field.name not in ("out_dir", "prefix"))
+
+
+@dataclasses.dataclass(frozen=True)
+class _Entry:
+    """One exported function: its public name, generated twin and C argument lists."""
+
+    name: str
+    function: ca.Function
+    summary: str
+    inputs: tuple[tuple[str, int, str], ...]
+    outputs: tuple[tuple[str, int, str], ...]
+
+
+def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: str | Path,
+             *, prefix: str | None = None) -> ExportResult:
+    """Write a self-contained C99 package of ``controller`` on ``robot`` to ``out_dir``.
+
+    Parameters
+    ----------
+    robot : Robot, str or Path
+        A robot, a preset name (``"aras3"``, ``"planar2"``) or a robot TOML file.
+    controller : Controller or str
+        A controller or its name in :data:`cdpr_sym.controllers.CONTROLLERS`.
+    out_dir : str or Path
+        The package folder; created if missing, files of an earlier export overwritten.
+    prefix : str, optional
+        C identifier prefixed to every public symbol; default ``cdpr_<robot>_<controller>``.
+
+    Returns
+    -------
+    ExportResult
+        The paths written.
+
+    Raises
+    ------
+    UnknownName
+        Unknown preset or controller name.
+    InvalidRobot
+        The robot file is missing or malformed.
+    InvalidCase
+        ``out_dir`` is an existing file (or cannot be created), or ``prefix`` is not a C
+        identifier.
+
+    Notes
+    -----
+    The generated functions compute exactly the CasADi expressions of
+    :func:`cdpr_sym.controllers.law_function`, :class:`cdpr_sym.model.SymbolicModel` and
+    :func:`cdpr_sym.simulation.step_function`; all quantities are SI (m, m/s, N, s).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> result = export_c("planar2", "pd", tempfile.mkdtemp())
+    >>> result.header.name
+    'cdpr_planar2_pd.h'
+    """
+    robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
+    controller = controller_by_name(controller) if isinstance(controller, str) else controller
+    prefix = prefix if prefix is not None else _identifier(f"cdpr_{robot.name}_{controller.name}")
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", prefix):
+        raise InvalidCase("prefix", f"expected a C identifier, got {prefix!r}")
+    out = _make_folder(Path(out_dir))
+    entries = _entries(SymbolicModel(robot), controller, prefix)
+    layout = _Layout(robot.n, robot.n_j)
+    texts = {
+        f"{prefix}_generated.inc": _generated(entries, prefix),
+        f"{prefix}.h": _header(robot, controller, prefix, entries, layout),
+        f"{prefix}.c": _source(robot, prefix, entries),
+        "main.c": _render(_EXAMPLE_C, prefix, robot=robot.name, controller=controller.name),
+        "Makefile": _render(_MAKEFILE, prefix),
+        "CMakeLists.txt": _render(_CMAKE, prefix),
+        "README.md": _readme(robot, controller, prefix),
+    }
+    for name, text in texts.items():
+        (out / name).write_text(text)
+    manifest = {"prefix": prefix, "robot": robot.as_dict(),
+                "controller": {"name": controller.name, "options": controller.options()},
+                "casadi_version": ca.__version__,
+                "functions": {e.name: {"operations": e.function.n_instructions(),
+                                       "work_doubles": e.function.sz_w()} for e in entries},
+                "sha256": {name: hashlib.sha256(text.encode()).hexdigest()
+                           for name, text in texts.items()}}
+    (out / "manifest.json").write_text(json.dumps(manifest, indent=2) + "\n")
+    return ExportResult(out_dir=out, prefix=prefix, header=out / f"{prefix}.h",
+                        source=out / f"{prefix}.c", generated=out / f"{prefix}_generated.inc",
+                        example=out / "main.c", makefile=out / "Makefile",
+                        cmake=out / "CMakeLists.txt", readme=out / "README.md",
+                        manifest=out / "manifest.json")
+
+
+def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
+                 min_seconds: float = 0.5, compiler: str | None = None) -> float:
+    """Calls per second of the exported ``<prefix>_control``, timed by a C loop.
+
+    The package is exported to a temporary folder and built with ``-O2`` together with a
+    small timing program, which cycles through 64 states near the case's start (moving and
+    at rest) for at least ``min_seconds`` s and reports the best of three rounds.
+
+    Raises
+    ------
+    CompilerNotFound
+        No C compiler is available.
+    CompilationFailed
+        The compiler rejected the code (its output is in the message).
+    """
+    robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
+    cc = find_compiler(compiler)
+    if cc is None:
+        raise CompilerNotFound("no C compiler found (looked for $CC, cc, gcc, clang)")
+    rng = np.random.default_rng(0)
+    states = np.column_stack([robot.start + rng.normal(scale=0.05, size=(64, robot.n)),
+                              rng.normal(scale=0.3, size=(64, robot.n))])
+    states[::8, robot.n:] = 0.0
+    with tempfile.TemporaryDirectory(prefix="cdpr_bench_") as folder:
+        result = export_c(robot, controller, folder, prefix="cdpr_bench")
+        bench = Path(folder) / "bench.c"
+        values = ",\n".join(", ".join(f"{v!r}" for v in row) for row in states)
+        bench.write_text(_BENCH_C.replace("STATES", values).replace(
+            "MIN_SECONDS", repr(float(min_seconds))))
+        program = Path(folder) / "bench"
+        _run([cc, "-std=c99", "-O2", "-I", folder, str(bench), str(result.source), "-o",
+              str(program), "-lm"])
+        return float(_run([str(program)]).split()[-1])
+
+
+# -- consistent functions -----------------------------------------------------------------
+def _entries(model: SymbolicModel, controller: Controller, prefix: str) -> list[_Entry]:
+    n, n_j = model.n, model.n_j
+    law, step = law_function(model, controller), step_function(model, controller)
+    layout = _Layout(n, n_j)
+    entries = [
+        _entry("control", law, prefix, "one control step of the law (see <prefix>_control)"),
+        _entry("step", step, prefix, f"one closed-loop period: control, then RK4 of dt "
+               f"(x: {layout.n_x}, p: {layout.n_p}, log: {layout.n_log} doubles)"),
+    ]
+    for name, function in model.functions.items():
+        entries.append(_entry(name, function, prefix, _MODEL_DOCS.get(
+            name, f"model term {name} (see cdpr_sym.model.SymbolicModel)")))
+    return entries
+
+
+def _entry(name: str, function: ca.Function, prefix: str, summary: str) -> _Entry:
+    """``function`` renamed ``<prefix>_cg_<name>`` with dense, row-major outputs."""
+    inputs = function.sx_in()
+    outputs = [ca.densify(out.T) if out.size1() > 1 and out.size2() > 1 else ca.densify(out)
+               for out in function.call(inputs)]
+    renamed = ca.Function(f"{prefix}_cg_{name}", inputs, outputs, function.name_in(),
+                          function.name_out(), {"cse": True})
+
+    def describe(index: int, is_input: bool) -> tuple[str, int, str]:
+        label = (function.name_in if is_input else function.name_out)(index)
+        rows, cols = (function.size_in if is_input else function.size_out)(index)
+        doc = _INPUT_DOCS.get(label, summary) if is_input else summary
+        shape = f"{rows} x {cols}, row-major" if rows > 1 and cols > 1 else f"{rows * cols}"
+        return label, rows * cols, f"{doc} [{shape}]"
+    return _Entry(name, renamed, summary,
+                  tuple(describe(i, True) for i in range(function.n_in())),
+                  tuple(describe(i, False) for i in range(function.n_out())))
+
+
+def _generated(entries: list[_Entry], prefix: str) -> str:
+    generator = ca.CodeGenerator(f"{prefix}_generated.c", {
+        "with_header": False, "with_export": False, "verbose": False, "prefix": f"{prefix}_",
+        "casadi_real": "double", "casadi_int": "long long int"})
+    for entry in entries:
+        generator.add(entry.function)
+    return (f"/* Generated by CasADi {ca.__version__} for {prefix}; do not edit. Included by "
+            f"{prefix}.c, not compiled on its own. */\n" + generator.dump())
+
+
+# -- C text ---------------------------------------------------------------------------------
+def _header(robot: Robot, controller: Controller, prefix: str, entries: list[_Entry],
+            layout: _Layout) -> str:
+    up, n, n_j = prefix.upper(), robot.n, robot.n_j
+    sizes = {"SZ_ARG": max(max(e.function.sz_arg(), e.function.n_in()) for e in entries),
+             "SZ_RES": max(max(e.function.sz_res(), e.function.n_out()) for e in entries),
+             "SZ_IW": max(1, *(e.function.sz_iw() for e in entries)),
+             "SZ_W": max(1, *(e.function.sz_w() for e in entries))}
+    p_index = _parameter_index(layout)
+    lines = [f"#define {up}_N {n}  /* degrees of freedom = cables */",
+             f"#define {up}_NJ {n_j}  /* free entries of J_d, n(n-1)/2 */",
+             f"#define {up}_NX {layout.n_x}  /* step state x = [q (m), dq (m/s), status] */",
+             f"#define {up}_NP {layout.n_p}  /* step parameters p, see {up}_P_* */",
+             f"#define {up}_NLOG {layout.n_log}  /* step log = [tau, alpha, beta, j, flags] */",
+             f"#define {up}_T_MIN {robot.t_min!r}  /* tension bounds, N */",
+             f"#define {up}_T_MAX {robot.t_max!r}",
+             "", "/* Index layout of x, p and log (offsets into the arrays). */",
+             f"#define {up}_X_Q 0", f"#define {up}_X_DQ {n}", f"#define {up}_X_STATUS {2 * n}"]
+    lines += [f"#define {up}_P_{key.upper()} {value}" for key, value in p_index.items()]
+    lines += [f"#define {up}_LOG_TAU 0", f"#define {up}_LOG_ALPHA {n}",
+              f"#define {up}_LOG_BETA {n + 1}", f"#define {up}_LOG_J {n + 2}",
+              f"#define {up}_LOG_FLAGS {n + 2 + n_j}",
+              "", "/* Bits of flags (control output and log[LOG_FLAGS]). */"]
+    lines += [f"#define {up}_FLAG_{name.upper()} {bit}  /* {_FLAG_DOCS.get(name, name)} */"
+              for bit, name in sorted(FLAG_NAMES.items())]
+    lines += ["", "/* Values of x[X_STATUS] after a step: 0 runs; else the loop stopped and the "
+              "state is frozen. */"]
+    lines += [f"#define {up}_STATUS_{name.upper()} {code}"
+              for code, name in sorted(STOP_REASONS.items())]
+    lines += ["", "/* Work memory: sizes of the arrays in the work struct (the largest over all "
+              "functions). */"]
+    lines += [f"#define {up}_{key} {value}" for key, value in sizes.items()]
+    declarations = [_CONTROL_DOC.replace("NN", str(n)).replace("NJ", str(n_j)),
+                    f"int {prefix}_control(const double q[{n}], const double dq[{n}], "
+                    f"const double q_goal[{n}],\n    const double k[{n}], const double r_d[{n}], "
+                    f"double tau[{n}], double *alpha, double *beta,\n    double j[{n_j}], "
+                    f"int *flags, {prefix}_work *work);", "",
+                    _PARAMETERS_DOC, f"void {prefix}_parameters(const double q_goal[{n}], "
+                    f"const double k[{n}], const double r_d[{n}],\n    double dt, "
+                    f"double mass_scale, int slack, double p[{layout.n_p}]);", ""]
+    for entry in entries[1:]:
+        operations = entry.function.n_instructions()
+        doc = [f"/* {entry.summary}.", f" * {operations} straight-line operations; returns 0, "
+               "or -1 if a pointer is NULL."]
+        doc += [f" * in  {label}[{size}]: {text}" for label, size, text in entry.inputs]
+        doc += [f" * out {label}[{size}]: {text}" for label, size, text in entry.outputs]
+        declarations += [*doc, " */", f"int {_signature(prefix, entry)};", ""]
+    return _render(_HEADER, prefix, robot=robot.name, controller=controller.name,
+                   options=json.dumps(controller.options()), macros="\n".join(lines),
+                   declarations="\n".join(declarations), operations=str(max(
+                       e.function.n_instructions() for e in entries)))
+
+
+def _signature(prefix: str, entry: _Entry) -> str:
+    arguments = [f"const double {label}[{size}]" for label, size, _ in entry.inputs]
+    arguments += [f"double {label}[{size}]" for label, size, _ in entry.outputs]
+    return f"{prefix}_{entry.name}({', '.join(arguments)}, {prefix}_work *work)"
+
+
+def _source(robot: Robot, prefix: str, entries: list[_Entry]) -> str:
+    def array(values: np.ndarray) -> str:
+        return "{" + ", ".join(repr(float(v)) for v in values) + "}"
+    case = "\n".join(f"const double {prefix}_case_{field}[{robot.n}] = "
+                     f"{array(getattr(robot, field))};"
+                     for field in ("start", "goal", "k", "r_d"))
+    wrappers = []
+    for entry in entries:
+        if entry.name == "control":
+            continue
+        names = [label for label, _, _ in (*entry.inputs, *entry.outputs)]
+        body = [f"int {_signature(prefix, entry)} {{",
+                f"  if (work == 0 || {' || '.join(f'{label} == 0' for label in names)}) "
+                "return -1;"]
+        body += [f"  work->arg[{i}] = {label};" for i, (label, _, _) in enumerate(entry.inputs)]
+        body += [f"  work->res[{i}] = {label};" for i, (label, _, _) in enumerate(entry.outputs)]
+        body += [f"  return {entry.function.name()}(work->arg, work->res, work->iw, work->w, 0) "
+                 "? -1 : 0;", "}", ""]
+        wrappers.append("\n".join(body))
+    return _render(_SOURCE, prefix, case=case, wrappers="\n".join(wrappers))
+
+
+def _parameter_index(layout: _Layout) -> dict[str, int]:
+    """Offsets of the fields of p, read from ``_Layout.parameters`` with marker values."""
+    n = layout.n
+    markers = layout.parameters(1000.0 + np.arange(n), 2000.0 + np.arange(n),
+                                3000.0 + np.arange(n), 4000.0, Plant(mass_scale=5000.0,
+                                                                      slack=True))
+    where = {"goal": 1000.0, "k": 2000.0, "r_d": 3000.0, "dt": 4000.0, "mass_scale": 5000.0,
+             "slack": 1.0}
+    index = {key: int(np.flatnonzero(markers == value)[0]) for key, value in where.items()}
+    for key, first in (("goal", 1000.0), ("k", 2000.0), ("r_d", 3000.0)):
+        if not np.array_equal(markers[index[key]: index[key] + n], first + np.arange(n)):
+            raise RuntimeError(f"step parameter {key} is not contiguous in _Layout.parameters")
+    return index
+
+
+def _readme(robot: Robot, controller: Controller, prefix: str) -> str:
+    return _render(_README, prefix, robot=robot.name, controller=controller.name,
+                   n=str(robot.n), options=json.dumps(controller.options()))
+
+
+def _render(template: str, prefix: str, **values: str) -> str:
+    text = template.replace("@PREFIX@", prefix).replace("@UPPER@", prefix.upper())
+    for key, value in values.items():
+        text = text.replace(f"@{key}@", value)
+    return text
+
+
+def _identifier(text: str) -> str:
+    return re.sub(r"[^0-9A-Za-z_]", "_", text).lower()
+
+
+def _make_folder(out: Path) -> Path:
+    if out.exists() and not out.is_dir():
+        raise InvalidCase("out_dir", f"expected a folder for the C package, got the existing "
+                          f"file {out}")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as failure:
+        raise InvalidCase("out_dir", f"cannot create the folder {out}: {failure}") from None
+    return out
+
+
+def _run(command: list[str]) -> str:
+    try:
+        return subprocess.run(command, check=True, capture_output=True, text=True).stdout
+    except subprocess.CalledProcessError as failure:
+        raise CompilationFailed(f"{' '.join(command)} failed with exit code "
+                                f"{failure.returncode}:\n{failure.stderr[-4000:]}") from None
+
+
+_CONTROL_DOC = """\
+/* One control step: the tension commanded at the state (q, dq) for the goal q_goal.
+ *
+ * in  q[NN]       position, m
+ * in  dq[NN]      velocity, m/s (|dq| below the low-speed threshold, 0 included, is handled)
+ * in  q_goal[NN]  goal position, m
+ * in  k[NN]       stiffness gains K (diagonal), N/m; NULL: the robot's case gains
+ * in  r_d[NN]     damping gains R_d (diagonal), N s/m; NULL: the robot's case gains
+ * out tau[NN]     commanded cable tensions, N (> 0 pulls)
+ * out alpha      scale on the PD part, eq. (24), in (0, 1]           (may be NULL)
+ * out beta       margin of eq. (20), N                                (may be NULL)
+ * out j[NJ]       free entries of J_d, N s/m                           (may be NULL)
+ * out flags      bit set of the FLAG_* macros above                   (may be NULL)
+ * work           caller-provided work memory (not shared between threads)
+ * Returns 0, or -1 if q, dq, q_goal, tau or work is NULL (nothing is written then).
+ */"""
+
+_PARAMETERS_DOC = """\
+/* Fill the step's parameter vector p (layout P_* above). q_goal, k, r_d: m, N/m, N s/m,
+ * each NULL for the robot's case values; dt: control period, s; mass_scale: plant mass over
+ * model mass (1 = nominal); slack: nonzero if the plant applies max(tau, 0). */"""
+
+_HEADER = """\
+/* @PREFIX@.h -- exported from cdpr_sym: robot "@robot@", controller "@controller@"
+ * (options @options@).
+ *
+ * Units are SI throughout: m, m/s, m/s^2, s, kg, N. Vectors are double arrays of the stated
+ * length; matrices are row-major (M[i * cols + j] is row i, column j).
+ *
+ * Real-time properties: every function below is straight-line code generated by CasADi
+ * from SX expressions (at most @operations@ operations, no loops, no recursion), so its
+ * execution time is bounded and data-independent up to branch prediction. No function
+ * allocates heap memory, prints, or keeps state between calls: all scratch memory is the
+ * caller's @PREFIX@_work (@UPPER@_WORK_BYTES bytes; static, stack or pool). Calls on
+ * different work structs may run concurrently.
+ */
+#ifndef @UPPER@_H
+#define @UPPER@_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+@macros@
+
+/* Scratch memory of every call; its content is undefined between calls. */
+typedef struct @PREFIX@_work {
+  const double *arg[@UPPER@_SZ_ARG];
+  double *res[@UPPER@_SZ_RES];
+  long long iw[@UPPER@_SZ_IW];
+  double w[@UPPER@_SZ_W];
+} @PREFIX@_work;
+#define @UPPER@_WORK_BYTES (sizeof(@PREFIX@_work))
+
+/* The robot's default case (from its description), SI units. */
+extern const double @PREFIX@_case_start[@UPPER@_N];  /* m */
+extern const double @PREFIX@_case_goal[@UPPER@_N];   /* m */
+extern const double @PREFIX@_case_k[@UPPER@_N];      /* N/m */
+extern const double @PREFIX@_case_r_d[@UPPER@_N];    /* N s/m */
+
+@declarations@
+#ifdef __cplusplus
+}
+#endif
+#endif /* @UPPER@_H */
+"""
+
+_SOURCE = """\
+/* @PREFIX@.c -- wrappers of the generated code (see @PREFIX@.h). */
+#include "@PREFIX@.h"
+
+/* CasADi's generated functions take (arg, res, iw, w, mem) and do not use every argument. */
+#if defined(__GNUC__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wunused-parameter"
+#endif
+#include "@PREFIX@_generated.inc"
+#if defined(__GNUC__)
+#pragma GCC diagnostic pop
+#endif
+
+@case@
+
+int @PREFIX@_control(const double q[@UPPER@_N], const double dq[@UPPER@_N],
+    const double q_goal[@UPPER@_N], const double k[@UPPER@_N], const double r_d[@UPPER@_N],
+    double tau[@UPPER@_N], double *alpha, double *beta, double j[@UPPER@_NJ], int *flags,
+    @PREFIX@_work *work) {
+  double flag_value = 0.0;
+  if (work == 0 || q == 0 || dq == 0 || q_goal == 0 || tau == 0) return -1;
+  work->arg[0] = q;
+  work->arg[1] = dq;
+  work->arg[2] = q_goal;
+  work->arg[3] = k ? k : @PREFIX@_case_k;
+  work->arg[4] = r_d ? r_d : @PREFIX@_case_r_d;
+  work->res[0] = tau;
+  work->res[1] = alpha;
+  work->res[2] = beta;
+  work->res[3] = j;
+  work->res[4] = &flag_value;
+  if (@PREFIX@_cg_control(work->arg, work->res, work->iw, work->w, 0)) return -1;
+  if (flags) *flags = (int) flag_value;
+  return 0;
+}
+
+void @PREFIX@_parameters(const double q_goal[@UPPER@_N], const double k[@UPPER@_N],
+    const double r_d[@UPPER@_N], double dt, double mass_scale, int slack,
+    double p[@UPPER@_NP]) {
+  int i;
+  for (i = 0; i < @UPPER@_N; ++i) {
+    p[@UPPER@_P_GOAL + i] = q_goal ? q_goal[i] : @PREFIX@_case_goal[i];
+    p[@UPPER@_P_K + i] = k ? k[i] : @PREFIX@_case_k[i];
+    p[@UPPER@_P_R_D + i] = r_d ? r_d[i] : @PREFIX@_case_r_d[i];
+  }
+  p[@UPPER@_P_DT] = dt;
+  p[@UPPER@_P_MASS_SCALE] = mass_scale;
+  p[@UPPER@_P_SLACK] = slack ? 1.0 : 0.0;
+}
+
+@wrappers@"""
+
+_EXAMPLE_C = """\
+/* Example: the closed loop of robot "@robot@" with controller "@controller@", from the
+ * case's start (at rest) to its goal: 10 s of control at 1 kHz, each period one RK4 step of
+ * the plant with the tension held (@PREFIX@_step). Prints the final state and error and the
+ * range of the commanded tension. */
+#include <math.h>
+#include <stdio.h>
+
+#include "@PREFIX@.h"
+
+#define DURATION 10.0 /* s */
+#define DT 1e-3       /* s */
+
+int main(void) {
+  static @PREFIX@_work work; /* static: no stack or heap needed for scratch memory */
+  double x[@UPPER@_NX], x_next[@UPPER@_NX], p[@UPPER@_NP], log[@UPPER@_NLOG];
+  double tau_min = INFINITY, tau_max = -INFINITY, error = 0.0;
+  long n_steps = (long) (DURATION / DT + 0.5), taken = 0, step;
+  int i;
+
+  for (i = 0; i < @UPPER@_N; ++i) {
+    x[@UPPER@_X_Q + i] = @PREFIX@_case_start[i];
+    x[@UPPER@_X_DQ + i] = 0.0;
+  }
+  x[@UPPER@_X_STATUS] = 0.0;
+  @PREFIX@_parameters(@PREFIX@_case_goal, @PREFIX@_case_k, @PREFIX@_case_r_d, DT, 1.0, 0, p);
+
+  for (step = 0; step < n_steps; ++step) {
+    if (@PREFIX@_step(x, p, x_next, log, &work) != 0) {
+      fprintf(stderr, "step %ld failed\\n", step);
+      return 1;
+    }
+    if (x_next[@UPPER@_X_STATUS] != 0.0) break; /* singular, non-finite or left the frame */
+    for (i = 0; i < @UPPER@_N; ++i) {
+      double tau = log[@UPPER@_LOG_TAU + i];
+      tau_min = tau < tau_min ? tau : tau_min;
+      tau_max = tau > tau_max ? tau : tau_max;
+    }
+    for (i = 0; i < @UPPER@_NX; ++i) x[i] = x_next[i];
+    ++taken;
+  }
+
+  for (i = 0; i < @UPPER@_N; ++i) {
+    double e = x[@UPPER@_X_Q + i] - @PREFIX@_case_goal[i];
+    error += e * e;
+  }
+  printf("robot @robot@ controller @controller@\\n");
+  printf("steps %ld of %ld, dt %g s, status %g\\n", taken, n_steps, DT,
+         x_next[@UPPER@_X_STATUS]);
+  printf("final_q");
+  for (i = 0; i < @UPPER@_N; ++i) printf(" %.17g", x[@UPPER@_X_Q + i]);
+  printf("\\nfinal_dq");
+  for (i = 0; i < @UPPER@_N; ++i) printf(" %.17g", x[@UPPER@_X_DQ + i]);
+  printf("\\nfinal_error_m %.6e\\n", sqrt(error));
+  printf("tension_min_N %.17g\\ntension_max_N %.17g\\n", tau_min, tau_max);
+  printf("tension_bounds_N %g %g\\n", @UPPER@_T_MIN, @UPPER@_T_MAX);
+  return 0;
+}
+"""
+
+_MAKEFILE = """\
+# Builds lib@PREFIX@.a and the example. Override CC / CFLAGS as usual, e.g.
+#   make CC=clang CFLAGS="-std=c99 -O3 -Wall -Wextra -Werror"
+CC ?= cc
+CFLAGS ?= -std=c99 -O2 -Wall -Wextra
+AR ?= ar
+
+all: lib@PREFIX@.a example
+
+@PREFIX@.o: @PREFIX@.c @PREFIX@.h @PREFIX@_generated.inc
+\t$(CC) $(CFLAGS) -c @PREFIX@.c -o $@
+
+lib@PREFIX@.a: @PREFIX@.o
+\t$(AR) rcs $@ $^
+
+example: main.c @PREFIX@.h lib@PREFIX@.a
+\t$(CC) $(CFLAGS) main.c -L. -l@PREFIX@ -lm -o $@
+
+clean:
+\trm -f @PREFIX@.o lib@PREFIX@.a example
+
+.PHONY: all clean
+"""
+
+_CMAKE = """\
+cmake_minimum_required(VERSION 3.10)
+project(@PREFIX@ C)
+
+add_library(@PREFIX@ STATIC @PREFIX@.c)
+target_include_directories(@PREFIX@ PUBLIC ${CMAKE_CURRENT_SOURCE_DIR})
+set_target_properties(@PREFIX@ PROPERTIES C_STANDARD 99 C_STANDARD_REQUIRED ON
+                      C_EXTENSIONS OFF)
+find_library(MATH_LIBRARY m)
+if(MATH_LIBRARY)
+  target_link_libraries(@PREFIX@ PUBLIC ${MATH_LIBRARY})
+endif()
+
+add_executable(example main.c)
+set_target_properties(example PROPERTIES C_STANDARD 99 C_STANDARD_REQUIRED ON
+                      C_EXTENSIONS OFF)
+target_link_libraries(example PRIVATE @PREFIX@)
+"""
+
+_README = """\
+# @PREFIX@: exported controller of `@robot@` / `@controller@`
+
+Self-contained C99 code exported by `cdpr-sym export-c --robot @robot@ --controller
+@controller@` (controller options: `@options@`). Neither Python nor CasADi is needed to
+build or run it; it needs a C99 compiler and the maths library.
+
+## Build
+
+    make                 # lib@PREFIX@.a and ./example
+    ./example            # 10 s closed loop from the case's start to its goal
+
+or with CMake:
+
+    cmake -S . -B build && cmake --build build && ./build/example
+
+To use it in your project, compile `@PREFIX@.c` (it includes `@PREFIX@_generated.inc`;
+do not compile that file on its own) and include `@PREFIX@.h`.
+
+## Files
+
+| file | content |
+|---|---|
+| `@PREFIX@.h` | the API: sizes, index layouts, flag bits, work memory, functions |
+| `@PREFIX@.c` | wrappers and the robot's default case |
+| `@PREFIX@_generated.inc` | CasADi's generated code |
+| `main.c` | the example closed loop |
+| `manifest.json` | robot, controller, CasADi version and SHA-256 of every file |
+
+## API in brief
+
+    @PREFIX@_work work;   /* caller-provided scratch memory, @UPPER@_WORK_BYTES bytes */
+    @PREFIX@_control(q, dq, q_goal, k, r_d, tau, &alpha, &beta, j, &flags, &work);
+    @PREFIX@_step(x, p, x_next, log, &work);   /* control + one RK4 step of dt */
+
+plus one function per model term (`@PREFIX@_cable_lengths`, `_structure_matrix`,
+`_mass_matrix`, `_potential`, `_p_matrix`, `_a_matrix`, ...). Units are SI (m, m/s, N, s);
+matrices are row-major; n = @n@. The header documents every argument, the index layout of
+the step's state `x`, parameters `p` (fill it with `@PREFIX@_parameters`) and log, and the
+`@UPPER@_FLAG_*` bits (fallbacks and limits that acted in a control step).
+
+All functions are straight-line code (no loops), allocate nothing, print nothing and keep
+no state, so the execution time is bounded and calls with separate work structs are
+thread-safe. Every public symbol starts with `@PREFIX@_`, so packages of several robots or
+controllers link into one program.
+"""
+
+_BENCH_C = """\
+#define _POSIX_C_SOURCE 199309L
+#include <stdio.h>
+#include <time.h>
+#include "cdpr_bench.h"
+
+static const double states[64][2 * CDPR_BENCH_N] = {
+STATES
+};
+
+static double now(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return (double) t.tv_sec + 1e-9 * (double) t.tv_nsec;
+}
+
+int main(void) {
+  static cdpr_bench_work work;
+  double tau[CDPR_BENCH_N], best = 0.0;
+  volatile double sink = 0.0;
+  int round;
+  for (round = 0; round < 3; ++round) {
+    long calls = 0, i;
+    double start = now(), elapsed;
+    do {
+      for (i = 0; i < 4096; ++i) {
+        const double *s = states[i & 63];
+        cdpr_bench_control(s, s + CDPR_BENCH_N, cdpr_bench_case_goal, 0, 0, tau, 0, 0, 0, 0,
+                           &work);
+        sink += tau[0];
+      }
+      calls += 4096;
+      elapsed = now() - start;
+    } while (elapsed < MIN_SECONDS / 3.0);
+    if (calls / elapsed > best) best = calls / elapsed;
+  }
+  printf("calls_per_s %.6e\\n", best);
+  return 0;
+}
+"""

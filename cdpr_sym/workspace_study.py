@@ -1,0 +1,99 @@
+"""``cdpr-sym workspace``: the static workspace on a grid, by height, as figures and a table."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from cdpr_sym.robot import Robot  # noqa: E402
+from cdpr_sym.workspace import WorkspaceEvaluator  # noqa: E402
+
+
+def grid_points(robot: Robot, resolution: int) -> tuple[list[np.ndarray], np.ndarray]:
+    """Axis samples (open grid strictly inside the frame) and all points, shape (N, n)."""
+    axes = [np.linspace(lo, hi, resolution + 2)[1:-1]
+            for lo, hi in zip(robot.frame_lower, robot.frame_upper, strict=True)]
+    mesh = np.meshgrid(*axes, indexing="ij")
+    return axes, np.stack([m.ravel() for m in mesh], axis=1)
+
+
+def run_workspace_study(robot: Robot, out_dir: Path, *, resolution: int = 61) -> dict[str, Any]:
+    """Classify a grid, write ``workspace.md``, ``workspace.json`` and slice figures."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    evaluator = WorkspaceEvaluator(robot)
+    axes, points = grid_points(robot, resolution)
+    start = time.perf_counter()
+    result = evaluator.classify(points)
+    seconds = time.perf_counter() - start
+    shape = tuple(len(a) for a in axes)
+    feasible = result.feasible.reshape(shape)
+    ball = result.ball.reshape(shape)
+    heights = axes[-1]
+    other = tuple(range(robot.n - 1))
+    by_height = [{"height_m": float(h), "feasible_share": float(f), "ball_share": float(b)}
+                 for h, f, b in zip(heights, feasible.mean(axis=other), ball.mean(axis=other),
+                                    strict=True)]
+    summary = {"robot": robot.name, "points": len(points), "seconds": seconds,
+               "poses_per_s": len(points) / seconds, "feasible_share": float(feasible.mean()),
+               "ball_share": float(ball.mean()), "by_height": by_height}
+    (out_dir / "workspace.json").write_text(json.dumps(summary, indent=2) + "\n")
+    figures = _figures(robot, axes, feasible, ball, out_dir)
+    (out_dir / "workspace.md").write_text(_markdown(summary, figures))
+    return summary
+
+
+def _figures(robot: Robot, axes, feasible, ball, out_dir: Path) -> list[str]:
+    if robot.n == 2:
+        fig, ax = plt.subplots(figsize=(5.5, 4.5))
+        _panel(ax, axes[0], axes[1], feasible, ball, "x [m]", "z [m]", "static workspace")
+        fig.tight_layout()
+        fig.savefig(out_dir / "workspace_plane.png", dpi=110)
+        plt.close(fig)
+        return ["workspace_plane.png"]
+    levels = np.linspace(0, len(axes[2]) - 1, 6).round().astype(int)[1:-1]
+    fig, grid = plt.subplots(1, len(levels), figsize=(3.6 * len(levels), 4.2), squeeze=False)
+    for ax, level in zip(grid[0], levels, strict=True):
+        _panel(ax, axes[0], axes[1], feasible[:, :, level], ball[:, :, level], "x [m]", "y [m]",
+               f"z = {axes[2][level]:.2f} m")
+    fig.tight_layout()
+    fig.savefig(out_dir / "workspace_slices.png", dpi=110)
+    plt.close(fig)
+    fig, grid = plt.subplots(1, 2, figsize=(10, 4.2))
+    _panel(grid[0], axes[0], axes[2], feasible.mean(axis=1) > 0, ball.mean(axis=1) > 0,
+           "x [m]", "z [m]", "projection on x-z (feasible for some y)")
+    _panel(grid[1], axes[1], axes[2], feasible.mean(axis=0) > 0, ball.mean(axis=0) > 0,
+           "y [m]", "z [m]", "projection on y-z (feasible for some x)")
+    fig.tight_layout()
+    fig.savefig(out_dir / "workspace_projections.png", dpi=110)
+    plt.close(fig)
+    return ["workspace_slices.png", "workspace_projections.png"]
+
+
+def _panel(ax, first, second, feasible, ball, xlabel, ylabel, title) -> None:
+    image = feasible.astype(float) + ball.astype(float)
+    ax.pcolormesh(first, second, image.T, cmap="Greens", vmin=0, vmax=2, shading="nearest")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title + "\n(light: T_m ≤ τ₁ ≤ T_M, dark: also ball (13))", fontsize=8)
+    ax.set_aspect("equal")
+
+
+def _markdown(summary: dict[str, Any], figures: list[str]) -> str:
+    lines = [f"# Static workspace of `{summary['robot']}`", "",
+             f"{summary['points']} grid poses classified in {summary['seconds']:.3f} s "
+             f"({summary['poses_per_s']:.2e} poses/s, generated C). Feasible (T_m ≤ W⁻¹∇V ≤ "
+             f"T_M): {100 * summary['feasible_share']:.1f} % of the frame; ball condition (13): "
+             f"{100 * summary['ball_share']:.1f} %.", "",
+             "| height [m] | feasible | ball (13) |", "|---|---|---|"]
+    lines += [f"| {row['height_m']:.3f} | {100 * row['feasible_share']:.1f} % | "
+              f"{100 * row['ball_share']:.1f} % |" for row in summary["by_height"]]
+    lines += ["", *[f"![{name}]({name})\n" for name in figures]]
+    return "\n".join(lines)
