@@ -62,6 +62,25 @@ def bench_model_call(robot: Robot, *, min_seconds: float = 0.5,
     return out
 
 
+def bench_cvxpy(robot: Robot, *, states: int = 100) -> dict[str, dict[str, float]]:
+    """Per-step solve time (us) of the box and l∞ designs through cvxpy + Clarabel."""
+    from cdpr_sym.cvx_designs import cvx_design
+    from cdpr_sym.model import SymbolicModel
+
+    model = SymbolicModel(robot)
+    out = {}
+    for name in ("box", "linf"):
+        design = CONTROLLERS[name]
+        run = get_simulator(robot, design).run(robot.start, robot.goal, robot.k, robot.r_d,
+                                               duration=1.0, dt=1e-3, plant=Plant())
+        reference = cvx_design(model, design)
+        picks = np.linspace(1, len(run.tau) - 1, states).round().astype(int)
+        seconds = [reference.solve(run.q[k], run.dq[k], run.q_goal, robot.k, robot.r_d).seconds
+                   for k in picks]
+        out[name] = {"cvxpy_us_per_step": 1e6 * float(np.median(seconds))}
+    return out
+
+
 def run_bench(robot: Robot, *, min_seconds: float = 1.0,
               build_options: BuildOptions = BuildOptions()) -> dict[str, Any]:
     """All benchmarks as one JSON-ready dictionary."""
@@ -70,6 +89,7 @@ def run_bench(robot: Robot, *, min_seconds: float = 1.0,
                                              build_options=build_options),
             "model_call": bench_model_call(robot, min_seconds=min_seconds / 2,
                                            build_options=build_options),
+            "cvxpy": bench_cvxpy(robot),
             "target_sims_per_s": 1000}
 
 
@@ -80,6 +100,13 @@ def format_table(result: dict[str, Any]) -> str:
              f"{'controller':<14}{'sims/s':>10}{'us/step':>10}"]
     for name, row in result["controllers"].items():
         lines.append(f"{name:<14}{row['sims_per_s']:>10.0f}{row['us_per_step']:>10.3f}")
+    lines.append("")
+    lines.append("box / l∞ design, one control step: fast path (generated C, whole closed-loop "
+                 "step) vs cvxpy + Clarabel (solve only)")
+    for name, row in result["cvxpy"].items():
+        fast = result["controllers"][name]["us_per_step"]
+        lines.append(f"{name:<14}{fast:>10.3f} us (fast){row['cvxpy_us_per_step']:>12.0f} us "
+                     "(cvxpy)")
     lines.append("")
     lines.append("one call of the generated A(q, dq) from Python")
     for name, value in result["model_call"].items():

@@ -11,7 +11,7 @@ import numpy as np
 
 from cdpr_sym.compiled import BuildOptions
 from cdpr_sym.controllers import CONTROLLERS, controller_by_name
-from cdpr_sym.errors import CdprError
+from cdpr_sym.errors import CdprError, InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import resolve_robot
 from cdpr_sym.simulation import Plant, simulate
@@ -42,8 +42,34 @@ def _parser() -> argparse.ArgumentParser:
     sim.add_argument("--save", type=Path, help="write the trajectory to an .npz file")
 
     study = commands.add_parser("study", help="run a study and write its report")
-    study.add_argument("name", choices=["paper"])
+    study.add_argument("name", choices=["paper", "compare"])
     study.add_argument("--out", type=Path, help="output folder (default reports/<name>)")
+    study.add_argument("--pairs", type=int, default=200, help="sweep pairs (compare)")
+    study.add_argument("--seed", type=int, default=0, help="sweep seed (compare)")
+
+    workspace = commands.add_parser("workspace", help="map the static workspace")
+    workspace.add_argument("--robot", default="aras3")
+    workspace.add_argument("--resolution", type=int, default=61, help="grid points per axis")
+    workspace.add_argument("--out", type=Path, default=Path("reports/workspace"))
+
+    sweep = commands.add_parser("sweep", help="run many start/goal pairs (resumable)")
+    sweep.add_argument("--robot", default="aras3")
+    sweep.add_argument("--controllers", default="l2,linf,pd-sat",
+                       help="comma-separated controller names")
+    sweep.add_argument("--pairs", type=int, required=True)
+    sweep.add_argument("--seed", type=int, default=0)
+    sweep.add_argument("--duration", type=float, default=10.0)
+    sweep.add_argument("--dt", type=float, default=1e-3)
+    sweep.add_argument("--mass-scale", type=float, default=1.0)
+    sweep.add_argument("--out", type=Path, required=True, help="results CSV (appended)")
+    sweep.add_argument("--workers", type=int, help="local processes (default: all cores)")
+    sweep.add_argument("--dask", metavar="ADDRESS", help="run on an existing Dask scheduler")
+    sweep.add_argument("--no-progress", action="store_true")
+
+    report = commands.add_parser("report", help="build a report from stored results")
+    report.add_argument("kind", choices=["sweep"])
+    report.add_argument("results", type=Path)
+    report.add_argument("--out", type=Path, default=Path("reports/sweep"))
 
     bench = commands.add_parser("bench", help="print speed benchmarks")
     bench.add_argument("--robot", default="aras3")
@@ -75,13 +101,55 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def _study(args: argparse.Namespace) -> int:
-    from cdpr_sym.paper_study import run_paper_study
-
     out = args.out or Path("reports") / args.name
-    claims = run_paper_study(out)
-    for claim in claims:
-        print(f"{claim.verdict:<13} {claim.source:<11} {claim.claim}")
+    if args.name == "paper":
+        from cdpr_sym.paper_study import run_paper_study
+
+        for claim in run_paper_study(out):
+            print(f"{claim.verdict:<13} {claim.source:<11} {claim.claim}")
+    else:
+        from cdpr_sym.compare_study import run_compare_study
+
+        summary = run_compare_study(out, pairs=args.pairs, seed=args.seed)["sweep"]
+        for name, row in summary.items():
+            print(f"{name:<10} feasible {100 * row['feasible']:5.1f} %  converged "
+                  f"{100 * row['converged']:5.1f} %")
     print(f"report: {out / 'report.md'}")
+    return 0
+
+
+def _workspace(args: argparse.Namespace) -> int:
+    from cdpr_sym.workspace_study import run_workspace_study
+
+    summary = run_workspace_study(resolve_robot(args.robot), args.out,
+                                  resolution=args.resolution)
+    print(f"{summary['points']} poses, {summary['poses_per_s']:.3g} poses/s; feasible "
+          f"{100 * summary['feasible_share']:.1f} %, ball (13) "
+          f"{100 * summary['ball_share']:.1f} %")
+    for row in summary["by_height"][:: max(1, len(summary["by_height"]) // 10)]:
+        print(f"  z = {row['height_m']:6.3f} m  feasible {100 * row['feasible_share']:5.1f} %")
+    print(f"report: {args.out / 'workspace.md'}")
+    return 0
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from cdpr_sym.sweep import SweepConfig, run_sweep
+
+    config = SweepConfig(robot=args.robot, pairs=args.pairs, seed=args.seed,
+                         controllers=tuple(n.strip() for n in args.controllers.split(",") if n),
+                         duration=args.duration, dt=args.dt, mass_scale=args.mass_scale)
+    if args.workers is not None and args.workers <= 0:
+        raise InvalidCase("workers", f"expected a positive number, got {args.workers}")
+    out = run_sweep(config, args.out, workers=args.workers, dask_address=args.dask,
+                    progress=not args.no_progress)
+    print(f"results: {out}")
+    return 0
+
+
+def _report(args: argparse.Namespace) -> int:
+    from cdpr_sym.sweep_report import write_sweep_report
+
+    print(f"report: {write_sweep_report(args.results, args.out)}")
     return 0
 
 
@@ -96,7 +164,8 @@ def _bench(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (2 for bad input, with a one-line message)."""
     args = _parser().parse_args(argv)
-    handlers = {"simulate": _simulate, "study": _study, "bench": _bench}
+    handlers = {"simulate": _simulate, "study": _study, "bench": _bench,
+                "workspace": _workspace, "sweep": _sweep, "report": _report}
     try:
         return handlers[args.command](args)
     except CdprError as error:
