@@ -75,6 +75,12 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--robot", default="aras3")
     bench.add_argument("--seconds", type=float, default=1.0, help="timing budget per row")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
+
+    export = commands.add_parser("export-c", help="write a self-contained C99 package")
+    export.add_argument("--robot", default="aras3", help="preset name or robot TOML file")
+    export.add_argument("--controller", default="l2", help=f"one of {', '.join(CONTROLLERS)}")
+    export.add_argument("--out", type=Path, required=True, help="output folder")
+    export.add_argument("--prefix", help="C prefix of every symbol (default cdpr_ROBOT_CTRL)")
     return parser
 
 
@@ -161,11 +167,20 @@ def _bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export_c(args: argparse.Namespace) -> int:
+    from cdpr_sym.export import export_c
+
+    result = export_c(args.robot, args.controller, args.out, prefix=args.prefix)
+    print("\n".join(str(path) for path in result.paths))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (2 for bad input, with a one-line message)."""
     args = _parser().parse_args(argv)
     handlers = {"simulate": _simulate, "study": _study, "bench": _bench,
-                "workspace": _workspace, "sweep": _sweep, "report": _report}
+                "workspace": _workspace, "sweep": _sweep, "report": _report,
+                "export-c": _export_c}
     try:
         return handlers[args.command](args)
     except CdprError as error:

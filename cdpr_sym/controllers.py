@@ -288,14 +288,16 @@ CONTROLLERS: dict[str, Controller] = {
 }
 
 
-def _register_exact_box_designs() -> None:
+def _register_more_designs() -> None:
     from cdpr_sym.box_designs import BoxDesign, LinfDesign
+    from cdpr_sym.smooth_designs import SmoothReference
 
     CONTROLLERS["linf"] = LinfDesign()
     CONTROLLERS["box"] = BoxDesign()
+    CONTROLLERS["smooth"] = SmoothReference()
 
 
-_register_exact_box_designs()
+_register_more_designs()
 
 
 def controller_by_name(name: str) -> Controller:
@@ -307,14 +309,37 @@ def controller_by_name(name: str) -> Controller:
                           f"{', '.join(CONTROLLERS)}") from None
 
 
+def memory_size(model: SymbolicModel, controller: Controller) -> int:
+    """Size of a controller's internal state (0 for memoryless controllers).
+
+    A controller with memory provides ``memory_size(model)``, ``initial_memory(model, q0,
+    q_goal, k, r_d)`` and ``law_with_memory(model, q, dq, q_goal, k, r_d, memory, dt)``
+    returning ``(ControlLaw, memory_next)``.
+    """
+    size = getattr(controller, "memory_size", None)
+    return int(size(model)) if callable(size) else 0
+
+
 def law_function(model: SymbolicModel, controller: Controller) -> ca.Function:
-    """The control step as a function (q, dq, q_goal, k, r_d) -> (tau, alpha, beta, j, flags)."""
+    """The control step as a function (q, dq, q_goal, k, r_d) -> (tau, alpha, beta, j, flags).
+
+    A controller with internal state (``memory_size > 0``) gets two more inputs, ``memory``
+    and ``dt``, and one more output, ``memory_next``.
+    """
     n = model.n
     q, dq, q_goal = ca.SX.sym("q", n), ca.SX.sym("dq", n), ca.SX.sym("q_goal", n)
     k, r_d = ca.SX.sym("k", n), ca.SX.sym("r_d", n)
+    name = f"law_{controller.name.replace('-', '_')}"
+    names_in, names_out = ["q", "dq", "q_goal", "k", "r_d"], list(ControlLaw._fields)
+    size = memory_size(model, controller)
+    if size:
+        memory, dt = ca.SX.sym("memory", size), ca.SX.sym("dt")
+        out, memory_next = controller.law_with_memory(model, q, dq, q_goal, k, r_d, memory, dt)
+        return ca.Function(name, [q, dq, q_goal, k, r_d, memory, dt], [*out, memory_next],
+                           [*names_in, "memory", "dt"], [*names_out, "memory_next"],
+                           {"cse": True})
     out = controller.law(model, q, dq, q_goal, k, r_d)
-    return ca.Function(f"law_{controller.name.replace('-', '_')}", [q, dq, q_goal, k, r_d],
-                       list(out), ["q", "dq", "q_goal", "k", "r_d"], list(ControlLaw._fields),
+    return ca.Function(name, [q, dq, q_goal, k, r_d], list(out), names_in, names_out,
                        {"cse": True})
 
 

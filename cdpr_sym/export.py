@@ -6,14 +6,12 @@ row-major), CasADi generates their C, the public header, wrappers, example and b
 are rendered around it, and a JSON manifest records the robot, the controller and a hash of
 every file. One package is one folder:
 
-===========================  ==========================================================
-``<prefix>.h``               the one public header: documented wrapper functions
-``<prefix>.c``               the wrappers; includes the generated code
-``<prefix>_generated.inc``   CasADi's generated code (not compiled on its own)
-``main.c``                   the example: the closed loop from the case's start to goal
-``Makefile``, ``CMakeLists.txt``  a static library ``lib<prefix>.a`` and ``example``
-``README.md``, ``manifest.json``
-===========================  ==========================================================
+* ``<prefix>.h``: the one public header, every function, size, layout and flag documented;
+* ``<prefix>.c``: the wrappers; it includes ``<prefix>_generated.inc``, CasADi's code
+  (never compiled on its own);
+* ``main.c``: the example, the closed loop from the case's start to its goal;
+* ``Makefile`` and ``CMakeLists.txt``: a static library ``lib<prefix>.a`` and ``example``;
+* ``README.md`` and ``manifest.json``.
 
 ``<prefix>`` defaults to ``cdpr_<robot>_<controller>``, so packages of two robots (or two
 controllers) link into one program without a clash. Every call is CasADi SX code: straight
@@ -44,12 +42,18 @@ from cdpr_sym.simulation import STOP_REASONS, Plant, _Layout, step_function
 REQUIRED_MODEL_TERMS = ("cable_lengths", "structure_matrix", "mass_matrix", "potential",
                         "p_matrix", "a_matrix")
 
-_INPUT_DOCS = {
+_ARGUMENT_DOCS = {
     "q": "position of the end-effector, m", "dq": "velocity, m/s",
     "q_goal": "goal position, m", "k": "stiffness gains K (diagonal), N/m",
     "r_d": "damping gains R_d (diagonal), N s/m", "tau": "cable tensions, N (> 0 pulls)",
     "j": "free entries of J_d (row-major strict upper triangle), N s/m",
+    "x": "state [q (m), dq (m/s), status] (X_* offsets; status 0 on the first call)",
+    "p": "parameters (P_* offsets; fill with the _parameters function)",
+    "x_next": "state after dt; frozen, with status != 0 (STATUS_*), once the loop stopped",
+    "log": "this period's [tau (N), alpha, beta (N), j (N s/m), flags] (LOG_* offsets)",
 }
+#: C names of arguments whose CasADi name would shadow a C library function.
+_C_NAMES = {"log": "log_out"}
 _MODEL_DOCS = {
     "cable_lengths": "cable lengths l_i = |q - a_i|, m",
     "structure_matrix": "structure matrix W (column i = unit vector towards anchor i), -",
@@ -242,8 +246,9 @@ def _entries(model: SymbolicModel, controller: Controller, prefix: str) -> list[
     law, step = law_function(model, controller), step_function(model, controller)
     layout = _Layout(n, n_j)
     entries = [
-        _entry("control", law, prefix, "one control step of the law (see <prefix>_control)"),
-        _entry("step", step, prefix, f"one closed-loop period: control, then RK4 of dt "
+        _entry("control", law, prefix, "One control step"),
+        _entry("step", step, prefix, f"One closed-loop period of dt = p[P_DT] s: the tension "
+               f"of the control law, held over\n * one RK4 step of the plant "
                f"(x: {layout.n_x}, p: {layout.n_p}, log: {layout.n_log} doubles)"),
     ]
     for name, function in model.functions.items():
@@ -263,9 +268,9 @@ def _entry(name: str, function: ca.Function, prefix: str, summary: str) -> _Entr
     def describe(index: int, is_input: bool) -> tuple[str, int, str]:
         label = (function.name_in if is_input else function.name_out)(index)
         rows, cols = (function.size_in if is_input else function.size_out)(index)
-        doc = _INPUT_DOCS.get(label, summary) if is_input else summary
-        shape = f"{rows} x {cols}, row-major" if rows > 1 and cols > 1 else f"{rows * cols}"
-        return label, rows * cols, f"{doc} [{shape}]"
+        doc = _ARGUMENT_DOCS.get(label, summary) if is_input or name == "step" else summary
+        shape = f" ({rows} x {cols}, row-major)" if rows > 1 and cols > 1 else ""
+        return _C_NAMES.get(label, label), rows * cols, doc + shape
     return _Entry(name, renamed, summary,
                   tuple(describe(i, True) for i in range(function.n_in())),
                   tuple(describe(i, False) for i in range(function.n_out())))
@@ -304,8 +309,8 @@ def _header(robot: Robot, controller: Controller, prefix: str, entries: list[_En
               f"#define {up}_LOG_BETA {n + 1}", f"#define {up}_LOG_J {n + 2}",
               f"#define {up}_LOG_FLAGS {n + 2 + n_j}",
               "", "/* Bits of flags (control output and log[LOG_FLAGS]). */"]
-    lines += [f"#define {up}_FLAG_{name.upper()} {bit}  /* {_FLAG_DOCS.get(name, name)} */"
-              for bit, name in sorted(FLAG_NAMES.items())]
+    for bit, name in sorted(FLAG_NAMES.items()):
+        lines += [f"/* {_FLAG_DOCS.get(name, name)} */", f"#define {up}_FLAG_{name.upper()} {bit}"]
     lines += ["", "/* Values of x[X_STATUS] after a step: 0 runs; else the loop stopped and the "
               "state is frozen. */"]
     lines += [f"#define {up}_STATUS_{name.upper()} {code}"
@@ -313,7 +318,7 @@ def _header(robot: Robot, controller: Controller, prefix: str, entries: list[_En
     lines += ["", "/* Work memory: sizes of the arrays in the work struct (the largest over all "
               "functions). */"]
     lines += [f"#define {up}_{key} {value}" for key, value in sizes.items()]
-    declarations = [_CONTROL_DOC.replace("NN", str(n)).replace("NJ", str(n_j)),
+    declarations = [_render(_CONTROL_DOC, prefix, n=str(n), nj=str(n_j)),
                     f"int {prefix}_control(const double q[{n}], const double dq[{n}], "
                     f"const double q_goal[{n}],\n    const double k[{n}], const double r_d[{n}], "
                     f"double tau[{n}], double *alpha, double *beta,\n    double j[{n_j}], "
@@ -321,7 +326,7 @@ def _header(robot: Robot, controller: Controller, prefix: str, entries: list[_En
                     _PARAMETERS_DOC, f"void {prefix}_parameters(const double q_goal[{n}], "
                     f"const double k[{n}], const double r_d[{n}],\n    double dt, "
                     f"double mass_scale, int slack, double p[{layout.n_p}]);", ""]
-    for entry in entries[1:]:
+    for entry in (entry for entry in entries if entry.name != "control"):
         operations = entry.function.n_instructions()
         doc = [f"/* {entry.summary}.", f" * {operations} straight-line operations; returns 0, "
                "or -1 if a pointer is NULL."]
@@ -337,7 +342,15 @@ def _header(robot: Robot, controller: Controller, prefix: str, entries: list[_En
 def _signature(prefix: str, entry: _Entry) -> str:
     arguments = [f"const double {label}[{size}]" for label, size, _ in entry.inputs]
     arguments += [f"double {label}[{size}]" for label, size, _ in entry.outputs]
-    return f"{prefix}_{entry.name}({', '.join(arguments)}, {prefix}_work *work)"
+    arguments.append(f"{prefix}_work *work")
+    lines = [f"{prefix}_{entry.name}("]
+    for index, argument in enumerate(arguments):
+        text = argument + (", " if index < len(arguments) - 1 else ")")
+        if len(lines[-1]) + len(text) > 92:
+            lines[-1] = lines[-1].rstrip()
+            lines.append("    ")
+        lines[-1] += text
+    return "\n".join(lines)
 
 
 def _source(robot: Robot, prefix: str, entries: list[_Entry]) -> str:
@@ -356,10 +369,11 @@ def _source(robot: Robot, prefix: str, entries: list[_Entry]) -> str:
                 "return -1;"]
         body += [f"  work->arg[{i}] = {label};" for i, (label, _, _) in enumerate(entry.inputs)]
         body += [f"  work->res[{i}] = {label};" for i, (label, _, _) in enumerate(entry.outputs)]
-        body += [f"  return {entry.function.name()}(work->arg, work->res, work->iw, work->w, 0) "
-                 "? -1 : 0;", "}", ""]
+        body += [f"  return {entry.function.name()}(work->arg, work->res, work->iw,",
+                 "      work->w, 0) ? -1 : 0;", "}", ""]
         wrappers.append("\n".join(body))
-    return _render(_SOURCE, prefix, case=case, wrappers="\n".join(wrappers))
+    return _render(_SOURCE, prefix, case=case, wrappers="\n".join(wrappers), n=str(robot.n),
+                   nj=str(robot.n_j), np=str(_Layout(robot.n, robot.n_j).n_p))
 
 
 def _parameter_index(layout: _Layout) -> dict[str, int]:
@@ -424,23 +438,24 @@ def _run(command: list[str]) -> str:
 
 
 _MEMORY_DOC = {
-    True: "every intermediate\n * value lives there (exported with avoid_stack=True).",
-    False: "intermediates are local\n * variables, at most @UPPER@_SZ_W doubles of stack "
+    True: "every intermediate value lives there\n * (exported with avoid_stack=True).",
+    False: "intermediates are local variables, at\n * most @UPPER@_SZ_W doubles of stack "
            "(exported with avoid_stack=False).",
 }
 
 _CONTROL_DOC = """\
 /* One control step: the tension commanded at the state (q, dq) for the goal q_goal.
  *
- * in  q[NN]       position, m
- * in  dq[NN]      velocity, m/s (|dq| below the low-speed threshold, 0 included, is handled)
- * in  q_goal[NN]  goal position, m
- * in  k[NN]       stiffness gains K (diagonal), N/m; NULL: the robot's case gains
- * in  r_d[NN]     damping gains R_d (diagonal), N s/m; NULL: the robot's case gains
- * out tau[NN]     commanded cable tensions, N (> 0 pulls)
- * out alpha      scale on the PD part, eq. (24), in (0, 1]           (may be NULL)
- * out beta       margin of eq. (20), N                                (may be NULL)
- * out j[NJ]       free entries of J_d, N s/m                           (may be NULL)
+ * in  q[@n@]       position, m
+ * in  dq[@n@]      velocity, m/s (|dq| below the low-speed threshold, 0 included, is handled)
+ * in  q_goal[@n@]  goal position, m
+ * in  k[@n@]       stiffness gains K (diagonal), N/m; NULL: the robot's case gains
+ * in  r_d[@n@]     damping gains R_d (diagonal), N s/m; NULL: the robot's case gains
+ * out tau[@n@]     commanded cable tensions, N (> 0 pulls)
+ * out alpha      scale on the PD part, eq. (24), 0 < alpha <= 1      (may be NULL)
+ * out beta       margin of eq. (20), N: (T_MAX - T_MIN)/2 - |tau_1 - (T_MIN + T_MAX)/2|
+ *                                                                     (may be NULL)
+ * out j[@nj@]       free entries of J_d, N s/m                           (may be NULL)
  * out flags      bit set of the FLAG_* macros above                   (may be NULL)
  * work           caller-provided work memory (not shared between threads)
  * Returns 0, or -1 if q, dq, q_goal, tau or work is NULL (nothing is written then).
@@ -462,8 +477,8 @@ _HEADER = """\
  * from SX expressions (at most @operations@ operations, no loops, no recursion), so its
  * execution time is bounded and data-independent up to branch prediction. No function
  * allocates heap memory, prints, or keeps state between calls. Scratch memory is the
- * caller's @PREFIX@_work (@UPPER@_WORK_BYTES bytes; static, stack or pool); @memory@
- * Calls on different work structs may run concurrently.
+ * caller's @PREFIX@_work (@UPPER@_WORK_BYTES bytes; static,
+ * stack or pool); @memory@ Calls on different work structs may run concurrently.
  */
 #ifndef @UPPER@_H
 #define @UPPER@_H
@@ -512,10 +527,9 @@ _SOURCE = """\
 
 @case@
 
-int @PREFIX@_control(const double q[@UPPER@_N], const double dq[@UPPER@_N],
-    const double q_goal[@UPPER@_N], const double k[@UPPER@_N], const double r_d[@UPPER@_N],
-    double tau[@UPPER@_N], double *alpha, double *beta, double j[@UPPER@_NJ], int *flags,
-    @PREFIX@_work *work) {
+int @PREFIX@_control(const double q[@n@], const double dq[@n@], const double q_goal[@n@],
+    const double k[@n@], const double r_d[@n@], double tau[@n@], double *alpha, double *beta,
+    double j[@nj@], int *flags, @PREFIX@_work *work) {
   double flag_value = 0.0;
   if (work == 0 || q == 0 || dq == 0 || q_goal == 0 || tau == 0) return -1;
   work->arg[0] = q;
@@ -533,9 +547,8 @@ int @PREFIX@_control(const double q[@UPPER@_N], const double dq[@UPPER@_N],
   return 0;
 }
 
-void @PREFIX@_parameters(const double q_goal[@UPPER@_N], const double k[@UPPER@_N],
-    const double r_d[@UPPER@_N], double dt, double mass_scale, int slack,
-    double p[@UPPER@_NP]) {
+void @PREFIX@_parameters(const double q_goal[@n@], const double k[@n@], const double r_d[@n@],
+    double dt, double mass_scale, int slack, double p[@np@]) {
   int i;
   for (i = 0; i < @UPPER@_N; ++i) {
     p[@UPPER@_P_GOAL + i] = q_goal ? q_goal[i] : @PREFIX@_case_goal[i];
@@ -564,7 +577,8 @@ _EXAMPLE_C = """\
 
 int main(void) {
   static @PREFIX@_work work; /* static: no stack or heap needed for scratch memory */
-  double x[@UPPER@_NX], x_next[@UPPER@_NX], p[@UPPER@_NP], log[@UPPER@_NLOG];
+  double x[@UPPER@_NX], x_next[@UPPER@_NX], p[@UPPER@_NP];
+  double record[@UPPER@_NLOG]; /* tau, alpha, beta, j, flags of one period */
   double tau_min = INFINITY, tau_max = -INFINITY, error = 0.0;
   long n_steps = (long) (DURATION / DT + 0.5), taken = 0, step;
   int i;
@@ -574,16 +588,17 @@ int main(void) {
     x[@UPPER@_X_DQ + i] = 0.0;
   }
   x[@UPPER@_X_STATUS] = 0.0;
-  @PREFIX@_parameters(@PREFIX@_case_goal, @PREFIX@_case_k, @PREFIX@_case_r_d, DT, 1.0, 0, p);
+  /* goal and gains of the robot's case (NULL), dt, nominal plant mass, no cable slack */
+  @PREFIX@_parameters(0, 0, 0, DT, 1.0, 0, p);
 
   for (step = 0; step < n_steps; ++step) {
-    if (@PREFIX@_step(x, p, x_next, log, &work) != 0) {
+    if (@PREFIX@_step(x, p, x_next, record, &work) != 0) {
       fprintf(stderr, "step %ld failed\\n", step);
       return 1;
     }
     if (x_next[@UPPER@_X_STATUS] != 0.0) break; /* singular, non-finite or left the frame */
     for (i = 0; i < @UPPER@_N; ++i) {
-      double tau = log[@UPPER@_LOG_TAU + i];
+      double tau = record[@UPPER@_LOG_TAU + i];
       tau_min = tau < tau_min ? tau : tau_min;
       tau_max = tau > tau_max ? tau : tau_max;
     }
@@ -655,9 +670,9 @@ target_link_libraries(example PRIVATE @PREFIX@)
 _README = """\
 # @PREFIX@: exported controller of `@robot@` / `@controller@`
 
-Self-contained C99 code exported by `cdpr-sym export-c --robot @robot@ --controller
-@controller@` (controller options: @options@). Neither Python nor CasADi is needed to
-build or run it; it needs a C99 compiler and the maths library.
+Self-contained C99 code exported by cdpr_sym (`cdpr-sym export-c`) for the robot
+`@robot@` and the controller `@controller@` (options: @options@). Neither Python nor
+CasADi is needed to build or run it; it needs a C99 compiler and the maths library.
 
 ## Build
 
@@ -685,7 +700,7 @@ do not compile that file on its own) and include `@PREFIX@.h`.
 
     @PREFIX@_work work;   /* caller-provided scratch memory, @UPPER@_WORK_BYTES bytes */
     @PREFIX@_control(q, dq, q_goal, k, r_d, tau, &alpha, &beta, j, &flags, &work);
-    @PREFIX@_step(x, p, x_next, log, &work);   /* control + one RK4 step of dt */
+    @PREFIX@_step(x, p, x_next, log_out, &work);   /* control + one RK4 step of dt */
 
 plus one function per model term (`@PREFIX@_cable_lengths`, `_structure_matrix`,
 `_mass_matrix`, `_potential`, `_p_matrix`, `_a_matrix`, ...). Units are SI (m, m/s, N, s);
@@ -693,10 +708,11 @@ matrices are row-major; n = @n@. The header documents every argument, the index 
 the step's state `x`, parameters `p` (fill it with `@PREFIX@_parameters`) and log, and the
 `@UPPER@_FLAG_*` bits (fallbacks and limits that acted in a control step).
 
-All functions are straight-line code (no loops), allocate nothing, print nothing and keep
-no state, so the execution time is bounded and calls with separate work structs are
-thread-safe. Every public symbol starts with `@PREFIX@_`, so packages of several robots or
-controllers link into one program.
+The generated functions are straight-line code (no loops; `_parameters` loops over n),
+allocate nothing, print nothing and keep no state, so the execution time is bounded and
+calls with separate work structs are thread-safe. Build with IEEE-preserving flags (no
+`-ffast-math`) to reproduce the Python simulation bit for bit. Every public symbol starts
+with `@PREFIX@_`, so packages of several robots or controllers link into one program.
 """
 
 _BENCH_C = """\

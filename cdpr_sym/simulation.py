@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
+import hashlib
 import json
 import math
 from typing import Any
@@ -26,7 +27,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.compiled import BuildOptions, CompiledLibrary, build
-from cdpr_sym.controllers import FLAG_SINGULAR, Controller, law_function
+from cdpr_sym.controllers import FLAG_SINGULAR, Controller, law_function, memory_size
 from cdpr_sym.errors import InvalidCase, InvalidRobot
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
@@ -68,14 +69,22 @@ def rk4(rhs: Any, x: ca.SX, h: ca.SX) -> ca.SX:
 
 @dataclasses.dataclass(frozen=True)
 class _Layout:
-    """Index layout of the step's state x = [q, dq, status] and parameters p."""
+    """Index layout of the step's state x = [q, dq, memory, status] and parameters p.
+
+    ``memory`` is the controller's internal state (empty for memoryless controllers).
+    """
 
     n: int
     n_j: int
+    n_memory: int = 0
 
     @property
     def n_x(self) -> int:
-        return 2 * self.n + 1
+        return 2 * self.n + self.n_memory + 1
+
+    @property
+    def status_index(self) -> int:
+        return 2 * self.n + self.n_memory
 
     @property
     def n_p(self) -> int:
@@ -103,19 +112,43 @@ def _closed_loop_rhs(model: SymbolicModel, tau: ca.SX, mass_scale: ca.SX):
     return rhs
 
 
+def layout_of(model: SymbolicModel, controller: Controller) -> _Layout:
+    """The step layout for a model and controller."""
+    return _Layout(model.n, model.n_j, memory_size(model, controller))
+
+
+def _control(model: SymbolicModel, controller: Controller, q, dq, q_goal, k, r_d, memory, dt):
+    """The control law and the next controller memory (``memory`` unchanged if memoryless)."""
+    if memory_size(model, controller):
+        return controller.law_with_memory(model, q, dq, q_goal, k, r_d, memory, dt)
+    return controller.law(model, q, dq, q_goal, k, r_d), memory
+
+
+def initial_memory_function(model: SymbolicModel, controller: Controller) -> ca.Function:
+    """(q0, q_goal, k, r_d) -> memory0: the controller's internal state at the start."""
+    n = model.n
+    q0, q_goal = ca.SX.sym("q0", n), ca.SX.sym("q_goal", n)
+    k, r_d = ca.SX.sym("k", n), ca.SX.sym("r_d", n)
+    memory = (controller.initial_memory(model, q0, q_goal, k, r_d)
+              if memory_size(model, controller) else ca.SX.zeros(0, 1))
+    return ca.Function("initial_memory", [q0, q_goal, k, r_d], [memory],
+                       ["q0", "q_goal", "k", "r_d"], ["memory"], {"cse": True})
+
+
 def step_function(model: SymbolicModel, controller: Controller) -> ca.Function:
     """One sampled-data control period: (x, p) -> (x_next, log).
 
-    x = [q, dq, status]; p = [q_goal, k, r_d, dt, mass_scale, slack];
+    x = [q, dq, memory, status]; p = [q_goal, k, r_d, dt, mass_scale, slack];
     log = [tau, alpha, beta, j, flags]. Once status is non-zero the state is frozen.
     """
-    layout = _Layout(model.n, model.n_j)
+    layout = layout_of(model, controller)
     n = model.n
     x, p = ca.SX.sym("x", layout.n_x), ca.SX.sym("p", layout.n_p)
-    q, dq, status = x[:n], x[n: 2 * n], x[2 * n]
+    q, dq, status = x[:n], x[n: 2 * n], x[layout.status_index]
+    memory = x[2 * n: layout.status_index]
     q_goal, k, r_d = p[:n], p[n: 2 * n], p[2 * n: 3 * n]
     dt, mass_scale, slack = p[3 * n], p[3 * n + 1], p[3 * n + 2]
-    law = controller.law(model, q, dq, q_goal, k, r_d)
+    law, memory_next = _control(model, controller, q, dq, q_goal, k, r_d, memory, dt)
     applied = ca.if_else(slack > 0.5, ca.fmax(law.tau, 0), law.tau)
     z_next = rk4(_closed_loop_rhs(model, applied, mass_scale), x[: 2 * n], dt)
     # singular at the sample, or det W changes sign within the step (the plane was crossed)
@@ -130,7 +163,8 @@ def step_function(model: SymbolicModel, controller: Controller) -> ca.Function:
                    ca.if_else(ca.logic_not(finite), _STOP_CODES["non_finite"],
                               ca.if_else(outside, _STOP_CODES["left_frame"], 0))))
     stopped = new_status != 0
-    x_next = ca.vertcat(ca.if_else(stopped, x[: 2 * n], z_next), new_status)
+    x_next = ca.vertcat(ca.if_else(stopped, x[: 2 * n], z_next),
+                        ca.if_else(stopped, memory, memory_next), new_status)
     log = ca.vertcat(law.tau, law.alpha, law.beta, law.j, law.flags)
     return ca.Function("step", [x, p], [x_next, log], ["x", "p"], ["x_next", "log"],
                        {"cse": True})
@@ -169,7 +203,7 @@ CASADI_SYMBOL_EXPORT long long rollout(double* states, double* logs, const doubl
 def rollout_source(step: ca.Function, layout: _Layout) -> str:
     """C source of the rollout loop over the generated ``step`` function."""
     sizes = {"STEP_SZ_ARG": max(step.sz_arg(), 2), "STEP_SZ_RES": max(step.sz_res(), 2),
-             "N_X": layout.n_x, "N_LOG": layout.n_log, "STATUS": 2 * layout.n}
+             "N_X": layout.n_x, "N_LOG": layout.n_log, "STATUS": layout.status_index}
     text = _ROLLOUT_C
     for macro, value in sizes.items():
         text = text.replace(macro, str(value))
@@ -215,13 +249,16 @@ class Simulator:
         self.robot = robot
         self.controller = controller
         self.model = SymbolicModel(robot)
-        self.layout = _Layout(robot.n, robot.n_j)
+        self.layout = layout_of(self.model, controller)
         self.chunk = chunk
         self.step = step_function(self.model, controller)
         self.law = law_function(self.model, controller)
+        self.initial_memory = initial_memory_function(self.model, controller)
         self.backend = build_options.resolved_backend()
         self.library: CompiledLibrary | None = None
         if self.backend == "c":
+            # initial_memory runs once per run: CasADi's virtual machine is fast enough and
+            # keeps a large planning function out of the compiled library
             functions = [*self.model.functions.values(), self.law, self.step]
             self.library = build(functions, f"cdpr_{robot.name}_{_c_name(controller)}",
                                  extra_source=rollout_source(self.step, self.layout),
@@ -248,6 +285,9 @@ class Simulator:
         logs = np.zeros((padded, layout.n_log))
         states[0, :n] = start
         states[0, n: 2 * n] = 0.0 if dq0 is None else dq0
+        if layout.n_memory:
+            states[0, 2 * n: layout.status_index] = np.array(
+                self.initial_memory(start, goal, k, r_d)).ravel()
         p = layout.parameters(goal, k, r_d, dt, plant)
         if self.backend == "c":
             self._rollout(states, logs, p, n_steps)
@@ -261,12 +301,12 @@ class Simulator:
             x_out, log_out = self._chunk_function(states[first], p)
             states[first + 1: first + 1 + self.chunk] = np.array(x_out.full()).T
             logs[first: first + self.chunk] = np.array(log_out.full()).T
-            if states[first + self.chunk, 2 * self.robot.n] != 0:
+            if states[first + self.chunk, self.layout.status_index] != 0:
                 break
 
     def _trajectory(self, states, logs, n_steps, dt, goal, k, r_d, plant) -> Trajectory:
         n = self.robot.n
-        status = states[1: n_steps + 1, 2 * n]
+        status = states[1: n_steps + 1, self.layout.status_index]
         stopped = np.flatnonzero(status != 0)
         last = int(stopped[0]) if stopped.size else n_steps
         reason = STOP_REASONS[int(status[last])] if stopped.size else None
@@ -286,9 +326,12 @@ class Simulator:
 
 
 def _c_name(controller: Controller) -> str:
-    options = "_".join(f"{value}" for value in controller.options().values())
-    text = f"{controller.name}_{options}" if options else controller.name
-    return "".join(ch if ch.isalnum() else "_" for ch in text)
+    """A C identifier for a controller and its options (options hashed)."""
+    base = "".join(ch if ch.isalnum() else "_" for ch in controller.name)
+    options = json.dumps(controller.options(), sort_keys=True)
+    if options == "{}":
+        return base
+    return f"{base}_{hashlib.sha256(options.encode()).hexdigest()[:8]}"
 
 
 _SIMULATORS: dict[tuple, Simulator] = {}
@@ -378,6 +421,9 @@ def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=
     """
     case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d)
     _check_timing(duration, dt)
+    if memory_size(SymbolicModel(robot), controller):
+        raise InvalidCase("controller", f"{controller.name} has an internal state updated at "
+                          "the control rate; the continuous-time cross-check does not apply")
     model = SymbolicModel(robot)
     layout = _Layout(robot.n, robot.n_j)
     n = robot.n

@@ -1,0 +1,139 @@
+"""Designs that are tension-feasible, fast and smooth at once.
+
+:class:`SmoothReference` plans, at the start of each run, a minimum-jerk straight-line
+reference from the start to the goal and the shortest duration (and the widest tension
+margin) for which its feed-forward tensions stay inside the box and change slowly; it then
+tracks the reference with PD feedback plus feed-forward, and clips the command to the box as
+a last resort (flagged). The plan is a CasADi expression evaluated once per run (the
+``initial_memory`` function), so it is generated to C with the step.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.box_designs import alpha_interval
+from cdpr_sym.controllers import (
+    FLAG_INFEASIBLE,
+    FLAG_SATURATED,
+    FLAG_SINGULAR,
+    ControlLaw,
+    _beta,
+    _clip,
+    _flag,
+    _tension_parts,
+)
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SymbolicModel
+
+
+def minimum_jerk(u: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """s(u) = 10u^3 - 15u^4 + 6u^5 on u in [0, 1] and its first two derivatives in u."""
+    return (10 * u**3 - 15 * u**4 + 6 * u**5, 30 * u**2 - 60 * u**3 + 30 * u**4,
+            60 * u - 180 * u**2 + 120 * u**3)
+
+
+@dataclasses.dataclass(frozen=True)
+class SmoothReference:
+    """Minimum-jerk reference, feed-forward tension and PD tracking (``smooth``).
+
+    Parameters
+    ----------
+    durations : tuple of float
+        Candidate move durations T, s (the shortest admissible one is used).
+    margins : tuple of float
+        Candidate tension margins, N, tried from the widest: the planned feed-forward
+        tension must stay in [T_min + margin, T_max - margin].
+    max_rate : float
+        Largest planned rate of change of the feed-forward tension, N/s (600 N/s is 0.6 N
+        per 1 ms step, leaving room for the feedback under the 1 N per step target).
+    samples : int
+        Points along the path where the plan is checked.
+
+    Notes
+    -----
+    Guarantees: the command is in [T_min, T_max] at every step (clipped where feedback
+    would leave it; FLAG_SATURATED); the first command equals the static tension
+    W^{-1} grad V at a start at rest (no start jump); the planned feed-forward tension is in
+    the box with the chosen margin and changes by at most ``max_rate`` (checked at the
+    ``samples`` path points). Assumptions: the straight segment from start to goal lies in
+    the static workspace with some margin (else FLAG_INFEASIBLE and the slowest plan);
+    the plant's mass is close to the model's (the feedback absorbs the rest).
+    Memory: [t, q_start (n), T, margin].
+    """
+
+    durations: tuple[float, ...] = tuple(np.round(np.arange(1.0, 4.01, 0.25), 2))
+    margins: tuple[float, ...] = (5.0, 3.0, 2.0, 1.0, 0.5, 0.0)
+    max_rate: float = 600.0
+    samples: int = 33
+    name: ClassVar[str] = "smooth"
+
+    def __post_init__(self) -> None:
+        if not self.durations or min(self.durations) <= 0:
+            raise InvalidCase("durations", f"expected positive durations, got {self.durations}")
+        if not self.margins or min(self.margins) < 0:
+            raise InvalidCase("margins", f"expected margins >= 0 N, got {self.margins}")
+        if not (np.isfinite(self.max_rate) and self.max_rate > 0):
+            raise InvalidCase("max_rate", f"expected a positive rate, got {self.max_rate}")
+        if self.samples < 3:
+            raise InvalidCase("samples", f"expected at least 3 samples, got {self.samples}")
+
+    def options(self) -> dict:
+        return {"durations": list(self.durations), "margins": list(self.margins),
+                "max_rate": self.max_rate, "samples": self.samples}
+
+    def memory_size(self, model: SymbolicModel) -> int:
+        """Internal state: [t, q_start (n), T, margin]."""
+        return model.n + 3
+
+    def initial_memory(self, model: SymbolicModel, q0, q_goal, k, r_d) -> ca.SX:
+        """Plan: the first admissible (margin, T) in preference order."""
+        robot = model.robot
+        delta = q_goal - q0
+        u = np.linspace(0.0, 1.0, self.samples)
+        static, accel = [], []
+        for value in u:
+            s, _, dds = minimum_jerk(ca.SX(value))
+            q_r = q0 + delta * s
+            W = model.structure_matrix(q_r)
+            static.append(ca.solve(W, model.grad_potential(q_r)))
+            accel.append(ca.solve(W, robot.mass * dds * delta))
+        a, b = ca.vertcat(*static), ca.vertcat(*accel)
+        step = u[1] - u[0]
+        slow_enough = {}
+        for T in self.durations:
+            tau = a + b / T**2
+            rates = ca.fabs(tau[robot.n:] - tau[: -robot.n]) / (T * step)
+            slow_enough[T] = ca.mmax(rates) <= self.max_rate
+        chosen_T, chosen_margin = ca.SX(max(self.durations)), ca.SX(-1.0)
+        for margin in reversed(self.margins):
+            low, high = alpha_interval(a, b, ca.DM.ones(a.shape[0]) * (robot.t_min + margin),
+                                       ca.DM.ones(a.shape[0]) * (robot.t_max - margin))
+            for T in sorted(self.durations, reverse=True):
+                x = 1.0 / T**2
+                ok = ca.logic_and(ca.logic_and(low <= x, x <= high), slow_enough[T])
+                chosen_T = ca.if_else(ok, T, chosen_T)
+                chosen_margin = ca.if_else(ok, margin, chosen_margin)
+        return ca.vertcat(0.0, q0, chosen_T, chosen_margin)
+
+    def law_with_memory(self, model: SymbolicModel, q, dq, q_goal, k, r_d, memory, dt
+                        ) -> tuple[ControlLaw, ca.SX]:
+        n = model.n
+        t, q_start, T, margin = memory[0], memory[1: n + 1], memory[n + 1], memory[n + 2]
+        u = ca.fmin(ca.fmax(t / T, 0.0), 1.0)
+        s, ds, dds = minimum_jerk(u)
+        delta = q_goal - q_start
+        q_r, dq_r, ddq_r = q_start + delta * s, delta * ds / T, delta * dds / T**2
+        parts = _tension_parts(model, q, dq, q_goal, k, r_d)
+        force = (model.robot.mass * ddq_r + model.grad_potential(q)
+                 - k * (q - q_r) - r_d * (dq - dq_r))
+        tau, clipped = _clip(model, parts.W_inv @ force)
+        flags = (_flag(clipped, FLAG_SATURATED) + _flag(margin < 0, FLAG_INFEASIBLE)
+                 + _flag(parts.singular, FLAG_SINGULAR))
+        law = ControlLaw(tau, ca.SX(1.0), _beta(model, parts.tau_1), ca.SX.zeros(model.n_j),
+                         flags)
+        return law, ca.vertcat(t + dt, q_start, T, margin)

@@ -1,0 +1,391 @@
+"""The exported C package: strict builds, agreement with Python, valgrind, errors, CLI.
+
+Every test compiles for real (gcc, make, cmake) and checks the C against the Python twin:
+the control law of :func:`cdpr_sym.controllers.law_function`, the model terms of
+:class:`cdpr_sym.SymbolicModel` and the closed loop of :func:`cdpr_sym.simulate`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from cdpr_sym import (
+    BuildOptions,
+    InvalidCase,
+    SymbolicModel,
+    UnknownName,
+    controller_by_name,
+    preset,
+    simulate,
+)
+from cdpr_sym.cli import main
+from cdpr_sym.controllers import CONTROLLERS, FLAG_NAMES, law_function
+from cdpr_sym.export import REQUIRED_MODEL_TERMS, ExportResult, bench_export, export_c
+from cdpr_sym.robot import PRESET_NAMES
+
+STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-O2")
+HARNESS = Path(__file__).parent / "export_harness" / "harness.c"
+#: Functions the exported object file may call: libm only (no heap, no I/O).
+LIBM = {"sqrt", "fabs", "fmin", "fmax", "floor", "fmod", "ceil", "pow", "exp", "log", "sin",
+        "cos", "tan", "atan2", "tanh", "sinh", "cosh", "asin", "acos", "atan", "round",
+        "erf", "log1p", "expm1", "copysign", "trunc", "hypot"}
+TOLERANCE = 1e-10
+
+
+def _tool(name: str) -> str:
+    path = shutil.which(name)
+    if path is None:
+        pytest.skip(f"{name} is not installed")
+    return path
+
+
+def _run(command: list[str], cwd: Path | None = None) -> str:
+    """Run ``command``; on failure, fail the test with its output."""
+    try:
+        done = subprocess.run([str(part) for part in command], cwd=cwd, check=True,
+                              capture_output=True, text=True)
+    except subprocess.CalledProcessError as failure:
+        pytest.fail(f"{' '.join(map(str, command))} failed ({failure.returncode}):\n"
+                    f"{failure.stdout[-3000:]}\n{failure.stderr[-3000:]}")
+    return done.stdout + done.stderr
+
+
+@dataclasses.dataclass(frozen=True)
+class Package:
+    """An exported package built with make (strict flags) plus the test harness."""
+
+    result: ExportResult
+    make_output: str
+    harness: Path
+
+    @property
+    def library(self) -> Path:
+        return self.result.out_dir / f"lib{self.result.prefix}.a"
+
+
+def _build_harness(result: ExportResult, out: Path, *extra: str) -> Path:
+    prefix = result.prefix
+    _run([_tool("gcc"), *STRICT, "-g", *extra, f'-DCDPR_HEADER="{prefix}.h"',
+          f"-DCDPR_PREFIX={prefix}", f"-DCDPR_UPPER={prefix.upper()}", "-I", result.out_dir,
+          HARNESS, result.out_dir / f"lib{prefix}.a", "-lm", "-o", out])
+    return out
+
+
+@pytest.fixture(scope="module")
+def package(tmp_path_factory):
+    """``package(robot, controller)``: exported, built with make and strict flags (cached)."""
+    built: dict[tuple[str, str], Package] = {}
+
+    def get(robot: str, controller: str) -> Package:
+        if (robot, controller) not in built:
+            folder = tmp_path_factory.mktemp(f"{robot}_{controller}")
+            result = export_c(robot, controller, folder / "pkg")
+            output = _run([_tool("make"), "CC=gcc", f"CFLAGS={' '.join(STRICT)}"],
+                          cwd=result.out_dir)
+            built[robot, controller] = Package(result, output,
+                                               _build_harness(result, folder / "harness"))
+        return built[robot, controller]
+    return get
+
+
+def _states(robot, rng, draw_states, count: int) -> np.ndarray:
+    """Rows [q, dq, q_goal, k, r_d, use_case_gains]: random, at rest and near rest."""
+    q, dq = draw_states(robot, rng, count)
+    goal, _ = draw_states(robot, rng, count, margin=0.2)
+    quarter = count // 4
+    dq[:quarter] = 0.0
+    direction = rng.normal(size=(quarter, robot.n))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    speed = 10.0 ** rng.uniform(-12, -6, size=(quarter, 1))
+    speed[: quarter // 4] = 1e-6 * (1 + rng.uniform(-1e-9, 1e-9, size=(quarter // 4, 1)))
+    dq[quarter: 2 * quarter] = direction * speed
+    k = robot.k * rng.uniform(0.5, 2.0, size=(count, robot.n))
+    r_d = robot.r_d * rng.uniform(0.5, 2.0, size=(count, robot.n))
+    use_case = (np.arange(count) % 7 == 0).astype(float)
+    k[use_case == 1], r_d[use_case == 1] = robot.k, robot.r_d
+    return np.column_stack([q, dq, goal, k, r_d, use_case])
+
+
+def _run_harness(package: Package, states: np.ndarray, folder: Path,
+                 valgrind: bool = False) -> np.ndarray:
+    path = folder / "states.txt"
+    with path.open("w") as f:
+        f.write(f"{len(states)}\n")
+        np.savetxt(f, states, fmt="%.17g")
+    command = [package.harness, path]
+    if valgrind:
+        command = [_tool("valgrind"), "--error-exitcode=1", "--leak-check=full",
+                   "--errors-for-leak-kinds=definite", "-q", *command]
+    return np.atleast_2d(np.loadtxt(_run(command).splitlines()))
+
+
+def _split(output: np.ndarray, n: int, n_j: int) -> dict[str, np.ndarray]:
+    sizes = {"ret": 1, "tau": n, "alpha": 1, "beta": 1, "j": n_j, "flags": 1,
+             "cable_lengths": n, "structure_matrix": n * n, "mass_matrix": n * n,
+             "potential": 1, "p_matrix": n * n_j, "a_matrix": n * n_j}
+    parts, start = {}, 0
+    for name, size in sizes.items():
+        parts[name] = output[:, start: start + size]
+        start += size
+    assert start == output.shape[1]
+    return parts
+
+
+def _python_law(robot, controller: str, states: np.ndarray) -> dict[str, np.ndarray]:
+    n = robot.n
+    law = law_function(SymbolicModel(robot), controller_by_name(controller)).map(len(states))
+    columns = [states[:, i * n: (i + 1) * n].T for i in range(5)]
+    out = [np.array(value.full()).T for value in law(*columns)]
+    return dict(zip(("tau", "alpha", "beta", "j", "flags"), out, strict=True))
+
+
+def _python_model_term(robot, name: str, states: np.ndarray) -> np.ndarray:
+    """Row-major values of a model term at every state (inputs q and/or dq)."""
+    n, count = robot.n, len(states)
+    function = SymbolicModel(robot).functions[name]
+    inputs = {"q": states[:, :n].T, "dq": states[:, n: 2 * n].T}
+    value = np.array(function.map(count)(*[inputs[label] for label in function.name_in()])
+                     .full())
+    rows, cols = function.size_out(0)
+    return value.reshape(rows, count, cols).transpose(1, 0, 2).reshape(count, rows * cols)
+
+
+def _relative_error(c_value: np.ndarray, python_value: np.ndarray) -> float:
+    """Largest |C - Python| over the largest |Python| entry of the same vector, per state."""
+    scale = np.maximum(np.abs(python_value).max(axis=1, keepdims=True), 1e-300)
+    return float((np.abs(c_value - python_value) / scale).max())
+
+
+def _example_output(text: str) -> dict[str, np.ndarray]:
+    return {line.split()[0]: np.array(line.split()[1:], dtype=float)
+            for line in text.splitlines() if re.match(r"(final|tension)_", line)}
+
+
+def _reference_run(robot, controller: str):
+    """The Python closed loop, evaluated exactly as written (CasADi's virtual machine).
+
+    The default compiled simulator reassociates floating-point sums (its BuildOptions
+    flags); on trajectories that ride the tension bounds that moves the final state by up to
+    1e-5 m after 10 s, so the bit-level reference is the virtual machine.
+    """
+    return simulate(robot, controller_by_name(controller), duration=10.0,
+                    build_options=BuildOptions(backend="casadi"))
+
+
+# -- aras3 with the paper's l2 design: the full set of checks --------------------------------
+def test_package_builds_with_make_and_strict_gcc_flags(package):
+    built = package("aras3", "l2")
+    assert " ".join(STRICT) in built.make_output
+    assert built.library.exists() and (built.result.out_dir / "example").exists()
+
+
+def test_package_builds_with_cmake_and_example_prints_the_same(package, tmp_path):
+    built = package("aras3", "l2")
+    _run([_tool("cmake"), "-S", built.result.out_dir, "-B", tmp_path, "-DCMAKE_C_COMPILER=gcc",
+          "-DCMAKE_BUILD_TYPE=Release", "-DCMAKE_C_FLAGS=-Wall -Wextra -Werror"])
+    log = _run([_tool("cmake"), "--build", tmp_path, "--verbose"])
+    assert "-std=c99" in log
+    assert _run([tmp_path / "example"]) == _run([built.result.out_dir / "example"])
+
+
+def test_exported_law_matches_python_law_on_random_and_resting_states(
+        package, aras3, rng, random_states, tmp_path):
+    built = package("aras3", "l2")
+    states = _states(aras3, rng, random_states, 1200)
+    speeds = np.linalg.norm(states[:, 3:6], axis=1)
+    assert np.sum(speeds == 0) >= 100 and np.sum((speeds > 0) & (speeds < 1e-6)) >= 100
+    c_out = _split(_run_harness(built, states, tmp_path), aras3.n, aras3.n_j)
+    python = _python_law(aras3, "l2", states)
+    assert np.all(c_out["ret"] == 0)
+    np.testing.assert_array_equal(c_out["flags"], python["flags"])
+    for name in ("tau", "alpha", "beta", "j"):
+        assert _relative_error(c_out[name], python[name]) <= TOLERANCE, name
+    assert len(np.unique(python["flags"])) >= 3  # several branches of the law were exercised
+
+
+def test_exported_model_terms_match_symbolic_model_row_major(
+        package, aras3, rng, random_states, tmp_path):
+    built = package("aras3", "l2")
+    states = _states(aras3, rng, random_states, 200)
+    c_out = _split(_run_harness(built, states, tmp_path), aras3.n, aras3.n_j)
+    for name in REQUIRED_MODEL_TERMS:
+        python = _python_model_term(aras3, name, states)
+        assert _relative_error(c_out[name], python) <= TOLERANCE, name
+    W = c_out["structure_matrix"].reshape(-1, 3, 3)  # row-major: column i points to anchor i
+    towards = (aras3.anchors[0] - states[:, :3])
+    np.testing.assert_allclose(W[:, :, 0] * np.linalg.norm(towards, axis=1)[:, None], towards,
+                               rtol=1e-12, atol=1e-12)
+
+
+def test_example_closed_loop_matches_python_simulation(package, aras3):
+    built = package("aras3", "l2")
+    printed = _example_output(_run([built.result.out_dir / "example"]))
+    run = _reference_run(aras3, "l2")
+    np.testing.assert_allclose(printed["final_q"], run.q[-1], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(printed["final_dq"], run.dq[-1], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(printed["tension_min_N"], run.tau.min(), rtol=1e-9)
+    np.testing.assert_allclose(printed["tension_max_N"], run.tau.max(), rtol=1e-9)
+    np.testing.assert_allclose(printed["final_error_m"], np.linalg.norm(run.q[-1] - aras3.goal),
+                               rtol=1e-6)
+
+
+def test_harness_is_clean_under_valgrind(package, aras3, rng, random_states, tmp_path):
+    built = package("aras3", "l2")
+    states = _states(aras3, rng, random_states, 40)
+    output = _run_harness(built, states, tmp_path, valgrind=True)
+    assert output.shape[0] == 40
+
+
+def test_library_calls_only_libm_and_sources_neither_print_nor_allocate(package):
+    built = package("aras3", "l2")
+    undefined = set(_run([_tool("nm"), "-u", built.library]).split()) - {"U"}
+    undefined = {symbol.split("@")[0] for symbol in undefined if not symbol.endswith(":")}
+    assert undefined <= LIBM, undefined - LIBM
+    for path in (built.result.source, built.result.generated, built.result.header):
+        text = path.read_text()
+        assert not re.search(r"\b(printf|fprintf|puts|malloc|calloc|realloc|free)\s*\(", text)
+
+
+def test_header_documents_sizes_flags_work_memory_and_model_terms(package):
+    built = package("aras3", "l2")
+    header, up = built.result.header.read_text(), built.result.prefix.upper()
+    for bit, name in FLAG_NAMES.items():
+        assert f"#define {up}_FLAG_{name.upper()} {bit}\n" in header
+    for name in ("N 3", "NJ 3", "NX 7", "NP 12", "NLOG 9", "P_DT 9", "LOG_FLAGS 8"):
+        assert f"#define {up}_{name} " in header or f"#define {up}_{name}\n" in header
+    assert f"{up}_WORK_BYTES" in header and f"{up}_SZ_W" in header
+    for name in ("control", "step", "parameters", *REQUIRED_MODEL_TERMS):
+        assert re.search(rf"\b{built.result.prefix}_{name}\(", header), name
+    assert "m/s" in header and "N s/m" in header
+
+
+# -- every controller and preset; lighter checks ---------------------------------------------
+def test_every_controller_and_preset_builds_strict_and_reproduces_simulation(tmp_path):
+    gcc = _tool("gcc")
+    jobs = {}
+    for robot in PRESET_NAMES:
+        for controller in CONTROLLERS:
+            result = export_c(robot, controller, tmp_path / f"{robot}_{controller}")
+            program = result.out_dir / "example"
+            jobs[robot, controller] = (program, subprocess.Popen(
+                [gcc, *STRICT, "-I", str(result.out_dir), str(result.example),
+                 str(result.source), "-lm", "-o", str(program)],
+                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
+    for (robot, controller), (program, process) in jobs.items():
+        log, _ = process.communicate()
+        assert process.returncode == 0, f"{robot}/{controller}:\n{log}"
+        printed = _example_output(_run([program]))
+        run = _reference_run(preset(robot), controller)
+        np.testing.assert_allclose(printed["final_q"], run.q[-1], rtol=0, atol=1e-9,
+                                   err_msg=f"{robot}/{controller}")
+
+
+@pytest.mark.parametrize(("robot_name", "controller"), [("aras3", "linf"), ("planar2", "l2")])
+def test_other_designs_match_python_law(package, robot_name, controller, rng, random_states,
+                                        tmp_path):
+    robot = preset(robot_name)
+    built = package(robot_name, controller)
+    states = _states(robot, rng, random_states, 200)
+    c_out = _split(_run_harness(built, states, tmp_path), robot.n, robot.n_j)
+    python = _python_law(robot, controller, states)
+    np.testing.assert_array_equal(c_out["flags"], python["flags"])
+    for name in ("tau", "alpha", "beta", "j"):
+        assert _relative_error(c_out[name], python[name]) <= TOLERANCE, name
+
+
+def test_two_robots_link_into_one_program(package, tmp_path):
+    toml = (Path(__file__).parents[1] / "cdpr_sym" / "presets" / "planar2.toml").read_text()
+    robot_file = tmp_path / "bot.toml"
+    robot_file.write_text(toml.replace('name = "planar2"', 'name = "my bot-2"'))
+    other = export_c(robot_file, "pd-sat", tmp_path / "other")
+    assert other.prefix == "cdpr_my_bot_2_pd_sat"
+    first = package("aras3", "l2").result
+    main_c = tmp_path / "both.c"
+    main_c.write_text(f"""#include <stdio.h>
+#include "{first.prefix}.h"
+#include "{other.prefix}.h"
+int main(void) {{
+  {first.prefix}_work a; {other.prefix}_work b;
+  double zero[3] = {{0, 0, 0}}, t3[3], t2[2];
+  int ra = {first.prefix}_control({first.prefix}_case_start, zero,
+      {first.prefix}_case_goal, 0, 0, t3, 0, 0, 0, 0, &a);
+  int rb = {other.prefix}_control({other.prefix}_case_start, zero,
+      {other.prefix}_case_goal, 0, 0, t2, 0, 0, 0, 0, &b);
+  printf("%d %d %.17g %.17g %.17g %.17g %.17g\\n", ra, rb, t3[0], t3[1], t3[2], t2[0], t2[1]);
+  return 0;
+}}
+""")
+    program = tmp_path / "both"
+    _run([_tool("gcc"), *STRICT, "-I", first.out_dir, "-I", other.out_dir, main_c,
+          first.source, other.source, "-lm", "-o", program])
+    values = np.array(_run([program]).split(), dtype=float)
+    assert values[0] == 0 and values[1] == 0
+    for robot, controller, tau in ((preset("aras3"), "l2", values[2:5]),
+                                   (preset("planar2"), "pd-sat", values[5:7])):
+        law = law_function(SymbolicModel(robot), controller_by_name(controller))
+        expected = np.array(law(robot.start, np.zeros(robot.n), robot.goal, robot.k,
+                                robot.r_d)[0].full()).ravel()
+        np.testing.assert_allclose(tau, expected, rtol=1e-12)
+
+
+def test_export_is_deterministic(tmp_path):
+    first = export_c("planar2", "box", tmp_path / "a")
+    second = export_c("planar2", "box", tmp_path / "b")
+    for one, two in zip(first.paths, second.paths, strict=True):
+        assert one.read_bytes() == two.read_bytes(), one.name
+
+
+def test_bench_export_measures_calls_per_second():
+    assert bench_export("planar2", "pd", min_seconds=0.03) > 1e4
+
+
+# -- bad input -------------------------------------------------------------------------------
+def test_unknown_controller_or_robot_raises_unknown_name(tmp_path):
+    with pytest.raises(UnknownName, match="unknown controller 'nope'"):
+        export_c("aras3", "nope", tmp_path / "out")
+    with pytest.raises(UnknownName, match="unknown robot 'nowhere'"):
+        export_c("nowhere", "l2", tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_existing_file_as_out_dir_raises_invalid_case(tmp_path):
+    existing = tmp_path / "file"
+    existing.write_text("keep me")
+    with pytest.raises(InvalidCase, match="out_dir: expected a folder"):
+        export_c("aras3", "l2", existing)
+    with pytest.raises(InvalidCase, match="out_dir: cannot create"):
+        export_c("aras3", "l2", existing / "below")
+    assert existing.read_text() == "keep me"
+
+
+def test_prefix_must_be_a_c_identifier(tmp_path):
+    with pytest.raises(InvalidCase, match="prefix"):
+        export_c("aras3", "l2", tmp_path, prefix="9-lives")
+
+
+def test_cli_export_c_writes_package_and_reports_bad_input(tmp_path, capsys):
+    assert main(["export-c", "--robot", "planar2", "--controller", "pd", "--out",
+                 str(tmp_path / "pkg")]) == 0
+    assert (tmp_path / "pkg" / "cdpr_planar2_pd.h").exists()
+    assert "cdpr_planar2_pd.h" in capsys.readouterr().out
+    (tmp_path / "file").write_text("")
+    for argv in (["--controller", "nope"], ["--robot", "nowhere"]):
+        assert main(["export-c", *argv, "--out", str(tmp_path / "x")]) == 2
+        assert capsys.readouterr().err.startswith("cdpr-sym: error: unknown")
+    assert main(["export-c", "--out", str(tmp_path / "file")]) == 2
+    assert "cdpr-sym: error: out_dir" in capsys.readouterr().err
+
+
+def test_generated_code_is_casadi_codegen_of_the_law(package):
+    built = package("aras3", "l2")
+    text = built.result.generated.read_text()
+    assert f"Generated by CasADi {ca.__version__}" in text
+    assert f"int {built.result.prefix}_cg_control(" in text
