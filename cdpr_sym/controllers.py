@@ -290,11 +290,12 @@ CONTROLLERS: dict[str, Controller] = {
 
 def _register_more_designs() -> None:
     from cdpr_sym.box_designs import BoxDesign, LinfDesign
-    from cdpr_sym.smooth_designs import SmoothReference
+    from cdpr_sym.smooth_designs import SmoothReference, VirtualReferenceIdaPbc
 
     CONTROLLERS["linf"] = LinfDesign()
     CONTROLLERS["box"] = BoxDesign()
     CONTROLLERS["smooth"] = SmoothReference()
+    CONTROLLERS["ida-ref"] = VirtualReferenceIdaPbc()
 
 
 _register_more_designs()
