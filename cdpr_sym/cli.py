@@ -42,7 +42,7 @@ def _parser() -> argparse.ArgumentParser:
     sim.add_argument("--save", type=Path, help="write the trajectory to an .npz file")
 
     study = commands.add_parser("study", help="run a study and write its report")
-    study.add_argument("name", choices=["paper", "compare"])
+    study.add_argument("name", choices=["paper", "compare", "designs"])
     study.add_argument("--out", type=Path, help="output folder (default reports/<name>)")
     study.add_argument("--pairs", type=int, default=200, help="sweep pairs (compare)")
     study.add_argument("--seed", type=int, default=0, help="sweep seed (compare)")
@@ -113,13 +113,21 @@ def _study(args: argparse.Namespace) -> int:
 
         for claim in run_paper_study(out):
             print(f"{claim.verdict:<13} {claim.source:<11} {claim.claim}")
-    else:
+    elif args.name == "compare":
         from cdpr_sym.compare_study import run_compare_study
 
         summary = run_compare_study(out, pairs=args.pairs, seed=args.seed)["sweep"]
         for name, row in summary.items():
             print(f"{name:<10} feasible {100 * row['feasible']:5.1f} %  converged "
                   f"{100 * row['converged']:5.1f} %")
+    else:
+        from cdpr_sym.designs_study import run_designs_study
+
+        table = run_designs_study(out, pairs=args.pairs, seed=args.seed)["meets_target"]
+        for name in table["1.0"]:
+            print(f"{name:<10} meets target: nominal {100 * table['1.0'][name]:5.1f} %, "
+                  f"mass +10 % {100 * table['1.1'][name]:5.1f} %, "
+                  f"mass -10 % {100 * table['0.9'][name]:5.1f} %")
     print(f"report: {out / 'report.md'}")
     return 0
 

@@ -37,7 +37,7 @@ def run_compare_study(out_dir: Path, *, robot: Robot | None = None, pairs: int =
     robot = robot or preset("aras3")
     out_dir.mkdir(parents=True, exist_ok=True)
     runs = {name: simulate(robot, controller_by_name(name)) for name in designs}
-    _case_figure(runs, out_dir / "paper_case_tensions.png")
+    case_figure(runs, out_dir / "paper_case_tensions.png")
     plots.figure_errors(runs, out_dir / "paper_case_errors.png",
                         title="Paper case: distance to the goal")
     results = out_dir / "sweep.csv"
@@ -55,7 +55,7 @@ def run_compare_study(out_dir: Path, *, robot: Robot | None = None, pairs: int =
     return report
 
 
-def _case_figure(runs: dict[str, Trajectory], path: Path) -> None:
+def case_figure(runs: dict[str, Trajectory], path: Path) -> None:
     fig, grid = plt.subplots(2, len(runs), figsize=(3.6 * len(runs), 5.6), sharex=True,
                              squeeze=False)
     for column, (name, run) in enumerate(runs.items()):

@@ -1,7 +1,7 @@
 """Export a robot's controller, model and closed-loop step as a self-contained C99 package.
 
-The package needs neither Python nor CasADi to build or run. Staged as a build:
-the functions are made consistent (renamed with a C prefix, outputs made dense, matrices
+The package needs neither Python nor CasADi to build or run. Staged as a build: the
+functions are made consistent (renamed with a C prefix, outputs made dense, matrices
 row-major), CasADi generates their C, the public header, wrappers, example and build files
 are rendered around it, and a JSON manifest records the robot, the controller and a hash of
 every file. One package is one folder:
@@ -9,6 +9,9 @@ every file. One package is one folder:
 * ``<prefix>.h``: the one public header, every function, size, layout and flag documented;
 * ``<prefix>.c``: the wrappers; it includes ``<prefix>_generated.inc``, CasADi's code
   (never compiled on its own);
+* ``<prefix>_plan.c`` and ``<prefix>_plan_generated.inc``, only for a controller with
+  internal state: ``<prefix>_initial_memory``, run once per move (built without
+  optimisation: it is large, and optimising it takes the compiler tens of seconds);
 * ``main.c``: the example, the closed loop from the case's start to its goal;
 * ``Makefile`` and ``CMakeLists.txt``: a static library ``lib<prefix>.a`` and ``example``;
 * ``README.md`` and ``manifest.json``.
@@ -26,6 +29,7 @@ import json
 import re
 import subprocess
 import tempfile
+import textwrap
 from pathlib import Path
 
 import casadi as ca
@@ -36,7 +40,14 @@ from cdpr_sym.controllers import FLAG_NAMES, Controller, controller_by_name, law
 from cdpr_sym.errors import CompilationFailed, CompilerNotFound, InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot, resolve_robot
-from cdpr_sym.simulation import STOP_REASONS, Plant, _Layout, step_function
+from cdpr_sym.simulation import (
+    STOP_REASONS,
+    Plant,
+    _Layout,
+    initial_memory_function,
+    layout_of,
+    step_function,
+)
 
 #: The model terms that always get a wrapper (every ``SymbolicModel.functions`` entry does).
 REQUIRED_MODEL_TERMS = ("cable_lengths", "structure_matrix", "mass_matrix", "potential",
@@ -47,7 +58,8 @@ _ARGUMENT_DOCS = {
     "q_goal": "goal position, m", "k": "stiffness gains K (diagonal), N/m",
     "r_d": "damping gains R_d (diagonal), N s/m", "tau": "cable tensions, N (> 0 pulls)",
     "j": "free entries of J_d (row-major strict upper triangle), N s/m",
-    "x": "state [q (m), dq (m/s), status] (X_* offsets; status 0 on the first call)",
+    "q0": "start position of the move, m",
+    "x": "state [q (m), dq (m/s), memory, status] (X_* offsets; status 0 at the start)",
     "p": "parameters (P_* offsets; fill with the _parameters function)",
     "x_next": "state after dt; frozen, with status != 0 (STATUS_*), once the loop stopped",
     "log": "this period's [tau (N), alpha, beta (N), j (N s/m), flags] (LOG_* offsets)",
@@ -76,7 +88,33 @@ _FLAG_DOCS = {
     "saturated": "the commanded tension was clipped to [T_MIN, T_MAX]",
     "alpha_below_one": "alpha < 1: the PD action was scaled down (the design, not a fault)",
     "singular": "|det W| below 1e-6: singular configuration; the step stops the loop",
-    "infeasible": "no alpha in (0, 1] reaches the tension box (box / linf designs)",
+    "infeasible": "no admissible command or plan reaches the tension box",
+}
+#: Arguments of ``<prefix>_control`` by the law's input / output names:
+#: (C parameter, value handed to CasADi, may be NULL, documentation).
+_CONTROL_INPUTS = {
+    "q": ("const double q[@n@]", "q", False, "position, m"),
+    "dq": ("const double dq[@n@]", "dq", False,
+           "velocity, m/s (rest and |dq| below any low-speed threshold included)"),
+    "q_goal": ("const double q_goal[@n@]", "q_goal", False, "goal position, m"),
+    "k": ("const double k[@n@]", "k ? k : @PREFIX@_case_k", True,
+          "stiffness gains K (diagonal), N/m; NULL: the robot's case gains"),
+    "r_d": ("const double r_d[@n@]", "r_d ? r_d : @PREFIX@_case_r_d", True,
+            "damping gains R_d (diagonal), N s/m; NULL: the robot's case gains"),
+    "memory": ("const double memory[@nmem@]", "memory", False,
+               "internal state: from _initial_memory at the start of a move, then the "
+               "previous call's memory_next"),
+    "dt": ("double dt", "&dt", False, "time since the previous call (control period), s"),
+}
+_CONTROL_OUTPUTS = {
+    "tau": ("double tau[@n@]", "tau", False, "commanded cable tensions, N (> 0 pulls)"),
+    "alpha": ("double *alpha", "alpha", True, "scale on the PD part, eq. (24), 0 < alpha <= 1"),
+    "beta": ("double *beta", "beta", True,
+             "margin of eq. (20), N: (T_MAX - T_MIN)/2 - |tau_1 - (T_MIN + T_MAX)/2|"),
+    "j": ("double j[@nj@]", "j", True, "free entries of J_d, N s/m"),
+    "flags": ("int *flags", "&flag_value", True, "bit set of the FLAG_* macros above"),
+    "memory_next": ("double memory_next[@nmem@]", "memory_next", False,
+                    "internal state for the next call (must not overlap memory)"),
 }
 
 
@@ -92,6 +130,8 @@ class ExportResult:
         The C prefix of every public symbol (``<prefix>_control``, ...).
     header, source, generated, example, makefile, cmake, readme, manifest : Path
         The files written (see the module docstring).
+    plan_source, plan_generated : Path or None
+        The planner's files, for a controller with internal state (else None).
     """
 
     out_dir: Path
@@ -104,12 +144,15 @@ class ExportResult:
     cmake: Path
     readme: Path
     manifest: Path
+    plan_source: Path | None = None
+    plan_generated: Path | None = None
 
     @property
     def paths(self) -> tuple[Path, ...]:
         """Every file written."""
-        return tuple(getattr(self, field.name) for field in dataclasses.fields(self)
-                     if field.name not in ("out_dir", "prefix"))
+        values = (getattr(self, field.name) for field in dataclasses.fields(self)
+                  if field.name not in ("out_dir", "prefix"))
+        return tuple(value for value in values if value is not None)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -160,8 +203,10 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     Notes
     -----
     The generated functions compute exactly the CasADi expressions of
-    :func:`cdpr_sym.controllers.law_function`, :class:`cdpr_sym.model.SymbolicModel` and
-    :func:`cdpr_sym.simulation.step_function`; all quantities are SI (m, m/s, N, s).
+    :func:`cdpr_sym.controllers.law_function`, :class:`cdpr_sym.model.SymbolicModel`,
+    :func:`cdpr_sym.simulation.step_function` and (for a controller with internal state)
+    :func:`cdpr_sym.simulation.initial_memory_function`; all quantities are SI
+    (m, m/s, N, s).
 
     Examples
     --------
@@ -176,32 +221,45 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", prefix):
         raise InvalidCase("prefix", f"expected a C identifier, got {prefix!r}")
     out = _make_folder(Path(out_dir))
-    entries = _entries(SymbolicModel(robot), controller, prefix)
-    layout = _Layout(robot.n, robot.n_j)
+    model = SymbolicModel(robot)
+    layout = layout_of(model, controller)
+    entries = _entries(model, controller, prefix)
+    realtime = [entry for entry in entries if entry.name != "initial_memory"]
+    plan = [entry for entry in entries if entry.name == "initial_memory"]
+    names = _names(robot, controller, layout)
     texts = {
-        f"{prefix}_generated.inc": _generated(entries, prefix, avoid_stack),
-        f"{prefix}.h": _header(robot, controller, prefix, entries, layout, avoid_stack),
-        f"{prefix}.c": _source(robot, prefix, entries),
-        "main.c": _render(_EXAMPLE_C, prefix, **_names(robot, controller)),
-        "Makefile": _render(_MAKEFILE, prefix),
-        "CMakeLists.txt": _render(_CMAKE, prefix),
-        "README.md": _readme(robot, controller, prefix),
+        f"{prefix}_generated.inc": _generated(realtime, prefix, f"{prefix}_", avoid_stack),
+        f"{prefix}.h": _header(robot, prefix, entries, layout, avoid_stack, names),
+        f"{prefix}.c": _source(robot, prefix, realtime, layout),
+        "main.c": _render(_EXAMPLE_C, prefix, **names, memory=_EXAMPLE_MEMORY if plan else ""),
+        "Makefile": _render(_MAKEFILE, prefix, plan=_MAKEFILE_PLAN if plan else "",
+                            objects="@PREFIX@.o @PREFIX@_plan.o" if plan else "@PREFIX@.o"),
+        "CMakeLists.txt": _render(_CMAKE, prefix, plan=_CMAKE_PLAN if plan else "",
+                                  sources="@PREFIX@.c @PREFIX@_plan.c" if plan else "@PREFIX@.c"),
+        "README.md": _render(_README, prefix, **names, plan=_README_PLAN if plan else ""),
     }
+    if plan:
+        texts[f"{prefix}_plan_generated.inc"] = _generated(plan, prefix, f"{prefix}_plan_",
+                                                           avoid_stack)
+        texts[f"{prefix}_plan.c"] = _render(_PLAN_SOURCE, prefix,
+                                            wrapper=_wrapper(prefix, plan[0]))
     for name, text in texts.items():
         (out / name).write_text(text)
     manifest = {"prefix": prefix, "robot": robot.as_dict(),
                 "controller": {"name": controller.name, "options": controller.options()},
-                "casadi_version": ca.__version__,
+                "casadi_version": ca.__version__, "avoid_stack": avoid_stack,
                 "functions": {e.name: {"operations": e.function.n_instructions(),
                                        "work_doubles": e.function.sz_w()} for e in entries},
                 "sha256": {name: hashlib.sha256(text.encode()).hexdigest()
                            for name, text in texts.items()}}
     (out / "manifest.json").write_text(json.dumps(manifest, indent=2) + "\n")
-    return ExportResult(out_dir=out, prefix=prefix, header=out / f"{prefix}.h",
-                        source=out / f"{prefix}.c", generated=out / f"{prefix}_generated.inc",
-                        example=out / "main.c", makefile=out / "Makefile",
-                        cmake=out / "CMakeLists.txt", readme=out / "README.md",
-                        manifest=out / "manifest.json")
+    return ExportResult(
+        out_dir=out, prefix=prefix, header=out / f"{prefix}.h", source=out / f"{prefix}.c",
+        generated=out / f"{prefix}_generated.inc", example=out / "main.c",
+        makefile=out / "Makefile", cmake=out / "CMakeLists.txt", readme=out / "README.md",
+        manifest=out / "manifest.json",
+        plan_source=out / f"{prefix}_plan.c" if plan else None,
+        plan_generated=out / f"{prefix}_plan_generated.inc" if plan else None)
 
 
 def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
@@ -210,7 +268,8 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
 
     The package is exported to a temporary folder and built with ``-O2`` together with a
     small timing program, which cycles through 64 states near the case's start (moving and
-    at rest) for at least ``min_seconds`` s and reports the best of three rounds.
+    at rest) for at least ``min_seconds`` s and reports the best of three rounds. A
+    controller's internal state, if any, is its plan from the case's start.
 
     Raises
     ------
@@ -220,6 +279,7 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
         The compiler rejected the code (its output is in the message).
     """
     robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
+    controller = controller_by_name(controller) if isinstance(controller, str) else controller
     cc = find_compiler(compiler)
     if cc is None:
         raise CompilerNotFound("no C compiler found (looked for $CC, cc, gcc, clang)")
@@ -227,30 +287,42 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
     states = np.column_stack([robot.start + rng.normal(scale=0.05, size=(64, robot.n)),
                               rng.normal(scale=0.3, size=(64, robot.n))])
     states[::8, robot.n:] = 0.0
+    memory = np.array(initial_memory_function(SymbolicModel(robot), controller)(
+        robot.start, robot.goal, robot.k, robot.r_d)).ravel()
+    law = law_function(SymbolicModel(robot), controller)
+    values = {"q": "s", "dq": "s + CDPR_BENCH_N", "q_goal": "cdpr_bench_case_goal", "k": "0",
+              "r_d": "0", "memory": "memory", "dt": "1e-3", "tau": "tau", "alpha": "0",
+              "beta": "0", "j": "0", "flags": "0", "memory_next": "memory_next"}
+    call = ", ".join(values[name] for name in (*law.name_in(), *law.name_out()))
     with tempfile.TemporaryDirectory(prefix="cdpr_bench_") as folder:
         result = export_c(robot, controller, folder, prefix="cdpr_bench")
         bench = Path(folder) / "bench.c"
-        values = ",\n".join("{" + ", ".join(repr(float(v)) for v in row) + "}"
-                             for row in states)
-        bench.write_text(_BENCH_C.replace("STATES", values).replace(
-            "MIN_SECONDS", repr(float(min_seconds))))
+        bench.write_text(_render(
+            _BENCH_C, "cdpr_bench", call=call, seconds=repr(float(min_seconds)),
+            states=",\n".join(_c_array(row) for row in states),
+            memory=_c_array(memory if memory.size else np.zeros(1))))
         program = Path(folder) / "bench"
-        _run([cc, "-std=c99", "-O2", "-I", folder, str(bench), str(result.source), "-o",
+        _run([cc, "-std=c99", "-O2", "-I", folder, str(bench), str(result.source),
+              *([str(result.plan_source), "-O0"] if result.plan_source else []), "-o",
               str(program), "-lm"])
         return float(_run([str(program)]).split()[-1])
 
 
 # -- consistent functions -----------------------------------------------------------------
 def _entries(model: SymbolicModel, controller: Controller, prefix: str) -> list[_Entry]:
-    n, n_j = model.n, model.n_j
-    law, step = law_function(model, controller), step_function(model, controller)
-    layout = _Layout(n, n_j)
+    layout = layout_of(model, controller)
     entries = [
-        _entry("control", law, prefix, "One control step"),
-        _entry("step", step, prefix, f"One closed-loop period of dt = p[P_DT] s: the tension "
-               f"of the control law, held over\n * one RK4 step of the plant "
-               f"(x: {layout.n_x}, p: {layout.n_p}, log: {layout.n_log} doubles)"),
+        _entry("control", law_function(model, controller), prefix, "One control step"),
+        _entry("step", step_function(model, controller), prefix,
+               f"One closed-loop period of dt = p[P_DT] s: the tension of the control law, "
+               f"held over\n * one RK4 step of the plant (x: {layout.n_x}, p: {layout.n_p}, "
+               f"log: {layout.n_log} doubles; x and x_next must not overlap)"),
     ]
+    if layout.n_memory:
+        entries.append(_entry(
+            "initial_memory", initial_memory_function(model, controller), prefix,
+            "The controller's internal state at the start of a move (its plan, computed once\n"
+            " * per move; put it into x[X_MEMORY] or pass it to _control)"))
     for name, function in model.functions.items():
         entries.append(_entry(name, function, prefix, _MODEL_DOCS.get(
             name, f"model term {name} (see cdpr_sym.model.SymbolicModel)")))
@@ -270,41 +342,45 @@ def _entry(name: str, function: ca.Function, prefix: str, summary: str) -> _Entr
         rows, cols = (function.size_in if is_input else function.size_out)(index)
         doc = _ARGUMENT_DOCS.get(label, summary) if is_input or name == "step" else summary
         shape = f" ({rows} x {cols}, row-major)" if rows > 1 and cols > 1 else ""
-        return _C_NAMES.get(label, label), rows * cols, doc + shape
+        return _C_NAMES.get(label, label), rows * cols, doc.split("\n")[0] + shape
     return _Entry(name, renamed, summary,
                   tuple(describe(i, True) for i in range(function.n_in())),
                   tuple(describe(i, False) for i in range(function.n_out())))
 
 
-def _generated(entries: list[_Entry], prefix: str, avoid_stack: bool) -> str:
+def _generated(entries: list[_Entry], prefix: str, symbol_prefix: str,
+               avoid_stack: bool) -> str:
     generator = ca.CodeGenerator(f"{prefix}_generated.c", {
-        "with_header": False, "with_export": False, "verbose": False, "prefix": f"{prefix}_",
-        "casadi_real": "double", "casadi_int": "long long int", "avoid_stack": avoid_stack})
+        "with_header": False, "with_export": False, "verbose": False,
+        "prefix": symbol_prefix, "casadi_real": "double", "casadi_int": "long long int",
+        "avoid_stack": avoid_stack})
     for entry in entries:
         generator.add(entry.function)
     return (f"/* Generated by CasADi {ca.__version__} for {prefix}; do not edit. Included by "
-            f"{prefix}.c, not compiled on its own. */\n" + generator.dump())
+            f"a wrapper, never compiled on its own. */\n" + generator.dump())
 
 
 # -- C text ---------------------------------------------------------------------------------
-def _header(robot: Robot, controller: Controller, prefix: str, entries: list[_Entry],
-            layout: _Layout, avoid_stack: bool) -> str:
+def _header(robot: Robot, prefix: str, entries: list[_Entry], layout: _Layout,
+            avoid_stack: bool, names: dict[str, str]) -> str:
     up, n, n_j = prefix.upper(), robot.n, robot.n_j
     sizes = {"SZ_ARG": max(max(e.function.sz_arg(), e.function.n_in()) for e in entries),
              "SZ_RES": max(max(e.function.sz_res(), e.function.n_out()) for e in entries),
              "SZ_IW": max(1, *(e.function.sz_iw() for e in entries)),
              "SZ_W": max(1, *(e.function.sz_w() for e in entries))}
-    p_index = _parameter_index(layout)
     lines = [f"#define {up}_N {n}  /* degrees of freedom = cables */",
              f"#define {up}_NJ {n_j}  /* free entries of J_d, n(n-1)/2 */",
-             f"#define {up}_NX {layout.n_x}  /* step state x = [q (m), dq (m/s), status] */",
+             f"#define {up}_NMEM {layout.n_memory}  /* the controller's internal state */",
+             f"#define {up}_NX {layout.n_x}  /* step state x = [q, dq, memory, status] */",
              f"#define {up}_NP {layout.n_p}  /* step parameters p, see {up}_P_* */",
              f"#define {up}_NLOG {layout.n_log}  /* step log = [tau, alpha, beta, j, flags] */",
              f"#define {up}_T_MIN {robot.t_min!r}  /* tension bounds, N */",
              f"#define {up}_T_MAX {robot.t_max!r}",
              "", "/* Index layout of x, p and log (offsets into the arrays). */",
-             f"#define {up}_X_Q 0", f"#define {up}_X_DQ {n}", f"#define {up}_X_STATUS {2 * n}"]
-    lines += [f"#define {up}_P_{key.upper()} {value}" for key, value in p_index.items()]
+             f"#define {up}_X_Q 0", f"#define {up}_X_DQ {n}", f"#define {up}_X_MEMORY {2 * n}",
+             f"#define {up}_X_STATUS {layout.status_index}"]
+    lines += [f"#define {up}_P_{key.upper()} {value}"
+              for key, value in _parameter_index(layout).items()]
     lines += [f"#define {up}_LOG_TAU 0", f"#define {up}_LOG_ALPHA {n}",
               f"#define {up}_LOG_BETA {n + 1}", f"#define {up}_LOG_J {n + 2}",
               f"#define {up}_LOG_FLAGS {n + 2 + n_j}",
@@ -318,32 +394,70 @@ def _header(robot: Robot, controller: Controller, prefix: str, entries: list[_En
     lines += ["", "/* Work memory: sizes of the arrays in the work struct (the largest over all "
               "functions). */"]
     lines += [f"#define {up}_{key} {value}" for key, value in sizes.items()]
-    declarations = [_render(_CONTROL_DOC, prefix, n=str(n), nj=str(n_j)),
-                    f"int {prefix}_control(const double q[{n}], const double dq[{n}], "
-                    f"const double q_goal[{n}],\n    const double k[{n}], const double r_d[{n}], "
-                    f"double tau[{n}], double *alpha, double *beta,\n    double j[{n_j}], "
-                    f"int *flags, {prefix}_work *work);", "",
+    declarations = [_control_code(prefix, entries[0], layout, definition=False), "",
                     _PARAMETERS_DOC, f"void {prefix}_parameters(const double q_goal[{n}], "
                     f"const double k[{n}], const double r_d[{n}],\n    double dt, "
                     f"double mass_scale, int slack, double p[{layout.n_p}]);", ""]
-    for entry in (entry for entry in entries if entry.name != "control"):
-        operations = entry.function.n_instructions()
-        doc = [f"/* {entry.summary}.", f" * {operations} straight-line operations; returns 0, "
-               "or -1 if a pointer is NULL."]
+    for entry in entries[1:]:
+        doc = [f"/* {entry.summary}.", f" * {entry.function.n_instructions()} straight-line "
+               "operations; returns 0, or -1 if a pointer is NULL."]
         doc += [f" * in  {label}[{size}]: {text}" for label, size, text in entry.inputs]
         doc += [f" * out {label}[{size}]: {text}" for label, size, text in entry.outputs]
         declarations += [*doc, " */", f"int {_signature(prefix, entry)};", ""]
-    return _render(_HEADER, prefix, **_names(robot, controller), macros="\n".join(lines),
-                   declarations="\n".join(declarations), operations=str(max(
-                       e.function.n_instructions() for e in entries)),
-                   memory=_MEMORY_DOC[avoid_stack])
+    options = textwrap.wrap(f"(options: {names['options']})", 92, initial_indent=" * ",
+                            subsequent_indent=" *   ", break_on_hyphens=False)
+    return _render(_HEADER, prefix, **names, macros="\n".join(lines),
+                   options_comment="\n".join(options),
+                   declarations="\n".join(declarations), memory=_MEMORY_DOC[avoid_stack],
+                   operations=str(max(e.function.n_instructions() for e in entries
+                                      if e.name != "initial_memory")))
 
 
-def _signature(prefix: str, entry: _Entry) -> str:
-    arguments = [f"const double {label}[{size}]" for label, size, _ in entry.inputs]
-    arguments += [f"double {label}[{size}]" for label, size, _ in entry.outputs]
-    arguments.append(f"{prefix}_work *work")
-    lines = [f"{prefix}_{entry.name}("]
+def _control_code(prefix: str, entry: _Entry, layout: _Layout, *, definition: bool) -> str:
+    """Declaration (with its documentation) or definition of ``<prefix>_control``."""
+    law = entry.function
+    unknown = [*(set(law.name_in()) - set(_CONTROL_INPUTS)),
+               *(set(law.name_out()) - set(_CONTROL_OUTPUTS))]
+    if unknown:
+        raise RuntimeError(f"the C exporter does not know the law arguments {unknown}")
+    arguments = ([(name, *_CONTROL_INPUTS[name]) for name in law.name_in()]
+                 + [(name, *_CONTROL_OUTPUTS[name]) for name in law.name_out()])
+    sizes = {"n": str(layout.n), "nj": str(layout.n_j), "nmem": str(layout.n_memory)}
+    head = _wrap(f"int {prefix}_control(", [parameter for _, parameter, *_ in arguments]
+                 + [f"{prefix}_work *work"])
+    if not definition:
+        inputs = set(law.name_in())
+        doc = ["/* One control step: the tension commanded at the state (q, dq) for the goal "
+               "q_goal.", " *"]
+        for name, parameter, _, optional, text in arguments:
+            label = _render(re.sub(r"^(const )?(double|int) \*?", "", parameter), prefix,
+                            **sizes)
+            text += " (may be NULL)" if optional and name not in inputs else ""
+            doc += textwrap.wrap(text, 92, initial_indent=f" * {'in ' if name in inputs else 'out'}"
+                                 f" {label:<15} ", subsequent_indent=" *" + " " * 21)
+        required = [name for name, _, _, optional, _ in arguments
+                    if not optional and name != "dt"]
+        doc += [" * work                caller-provided work memory (one per thread)",
+                *textwrap.wrap(f"Returns 0, or -1 if {', '.join(required)} or work is NULL "
+                               "(nothing is written then).", 92, initial_indent=" * ",
+                               subsequent_indent=" * "), " */"]
+        return _render("\n".join([*doc, head + ";"]), prefix, **sizes)
+    checks = textwrap.wrap(" || ".join(
+        ["work == 0"] + [f"{name} == 0" for name, _, _, optional, _ in arguments
+                         if not optional and name != "dt"]), 86, subsequent_indent="      ")
+    body = [head + " {", "  double flag_value = 0.0;", f"  if ({chr(10).join(checks)}) return -1;"]
+    body += [f"  work->arg[{i}] = {_CONTROL_INPUTS[name][1]};"
+             for i, name in enumerate(law.name_in())]
+    body += [f"  work->res[{i}] = {_CONTROL_OUTPUTS[name][1]};"
+             for i, name in enumerate(law.name_out())]
+    body += [f"  if ({law.name()}(work->arg, work->res, work->iw, work->w, 0)) return -1;",
+             "  if (flags) *flags = (int) flag_value;", "  return 0;", "}"]
+    return _render("\n".join(body), prefix, **sizes)
+
+
+def _wrap(head: str, arguments: list[str]) -> str:
+    """``head`` followed by ``arguments`` and ``)``, wrapped at 92 columns."""
+    lines = [head]
     for index, argument in enumerate(arguments):
         text = argument + (", " if index < len(arguments) - 1 else ")")
         if len(lines[-1]) + len(text) > 92:
@@ -353,27 +467,32 @@ def _signature(prefix: str, entry: _Entry) -> str:
     return "\n".join(lines)
 
 
-def _source(robot: Robot, prefix: str, entries: list[_Entry]) -> str:
-    def array(values: np.ndarray) -> str:
-        return "{" + ", ".join(repr(float(v)) for v in values) + "}"
+def _signature(prefix: str, entry: _Entry) -> str:
+    arguments = [f"const double {label}[{size}]" for label, size, _ in entry.inputs]
+    arguments += [f"double {label}[{size}]" for label, size, _ in entry.outputs]
+    return _wrap(f"{prefix}_{entry.name}(", [*arguments, f"{prefix}_work *work"])
+
+
+def _wrapper(prefix: str, entry: _Entry) -> str:
+    """Definition of the plain wrapper of a generated function (all pointers required)."""
+    names = [label for label, _, _ in (*entry.inputs, *entry.outputs)]
+    body = [f"int {_signature(prefix, entry)} {{",
+            f"  if (work == 0 || {' || '.join(f'{label} == 0' for label in names)}) return -1;"]
+    body += [f"  work->arg[{i}] = {label};" for i, (label, _, _) in enumerate(entry.inputs)]
+    body += [f"  work->res[{i}] = {label};" for i, (label, _, _) in enumerate(entry.outputs)]
+    body += [f"  return {entry.function.name()}(work->arg, work->res, work->iw,",
+             "      work->w, 0) ? -1 : 0;", "}", ""]
+    return "\n".join(body)
+
+
+def _source(robot: Robot, prefix: str, entries: list[_Entry], layout: _Layout) -> str:
     case = "\n".join(f"const double {prefix}_case_{field}[{robot.n}] = "
-                     f"{array(getattr(robot, field))};"
+                     f"{_c_array(getattr(robot, field))};"
                      for field in ("start", "goal", "k", "r_d"))
-    wrappers = []
-    for entry in entries:
-        if entry.name == "control":
-            continue
-        names = [label for label, _, _ in (*entry.inputs, *entry.outputs)]
-        body = [f"int {_signature(prefix, entry)} {{",
-                f"  if (work == 0 || {' || '.join(f'{label} == 0' for label in names)}) "
-                "return -1;"]
-        body += [f"  work->arg[{i}] = {label};" for i, (label, _, _) in enumerate(entry.inputs)]
-        body += [f"  work->res[{i}] = {label};" for i, (label, _, _) in enumerate(entry.outputs)]
-        body += [f"  return {entry.function.name()}(work->arg, work->res, work->iw,",
-                 "      work->w, 0) ? -1 : 0;", "}", ""]
-        wrappers.append("\n".join(body))
-    return _render(_SOURCE, prefix, case=case, wrappers="\n".join(wrappers), n=str(robot.n),
-                   nj=str(robot.n_j), np=str(_Layout(robot.n, robot.n_j).n_p))
+    wrappers = [_wrapper(prefix, entry) for entry in entries if entry.name != "control"]
+    return _render(_SOURCE, prefix, case=case, wrappers="\n".join(wrappers),
+                   control=_control_code(prefix, entries[0], layout, definition=True),
+                   n=str(robot.n), np=str(layout.n_p))
 
 
 def _parameter_index(layout: _Layout) -> dict[str, int]:
@@ -391,10 +510,6 @@ def _parameter_index(layout: _Layout) -> dict[str, int]:
     return index
 
 
-def _readme(robot: Robot, controller: Controller, prefix: str) -> str:
-    return _render(_README, prefix, **_names(robot, controller), n=str(robot.n))
-
-
 def _render(template: str, prefix: str, **values: str) -> str:
     text = template
     for key, value in values.items():
@@ -402,11 +517,11 @@ def _render(template: str, prefix: str, **values: str) -> str:
     return text.replace("@PREFIX@", prefix).replace("@UPPER@", prefix.upper())
 
 
-def _names(robot: Robot, controller: Controller) -> dict[str, str]:
+def _names(robot: Robot, controller: Controller, layout: _Layout) -> dict[str, str]:
     """Robot name, controller name and options, safe to paste into any generated text."""
-    pairs = ", ".join(f"{key}={value}" for key, value in controller.options().items())
+    options = json.dumps(controller.options(), default=float).replace("*/", "* /")
     return {"robot": _display(robot.name), "controller": _display(controller.name),
-            "options": _display(pairs or "none")}
+            "options": options, "n": str(layout.n)}
 
 
 def _display(text: str) -> str:
@@ -416,6 +531,10 @@ def _display(text: str) -> str:
 
 def _identifier(text: str) -> str:
     return re.sub(r"[^0-9A-Za-z_]", "_", text).lower()
+
+
+def _c_array(values: np.ndarray) -> str:
+    return "{" + ", ".join(repr(float(v)) for v in values) + "}"
 
 
 def _make_folder(out: Path) -> Path:
@@ -438,28 +557,10 @@ def _run(command: list[str]) -> str:
 
 
 _MEMORY_DOC = {
-    True: "every intermediate value lives there\n * (exported with avoid_stack=True).",
-    False: "intermediates are local variables, at\n * most @UPPER@_SZ_W doubles of stack "
+    True: "every intermediate value lives there (exported with avoid_stack=True).",
+    False: "intermediates are local variables, at most\n * @UPPER@_SZ_W doubles of stack "
            "(exported with avoid_stack=False).",
 }
-
-_CONTROL_DOC = """\
-/* One control step: the tension commanded at the state (q, dq) for the goal q_goal.
- *
- * in  q[@n@]       position, m
- * in  dq[@n@]      velocity, m/s (|dq| below the low-speed threshold, 0 included, is handled)
- * in  q_goal[@n@]  goal position, m
- * in  k[@n@]       stiffness gains K (diagonal), N/m; NULL: the robot's case gains
- * in  r_d[@n@]     damping gains R_d (diagonal), N s/m; NULL: the robot's case gains
- * out tau[@n@]     commanded cable tensions, N (> 0 pulls)
- * out alpha      scale on the PD part, eq. (24), 0 < alpha <= 1      (may be NULL)
- * out beta       margin of eq. (20), N: (T_MAX - T_MIN)/2 - |tau_1 - (T_MIN + T_MAX)/2|
- *                                                                     (may be NULL)
- * out j[@nj@]       free entries of J_d, N s/m                           (may be NULL)
- * out flags      bit set of the FLAG_* macros above                   (may be NULL)
- * work           caller-provided work memory (not shared between threads)
- * Returns 0, or -1 if q, dq, q_goal, tau or work is NULL (nothing is written then).
- */"""
 
 _PARAMETERS_DOC = """\
 /* Fill the step's parameter vector p (layout P_* above). q_goal, k, r_d: m, N/m, N s/m,
@@ -468,17 +569,19 @@ _PARAMETERS_DOC = """\
 
 _HEADER = """\
 /* @PREFIX@.h -- exported from cdpr_sym: robot "@robot@", controller "@controller@"
- * (options: @options@).
+@options_comment@
  *
  * Units are SI throughout: m, m/s, m/s^2, s, kg, N. Vectors are double arrays of the stated
  * length; matrices are row-major (M[i * cols + j] is row i, column j).
  *
  * Real-time properties: every function below is straight-line code generated by CasADi
- * from SX expressions (at most @operations@ operations, no loops, no recursion), so its
- * execution time is bounded and data-independent up to branch prediction. No function
- * allocates heap memory, prints, or keeps state between calls. Scratch memory is the
- * caller's @PREFIX@_work (@UPPER@_WORK_BYTES bytes; static,
- * stack or pool); @memory@ Calls on different work structs may run concurrently.
+ * from SX expressions (control and step: at most @operations@ operations; no loops, no
+ * recursion), so its execution time is bounded and data-independent up to branch
+ * prediction. No function allocates heap memory, prints, or keeps state between calls.
+ * Scratch memory is the caller's @PREFIX@_work
+ * (@UPPER@_WORK_BYTES bytes; static, stack or pool);
+ * @memory@
+ * Calls on different work structs may run concurrently.
  */
 #ifndef @UPPER@_H
 #define @UPPER@_H
@@ -511,41 +614,26 @@ extern const double @PREFIX@_case_r_d[@UPPER@_N];    /* N s/m */
 #endif /* @UPPER@_H */
 """
 
-_SOURCE = """\
-/* @PREFIX@.c -- wrappers of the generated code (see @PREFIX@.h). */
-#include "@PREFIX@.h"
-
+_PRAGMA_INCLUDE = """\
 /* CasADi's generated functions take (arg, res, iw, w, mem) and do not use every argument. */
 #if defined(__GNUC__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wunused-parameter"
 #endif
-#include "@PREFIX@_generated.inc"
+#include "@FILE@"
 #if defined(__GNUC__)
 #pragma GCC diagnostic pop
 #endif
+"""
 
+_SOURCE = """\
+/* @PREFIX@.c -- wrappers of the generated code (see @PREFIX@.h). */
+#include "@PREFIX@.h"
+
+""" + _PRAGMA_INCLUDE.replace("@FILE@", "@PREFIX@_generated.inc") + """
 @case@
 
-int @PREFIX@_control(const double q[@n@], const double dq[@n@], const double q_goal[@n@],
-    const double k[@n@], const double r_d[@n@], double tau[@n@], double *alpha, double *beta,
-    double j[@nj@], int *flags, @PREFIX@_work *work) {
-  double flag_value = 0.0;
-  if (work == 0 || q == 0 || dq == 0 || q_goal == 0 || tau == 0) return -1;
-  work->arg[0] = q;
-  work->arg[1] = dq;
-  work->arg[2] = q_goal;
-  work->arg[3] = k ? k : @PREFIX@_case_k;
-  work->arg[4] = r_d ? r_d : @PREFIX@_case_r_d;
-  work->res[0] = tau;
-  work->res[1] = alpha;
-  work->res[2] = beta;
-  work->res[3] = j;
-  work->res[4] = &flag_value;
-  if (@PREFIX@_cg_control(work->arg, work->res, work->iw, work->w, 0)) return -1;
-  if (flags) *flags = (int) flag_value;
-  return 0;
-}
+@control@
 
 void @PREFIX@_parameters(const double q_goal[@n@], const double k[@n@], const double r_d[@n@],
     double dt, double mass_scale, int slack, double p[@np@]) {
@@ -562,11 +650,19 @@ void @PREFIX@_parameters(const double q_goal[@n@], const double k[@n@], const do
 
 @wrappers@"""
 
+_PLAN_SOURCE = """\
+/* @PREFIX@_plan.c -- the controller's planner, run once per move.
+ * See @PREFIX@.h. */
+#include "@PREFIX@.h"
+
+""" + _PRAGMA_INCLUDE.replace("@FILE@", "@PREFIX@_plan_generated.inc") + """
+@wrapper@"""
+
 _EXAMPLE_C = """\
 /* Example: the closed loop of robot "@robot@" with controller "@controller@", from the
- * case's start (at rest) to its goal: 10 s of control at 1 kHz, each period one RK4 step of
- * the plant with the tension held (@PREFIX@_step). Prints the final state and error and the
- * range of the commanded tension. */
+ * case's start (at rest) to its goal: 10 s of control at 1 kHz, each period one RK4 step
+ * of the plant with the tension held (@PREFIX@_step). Prints the final state and error
+ * and the range of the commanded tension. */
 #include <math.h>
 #include <stdio.h>
 
@@ -583,12 +679,11 @@ int main(void) {
   long n_steps = (long) (DURATION / DT + 0.5), taken = 0, step;
   int i;
 
+  for (i = 0; i < @UPPER@_NX; ++i) x[i] = 0.0; /* at rest, status 0 */
   for (i = 0; i < @UPPER@_N; ++i) {
     x[@UPPER@_X_Q + i] = @PREFIX@_case_start[i];
-    x[@UPPER@_X_DQ + i] = 0.0;
   }
-  x[@UPPER@_X_STATUS] = 0.0;
-  /* goal and gains of the robot's case (NULL), dt, nominal plant mass, no cable slack */
+@memory@  /* goal and gains of the robot's case (NULL), dt, nominal plant mass, no cable slack */
   @PREFIX@_parameters(0, 0, 0, DT, 1.0, 0, p);
 
   for (step = 0; step < n_steps; ++step) {
@@ -596,7 +691,8 @@ int main(void) {
       fprintf(stderr, "step %ld failed\\n", step);
       return 1;
     }
-    if (x_next[@UPPER@_X_STATUS] != 0.0) break; /* singular, non-finite or left the frame */
+    /* stopped: singular, non-finite or left the frame */
+    if (x_next[@UPPER@_X_STATUS] != 0.0) break;
     for (i = 0; i < @UPPER@_N; ++i) {
       double tau = record[@UPPER@_LOG_TAU + i];
       tau_min = tau < tau_min ? tau : tau_min;
@@ -624,6 +720,16 @@ int main(void) {
 }
 """
 
+_EXAMPLE_MEMORY = """\
+  /* the controller's internal state at the start of the move: its plan */
+  if (@PREFIX@_initial_memory(@PREFIX@_case_start, @PREFIX@_case_goal,
+                              @PREFIX@_case_k, @PREFIX@_case_r_d,
+                              x + @UPPER@_X_MEMORY, &work) != 0) {
+    fprintf(stderr, "initial_memory failed\\n");
+    return 1;
+  }
+"""
+
 _MAKEFILE = """\
 # Builds lib@PREFIX@.a and the example. Override CC / CFLAGS as usual, e.g.
 #   make CC=clang CFLAGS="-std=c99 -O3 -Wall -Wextra -Werror"
@@ -635,24 +741,33 @@ all: lib@PREFIX@.a example
 
 @PREFIX@.o: @PREFIX@.c @PREFIX@.h @PREFIX@_generated.inc
 \t$(CC) $(CFLAGS) -c @PREFIX@.c -o $@
-
-lib@PREFIX@.a: @PREFIX@.o
+@plan@
+lib@PREFIX@.a: @objects@
 \t$(AR) rcs $@ $^
 
 example: main.c @PREFIX@.h lib@PREFIX@.a
 \t$(CC) $(CFLAGS) main.c -L. -l@PREFIX@ -lm -o $@
 
 clean:
-\trm -f @PREFIX@.o lib@PREFIX@.a example
+\trm -f *.o lib@PREFIX@.a example
 
 .PHONY: all clean
 """
 
+_MAKEFILE_PLAN = """
+# The planner runs once per move and is large: optimising it costs the compiler tens of
+# seconds and gains nothing that matters, so it is built with PLAN_CFLAGS (after CFLAGS).
+PLAN_CFLAGS ?= -O0
+
+@PREFIX@_plan.o: @PREFIX@_plan.c @PREFIX@.h @PREFIX@_plan_generated.inc
+\t$(CC) $(CFLAGS) $(PLAN_CFLAGS) -c @PREFIX@_plan.c -o $@
+"""
+
 _CMAKE = """\
-cmake_minimum_required(VERSION 3.10)
+cmake_minimum_required(VERSION 3.11)
 project(@PREFIX@ C)
 
-add_library(@PREFIX@ STATIC @PREFIX@.c)
+add_library(@PREFIX@ STATIC @sources@)
 target_include_directories(@PREFIX@ PUBLIC ${CMAKE_CURRENT_SOURCE_DIR})
 set_target_properties(@PREFIX@ PROPERTIES C_STANDARD 99 C_STANDARD_REQUIRED ON
                       C_EXTENSIONS OFF)
@@ -660,11 +775,17 @@ find_library(MATH_LIBRARY m)
 if(MATH_LIBRARY)
   target_link_libraries(@PREFIX@ PUBLIC ${MATH_LIBRARY})
 endif()
-
+@plan@
 add_executable(example main.c)
 set_target_properties(example PROPERTIES C_STANDARD 99 C_STANDARD_REQUIRED ON
                       C_EXTENSIONS OFF)
 target_link_libraries(example PRIVATE @PREFIX@)
+"""
+
+_CMAKE_PLAN = """
+# The planner runs once per move and is large: build it without optimisation.
+set_source_files_properties(@PREFIX@_plan.c PROPERTIES
+                            COMPILE_OPTIONS "$<IF:$<C_COMPILER_ID:MSVC>,/Od,-O0>")
 """
 
 _README = """\
@@ -685,7 +806,7 @@ or with CMake:
 
 To use it in your project, compile `@PREFIX@.c` (it includes `@PREFIX@_generated.inc`;
 do not compile that file on its own) and include `@PREFIX@.h`.
-
+@plan@
 ## Files
 
 | file | content |
@@ -699,7 +820,7 @@ do not compile that file on its own) and include `@PREFIX@.h`.
 ## API in brief
 
     @PREFIX@_work work;   /* caller-provided scratch memory, @UPPER@_WORK_BYTES bytes */
-    @PREFIX@_control(q, dq, q_goal, k, r_d, tau, &alpha, &beta, j, &flags, &work);
+    @PREFIX@_control(q, dq, q_goal, k, r_d, ..., tau, &alpha, &beta, j, &flags, ..., &work);
     @PREFIX@_step(x, p, x_next, log_out, &work);   /* control + one RK4 step of dt */
 
 plus one function per model term (`@PREFIX@_cable_lengths`, `_structure_matrix`,
@@ -715,6 +836,14 @@ calls with separate work structs are thread-safe. Build with IEEE-preserving fla
 with `@PREFIX@_`, so packages of several robots or controllers link into one program.
 """
 
+_README_PLAN = """
+This controller has an internal state (`@UPPER@_NMEM` doubles): compute it once per move
+with `@PREFIX@_initial_memory` (in `@PREFIX@_plan.c`, which you compile as well; the
+Makefile and CMakeLists.txt build it without optimisation, as it is large and runs once),
+then pass it to `@PREFIX@_control` (which returns the next one) or keep it in the step's
+state `x`.
+"""
+
 _BENCH_C = """\
 #define _POSIX_C_SOURCE 199309L
 #include <stdio.h>
@@ -722,7 +851,7 @@ _BENCH_C = """\
 #include "cdpr_bench.h"
 
 static const double states[64][2 * CDPR_BENCH_N] = {
-STATES
+@states@
 };
 
 static double now(void) {
@@ -733,22 +862,23 @@ static double now(void) {
 
 int main(void) {
   static cdpr_bench_work work;
+  static double memory[] = @memory@, memory_next[sizeof memory / sizeof memory[0]];
   double tau[CDPR_BENCH_N], best = 0.0;
   volatile double sink = 0.0;
   int round;
+  (void) memory_next;
   for (round = 0; round < 3; ++round) {
     long calls = 0, i;
     double start = now(), elapsed;
     do {
       for (i = 0; i < 4096; ++i) {
         const double *s = states[i & 63];
-        cdpr_bench_control(s, s + CDPR_BENCH_N, cdpr_bench_case_goal, 0, 0, tau, 0, 0, 0, 0,
-                           &work);
+        cdpr_bench_control(@call@, &work);
         sink += tau[0];
       }
       calls += 4096;
       elapsed = now() - start;
-    } while (elapsed < MIN_SECONDS / 3.0);
+    } while (elapsed < @seconds@ / 3.0);
     if (calls / elapsed > best) best = calls / elapsed;
   }
   printf("calls_per_s %.6e\\n", best);

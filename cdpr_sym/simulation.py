@@ -315,7 +315,8 @@ class Simulator:
             t=np.arange(last + 1) * dt, q=states[: last + 1, :n].copy(),
             dq=states[: last + 1, n: 2 * n].copy(), q_goal=np.array(goal, dtype=float),
             t_min=self.robot.t_min, t_max=self.robot.t_max, stop_reason=reason,
-            info=self._info(dt, k, r_d, plant, integrator="rk4-sampled"), **parts)
+            info=self._info(dt, k, r_d, plant, integrator="rk4-sampled"),
+            memory=states[: last + 1, 2 * n: self.layout.status_index].copy(), **parts)
 
     def _info(self, dt, k, r_d, plant, *, integrator: str) -> dict[str, Any]:
         return {"robot": self.robot.name, "controller": self.controller.name,

@@ -45,6 +45,8 @@ class Trajectory:
         ``"left_frame"``), or None when it ran to the end.
     info : dict
         Robot, controller, options and integrator, for the record.
+    memory : ndarray, shape (N + 1, m)
+        The controller's internal state at each sample (m = 0 for memoryless controllers).
     """
 
     t: np.ndarray
@@ -60,6 +62,7 @@ class Trajectory:
     t_max: float
     stop_reason: str | None = None
     info: dict[str, Any] = dataclasses.field(default_factory=dict)
+    memory: np.ndarray | None = None
 
     @property
     def error(self) -> np.ndarray:
@@ -127,6 +130,7 @@ class Trajectory:
         np.savez_compressed(
             path, t=self.t, q=self.q, dq=self.dq, tau=self.tau, alpha=self.alpha,
             beta=self.beta, j=self.j, flags=self.flags, q_goal=self.q_goal,
+            memory=self.memory if self.memory is not None else np.zeros((len(self.t), 0)),
             t_min=self.t_min, t_max=self.t_max,
             stop_reason=np.array(self.stop_reason or ""),
             info=np.array(json.dumps(self.info, default=str)))

@@ -17,7 +17,7 @@ from cdpr_sym.box_designs import BoxDesign, LinfDesign
 from cdpr_sym.controllers import FLAG_BETA, FLAG_INFEASIBLE, FLAG_LOW_SPEED, tension
 from cdpr_sym.cvx_designs import CvxExactBoxDesign
 
-DESIGNS = {"box": BoxDesign(alpha_margin=1e-5), "linf": LinfDesign(linf_slack=1.001)}
+DESIGNS = {"box": BoxDesign(), "linf": LinfDesign()}
 #: Random states per robot in the fast-path / cvxpy comparison (plus the special states).
 RANDOM_COUNT = {"aras3": 420, "planar2": 120}
 #: Tight HiGHS tolerances: the LPs below are small and well scaled (A for a unit speed).
@@ -301,7 +301,7 @@ def test_box_design_alpha_is_maximal(robot_and_model, rng, random_states):
     goals, _ = random_states(robot, rng, 300)
     checked = 0
     for i in range(len(q)):
-        out = tension(model, BoxDesign(alpha_margin=1e-2), q[i], dq[i], goals[i])
+        out = tension(model, BoxDesign(), q[i], dq[i], goals[i])
         if out.alpha >= 1 or out.flags & (FLAG_INFEASIBLE | FLAG_LOW_SPEED):
             continue
         _, tau_1, tau_2 = _parts(robot, q[i], dq[i], goals[i])
@@ -342,7 +342,7 @@ def test_linf_command_is_within_slack_of_the_linf_optimum(robot_and_model, slack
                                                           random_states):
     robot, model = robot_and_model
     mid = 0.5 * (robot.t_min + robot.t_max)
-    design = LinfDesign(linf_slack=slack + 0.5)
+    design = LinfDesign(linf_slack=slack)
     q, dq = random_states(robot, rng, 300)
     goals, _ = random_states(robot, rng, 300)
     checked = improved = 0

@@ -1,0 +1,205 @@
+"""Start/goal sweeps: rows equal single runs, resume, Dask, refusals, sidecar and report."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+from pathlib import Path
+
+import casadi
+import cvxpy
+import numpy as np
+import pytest
+
+from cdpr_sym import InvalidCase, SymbolicModel, UnknownName, __version__, preset, simulate
+from cdpr_sym.controllers import controller_by_name
+from cdpr_sym.sweep import METRIC_COLUMNS, SweepConfig, columns, run_sweep, sidecar_path
+from cdpr_sym.sweep_report import write_sweep_report
+
+CONFIG = SweepConfig(robot="aras3", controllers=("l2", "box"), pairs=3, seed=11,
+                     duration=2.0)
+#: Metrics compared with a direct ``simulate`` run (``duration`` is the simulated span).
+NUMBERS = ("min_tension", "max_tension", "settle_time", "final_error", "min_alpha",
+           "share_alpha_below_one", "share_fallback", "fallback_steps", "infeasible_steps",
+           "tension_total_variation", "max_tension_step", "start_jump", "duration")
+FLAGS = ("tension_feasible", "converged")
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def _read(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def _keyed(rows: list[dict[str, str]]) -> dict[tuple[int, str], dict[str, str]]:
+    keyed = {(int(row["pair"]), row["controller"]): row for row in rows}
+    assert len(keyed) == len(rows), "a (pair, controller) row appears twice"
+    return keyed
+
+
+def _number(text: str) -> float | None:
+    return None if text == "" else float(text)
+
+
+@pytest.fixture(scope="module")
+def local_sweep(tmp_path_factory) -> Path:
+    """The uninterrupted reference sweep, one local process."""
+    out = tmp_path_factory.mktemp("sweep") / "results.csv"
+    run_sweep(CONFIG, out, workers=1, progress=False)
+    return out
+
+
+def test_sweep_writes_one_row_per_pair_and_controller(local_sweep):
+    text = local_sweep.read_text()
+    assert text.splitlines()[0] == ",".join(columns(3))
+    rows = _read(local_sweep)
+    assert sorted(_keyed(rows)) == [(pair, name) for pair in range(CONFIG.pairs)
+                                    for name in sorted(CONFIG.controllers)]
+    for row in rows:
+        assert row["status"] == ("stopped" if row["stop_reason"] else "ok"), row
+        assert row["error"] == ""
+
+
+def test_sweep_rows_equal_single_simulate_runs(local_sweep, build_options):
+    robot = preset(CONFIG.robot)
+    static_tension = SymbolicModel(robot).functions["static_tension"]
+    for row in _read(local_sweep):
+        start = np.array([float(row[f"start_{i}"]) for i in range(robot.n)])
+        goal = np.array([float(row[f"goal_{i}"]) for i in range(robot.n)])
+        run = simulate(robot, controller_by_name(row["controller"]), start=start, goal=goal,
+                       duration=CONFIG.duration, dt=CONFIG.dt, build_options=build_options)
+        metrics = run.metrics(static_tension=np.array(static_tension(start)).ravel())
+        for key in NUMBERS:
+            expected = metrics[key]
+            if expected is None:
+                assert row[key] == "", (key, row)
+            else:
+                assert _number(row[key]) == pytest.approx(expected, rel=1e-12, abs=1e-12), (
+                    key, row)
+        for key in FLAGS:
+            assert row[key] == str(metrics[key]), (key, row)
+        assert row["stop_reason"] == (metrics["stop_reason"] or "")
+
+
+def test_sweep_pairs_come_from_the_static_workspace(local_sweep):
+    robot = preset(CONFIG.robot)
+    static_tension = SymbolicModel(robot).functions["static_tension"]
+    for row in _read(local_sweep):
+        for prefix in ("start", "goal"):
+            q = np.array([float(row[f"{prefix}_{i}"]) for i in range(robot.n)])
+            tau_1 = np.array(static_tension(q)).ravel()
+            assert np.all(tau_1 >= robot.t_min) and np.all(tau_1 <= robot.t_max)
+            assert np.all(q > robot.frame_lower) and np.all(q < robot.frame_upper)
+
+
+def test_resume_after_an_interruption_writes_each_row_exactly_once(local_sweep, tmp_path):
+    lines = local_sweep.read_text().splitlines(keepends=True)
+    out = tmp_path / "results.csv"
+    shutil.copy(sidecar_path(local_sweep), sidecar_path(out))
+    torn = lines[4][: len(lines[4]) // 2]  # half of the fourth row, no newline
+    out.write_text("".join(lines[:4]) + torn)
+    run_sweep(CONFIG, out, workers=1, progress=False)
+    resumed = out.read_text()
+    assert resumed.count(lines[0]) == 1  # one header
+    assert torn not in resumed.replace(lines[4], "")
+    assert _keyed(_read(out)) == _keyed(_read(local_sweep))
+    assert resumed.splitlines(keepends=True)[:4] == lines[:4]  # written rows are kept
+
+
+def test_resuming_a_finished_sweep_runs_nothing(local_sweep, tmp_path):
+    out = tmp_path / "results.csv"
+    shutil.copy(local_sweep, out)
+    shutil.copy(sidecar_path(local_sweep), sidecar_path(out))
+    run_sweep(CONFIG, out, workers=1, progress=False)
+    assert out.read_text() == local_sweep.read_text()
+
+
+def test_resume_after_a_torn_header_writes_the_header_once(tmp_path):
+    config = SweepConfig(robot="planar2", controllers=("pd-sat",), pairs=2, seed=1,
+                         duration=0.5)
+    whole, torn = tmp_path / "whole.csv", tmp_path / "torn.csv"
+    run_sweep(config, whole, workers=1, progress=False)
+    shutil.copy(sidecar_path(whole), sidecar_path(torn))
+    torn.write_text(whole.read_text()[:7])
+    run_sweep(config, torn, workers=1, progress=False)
+    assert torn.read_text() == whole.read_text()
+
+
+def test_dask_local_cluster_gives_the_same_table(local_sweep, tmp_path):
+    distributed = pytest.importorskip("dask.distributed")
+    out = tmp_path / "results.csv"
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        run_sweep(CONFIG, out, dask_address=cluster.scheduler_address, progress=False)
+    assert _keyed(_read(out)) == _keyed(_read(local_sweep))
+
+
+@pytest.mark.parametrize("pairs", [0, -2, True, 2.5])
+def test_sweep_refuses_a_non_positive_or_non_integer_pair_count(pairs):
+    with pytest.raises(InvalidCase) as raised:
+        SweepConfig(robot="aras3", controllers=("l2",), pairs=pairs)
+    assert raised.value.field == "pairs"
+
+
+def test_sweep_refuses_an_unknown_controller():
+    with pytest.raises(UnknownName, match="lqr"):
+        SweepConfig(robot="aras3", controllers=("l2", "lqr"), pairs=2)
+
+
+def test_sweep_refuses_another_configuration_on_an_existing_results_file(local_sweep, tmp_path):
+    out = tmp_path / "results.csv"
+    shutil.copy(local_sweep, out)
+    shutil.copy(sidecar_path(local_sweep), sidecar_path(out))
+    before, sidecar_before = out.read_text(), sidecar_path(out).read_text()
+    other = SweepConfig(**{**CONFIG.as_dict(), "controllers": CONFIG.controllers, "seed": 12})
+    with pytest.raises(InvalidCase) as raised:
+        run_sweep(other, out, workers=1, progress=False)
+    assert raised.value.field == "out"
+    assert out.read_text() == before and sidecar_path(out).read_text() == sidecar_before
+
+
+def test_sweep_refuses_a_results_file_without_sidecar(local_sweep, tmp_path):
+    out = tmp_path / "results.csv"
+    shutil.copy(local_sweep, out)
+    before = out.read_text()
+    with pytest.raises(InvalidCase) as raised:
+        run_sweep(CONFIG, out, workers=1, progress=False)
+    assert raised.value.field == "out"
+    assert out.read_text() == before and not sidecar_path(out).exists()
+
+
+def test_sidecar_records_config_versions_and_seed(local_sweep):
+    sidecar = json.loads(sidecar_path(local_sweep).read_text())
+    assert sidecar["config"] == CONFIG.as_dict()
+    assert sidecar["config"]["seed"] == 11
+    assert SweepConfig(**{**sidecar["config"],
+                          "controllers": tuple(sidecar["config"]["controllers"])}) == CONFIG
+    assert sidecar["versions"]["cdpr_sym"] == __version__
+    assert sidecar["versions"]["numpy"] == np.__version__
+    assert sidecar["versions"]["casadi"] == casadi.__version__
+    assert sidecar["versions"]["cvxpy"] == cvxpy.__version__
+    assert sidecar["versions"]["python"]
+
+
+def test_sweep_report_writes_summary_and_maps(local_sweep, tmp_path):
+    summary_md = write_sweep_report(local_sweep, tmp_path / "report")
+    assert summary_md == tmp_path / "report" / "summary.md"
+    text = summary_md.read_text()
+    for name in CONFIG.controllers:
+        assert f"| {name} | {CONFIG.pairs} |" in text
+    assert "seed 11" in text
+    for figure in ("maps_xy.png", "maps_xz.png"):
+        path = tmp_path / "report" / figure
+        assert path.stat().st_size > 1000 and path.read_bytes()[:8] == PNG
+        assert f"({figure})" in text
+    summary = json.loads((tmp_path / "report" / "summary.json").read_text())
+    assert {name: row["runs"] for name, row in summary.items()} == dict.fromkeys(
+        CONFIG.controllers, CONFIG.pairs)
+
+
+def test_metric_columns_are_the_simulate_metrics():
+    robot = preset("planar2")
+    metrics = simulate(robot, controller_by_name("pd-sat"), duration=0.1).metrics(
+        static_tension=np.zeros(robot.n))
+    assert set(METRIC_COLUMNS) <= set(metrics)
