@@ -9,17 +9,17 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from cdpr_sym import plots  # noqa: E402
-from cdpr_sym.compare_study import case_figure  # noqa: E402
-from cdpr_sym.controllers import controller_by_name  # noqa: E402
-from cdpr_sym.model import SymbolicModel  # noqa: E402
-from cdpr_sym.robot import Robot, preset  # noqa: E402
-from cdpr_sym.simulation import simulate  # noqa: E402
-from cdpr_sym.sweep import SweepConfig, run_sweep  # noqa: E402
-from cdpr_sym.sweep_report import load_results, meets_target, summarise  # noqa: E402
+from cdpr_sym import plots
+from cdpr_sym.compare_study import case_figure
+from cdpr_sym.controllers import controller_by_name
+from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot import Robot, preset
+from cdpr_sym.simulation import simulate
+from cdpr_sym.sweep import SweepConfig, run_sweep
+from cdpr_sym.sweep_report import load_results, summarise
 
 DESIGNS = ("l2", "linf", "box", "pd-sat", "ida-ref", "smooth")
 MASS_SCALES = (1.0, 1.1, 0.9)

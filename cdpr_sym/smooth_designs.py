@@ -159,8 +159,9 @@ class VirtualReferenceIdaPbc:
 
     Speed: R_xi = F_pull / v_brake(xi) + R_crit delta^2 / (delta^2 + |xi - goal|^2) makes
     the pair cruise on the braking curve v_brake = sqrt(2 brake a |xi - goal|) and damps
-    critically near the goal (R_crit = 2 sqrt(2 m F / delta)). F = 2 m a with a = 5.77 d / T^2, the peak
-    acceleration of the minimum-jerk plan of :class:`SmoothReference` (d = |goal - q0|).
+    critically near the goal (R_crit = 2 sqrt(2 m F / delta)). F = 2 m a with
+    a = boost 5.77 d / T^2, from the peak acceleration of the minimum-jerk plan of
+    :class:`SmoothReference` (d = |goal - q0|).
 
     J_d: j = -(A^T A + lam I)^{-1} A^T (tau_pd - tau_1) pulls the tension towards the
     gravity-holding one; the regularisation keeps J_d dq -> 0 smoothly as dq -> 0 (unlike

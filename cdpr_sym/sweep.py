@@ -34,7 +34,8 @@ from cdpr_sym.workspace import WorkspaceEvaluator, sample_static_workspace
 
 METRIC_COLUMNS = ("min_tension", "max_tension", "settle_time", "final_error", "min_alpha",
                   "tension_feasible", "converged", "share_alpha_below_one", "share_fallback",
-                  "fallback_steps", "infeasible_steps", "tension_total_variation", "max_tension_step",
+                  "fallback_steps", "infeasible_steps", "tension_total_variation",
+                  "max_tension_step",
                   "start_jump", "stop_reason", "duration")
 
 

@@ -10,11 +10,11 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from cdpr_sym.errors import InvalidCase  # noqa: E402
-from cdpr_sym.sweep import sidecar_path  # noqa: E402
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.sweep import sidecar_path
 
 OUTCOMES = (("feasible and converged", "#2a9d4b"), ("feasible, not converged", "#f4a261"),
             ("tension infeasible", "#d62828"), ("stopped or failed", "#222222"))

@@ -10,11 +10,11 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from cdpr_sym.robot import Robot  # noqa: E402
-from cdpr_sym.workspace import WorkspaceEvaluator  # noqa: E402
+from cdpr_sym.robot import Robot
+from cdpr_sym.workspace import WorkspaceEvaluator
 
 
 def grid_points(robot: Robot, resolution: int) -> tuple[list[np.ndarray], np.ndarray]:
