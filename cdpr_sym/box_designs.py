@@ -16,7 +16,9 @@ tensions form the hyperplane H(alpha) = {tau : v^T tau = v^T (tau_1 + alpha tau_
 ``box`` projects onto H ∩ [T_min, T_max]. ``linf`` first finds t* = min over H of
 ||tau - (T_min + T_max)/2||_inf (the paper's (16), future work) and projects onto H ∩ the
 box shrunk to that l∞ ball widened by ``linf_slack`` N. The projection is unique and
-continuous in the data (strictly convex objective); ``linf_slack = 0`` gives the bare l∞
+continuous in the data (strictly convex objective), though steep where a component of v is
+near zero (a 5e-13 change of alpha moved the command by 2e-5 N in one such state);
+``linf_slack = 0`` gives the bare l∞
 optimum, a box corner that jumps whenever a component of v changes sign, which is why the
 default keeps a slack. j is reported as the minimum-norm representative A^+ tau_3.
 

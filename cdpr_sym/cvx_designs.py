@@ -30,7 +30,7 @@ from cdpr_sym.controllers import FLAG_INFEASIBLE, ControlOutput
 from cdpr_sym.model import SymbolicModel
 
 SOLVER_OPTIONS = {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12,
-                  "tol_ktratio": 1e-10, "max_iter": 400}
+                  "tol_ktratio": 1e-10, "max_iter": 400, "warm_start": False}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,7 +109,8 @@ class CvxExactBoxDesign:
             output = ControlOutput(tau, 1.0, np.nan, np.zeros(robot.n_j), FLAG_INFEASIBLE)
             return CvxSolve(output, tuple(statuses), time.perf_counter() - start)
         alpha_max = min(float(alpha_max), 1.0)
-        alpha = alpha_max * (1 - self.design.alpha_margin) if alpha_max < 1 - 1e-9 else 1.0
+        # as the fast path: alpha = 1 only when alpha = 1 itself is feasible (to solver accuracy)
+        alpha = alpha_max * (1 - self.design.alpha_margin) if alpha_max < 1 - 1e-11 else 1.0
         tau_pd = tau_1 + alpha * tau_2
         lower = np.full(robot.n, robot.t_min)
         upper = np.full(robot.n, robot.t_max)
@@ -123,6 +124,10 @@ class CvxExactBoxDesign:
         self.lower.value, self.upper.value = lower, upper
         self.project_problem.solve(solver=cp.CLARABEL, **SOLVER_OPTIONS)
         statuses.append(self.project_problem.status)
+        if self._j_project.value is None:  # solver failure: recorded, handled as infeasible
+            tau = np.clip(tau_1 + tau_2, robot.t_min, robot.t_max)
+            output = ControlOutput(tau, 1.0, np.nan, np.zeros(robot.n_j), FLAG_INFEASIBLE)
+            return CvxSolve(output, tuple(statuses), time.perf_counter() - start)
         tau_3 = A @ self._j_project.value
         j = np.linalg.pinv(A) @ tau_3 / max(speed, self.design.low_speed) if not slow \
             else np.zeros(robot.n_j)

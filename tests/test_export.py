@@ -8,9 +8,11 @@ the control law of :func:`cdpr_sym.controllers.law_function`, the model terms of
 from __future__ import annotations
 
 import dataclasses
+import os
 import re
 import shutil
 import subprocess
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import casadi as ca
@@ -27,9 +29,10 @@ from cdpr_sym import (
     simulate,
 )
 from cdpr_sym.cli import main
-from cdpr_sym.controllers import CONTROLLERS, FLAG_NAMES, law_function
+from cdpr_sym.controllers import CONTROLLERS, FLAG_NAMES, law_function, memory_size
 from cdpr_sym.export import REQUIRED_MODEL_TERMS, ExportResult, bench_export, export_c
 from cdpr_sym.robot import PRESET_NAMES
+from cdpr_sym.simulation import initial_memory_function
 
 STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-O2")
 HARNESS = Path(__file__).parent / "export_harness" / "harness.c"
@@ -71,9 +74,9 @@ class Package:
         return self.result.out_dir / f"lib{self.result.prefix}.a"
 
 
-def _build_harness(result: ExportResult, out: Path, *extra: str) -> Path:
+def _build_harness(result: ExportResult, out: Path) -> Path:
     prefix = result.prefix
-    _run([_tool("gcc"), *STRICT, "-g", *extra, f'-DCDPR_HEADER="{prefix}.h"',
+    _run([_tool("gcc"), *STRICT, "-g", f'-DCDPR_HEADER="{prefix}.h"',
           f"-DCDPR_PREFIX={prefix}", f"-DCDPR_UPPER={prefix.upper()}", "-I", result.out_dir,
           HARNESS, result.out_dir / f"lib{prefix}.a", "-lm", "-o", out])
     return out
@@ -96,8 +99,12 @@ def package(tmp_path_factory):
     return get
 
 
-def _states(robot, rng, draw_states, count: int) -> np.ndarray:
-    """Rows [q, dq, q_goal, k, r_d, use_case_gains]: random, at rest and near rest."""
+def _states(robot, controller: str, rng, draw_states, count: int) -> np.ndarray:
+    """Rows [q, dq, q_goal, k, r_d, (memory, dt,) use_case_gains]: random, at and near rest.
+
+    A controller's memory is its plan from a random start, advanced by five law calls with
+    random time steps of up to 0.5 s.
+    """
     q, dq = draw_states(robot, rng, count)
     goal, _ = draw_states(robot, rng, count, margin=0.2)
     quarter = count // 4
@@ -111,7 +118,16 @@ def _states(robot, rng, draw_states, count: int) -> np.ndarray:
     r_d = robot.r_d * rng.uniform(0.5, 2.0, size=(count, robot.n))
     use_case = (np.arange(count) % 7 == 0).astype(float)
     k[use_case == 1], r_d[use_case == 1] = robot.k, robot.r_d
-    return np.column_stack([q, dq, goal, k, r_d, use_case])
+    model, law = SymbolicModel(robot), controller_by_name(controller)
+    if not memory_size(model, law):
+        return np.column_stack([q, dq, goal, k, r_d, use_case])
+    start, _ = draw_states(robot, rng, count)
+    memory = initial_memory_function(model, law).map(count)(start.T, goal.T, k.T, r_d.T)
+    mapped = law_function(model, law).map(count)
+    for _ in range(5):
+        memory = mapped(q.T, dq.T, goal.T, k.T, r_d.T, memory, rng.uniform(0, 0.5, count))[-1]
+    dt = rng.uniform(1e-4, 1e-2, count)
+    return np.column_stack([q, dq, goal, k, r_d, np.array(memory.full()).T, dt, use_case])
 
 
 def _run_harness(package: Package, states: np.ndarray, folder: Path,
@@ -127,8 +143,9 @@ def _run_harness(package: Package, states: np.ndarray, folder: Path,
     return np.atleast_2d(np.loadtxt(_run(command).splitlines()))
 
 
-def _split(output: np.ndarray, n: int, n_j: int) -> dict[str, np.ndarray]:
+def _split(output: np.ndarray, n: int, n_j: int, n_memory: int = 0) -> dict[str, np.ndarray]:
     sizes = {"ret": 1, "tau": n, "alpha": 1, "beta": 1, "j": n_j, "flags": 1,
+             "memory_next": n_memory, "memory0": n_memory,
              "cable_lengths": n, "structure_matrix": n * n, "mass_matrix": n * n,
              "potential": 1, "p_matrix": n * n_j, "a_matrix": n * n_j}
     parts, start = {}, 0
@@ -140,11 +157,20 @@ def _split(output: np.ndarray, n: int, n_j: int) -> dict[str, np.ndarray]:
 
 
 def _python_law(robot, controller: str, states: np.ndarray) -> dict[str, np.ndarray]:
-    n = robot.n
-    law = law_function(SymbolicModel(robot), controller_by_name(controller)).map(len(states))
+    """The law (and plan) of ``controller`` at the harness's states, evaluated by CasADi."""
+    n, model, law = robot.n, SymbolicModel(robot), controller_by_name(controller)
+    size = memory_size(model, law)
     columns = [states[:, i * n: (i + 1) * n].T for i in range(5)]
-    out = [np.array(value.full()).T for value in law(*columns)]
-    return dict(zip(("tau", "alpha", "beta", "j", "flags"), out, strict=True))
+    if size:
+        columns += [states[:, 5 * n: 5 * n + size].T, states[:, 5 * n + size]]
+    mapped = law_function(model, law).map(len(states))
+    out = {name: np.array(value.full()).T
+           for name, value in zip(mapped.name_out(), mapped(*columns), strict=True)}
+    if size:
+        plan = initial_memory_function(model, law).map(len(states))
+        out["memory0"] = np.array(plan(columns[0], columns[2], columns[3], columns[4])
+                                  .full()).T
+    return out
 
 
 def _python_model_term(robot, name: str, states: np.ndarray) -> np.ndarray:
@@ -199,7 +225,7 @@ def test_package_builds_with_cmake_and_example_prints_the_same(package, tmp_path
 def test_exported_law_matches_python_law_on_random_and_resting_states(
         package, aras3, rng, random_states, tmp_path):
     built = package("aras3", "l2")
-    states = _states(aras3, rng, random_states, 1200)
+    states = _states(aras3, "l2", rng, random_states, 1200)
     speeds = np.linalg.norm(states[:, 3:6], axis=1)
     assert np.sum(speeds == 0) >= 100 and np.sum((speeds > 0) & (speeds < 1e-6)) >= 100
     c_out = _split(_run_harness(built, states, tmp_path), aras3.n, aras3.n_j)
@@ -214,7 +240,7 @@ def test_exported_law_matches_python_law_on_random_and_resting_states(
 def test_exported_model_terms_match_symbolic_model_row_major(
         package, aras3, rng, random_states, tmp_path):
     built = package("aras3", "l2")
-    states = _states(aras3, rng, random_states, 200)
+    states = _states(aras3, "l2", rng, random_states, 200)
     c_out = _split(_run_harness(built, states, tmp_path), aras3.n, aras3.n_j)
     for name in REQUIRED_MODEL_TERMS:
         python = _python_model_term(aras3, name, states)
@@ -239,7 +265,7 @@ def test_example_closed_loop_matches_python_simulation(package, aras3):
 
 def test_harness_is_clean_under_valgrind(package, aras3, rng, random_states, tmp_path):
     built = package("aras3", "l2")
-    states = _states(aras3, rng, random_states, 40)
+    states = _states(aras3, "l2", rng, random_states, 40)
     output = _run_harness(built, states, tmp_path, valgrind=True)
     assert output.shape[0] == 40
 
@@ -269,35 +295,52 @@ def test_header_documents_sizes_flags_work_memory_and_model_terms(package):
 
 # -- every controller and preset; lighter checks ---------------------------------------------
 def test_every_controller_and_preset_builds_strict_and_reproduces_simulation(tmp_path):
+    """All presets x controllers: strict build (planner at -O0, as the Makefile does), run.
+
+    aras3 is exported with ``avoid_stack=False`` (intermediates on the stack), which also
+    halves the compile time of its large planners; planar2 with the default.
+    """
     gcc = _tool("gcc")
-    jobs = {}
-    for robot in PRESET_NAMES:
-        for controller in CONTROLLERS:
-            result = export_c(robot, controller, tmp_path / f"{robot}_{controller}")
-            program = result.out_dir / "example"
-            jobs[robot, controller] = (program, subprocess.Popen(
-                [gcc, *STRICT, "-I", str(result.out_dir), str(result.example),
-                 str(result.source), "-lm", "-o", str(program)],
-                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
-    for (robot, controller), (program, process) in jobs.items():
-        log, _ = process.communicate()
-        assert process.returncode == 0, f"{robot}/{controller}:\n{log}"
+    results = {(robot, controller): export_c(robot, controller, tmp_path / f"{robot}_{controller}",
+                                             avoid_stack=robot != "aras3")
+               for robot in PRESET_NAMES for controller in CONTROLLERS}
+    objects = {}
+    for key, result in results.items():
+        objects[key] = [(result.source, result.out_dir / "main.o", ())]
+        if result.plan_source is not None:
+            objects[key].append((result.plan_source, result.out_dir / "plan.o", ("-O0",)))
+    compiles = sorted(([gcc, *STRICT, *extra, "-I", result.out_dir, "-c", source, "-o", target]
+                       for key, result in results.items()
+                       for source, target, extra in objects[key]),
+                      key=lambda command: "-O0" not in command)  # the slow planners first
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        list(pool.map(_run, compiles))
+    for (robot, controller), result in results.items():
+        program = result.out_dir / "example"
+        _run([gcc, *STRICT, "-I", result.out_dir, result.example,
+              *(target for _, target, _ in objects[robot, controller]), "-lm", "-o", program])
         printed = _example_output(_run([program]))
         run = _reference_run(preset(robot), controller)
         np.testing.assert_allclose(printed["final_q"], run.q[-1], rtol=0, atol=1e-9,
                                    err_msg=f"{robot}/{controller}")
+        np.testing.assert_allclose(printed["tension_max_N"], run.tau.max(), rtol=1e-9,
+                                   err_msg=f"{robot}/{controller}")
 
 
-@pytest.mark.parametrize(("robot_name", "controller"), [("aras3", "linf"), ("planar2", "l2")])
+@pytest.mark.parametrize(("robot_name", "controller"),
+                         [("aras3", "linf"), ("planar2", "l2"), ("planar2", "smooth")])
 def test_other_designs_match_python_law(package, robot_name, controller, rng, random_states,
                                         tmp_path):
     robot = preset(robot_name)
     built = package(robot_name, controller)
-    states = _states(robot, rng, random_states, 200)
-    c_out = _split(_run_harness(built, states, tmp_path), robot.n, robot.n_j)
+    states = _states(robot, controller, rng, random_states, 200)
+    n_memory = memory_size(SymbolicModel(robot), controller_by_name(controller))
+    c_out = _split(_run_harness(built, states, tmp_path), robot.n, robot.n_j, n_memory)
     python = _python_law(robot, controller, states)
+    assert np.all(c_out["ret"] == 0)
     np.testing.assert_array_equal(c_out["flags"], python["flags"])
-    for name in ("tau", "alpha", "beta", "j"):
+    names = ("tau", "alpha", "beta", "j", *(("memory_next", "memory0") if n_memory else ()))
+    for name in names:
         assert _relative_error(c_out[name], python[name]) <= TOLERANCE, name
 
 

@@ -55,7 +55,8 @@ int main(int argc, char **argv) {
     return 2;
   }
 #if NMEM > 0
-  if (FN(_control)(q, dq, q_goal, k, r_d, 0, 1e-3, tau, 0, 0, 0, 0, tau, work) != -1) return 3;
+  if (FN(_control)(q, dq, q_goal, k, r_d, 0, 1e-3, tau, 0, 0, 0, 0, memory_next, work) != -1)
+    return 3;
 #else
   if (FN(_control)(0, dq, q_goal, k, r_d, tau, 0, 0, 0, 0, work) != -1) return 3;
 #endif

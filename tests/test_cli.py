@@ -1,0 +1,150 @@
+"""The ``cdpr-sym`` command line, run in-process (and once through the installed script)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cdpr_sym import SymbolicModel, preset, simulate
+from cdpr_sym.cli import main
+from cdpr_sym.controllers import controller_by_name
+
+#: Keys ``simulate --json`` documents, with the JSON types each may take.
+DOCUMENTED = {"min_tension": (float,), "max_tension": (float,),
+              "settle_time": (float, type(None)), "final_error": (float,),
+              "min_alpha": (float,), "tension_feasible": (bool,), "converged": (bool,)}
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def _run(capsys, *argv: str) -> tuple[int, str, str]:
+    status = main(list(argv))
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def _one_json_object(out: str) -> dict:
+    lines = out.strip().splitlines()
+    assert len(lines) == 1, out
+    value = json.loads(lines[0])
+    assert isinstance(value, dict)
+    return value
+
+
+def _expected_metrics(name: str, duration: float, build_options) -> dict:
+    robot = preset("aras3")
+    run = simulate(robot, controller_by_name(name), duration=duration,
+                   build_options=build_options)
+    static = np.array(SymbolicModel(robot).functions["static_tension"](run.q[0])).ravel()
+    return json.loads(json.dumps(run.metrics(static_tension=static)))
+
+
+@pytest.mark.parametrize("name", ["pd", "pd-sat", "l2", "linf", "box"])
+def test_simulate_json_prints_one_object_with_the_documented_metrics(capsys, name,
+                                                                    build_options):
+    status, out, err = _run(capsys, "simulate", "--json", "--controller", name,
+                            "--duration", "1")
+    assert status == 0 and err == ""
+    value = _one_json_object(out)
+    for key, types in DOCUMENTED.items():
+        assert key in value, key
+        assert type(value[key]) in types, (key, value[key])
+    for key in ("tension_feasible", "converged"):
+        assert f'"{key}": {json.dumps(value[key])}' in out  # true/false, not "True"
+    assert value["controller"] == name and value["robot"] == "aras3"
+    expected = _expected_metrics(name, 1.0, build_options)
+    assert {key: value[key] for key in expected} == expected
+
+
+def test_simulate_json_settle_time_is_a_float_when_the_run_settles(capsys, build_options):
+    status, out, _ = _run(capsys, "simulate", "--json", "--robot", "planar2",
+                          "--controller", "pd", "--duration", "4")
+    value = _one_json_object(out)
+    assert status == 0 and type(value["settle_time"]) is float and value["converged"] is True
+
+
+@pytest.mark.parametrize("file_name", ["run.npz", "run"])
+def test_simulate_save_writes_an_npz_numpy_reads(capsys, tmp_path, file_name, build_options):
+    status, out, _ = _run(capsys, "simulate", "--json", "--controller", "box",
+                          "--duration", "0.5", "--save", str(tmp_path / file_name))
+    assert status == 0
+    saved = Path(_one_json_object(out)["saved"])
+    assert saved == tmp_path / "run.npz" and saved.exists()
+    run = simulate(preset("aras3"), controller_by_name("box"), duration=0.5,
+                   build_options=build_options)
+    with np.load(saved) as data:
+        assert data["t"].shape == (501,) and data["q"].shape == (501, 3)
+        assert data["tau"].shape == (500, 3)
+        np.testing.assert_allclose(data["t"], run.t, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(data["q"], run.q, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(data["tau"], run.tau, rtol=1e-12, atol=1e-10)
+
+
+def test_simulate_save_without_json_names_the_file(capsys, tmp_path):
+    status, out, _ = _run(capsys, "simulate", "--controller", "pd-sat", "--duration", "0.2",
+                          "--save", str(tmp_path / "run.npz"))
+    assert status == 0 and str(tmp_path / "run.npz") in out
+    assert "final_error" in out and (tmp_path / "run.npz").exists()
+
+
+@pytest.mark.parametrize(("argv", "field"), [
+    (["simulate", "--goal", "5", "0", "1"], "goal"),
+    (["simulate", "--goal", "0", "0", "0.3"], "goal"),  # needs [27.7, 0, 27.7] N
+    (["simulate", "--goal", "1", "2"], "goal"),
+    (["simulate", "--start", "0", "0", "-1"], "start"),
+    (["simulate", "--robot", "nosuch"], "robot"),
+    (["simulate", "--dt", "0"], "dt"),
+    (["simulate", "--duration", "-1"], "duration"),
+    (["simulate", "--mass-scale", "0"], "mass_scale"),
+    (["sweep", "--pairs", "0", "--out", "{tmp}/results.csv"], "pairs"),
+    (["sweep", "--pairs", "2", "--workers", "0", "--out", "{tmp}/results.csv"], "workers"),
+    (["workspace", "--robot", "nosuch", "--out", "{tmp}/ws"], "robot"),
+])
+def test_bad_input_exits_2_with_one_line_naming_the_field(capsys, tmp_path, argv, field):
+    status, out, err = _run(capsys, *(arg.format(tmp=tmp_path) for arg in argv))
+    assert status == 2
+    assert out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("cdpr-sym: error: ")
+    assert field in lines[0]
+    assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+def test_goal_outside_the_static_workspace_is_named_as_such(capsys):
+    _, _, err = _run(capsys, "simulate", "--goal", "0", "0", "0.3")
+    assert "goal: expected a goal in the static workspace" in err
+
+
+@pytest.mark.parametrize(("robot", "figures"), [
+    ("planar2", ["workspace_plane.png"]),
+    ("aras3", ["workspace_slices.png", "workspace_projections.png"]),
+])
+def test_workspace_writes_its_report_and_figures(capsys, tmp_path, robot, figures):
+    out_dir = tmp_path / "ws"
+    status, out, err = _run(capsys, "workspace", "--robot", robot, "--resolution", "11",
+                            "--out", str(out_dir))
+    assert status == 0 and err == ""
+    assert f"report: {out_dir / 'workspace.md'}" in out
+    text = (out_dir / "workspace.md").read_text()
+    summary = json.loads((out_dir / "workspace.json").read_text())
+    assert summary["points"] == 11 ** preset(robot).n
+    assert 0 < summary["feasible_share"] <= 1
+    for figure in figures:
+        assert (out_dir / figure).read_bytes()[:8] == PNG
+        assert (out_dir / figure).stat().st_size > 1000
+        assert f"({figure})" in text
+
+
+def test_installed_console_script_runs_simulate():
+    script = Path(sys.executable).with_name("cdpr-sym")
+    assert script.exists(), script
+    done = subprocess.run([str(script), "simulate", "--json", "--duration", "1"],
+                          check=True, capture_output=True, text=True, timeout=120)
+    value = _one_json_object(done.stdout)
+    assert value["controller"] == "l2" and value["robot"] == "aras3"
+    assert value["duration"] == 1.0 and isinstance(value["tension_feasible"], bool)
