@@ -81,6 +81,14 @@ def bench_cvxpy(robot: Robot, *, states: int = 100) -> dict[str, dict[str, float
     return out
 
 
+def bench_exported(robot: Robot, names: tuple[str, ...] = ("pd", "l2", "box")
+                   ) -> dict[str, dict[str, float]]:
+    """Control calls per second of the exported standalone C controller (timed in C)."""
+    from cdpr_sym.export import bench_export
+
+    return {name: {"control_calls_per_s": bench_export(robot, name)} for name in names}
+
+
 def run_bench(robot: Robot, *, min_seconds: float = 1.0,
               build_options: BuildOptions = BuildOptions()) -> dict[str, Any]:
     """All benchmarks as one JSON-ready dictionary."""
@@ -90,6 +98,7 @@ def run_bench(robot: Robot, *, min_seconds: float = 1.0,
             "model_call": bench_model_call(robot, min_seconds=min_seconds / 2,
                                            build_options=build_options),
             "cvxpy": bench_cvxpy(robot),
+            "export_c": bench_exported(robot),
             "target_sims_per_s": 1000}
 
 
@@ -107,6 +116,10 @@ def format_table(result: dict[str, Any]) -> str:
         fast = result["controllers"][name]["us_per_step"]
         lines.append(f"{name:<14}{fast:>10.3f} us (fast){row['cvxpy_us_per_step']:>12.0f} us "
                      "(cvxpy)")
+    lines.append("")
+    lines.append("exported standalone C controller (cdpr-sym export-c), one control call in C")
+    for name, row in result["export_c"].items():
+        lines.append(f"{name:<14}{row['control_calls_per_s'] / 1e6:>10.2f} M calls/s")
     lines.append("")
     lines.append("one call of the generated A(q, dq) from Python")
     for name, value in result["model_call"].items():

@@ -59,6 +59,7 @@ _ARGUMENT_DOCS = {
     "r_d": "damping gains R_d (diagonal), N s/m", "tau": "cable tensions, N (> 0 pulls)",
     "j": "free entries of J_d (row-major strict upper triangle), N s/m",
     "q0": "start position of the move, m",
+    "memory": "the controller's internal state at the start of the move (NMEM doubles)",
     "x": "state [q (m), dq (m/s), memory, status] (X_* offsets; status 0 at the start)",
     "p": "parameters (P_* offsets; fill with the _parameters function)",
     "x_next": "state after dt; frozen, with status != 0 (STATUS_*), once the loop stopped",
@@ -340,7 +341,8 @@ def _entry(name: str, function: ca.Function, prefix: str, summary: str) -> _Entr
     def describe(index: int, is_input: bool) -> tuple[str, int, str]:
         label = (function.name_in if is_input else function.name_out)(index)
         rows, cols = (function.size_in if is_input else function.size_out)(index)
-        doc = _ARGUMENT_DOCS.get(label, summary) if is_input or name == "step" else summary
+        documented = is_input or name in ("step", "initial_memory")
+        doc = _ARGUMENT_DOCS.get(label, summary) if documented else summary
         shape = f" ({rows} x {cols}, row-major)" if rows > 1 and cols > 1 else ""
         return _C_NAMES.get(label, label), rows * cols, doc.split("\n")[0] + shape
     return _Entry(name, renamed, summary,
