@@ -37,6 +37,7 @@ def _parser() -> argparse.ArgumentParser:
     sim.add_argument("--dt", type=float, default=1e-3, help="control period, s (default 1e-3)")
     sim.add_argument("--mass-scale", type=float, default=1.0, help="plant mass / model mass")
     sim.add_argument("--slack", action="store_true", help="plant applies max(tau, 0)")
+    sim.add_argument("--rate-limit", type=float, help="actuator tension-rate limit, N/s")
     sim.add_argument("--backend", default="auto", choices=["auto", "c", "casadi"])
     sim.add_argument("--json", action="store_true", help="print one JSON object")
     sim.add_argument("--save", type=Path, help="write the trajectory to an .npz file")
@@ -89,7 +90,8 @@ def _simulate(args: argparse.Namespace) -> int:
     controller = controller_by_name(args.controller)
     run = simulate(robot, controller, start=args.start, goal=args.goal, k=args.k,
                    r_d=args.r_d, duration=args.duration, dt=args.dt,
-                   plant=Plant(mass_scale=args.mass_scale, slack=args.slack),
+                   plant=Plant(mass_scale=args.mass_scale, slack=args.slack,
+                               rate_limit=args.rate_limit),
                    build_options=BuildOptions(backend=args.backend))
     static = np.array(SymbolicModel(robot).functions["static_tension"](run.q[0])).ravel()
     metrics = run.metrics(static_tension=static)

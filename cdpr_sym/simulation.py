@@ -48,14 +48,23 @@ class Plant:
     slack : bool
         If True the plant applies max(tau, 0) (a cable cannot push); metrics still report
         the commanded tension.
+    rate_limit : float, optional
+        Actuator tension-rate limit, N/s: the applied tension moves towards the command by
+        at most ``rate_limit * dt`` per control step, starting from the static tension at
+        the start. None (default) applies the command at once.
     """
 
     mass_scale: float = 1.0
     slack: bool = False
+    rate_limit: float | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.mass_scale) and self.mass_scale > 0):
             raise InvalidCase("mass_scale", f"expected a positive factor, got {self.mass_scale}")
+        if self.rate_limit is not None and not (math.isfinite(self.rate_limit)
+                                                and self.rate_limit > 0):
+            raise InvalidCase("rate_limit", f"expected a positive rate in N/s, "
+                              f"got {self.rate_limit}")
 
 
 def rk4(rhs: Any, x: ca.SX, h: ca.SX) -> ca.SX:
@@ -69,34 +78,47 @@ def rk4(rhs: Any, x: ca.SX, h: ca.SX) -> ca.SX:
 
 @dataclasses.dataclass(frozen=True)
 class _Layout:
-    """Index layout of the step's state x = [q, dq, memory, status] and parameters p.
+    """Index layout of the step's state x = [q, dq, memory, applied, status] and parameters p.
 
-    ``memory`` is the controller's internal state (empty for memoryless controllers).
+    ``memory`` is the controller's internal state (empty for memoryless controllers);
+    ``applied`` is the actuators' tension, present only in a rate-limited plant, which
+    also appends the rate limit (N/s) to p.
     """
 
     n: int
     n_j: int
     n_memory: int = 0
+    rate_limited: bool = False
+
+    @property
+    def n_applied(self) -> int:
+        return self.n if self.rate_limited else 0
 
     @property
     def n_x(self) -> int:
-        return 2 * self.n + self.n_memory + 1
+        return self.status_index + 1
 
     @property
-    def status_index(self) -> int:
+    def applied_index(self) -> int:
         return 2 * self.n + self.n_memory
 
     @property
+    def status_index(self) -> int:
+        return 2 * self.n + self.n_memory + self.n_applied
+
+    @property
     def n_p(self) -> int:
-        return 3 * self.n + 3
+        return 3 * self.n + 3 + int(self.rate_limited)
 
     @property
     def n_log(self) -> int:
         return self.n + 3 + self.n_j
 
     def parameters(self, goal, k, r_d, dt: float, plant: Plant) -> np.ndarray:
-        """p = [q_goal, k, r_d, dt, mass_scale, slack]."""
-        return np.concatenate([goal, k, r_d, [dt, plant.mass_scale, float(plant.slack)]])
+        """p = [q_goal, k, r_d, dt, mass_scale, slack] (+ [rate_limit] if rate limited)."""
+        extra = [plant.rate_limit or 0.0] if self.rate_limited else []
+        return np.concatenate([goal, k, r_d, [dt, plant.mass_scale, float(plant.slack)],
+                               extra])
 
     def split_log(self, log: np.ndarray) -> dict[str, np.ndarray]:
         n, n_j = self.n, self.n_j
@@ -112,9 +134,10 @@ def _closed_loop_rhs(model: SymbolicModel, tau: ca.SX, mass_scale: ca.SX):
     return rhs
 
 
-def layout_of(model: SymbolicModel, controller: Controller) -> _Layout:
-    """The step layout for a model and controller."""
-    return _Layout(model.n, model.n_j, memory_size(model, controller))
+def layout_of(model: SymbolicModel, controller: Controller, *,
+              rate_limited: bool = False) -> _Layout:
+    """The step layout for a model and controller (and a rate-limited plant or not)."""
+    return _Layout(model.n, model.n_j, memory_size(model, controller), rate_limited)
 
 
 def _control(model: SymbolicModel, controller: Controller, q, dq, q_goal, k, r_d, memory, dt):
@@ -135,21 +158,29 @@ def initial_memory_function(model: SymbolicModel, controller: Controller) -> ca.
                        ["q0", "q_goal", "k", "r_d"], ["memory"], {"cse": True})
 
 
-def step_function(model: SymbolicModel, controller: Controller) -> ca.Function:
+def step_function(model: SymbolicModel, controller: Controller, *,
+                  rate_limited: bool = False) -> ca.Function:
     """One sampled-data control period: (x, p) -> (x_next, log).
 
     x = [q, dq, memory, status]; p = [q_goal, k, r_d, dt, mass_scale, slack];
     log = [tau, alpha, beta, j, flags]. Once status is non-zero the state is frozen.
+    With ``rate_limited`` the actuators' applied tension is part of x (before status) and
+    the rate limit (N/s) ends p.
     """
-    layout = layout_of(model, controller)
+    layout = layout_of(model, controller, rate_limited=rate_limited)
     n = model.n
     x, p = ca.SX.sym("x", layout.n_x), ca.SX.sym("p", layout.n_p)
     q, dq, status = x[:n], x[n: 2 * n], x[layout.status_index]
-    memory = x[2 * n: layout.status_index]
+    memory = x[2 * n: layout.applied_index]
     q_goal, k, r_d = p[:n], p[n: 2 * n], p[2 * n: 3 * n]
     dt, mass_scale, slack = p[3 * n], p[3 * n + 1], p[3 * n + 2]
     law, memory_next = _control(model, controller, q, dq, q_goal, k, r_d, memory, dt)
-    applied = ca.if_else(slack > 0.5, ca.fmax(law.tau, 0), law.tau)
+    actuator = law.tau
+    if rate_limited:
+        previous = x[layout.applied_index: layout.status_index]
+        largest = p[layout.n_p - 1] * dt
+        actuator = previous + ca.fmin(ca.fmax(law.tau - previous, -largest), largest)
+    applied = ca.if_else(slack > 0.5, ca.fmax(actuator, 0), actuator)
     z_next = rk4(_closed_loop_rhs(model, applied, mass_scale), x[: 2 * n], dt)
     # singular at the sample, or det W changes sign within the step (the plane was crossed)
     crossed = ca.det(model.structure_matrix(q)) * ca.det(model.structure_matrix(z_next[:n])) <= 0
@@ -163,8 +194,11 @@ def step_function(model: SymbolicModel, controller: Controller) -> ca.Function:
                    ca.if_else(ca.logic_not(finite), _STOP_CODES["non_finite"],
                               ca.if_else(outside, _STOP_CODES["left_frame"], 0))))
     stopped = new_status != 0
-    x_next = ca.vertcat(ca.if_else(stopped, x[: 2 * n], z_next),
-                        ca.if_else(stopped, memory, memory_next), new_status)
+    parts = [ca.if_else(stopped, x[: 2 * n], z_next), ca.if_else(stopped, memory, memory_next)]
+    if rate_limited:
+        held = x[layout.applied_index: layout.status_index]
+        parts.append(ca.if_else(stopped, held, actuator))
+    x_next = ca.vertcat(*parts, new_status)
     log = ca.vertcat(law.tau, law.alpha, law.beta, law.j, law.flags)
     return ca.Function("step", [x, p], [x_next, log], ["x", "p"], ["x_next", "log"],
                        {"cse": True})
@@ -245,13 +279,14 @@ class Simulator:
     """
 
     def __init__(self, robot: Robot, controller: Controller, *, chunk: int = 1000,
-                 build_options: BuildOptions = BuildOptions()) -> None:
+                 build_options: BuildOptions = BuildOptions(),
+                 rate_limited: bool = False) -> None:
         self.robot = robot
         self.controller = controller
         self.model = SymbolicModel(robot)
-        self.layout = layout_of(self.model, controller)
+        self.layout = layout_of(self.model, controller, rate_limited=rate_limited)
         self.chunk = chunk
-        self.step = step_function(self.model, controller)
+        self.step = step_function(self.model, controller, rate_limited=rate_limited)
         self.law = law_function(self.model, controller)
         self.initial_memory = initial_memory_function(self.model, controller)
         self.backend = build_options.resolved_backend()
@@ -260,7 +295,8 @@ class Simulator:
             # initial_memory runs once per run: CasADi's virtual machine is fast enough and
             # keeps a large planning function out of the compiled library
             functions = [*self.model.functions.values(), self.law, self.step]
-            self.library = build(functions, f"cdpr_{robot.name}_{_c_name(controller)}",
+            suffix = "_rate" if rate_limited else ""
+            self.library = build(functions, f"cdpr_{robot.name}_{_c_name(controller)}{suffix}",
                                  extra_source=rollout_source(self.step, self.layout),
                                  options=build_options)
             self._rollout = _NativeRollout(self.library, self.step)
@@ -286,8 +322,14 @@ class Simulator:
         states[0, :n] = start
         states[0, n: 2 * n] = 0.0 if dq0 is None else dq0
         if layout.n_memory:
-            states[0, 2 * n: layout.status_index] = np.array(
+            states[0, 2 * n: layout.applied_index] = np.array(
                 self.initial_memory(start, goal, k, r_d)).ravel()
+        if layout.rate_limited != (plant.rate_limit is not None):
+            raise InvalidCase("plant", "a rate-limited plant needs a simulator built with "
+                              "rate_limited=True (simulate() chooses it)")
+        if layout.rate_limited:
+            states[0, layout.applied_index: layout.status_index] = np.array(
+                self.model.functions["static_tension"](start)).ravel()
         p = layout.parameters(goal, k, r_d, dt, plant)
         if self.backend == "c":
             self._rollout(states, logs, p, n_steps)
@@ -316,7 +358,7 @@ class Simulator:
             dq=states[: last + 1, n: 2 * n].copy(), q_goal=np.array(goal, dtype=float),
             t_min=self.robot.t_min, t_max=self.robot.t_max, stop_reason=reason,
             info=self._info(dt, k, r_d, plant, integrator="rk4-sampled"),
-            memory=states[: last + 1, 2 * n: self.layout.status_index].copy(), **parts)
+            memory=states[: last + 1, 2 * n: self.layout.applied_index].copy(), **parts)
 
     def _info(self, dt, k, r_d, plant, *, integrator: str) -> dict[str, Any]:
         return {"robot": self.robot.name, "controller": self.controller.name,
@@ -339,13 +381,14 @@ _SIMULATORS: dict[tuple, Simulator] = {}
 
 
 def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
-                  build_options: BuildOptions = BuildOptions()) -> Simulator:
+                  build_options: BuildOptions = BuildOptions(),
+                  rate_limited: bool = False) -> Simulator:
     """A :class:`Simulator`, reused within the process for equal robots and options."""
     key = (json.dumps(robot.as_dict(), sort_keys=True), controller, chunk, build_options,
-           build_options.resolved_backend())
+           build_options.resolved_backend(), rate_limited)
     if key not in _SIMULATORS:
         _SIMULATORS[key] = Simulator(robot, controller, chunk=chunk,
-                                     build_options=build_options)
+                                     build_options=build_options, rate_limited=rate_limited)
     return _SIMULATORS[key]
 
 
@@ -405,7 +448,8 @@ def simulate(robot: Robot, controller: Controller, *, start=None, goal=None, k=N
     """
     case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d)
     _check_timing(duration, dt)
-    simulator = get_simulator(robot, controller, build_options=build_options)
+    simulator = get_simulator(robot, controller, build_options=build_options,
+                              rate_limited=plant.rate_limit is not None)
     return simulator.run(case.start, case.goal, case.k, case.r_d,
                          duration=duration, dt=dt, plant=plant)
 
@@ -422,6 +466,8 @@ def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=
     """
     case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d)
     _check_timing(duration, dt)
+    if plant.rate_limit is not None:
+        raise InvalidCase("plant", "the continuous-time cross-check has no rate-limited plant")
     if memory_size(SymbolicModel(robot), controller):
         raise InvalidCase("controller", f"{controller.name} has an internal state updated at "
                           "the control rate; the continuous-time cross-check does not apply")
