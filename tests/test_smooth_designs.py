@@ -78,7 +78,7 @@ def _extended_energy(robot, run, design):
     xi, dxi = run.memory[:, :n], run.memory[:, n: 2 * n]
     force, r0 = run.memory[0, 2 * n], run.memory[0, 2 * n + 2]
     grid = np.linspace(0.0, np.linalg.norm(xi - run.q_goal, axis=1).max() + 1e-9, 20001)
-    profile = np.minimum(np.minimum(grid / design.delta, 1.0), np.maximum(
+    profile = np.minimum(np.minimum(grid / design.spring_length(force), 1.0), np.maximum(
         design.start_share, design.start_share + (r0 - grid) / (design.ramp * r0)))
     potential = force * np.concatenate([[0.0], np.cumsum(
         0.5 * (profile[1:] + profile[:-1]) * np.diff(grid))])
