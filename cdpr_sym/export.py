@@ -38,6 +38,22 @@ import numpy as np
 from cdpr_sym.compiled import find_compiler
 from cdpr_sym.controllers import FLAG_NAMES, Controller, controller_by_name, law_function
 from cdpr_sym.errors import CompilationFailed, CompilerNotFound, InvalidCase
+from cdpr_sym.export_templates import (
+    BENCH_C,
+    CMAKE,
+    CMAKE_PLAN,
+    EXAMPLE_C,
+    EXAMPLE_MEMORY,
+    HEADER,
+    MAKEFILE,
+    MAKEFILE_PLAN,
+    MEMORY_DOC,
+    PARAMETERS_DOC,
+    PLAN_SOURCE,
+    README,
+    README_PLAN,
+    SOURCE,
+)
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot, resolve_robot
 from cdpr_sym.simulation import (
@@ -232,17 +248,17 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
         f"{prefix}_generated.inc": _generated(realtime, prefix, f"{prefix}_", avoid_stack),
         f"{prefix}.h": _header(robot, prefix, entries, layout, avoid_stack, names),
         f"{prefix}.c": _source(robot, prefix, realtime, layout),
-        "main.c": _render(_EXAMPLE_C, prefix, **names, memory=_EXAMPLE_MEMORY if plan else ""),
-        "Makefile": _render(_MAKEFILE, prefix, plan=_MAKEFILE_PLAN if plan else "",
+        "main.c": _render(EXAMPLE_C, prefix, **names, memory=EXAMPLE_MEMORY if plan else ""),
+        "Makefile": _render(MAKEFILE, prefix, plan=MAKEFILE_PLAN if plan else "",
                             objects="@PREFIX@.o @PREFIX@_plan.o" if plan else "@PREFIX@.o"),
-        "CMakeLists.txt": _render(_CMAKE, prefix, plan=_CMAKE_PLAN if plan else "",
+        "CMakeLists.txt": _render(CMAKE, prefix, plan=CMAKE_PLAN if plan else "",
                                   sources="@PREFIX@.c @PREFIX@_plan.c" if plan else "@PREFIX@.c"),
-        "README.md": _render(_README, prefix, **names, plan=_README_PLAN if plan else ""),
+        "README.md": _render(README, prefix, **names, plan=README_PLAN if plan else ""),
     }
     if plan:
         texts[f"{prefix}_plan_generated.inc"] = _generated(plan, prefix, f"{prefix}_plan_",
                                                            avoid_stack)
-        texts[f"{prefix}_plan.c"] = _render(_PLAN_SOURCE, prefix,
+        texts[f"{prefix}_plan.c"] = _render(PLAN_SOURCE, prefix,
                                             wrapper=_wrapper(prefix, plan[0]))
     for name, text in texts.items():
         (out / name).write_text(text)
@@ -299,7 +315,7 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
         result = export_c(robot, controller, folder, prefix="cdpr_bench")
         bench = Path(folder) / "bench.c"
         bench.write_text(_render(
-            _BENCH_C, "cdpr_bench", call=call, seconds=repr(float(min_seconds)),
+            BENCH_C, "cdpr_bench", call=call, seconds=repr(float(min_seconds)),
             states=",\n".join(_c_array(row) for row in states),
             memory=_c_array(memory if memory.size else np.zeros(1))))
         program = Path(folder) / "bench"
@@ -397,7 +413,7 @@ def _header(robot: Robot, prefix: str, entries: list[_Entry], layout: _Layout,
               "functions). */"]
     lines += [f"#define {up}_{key} {value}" for key, value in sizes.items()]
     declarations = [_control_code(prefix, entries[0], layout, definition=False), "",
-                    _PARAMETERS_DOC, f"void {prefix}_parameters(const double q_goal[{n}], "
+                    PARAMETERS_DOC, f"void {prefix}_parameters(const double q_goal[{n}], "
                     f"const double k[{n}], const double r_d[{n}],\n    double dt, "
                     f"double mass_scale, int slack, double p[{layout.n_p}]);", ""]
     for entry in entries[1:]:
@@ -408,9 +424,9 @@ def _header(robot: Robot, prefix: str, entries: list[_Entry], layout: _Layout,
         declarations += [*doc, " */", f"int {_signature(prefix, entry)};", ""]
     options = textwrap.wrap(f"(options: {names['options']})", 92, initial_indent=" * ",
                             subsequent_indent=" *   ", break_on_hyphens=False)
-    return _render(_HEADER, prefix, **names, macros="\n".join(lines),
+    return _render(HEADER, prefix, **names, macros="\n".join(lines),
                    options_comment="\n".join(options),
-                   declarations="\n".join(declarations), memory=_MEMORY_DOC[avoid_stack],
+                   declarations="\n".join(declarations), memory=MEMORY_DOC[avoid_stack],
                    operations=str(max(e.function.n_instructions() for e in entries
                                       if e.name != "initial_memory")))
 
@@ -492,7 +508,7 @@ def _source(robot: Robot, prefix: str, entries: list[_Entry], layout: _Layout) -
                      f"{_c_array(getattr(robot, field))};"
                      for field in ("start", "goal", "k", "r_d"))
     wrappers = [_wrapper(prefix, entry) for entry in entries if entry.name != "control"]
-    return _render(_SOURCE, prefix, case=case, wrappers="\n".join(wrappers),
+    return _render(SOURCE, prefix, case=case, wrappers="\n".join(wrappers),
                    control=_control_code(prefix, entries[0], layout, definition=True),
                    n=str(robot.n), np=str(layout.n_p))
 
@@ -556,334 +572,3 @@ def _run(command: list[str]) -> str:
     except subprocess.CalledProcessError as failure:
         raise CompilationFailed(f"{' '.join(command)} failed with exit code "
                                 f"{failure.returncode}:\n{failure.stderr[-4000:]}") from None
-
-
-_MEMORY_DOC = {
-    True: "every intermediate value lives there (exported with avoid_stack=True).",
-    False: "intermediates are local variables, at most\n * @UPPER@_SZ_W doubles of stack "
-           "(exported with avoid_stack=False).",
-}
-
-_PARAMETERS_DOC = """\
-/* Fill the step's parameter vector p (layout P_* above). q_goal, k, r_d: m, N/m, N s/m,
- * each NULL for the robot's case values; dt: control period, s; mass_scale: plant mass over
- * model mass (1 = nominal); slack: nonzero if the plant applies max(tau, 0). */"""
-
-_HEADER = """\
-/* @PREFIX@.h -- exported from cdpr_sym: robot "@robot@", controller "@controller@"
-@options_comment@
- *
- * Units are SI throughout: m, m/s, m/s^2, s, kg, N. Vectors are double arrays of the stated
- * length; matrices are row-major (M[i * cols + j] is row i, column j).
- *
- * Real-time properties: every function below is straight-line code generated by CasADi
- * from SX expressions (control and step: at most @operations@ operations; no loops, no
- * recursion), so its execution time is bounded and data-independent up to branch
- * prediction. No function allocates heap memory, prints, or keeps state between calls.
- * Scratch memory is the caller's @PREFIX@_work
- * (@UPPER@_WORK_BYTES bytes; static, stack or pool);
- * @memory@
- * Calls on different work structs may run concurrently.
- */
-#ifndef @UPPER@_H
-#define @UPPER@_H
-
-#ifdef __cplusplus
-extern "C" {
-#endif
-
-@macros@
-
-/* Scratch memory of every call; its content is undefined between calls. */
-typedef struct @PREFIX@_work {
-  const double *arg[@UPPER@_SZ_ARG];
-  double *res[@UPPER@_SZ_RES];
-  long long iw[@UPPER@_SZ_IW];
-  double w[@UPPER@_SZ_W];
-} @PREFIX@_work;
-#define @UPPER@_WORK_BYTES (sizeof(@PREFIX@_work))
-
-/* The robot's default case (from its description), SI units. */
-extern const double @PREFIX@_case_start[@UPPER@_N];  /* m */
-extern const double @PREFIX@_case_goal[@UPPER@_N];   /* m */
-extern const double @PREFIX@_case_k[@UPPER@_N];      /* N/m */
-extern const double @PREFIX@_case_r_d[@UPPER@_N];    /* N s/m */
-
-@declarations@
-#ifdef __cplusplus
-}
-#endif
-#endif /* @UPPER@_H */
-"""
-
-_PRAGMA_INCLUDE = """\
-/* CasADi's generated functions take (arg, res, iw, w, mem) and do not use every argument. */
-#if defined(__GNUC__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wunused-parameter"
-#endif
-#include "@FILE@"
-#if defined(__GNUC__)
-#pragma GCC diagnostic pop
-#endif
-"""
-
-_SOURCE = """\
-/* @PREFIX@.c -- wrappers of the generated code (see @PREFIX@.h). */
-#include "@PREFIX@.h"
-
-""" + _PRAGMA_INCLUDE.replace("@FILE@", "@PREFIX@_generated.inc") + """
-@case@
-
-@control@
-
-void @PREFIX@_parameters(const double q_goal[@n@], const double k[@n@], const double r_d[@n@],
-    double dt, double mass_scale, int slack, double p[@np@]) {
-  int i;
-  for (i = 0; i < @UPPER@_N; ++i) {
-    p[@UPPER@_P_GOAL + i] = q_goal ? q_goal[i] : @PREFIX@_case_goal[i];
-    p[@UPPER@_P_K + i] = k ? k[i] : @PREFIX@_case_k[i];
-    p[@UPPER@_P_R_D + i] = r_d ? r_d[i] : @PREFIX@_case_r_d[i];
-  }
-  p[@UPPER@_P_DT] = dt;
-  p[@UPPER@_P_MASS_SCALE] = mass_scale;
-  p[@UPPER@_P_SLACK] = slack ? 1.0 : 0.0;
-}
-
-@wrappers@"""
-
-_PLAN_SOURCE = """\
-/* @PREFIX@_plan.c -- the controller's planner, run once per move.
- * See @PREFIX@.h. */
-#include "@PREFIX@.h"
-
-""" + _PRAGMA_INCLUDE.replace("@FILE@", "@PREFIX@_plan_generated.inc") + """
-@wrapper@"""
-
-_EXAMPLE_C = """\
-/* Example: the closed loop of robot "@robot@" with controller "@controller@", from the
- * case's start (at rest) to its goal: 10 s of control at 1 kHz, each period one RK4 step
- * of the plant with the tension held (@PREFIX@_step). Prints the final state and error
- * and the range of the commanded tension. */
-#include <math.h>
-#include <stdio.h>
-
-#include "@PREFIX@.h"
-
-#define DURATION 10.0 /* s */
-#define DT 1e-3       /* s */
-
-int main(void) {
-  static @PREFIX@_work work; /* static: no stack or heap needed for scratch memory */
-  double x[@UPPER@_NX], x_next[@UPPER@_NX], p[@UPPER@_NP];
-  double record[@UPPER@_NLOG]; /* tau, alpha, beta, j, flags of one period */
-  double tau_min = INFINITY, tau_max = -INFINITY, error = 0.0;
-  long n_steps = (long) (DURATION / DT + 0.5), taken = 0, step;
-  int i;
-
-  for (i = 0; i < @UPPER@_NX; ++i) x[i] = 0.0; /* at rest, status 0 */
-  for (i = 0; i < @UPPER@_N; ++i) {
-    x[@UPPER@_X_Q + i] = @PREFIX@_case_start[i];
-  }
-@memory@  /* goal and gains of the robot's case (NULL), dt, nominal plant mass, no cable slack */
-  @PREFIX@_parameters(0, 0, 0, DT, 1.0, 0, p);
-
-  for (step = 0; step < n_steps; ++step) {
-    if (@PREFIX@_step(x, p, x_next, record, &work) != 0) {
-      fprintf(stderr, "step %ld failed\\n", step);
-      return 1;
-    }
-    /* stopped: singular, non-finite or left the frame */
-    if (x_next[@UPPER@_X_STATUS] != 0.0) break;
-    for (i = 0; i < @UPPER@_N; ++i) {
-      double tau = record[@UPPER@_LOG_TAU + i];
-      tau_min = tau < tau_min ? tau : tau_min;
-      tau_max = tau > tau_max ? tau : tau_max;
-    }
-    for (i = 0; i < @UPPER@_NX; ++i) x[i] = x_next[i];
-    ++taken;
-  }
-
-  for (i = 0; i < @UPPER@_N; ++i) {
-    double e = x[@UPPER@_X_Q + i] - @PREFIX@_case_goal[i];
-    error += e * e;
-  }
-  printf("robot @robot@ controller @controller@\\n");
-  printf("steps %ld of %ld, dt %g s, status %g\\n", taken, n_steps, DT,
-         x_next[@UPPER@_X_STATUS]);
-  printf("final_q");
-  for (i = 0; i < @UPPER@_N; ++i) printf(" %.17g", x[@UPPER@_X_Q + i]);
-  printf("\\nfinal_dq");
-  for (i = 0; i < @UPPER@_N; ++i) printf(" %.17g", x[@UPPER@_X_DQ + i]);
-  printf("\\nfinal_error_m %.6e\\n", sqrt(error));
-  printf("tension_min_N %.17g\\ntension_max_N %.17g\\n", tau_min, tau_max);
-  printf("tension_bounds_N %g %g\\n", @UPPER@_T_MIN, @UPPER@_T_MAX);
-  return 0;
-}
-"""
-
-_EXAMPLE_MEMORY = """\
-  /* the controller's internal state at the start of the move: its plan */
-  if (@PREFIX@_initial_memory(@PREFIX@_case_start, @PREFIX@_case_goal,
-                              @PREFIX@_case_k, @PREFIX@_case_r_d,
-                              x + @UPPER@_X_MEMORY, &work) != 0) {
-    fprintf(stderr, "initial_memory failed\\n");
-    return 1;
-  }
-"""
-
-_MAKEFILE = """\
-# Builds lib@PREFIX@.a and the example. Override CC / CFLAGS as usual, e.g.
-#   make CC=clang CFLAGS="-std=c99 -O3 -Wall -Wextra -Werror"
-CC ?= cc
-CFLAGS ?= -std=c99 -O2 -Wall -Wextra
-AR ?= ar
-
-all: lib@PREFIX@.a example
-
-@PREFIX@.o: @PREFIX@.c @PREFIX@.h @PREFIX@_generated.inc
-\t$(CC) $(CFLAGS) -c @PREFIX@.c -o $@
-@plan@
-lib@PREFIX@.a: @objects@
-\t$(AR) rcs $@ $^
-
-example: main.c @PREFIX@.h lib@PREFIX@.a
-\t$(CC) $(CFLAGS) main.c -L. -l@PREFIX@ -lm -o $@
-
-clean:
-\trm -f *.o lib@PREFIX@.a example
-
-.PHONY: all clean
-"""
-
-_MAKEFILE_PLAN = """
-# The planner runs once per move and is large: optimising it costs the compiler tens of
-# seconds and gains nothing that matters, so it is built with PLAN_CFLAGS (after CFLAGS).
-PLAN_CFLAGS ?= -O0
-
-@PREFIX@_plan.o: @PREFIX@_plan.c @PREFIX@.h @PREFIX@_plan_generated.inc
-\t$(CC) $(CFLAGS) $(PLAN_CFLAGS) -c @PREFIX@_plan.c -o $@
-"""
-
-_CMAKE = """\
-cmake_minimum_required(VERSION 3.11)
-project(@PREFIX@ C)
-
-add_library(@PREFIX@ STATIC @sources@)
-target_include_directories(@PREFIX@ PUBLIC ${CMAKE_CURRENT_SOURCE_DIR})
-set_target_properties(@PREFIX@ PROPERTIES C_STANDARD 99 C_STANDARD_REQUIRED ON
-                      C_EXTENSIONS OFF)
-find_library(MATH_LIBRARY m)
-if(MATH_LIBRARY)
-  target_link_libraries(@PREFIX@ PUBLIC ${MATH_LIBRARY})
-endif()
-@plan@
-add_executable(example main.c)
-set_target_properties(example PROPERTIES C_STANDARD 99 C_STANDARD_REQUIRED ON
-                      C_EXTENSIONS OFF)
-target_link_libraries(example PRIVATE @PREFIX@)
-"""
-
-_CMAKE_PLAN = """
-# The planner runs once per move and is large: build it without optimisation.
-set_source_files_properties(@PREFIX@_plan.c PROPERTIES
-                            COMPILE_OPTIONS "$<IF:$<C_COMPILER_ID:MSVC>,/Od,-O0>")
-"""
-
-_README = """\
-# @PREFIX@: exported controller of `@robot@` / `@controller@`
-
-Self-contained C99 code exported by cdpr_sym (`cdpr-sym export-c`) for the robot
-`@robot@` and the controller `@controller@` (options: @options@). Neither Python nor
-CasADi is needed to build or run it; it needs a C99 compiler and the maths library.
-
-## Build
-
-    make                 # lib@PREFIX@.a and ./example
-    ./example            # 10 s closed loop from the case's start to its goal
-
-or with CMake:
-
-    cmake -S . -B build && cmake --build build && ./build/example
-
-To use it in your project, compile `@PREFIX@.c` (it includes `@PREFIX@_generated.inc`;
-do not compile that file on its own) and include `@PREFIX@.h`.
-@plan@
-## Files
-
-| file | content |
-|---|---|
-| `@PREFIX@.h` | the API: sizes, index layouts, flag bits, work memory, functions |
-| `@PREFIX@.c` | wrappers and the robot's default case |
-| `@PREFIX@_generated.inc` | CasADi's generated code |
-| `main.c` | the example closed loop |
-| `manifest.json` | robot, controller, CasADi version and SHA-256 of every file |
-
-## API in brief
-
-    @PREFIX@_work work;   /* caller-provided scratch memory, @UPPER@_WORK_BYTES bytes */
-    @PREFIX@_control(q, dq, q_goal, k, r_d, ..., tau, &alpha, &beta, j, &flags, ..., &work);
-    @PREFIX@_step(x, p, x_next, log_out, &work);   /* control + one RK4 step of dt */
-
-plus one function per model term (`@PREFIX@_cable_lengths`, `_structure_matrix`,
-`_mass_matrix`, `_potential`, `_p_matrix`, `_a_matrix`, ...). Units are SI (m, m/s, N, s);
-matrices are row-major; n = @n@. The header documents every argument, the index layout of
-the step's state `x`, parameters `p` (fill it with `@PREFIX@_parameters`) and log, and the
-`@UPPER@_FLAG_*` bits (fallbacks and limits that acted in a control step).
-
-The generated functions are straight-line code (no loops; `_parameters` loops over n),
-allocate nothing, print nothing and keep no state, so the execution time is bounded and
-calls with separate work structs are thread-safe. Build with IEEE-preserving flags (no
-`-ffast-math`) to reproduce the Python simulation bit for bit. Every public symbol starts
-with `@PREFIX@_`, so packages of several robots or controllers link into one program.
-"""
-
-_README_PLAN = """
-This controller has an internal state (`@UPPER@_NMEM` doubles): compute it once per move
-with `@PREFIX@_initial_memory` (in `@PREFIX@_plan.c`, which you compile as well; the
-Makefile and CMakeLists.txt build it without optimisation, as it is large and runs once),
-then pass it to `@PREFIX@_control` (which returns the next one) or keep it in the step's
-state `x`.
-"""
-
-_BENCH_C = """\
-#define _POSIX_C_SOURCE 199309L
-#include <stdio.h>
-#include <time.h>
-#include "cdpr_bench.h"
-
-static const double states[64][2 * CDPR_BENCH_N] = {
-@states@
-};
-
-static double now(void) {
-  struct timespec t;
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return (double) t.tv_sec + 1e-9 * (double) t.tv_nsec;
-}
-
-int main(void) {
-  static cdpr_bench_work work;
-  static double memory[] = @memory@, memory_next[sizeof memory / sizeof memory[0]];
-  double tau[CDPR_BENCH_N], best = 0.0;
-  volatile double sink = 0.0;
-  int round;
-  (void) memory_next;
-  for (round = 0; round < 3; ++round) {
-    long calls = 0, i;
-    double start = now(), elapsed;
-    do {
-      for (i = 0; i < 4096; ++i) {
-        const double *s = states[i & 63];
-        cdpr_bench_control(@call@, &work);
-        sink += tau[0];
-      }
-      calls += 4096;
-      elapsed = now() - start;
-    } while (elapsed < @seconds@ / 3.0);
-    if (calls / elapsed > best) best = calls / elapsed;
-  }
-  printf("calls_per_s %.6e\\n", best);
-  return 0;
-}
-"""
