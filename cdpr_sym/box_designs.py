@@ -47,10 +47,10 @@ from cdpr_sym.controllers import (
     FLAG_SATURATED,
     FLAG_SINGULAR,
     ControlLaw,
-    _beta,
-    _clip,
-    _flag,
-    _tension_parts,
+    beta_margin,
+    clip_to_box,
+    flag_if,
+    tension_parts,
     least_squares_min_norm,
 )
 from cdpr_sym.errors import InvalidCase
@@ -137,7 +137,7 @@ class _ExactBoxDesign:
         return out
 
     def law(self, model: SymbolicModel, q, dq, q_goal, k, r_d) -> ControlLaw:
-        parts = _tension_parts(model, q, dq, q_goal, k, r_d)
+        parts = tension_parts(model, q, dq, q_goal, k, r_d)
         t_min, t_max = model.robot.t_min, model.robot.t_max
         mid, n = 0.5 * (t_min + t_max), model.n
         tau_1, tau_2 = parts.tau_1, parts.tau_2_unit
@@ -172,14 +172,14 @@ class _ExactBoxDesign:
         A_unit = parts.W_inv @ model.p_matrix(direction)
         j_fast = least_squares_min_norm(A_unit, tau_fast - tau_pd, v) / ca.fmax(
             speed, self.low_speed)
-        tau_sat, _ = _clip(model, tau_1 + tau_2)
+        tau_sat, _ = clip_to_box(model, tau_1 + tau_2)
         tau = ca.if_else(feasible, ca.if_else(slow, tau_pd, tau_fast), tau_sat)
         alpha = ca.if_else(feasible, alpha, 1.0)
         j = ca.if_else(ca.logic_or(slow, ca.logic_not(feasible)), ca.SX.zeros(model.n_j), j_fast)
-        flags = (_flag(slow, FLAG_LOW_SPEED) + _flag(ca.logic_not(feasible), FLAG_INFEASIBLE)
-                 + _flag(ca.logic_not(feasible), FLAG_SATURATED) + _flag(alpha < 1, FLAG_ALPHA)
-                 + _flag(parts.singular, FLAG_SINGULAR))
-        return ControlLaw(tau, alpha, _beta(model, tau_1), j, flags)
+        flags = (flag_if(slow, FLAG_LOW_SPEED) + flag_if(ca.logic_not(feasible), FLAG_INFEASIBLE)
+                 + flag_if(ca.logic_not(feasible), FLAG_SATURATED) + flag_if(alpha < 1, FLAG_ALPHA)
+                 + flag_if(parts.singular, FLAG_SINGULAR))
+        return ControlLaw(tau, alpha, beta_margin(model, tau_1), j, flags)
 
 
 @dataclasses.dataclass(frozen=True)

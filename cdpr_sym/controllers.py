@@ -85,7 +85,7 @@ class Controller(Protocol):
 
 
 @dataclasses.dataclass(frozen=True)
-class _TensionParts:
+class TensionParts:
     """Common pieces of (8): tau_1 = W^{-1} grad V and the PD part at alpha = 1."""
 
     W: ca.SX
@@ -95,30 +95,30 @@ class _TensionParts:
     singular: ca.SX
 
 
-def _tension_parts(model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX,
-                   k: ca.SX, r_d: ca.SX) -> _TensionParts:
+def tension_parts(model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX,
+                   k: ca.SX, r_d: ca.SX) -> TensionParts:
     from cdpr_sym.robot import SINGULAR_DET
 
     W = model.structure_matrix(q)
     W_inv = ca.inv(W)
     tau_1 = W_inv @ model.grad_potential(q)
     tau_2_unit = -W_inv @ (k * (q - q_goal) + r_d * dq)
-    return _TensionParts(W=W, W_inv=W_inv, tau_1=tau_1, tau_2_unit=tau_2_unit,
+    return TensionParts(W=W, W_inv=W_inv, tau_1=tau_1, tau_2_unit=tau_2_unit,
                          singular=ca.fabs(ca.det(W)) < SINGULAR_DET)
 
 
-def _clip(model: SymbolicModel, tau: ca.SX) -> tuple[ca.SX, ca.SX]:
+def clip_to_box(model: SymbolicModel, tau: ca.SX) -> tuple[ca.SX, ca.SX]:
     """Tension clipped to the robot's box, and whether any entry was clipped."""
     t_min, t_max = model.robot.t_min, model.robot.t_max
     clipped = ca.fmin(ca.fmax(tau, t_min), t_max)
     return clipped, ca.sum1(tau < t_min) + ca.sum1(tau > t_max) > 0
 
 
-def _flag(condition: ca.SX, bit: int) -> ca.SX:
+def flag_if(condition: ca.SX, bit: int) -> ca.SX:
     return ca.if_else(condition, bit, 0)
 
 
-def _beta(model: SymbolicModel, tau_1: ca.SX) -> ca.SX:
+def beta_margin(model: SymbolicModel, tau_1: ca.SX) -> ca.SX:
     """beta of (20): (T_M - T_m)/2 - ||tau_1 - (T_m + T_M)/2||_2, N."""
     t_min, t_max = model.robot.t_min, model.robot.t_max
     return 0.5 * (t_max - t_min) - ca.norm_2(tau_1 - 0.5 * (t_min + t_max))
@@ -134,10 +134,10 @@ class PD:
     name: ClassVar[str] = "pd"
 
     def law(self, model, q, dq, q_goal, k, r_d) -> ControlLaw:
-        parts = _tension_parts(model, q, dq, q_goal, k, r_d)
+        parts = tension_parts(model, q, dq, q_goal, k, r_d)
         tau = parts.tau_1 + parts.tau_2_unit
-        return ControlLaw(tau, ca.SX(1.0), _beta(model, parts.tau_1),
-                          ca.SX.zeros(model.n_j), _flag(parts.singular, FLAG_SINGULAR))
+        return ControlLaw(tau, ca.SX(1.0), beta_margin(model, parts.tau_1),
+                          ca.SX.zeros(model.n_j), flag_if(parts.singular, FLAG_SINGULAR))
 
     def options(self) -> dict:
         return {}
@@ -153,10 +153,10 @@ class SaturatedPD:
     name: ClassVar[str] = "pd-sat"
 
     def law(self, model, q, dq, q_goal, k, r_d) -> ControlLaw:
-        parts = _tension_parts(model, q, dq, q_goal, k, r_d)
-        tau, clipped = _clip(model, parts.tau_1 + parts.tau_2_unit)
-        flags = _flag(clipped, FLAG_SATURATED) + _flag(parts.singular, FLAG_SINGULAR)
-        return ControlLaw(tau, ca.SX(1.0), _beta(model, parts.tau_1),
+        parts = tension_parts(model, q, dq, q_goal, k, r_d)
+        tau, clipped = clip_to_box(model, parts.tau_1 + parts.tau_2_unit)
+        flags = flag_if(clipped, FLAG_SATURATED) + flag_if(parts.singular, FLAG_SINGULAR)
+        return ControlLaw(tau, ca.SX(1.0), beta_margin(model, parts.tau_1),
                           ca.SX.zeros(model.n_j), flags)
 
     def options(self) -> dict:
@@ -216,8 +216,8 @@ class L2Design:
                 "fallback": self.fallback}
 
     def law(self, model, q, dq, q_goal, k, r_d) -> ControlLaw:
-        parts = _tension_parts(model, q, dq, q_goal, k, r_d)
-        beta = _beta(model, parts.tau_1)
+        parts = tension_parts(model, q, dq, q_goal, k, r_d)
+        beta = beta_margin(model, parts.tau_1)
         speed = ca.norm_2(dq)
         direction = dq / ca.fmax(speed, self.low_speed)
         A_unit = parts.W_inv @ model.p_matrix(direction)
@@ -234,7 +234,7 @@ class L2Design:
         slow = speed < self.low_speed
         no_margin = beta <= 0
         tau_pd = parts.tau_1 + parts.tau_2_unit
-        tau_sat, clipped = _clip(model, tau_pd)
+        tau_sat, clipped = clip_to_box(model, tau_pd)
         if self.fallback == "scale":
             alpha_slow = ca.fmin(1.0, beta / ca.fmax(ca.norm_2(parts.tau_2_unit), 1e-300))
             tau_slow = ca.if_else(no_margin, tau_sat, parts.tau_1 + alpha_slow * parts.tau_2_unit)
@@ -246,10 +246,10 @@ class L2Design:
         tau = ca.if_else(no_margin, tau_sat, ca.if_else(slow, tau_slow, tau_ls))
         alpha = ca.if_else(no_margin, 1.0, ca.if_else(slow, alpha_slow, alpha_ls))
         j = ca.if_else(fallback, ca.SX.zeros(model.n_j), j_ls)
-        flags = (_flag(slow, FLAG_LOW_SPEED) + _flag(no_margin, FLAG_BETA)
-                 + _flag(ca.if_else(no_margin, clipped,
+        flags = (flag_if(slow, FLAG_LOW_SPEED) + flag_if(no_margin, FLAG_BETA)
+                 + flag_if(ca.if_else(no_margin, clipped,
                                     ca.if_else(slow, clipped_slow, 0)), FLAG_SATURATED)
-                 + _flag(alpha < 1, FLAG_ALPHA) + _flag(parts.singular, FLAG_SINGULAR))
+                 + flag_if(alpha < 1, FLAG_ALPHA) + flag_if(parts.singular, FLAG_SINGULAR))
         return ControlLaw(tau, alpha, beta, j, flags)
 
 

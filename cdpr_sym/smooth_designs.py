@@ -22,10 +22,10 @@ from cdpr_sym.controllers import (
     FLAG_SATURATED,
     FLAG_SINGULAR,
     ControlLaw,
-    _beta,
-    _clip,
-    _flag,
-    _tension_parts,
+    beta_margin,
+    clip_to_box,
+    flag_if,
+    tension_parts,
 )
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
@@ -128,13 +128,13 @@ class SmoothReference:
         s, ds, dds = minimum_jerk(u)
         delta = q_goal - q_start
         q_r, dq_r, ddq_r = q_start + delta * s, delta * ds / T, delta * dds / T**2
-        parts = _tension_parts(model, q, dq, q_goal, k, r_d)
+        parts = tension_parts(model, q, dq, q_goal, k, r_d)
         force = (model.robot.mass * ddq_r + model.grad_potential(q)
                  - k * (q - q_r) - r_d * (dq - dq_r))
-        tau, clipped = _clip(model, parts.W_inv @ force)
-        flags = (_flag(clipped, FLAG_SATURATED) + _flag(margin < 0, FLAG_INFEASIBLE)
-                 + _flag(parts.singular, FLAG_SINGULAR))
-        law = ControlLaw(tau, ca.SX(1.0), _beta(model, parts.tau_1), ca.SX.zeros(model.n_j),
+        tau, clipped = clip_to_box(model, parts.W_inv @ force)
+        flags = (flag_if(clipped, FLAG_SATURATED) + flag_if(margin < 0, FLAG_INFEASIBLE)
+                 + flag_if(parts.singular, FLAG_SINGULAR))
+        law = ControlLaw(tau, ca.SX(1.0), beta_margin(model, parts.tau_1), ca.SX.zeros(model.n_j),
                          flags)
         return law, ca.vertcat(t + dt, q_start, T, margin)
 
@@ -210,7 +210,7 @@ class VirtualReferenceIdaPbc:
         n, mass = model.n, model.robot.mass
         xi, dxi = memory[:n], memory[n: 2 * n]
         force, accel, start_distance = memory[2 * n], memory[2 * n + 1], memory[2 * n + 2]
-        parts = _tension_parts(model, q, dq, q_goal, k, r_d)
+        parts = tension_parts(model, q, dq, q_goal, k, r_d)
         coupling = k * (q - xi) + r_d * (dq - dxi)
         tau_pd = parts.W_inv @ (model.grad_potential(q) - coupling)
         A = parts.W_inv @ model.p_matrix(dq)
@@ -232,8 +232,8 @@ class VirtualReferenceIdaPbc:
         # semi-implicit Euler; the damping is applied implicitly so large R_xi stays stable
         dxi_next = (dxi + dt * (coupling - pull) / mass) / (1 + dt * damping / mass)
         xi_next = xi + dt * dxi_next
-        flags = _flag(parts.singular, FLAG_SINGULAR)
-        law = ControlLaw(tau, ca.SX(1.0), _beta(model, parts.tau_1), j, flags)
+        flags = flag_if(parts.singular, FLAG_SINGULAR)
+        law = ControlLaw(tau, ca.SX(1.0), beta_margin(model, parts.tau_1), j, flags)
         return law, ca.vertcat(xi_next, dxi_next, force, accel, start_distance)
 
     def spring_length(self, force):
