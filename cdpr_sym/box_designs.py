@@ -50,8 +50,8 @@ from cdpr_sym.controllers import (
     beta_margin,
     clip_to_box,
     flag_if,
-    tension_parts,
     least_squares_min_norm,
+    tension_parts,
 )
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
