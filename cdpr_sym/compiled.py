@@ -63,7 +63,8 @@ class BuildOptions:
     backend : {"auto", "c", "casadi"}
         ``"c"`` compiles generated C and fails with :class:`CompilerNotFound` without a
         compiler; ``"casadi"`` runs CasADi's virtual machine (no compiler, ~10-50x slower);
-        ``"auto"`` (default) uses C when a compiler is found, else falls back to ``"casadi"``.
+        ``"auto"`` (default) uses C when a compiler is found, else falls back to ``"casadi"``
+        (but a ``compiler`` named explicitly and not found is an error).
     cache_dir : Path, optional
         Where compiled libraries are kept; default :func:`default_cache_dir`.
     compiler : str, optional
@@ -90,7 +91,7 @@ class BuildOptions:
             return "casadi"
         if find_compiler(self.compiler) is not None:
             return "c"
-        if self.backend == "c":
+        if self.backend == "c" or self.compiler:
             raise CompilerNotFound(
                 "no C compiler found (looked for $CC, cc, gcc, clang"
                 + (f", {self.compiler}" if self.compiler else "")
@@ -237,14 +238,6 @@ class NativeFunction:
         for index, array in enumerate(outputs):
             self._res[index] = array.ctypes.data
         self._keep = [*inputs, *outputs]
-
-    def rebind_input(self, index: int, address: int) -> None:
-        """Point input ``index`` at a raw address (e.g. a row inside a bound array)."""
-        self._arg[index] = address
-
-    def rebind_output(self, index: int, address: int) -> None:
-        """Point output ``index`` at a raw address."""
-        self._res[index] = address
 
     def __call__(self) -> None:
         """Evaluate with the bound buffers."""

@@ -91,7 +91,7 @@ class TensionParts:
     W: ca.SX
     W_inv: ca.SX
     tau_1: ca.SX
-    tau_2_unit: ca.SX
+    tau_2_full: ca.SX
     singular: ca.SX
 
 
@@ -102,8 +102,8 @@ def tension_parts(model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX,
     W = model.structure_matrix(q)
     W_inv = ca.inv(W)
     tau_1 = W_inv @ model.grad_potential(q)
-    tau_2_unit = -W_inv @ (k * (q - q_goal) + r_d * dq)
-    return TensionParts(W=W, W_inv=W_inv, tau_1=tau_1, tau_2_unit=tau_2_unit,
+    tau_2_full = -W_inv @ (k * (q - q_goal) + r_d * dq)
+    return TensionParts(W=W, W_inv=W_inv, tau_1=tau_1, tau_2_full=tau_2_full,
                          singular=ca.fabs(ca.det(W)) < SINGULAR_DET)
 
 
@@ -135,7 +135,7 @@ class PD:
 
     def law(self, model, q, dq, q_goal, k, r_d) -> ControlLaw:
         parts = tension_parts(model, q, dq, q_goal, k, r_d)
-        tau = parts.tau_1 + parts.tau_2_unit
+        tau = parts.tau_1 + parts.tau_2_full
         return ControlLaw(tau, ca.SX(1.0), beta_margin(model, parts.tau_1),
                           ca.SX.zeros(model.n_j), flag_if(parts.singular, FLAG_SINGULAR))
 
@@ -154,7 +154,7 @@ class SaturatedPD:
 
     def law(self, model, q, dq, q_goal, k, r_d) -> ControlLaw:
         parts = tension_parts(model, q, dq, q_goal, k, r_d)
-        tau, clipped = clip_to_box(model, parts.tau_1 + parts.tau_2_unit)
+        tau, clipped = clip_to_box(model, parts.tau_1 + parts.tau_2_full)
         flags = flag_if(clipped, FLAG_SATURATED) + flag_if(parts.singular, FLAG_SINGULAR)
         return ControlLaw(tau, ca.SX(1.0), beta_margin(model, parts.tau_1),
                           ca.SX.zeros(model.n_j), flags)
@@ -164,6 +164,8 @@ class SaturatedPD:
 
 
 L2_CONSTRUCTIONS = ("paper", "min_norm")
+#: |v_n| / |v| below which the paper's (21)-(23) is replaced by the minimum-norm solution.
+PAPER_LS_GUARD = 1e-4
 L2_FALLBACKS = ("saturate", "scale")
 
 
@@ -178,7 +180,8 @@ class L2Design:
         j' = (𝔄^T 𝔄)^{-1} 𝔄^T b, 𝔄 = A A^T N (eqs. (21)–(23) as corrected).
         ``"min_norm"``: j = A^+ b, computed exactly from the known left null vector
         v = W^T dq of A as A^T (A A^T + c v v^T / |v|^2)^{-1} b.
-        Both give the same tau_3 = A j wherever (21) is well defined.
+        Both give the same tau_3 = A j wherever (21) is well defined; where it is not
+        (|v_n| < 1e-4 |v|, v = W^T dq), ``"paper"`` uses the minimum-norm solution.
     low_speed : float
         Remark 2 threshold on ||dq||, m/s: below it A ~ 0 and the law falls back.
     fallback : {"saturate", "scale"}
@@ -221,23 +224,28 @@ class L2Design:
         speed = ca.norm_2(dq)
         direction = dq / ca.fmax(speed, self.low_speed)
         A_unit = parts.W_inv @ model.p_matrix(direction)
-        b = -parts.tau_2_unit
+        b = -parts.tau_2_full
+        null_vector = parts.W.T @ direction
+        j_unit = least_squares_min_norm(A_unit, b, null_vector)
         if self.construction == "paper":
-            j_unit = least_squares_paper(A_unit, b)
-        else:
-            j_unit = least_squares_min_norm(A_unit, b, parts.W.T @ direction)
+            # (21) drops the n-th column of A A^T; those columns are dependent where the left
+            # null vector of A has a zero n-th entry, and (23) is then undefined (and
+            # inaccurate near it): use the minimum-norm solution, which (21)-(23) equal
+            # wherever they are defined
+            defined = ca.fabs(null_vector[model.n - 1]) > PAPER_LS_GUARD * ca.norm_2(null_vector)
+            j_unit = ca.if_else(defined, least_squares_paper(A_unit, b), j_unit)
         residual = ca.norm_2(A_unit @ j_unit - b)
         alpha_ls = ca.if_else(residual < beta, 1.0, beta / ca.fmax(residual, 1e-300))
-        tau_ls = parts.tau_1 + alpha_ls * (parts.tau_2_unit + A_unit @ j_unit)
+        tau_ls = parts.tau_1 + alpha_ls * (parts.tau_2_full + A_unit @ j_unit)
         j_ls = alpha_ls * j_unit / ca.fmax(speed, self.low_speed)
 
         slow = speed < self.low_speed
         no_margin = beta <= 0
-        tau_pd = parts.tau_1 + parts.tau_2_unit
+        tau_pd = parts.tau_1 + parts.tau_2_full
         tau_sat, clipped = clip_to_box(model, tau_pd)
         if self.fallback == "scale":
-            alpha_slow = ca.fmin(1.0, beta / ca.fmax(ca.norm_2(parts.tau_2_unit), 1e-300))
-            tau_slow = ca.if_else(no_margin, tau_sat, parts.tau_1 + alpha_slow * parts.tau_2_unit)
+            alpha_slow = ca.fmin(1.0, beta / ca.fmax(ca.norm_2(parts.tau_2_full), 1e-300))
+            tau_slow = ca.if_else(no_margin, tau_sat, parts.tau_1 + alpha_slow * parts.tau_2_full)
             alpha_slow = ca.if_else(no_margin, 1.0, alpha_slow)
             clipped_slow = ca.logic_and(no_margin, clipped)
         else:
@@ -356,6 +364,9 @@ def tension(model: SymbolicModel, controller: Controller, q, dq, q_goal=None, *,
     Goal and gains default to the robot's case. Returns a :class:`ControlOutput`.
     """
     robot = model.robot
+    if memory_size(model, controller):
+        raise InvalidCase("controller", f"{controller.name} has an internal state; evaluate "
+                          "law_function(model, controller) with memory and dt instead")
     out = _cached_law(model, controller)(
         q, dq, robot.goal if q_goal is None else q_goal,
         robot.k if k is None else k, robot.r_d if r_d is None else r_d)

@@ -13,8 +13,6 @@ end-effector towards anchor i; M ddq + C dq + grad V = W tau with tau >= 0 pulli
 from __future__ import annotations
 
 import functools
-import hashlib
-import json
 
 import casadi as ca
 import numpy as np
@@ -155,18 +153,3 @@ class SymbolicModel:
         ]
         return {name: ca.Function(name, args, [expr], arg_names, [out_name])
                 for name, args, arg_names, expr, out_name in specs}
-
-    def fingerprint(self) -> str:
-        """A short hash of everything that shapes the generated code of this model."""
-        description = json.dumps(
-            {"anchors": self.robot.anchors.tolist(), "mass": self.robot.mass,
-             "gravity": self.robot.gravity, "t_min": self.robot.t_min,
-             "t_max": self.robot.t_max, "frame": [self.robot.frame_lower.tolist(),
-                                                  self.robot.frame_upper.tolist()]},
-            sort_keys=True)
-        return hashlib.sha256(description.encode()).hexdigest()[:16]
-
-
-def evaluate(function: ca.Function, *args: np.ndarray) -> np.ndarray:
-    """Call a single-output CasADi function on numbers and return a dense numpy array."""
-    return np.array(function(*args).full())

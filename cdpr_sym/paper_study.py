@@ -73,10 +73,6 @@ def _simulate_all(robot: Robot, duration: float, long_duration: float) -> dict[s
     }
 
 
-def _at(run: Trajectory, t: float) -> np.ndarray:
-    return run.q[min(round(t / run.info["dt"]), len(run.q) - 1)]
-
-
 def _judge(runs: dict[str, Trajectory], m: dict[str, dict[str, Any]]) -> list[Claim]:
     l2, sat, pd = runs["l2"], runs["pd-sat"], runs["pd"]
     initial_error = float(l2.error[0])

@@ -185,7 +185,8 @@ def step_function(model: SymbolicModel, controller: Controller, *,
     # singular at the sample, or det W changes sign within the step (the plane was crossed)
     crossed = ca.det(model.structure_matrix(q)) * ca.det(model.structure_matrix(z_next[:n])) <= 0
     singular = ca.logic_or(ca.fmod(ca.floor(law.flags / FLAG_SINGULAR), 2) > 0.5, crossed)
-    finite = ca.sum1(ca.fabs(z_next) <= 1e300) > 2 * n - 0.5
+    # the command too: a slack or rate-limited plant would otherwise turn NaN into a number
+    finite = ca.sum1(ca.fabs(ca.vertcat(z_next, law.tau)) <= 1e300) > 3 * n - 0.5
     lower, upper = model.robot.frame_lower, model.robot.frame_upper
     outside = ca.sum1(z_next[:n] < lower) + ca.sum1(z_next[:n] > upper) > 0
     new_status = ca.if_else(

@@ -91,6 +91,10 @@ class Trajectory:
     def metrics(self, *, static_tension: np.ndarray | None = None) -> dict[str, Any]:
         """Summary numbers (SI units); tensions are judged over t > 0 (steps k >= 1).
 
+        ``tension_feasible`` is False for a run that stopped early or has no command after
+        t = 0 (nothing certifies the remainder); ``min_tension``/``max_tension`` still
+        cover the simulated part.
+
         ``max_tension_step`` and ``tension_total_variation`` cover every change of command,
         |tau_k - tau_{k-1}| for k >= 1 (the first change happens at t = dt > 0).
         ``start_jump`` (N), max_i |tau_0 - tau_static|, needs the static tension
@@ -99,9 +103,10 @@ class Trajectory:
         after_start = self.tau[1:]
         steps = np.abs(np.diff(self.tau, axis=0))
         settle = self.settle_time()
-        feasible = bool(after_start.size == 0 or (
-            after_start.min() >= self.t_min - FEASIBILITY_SLACK
-            and after_start.max() <= self.t_max + FEASIBILITY_SLACK))
+        # feasible only if the run reached its end and every command for t > 0 was judged
+        feasible = bool(self.stop_reason is None and after_start.size > 0
+                        and after_start.min() >= self.t_min - FEASIBILITY_SLACK
+                        and after_start.max() <= self.t_max + FEASIBILITY_SLACK)
         out: dict[str, Any] = {
             "min_tension": _float(after_start.min()) if after_start.size else None,
             "max_tension": _float(after_start.max()) if after_start.size else None,

@@ -164,8 +164,14 @@ def test_c_backend_without_compiler_raises_compiler_not_found(no_compiler, plana
     assert not (no_compiler / "cache").exists()
 
 
-def test_auto_backend_without_compiler_falls_back_to_casadi_and_simulates(no_compiler, aras3):
+def test_auto_backend_with_a_named_missing_compiler_raises(no_compiler, planar2):
     options = BuildOptions(backend="auto", compiler="no-such-cc", cache_dir=no_compiler / "c")
+    with pytest.raises(CompilerNotFound):
+        Simulator(planar2, PD(), build_options=options)
+
+
+def test_auto_backend_without_compiler_falls_back_to_casadi_and_simulates(no_compiler, aras3):
+    options = BuildOptions(backend="auto", cache_dir=no_compiler / "c")
     run = simulate(aras3, PD(), duration=0.05, dt=1e-3, build_options=options)
     assert run.info["backend"] == "casadi"
     assert run.stop_reason is None and len(run.t) == 51

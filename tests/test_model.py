@@ -156,9 +156,3 @@ def test_a_matrix_has_rank_n_minus_one_for_nonzero_dq(robot, rng, random_states)
 def test_a_matrix_is_zero_at_rest(robot):
     A = np.array(SymbolicModel(robot).functions["a_matrix"](robot.start, np.zeros(robot.n)).full())
     np.testing.assert_array_equal(A, 0.0)
-
-
-def test_fingerprint_changes_with_geometry_but_not_with_the_case(aras3):
-    base = SymbolicModel(aras3).fingerprint()
-    assert SymbolicModel(aras3.with_case(goal=aras3.start)).fingerprint() == base
-    assert SymbolicModel(aras3.with_case(mass=5.0)).fingerprint() != base
