@@ -56,11 +56,12 @@ from cdpr_sym.controllers import (
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 
-_BIG = 1e300
+BIG = 1e300
 
 
-def alpha_interval(s0: ca.SX, s1: ca.SX, lower: ca.SX, upper: ca.SX) -> tuple[ca.SX, ca.SX]:
-    """The interval of alpha (intersected with [0, 1]) with lower <= s0 + alpha s1 <= upper.
+def alpha_interval(s0: ca.SX, s1: ca.SX, lower: ca.SX, upper: ca.SX, *,
+                   within: tuple[float, float] = (0.0, 1.0)) -> tuple[ca.SX, ca.SX]:
+    """The interval of alpha (intersected with ``within``) with lower <= s0 + alpha s1 <= upper.
 
     Works elementwise on vectors and intersects the intervals; an empty result has
     low > high.
@@ -68,9 +69,9 @@ def alpha_interval(s0: ca.SX, s1: ca.SX, lower: ca.SX, upper: ca.SX) -> tuple[ca
     safe = ca.if_else(ca.fabs(s1) > 1e-300, s1, 1.0)
     a, b = (lower - s0) / safe, (upper - s0) / safe
     inside = ca.logic_and(s0 >= lower, s0 <= upper)
-    low = ca.if_else(ca.fabs(s1) > 1e-300, ca.fmin(a, b), ca.if_else(inside, -_BIG, _BIG))
-    high = ca.if_else(ca.fabs(s1) > 1e-300, ca.fmax(a, b), ca.if_else(inside, _BIG, -_BIG))
-    return ca.fmax(ca.mmax(low), 0.0), ca.fmin(ca.mmin(high), 1.0)
+    low = ca.if_else(ca.fabs(s1) > 1e-300, ca.fmin(a, b), ca.if_else(inside, -BIG, BIG))
+    high = ca.if_else(ca.fabs(s1) > 1e-300, ca.fmax(a, b), ca.if_else(inside, BIG, -BIG))
+    return ca.fmax(ca.mmax(low), within[0]), ca.fmin(ca.mmin(high), within[1])
 
 
 def project_box_hyperplane(p: ca.SX, v: ca.SX, c: ca.SX, lower: ca.SX,
@@ -91,8 +92,8 @@ def project_box_hyperplane(p: ca.SX, v: ca.SX, c: ca.SX, lower: ca.SX,
         return ca.dot(v, ca.fmin(ca.fmax(p + lam * v, lower), upper))
 
     values = [g(breakpoints[k]) for k in range(2 * n)]
-    lam_low, lam_high = -_BIG, _BIG
-    g_low, g_high = -_BIG, _BIG
+    lam_low, lam_high = -BIG, BIG
+    g_low, g_high = -BIG, BIG
     for k in range(2 * n):
         below = values[k] <= c
         better_low = ca.logic_and(below, breakpoints[k] > lam_low)
@@ -102,7 +103,7 @@ def project_box_hyperplane(p: ca.SX, v: ca.SX, c: ca.SX, lower: ca.SX,
         better_high = ca.logic_and(above, breakpoints[k] < lam_high)
         lam_high = ca.if_else(better_high, breakpoints[k], lam_high)
         g_high = ca.if_else(better_high, values[k], g_high)
-    has_low, has_high = lam_low > -_BIG, lam_high < _BIG
+    has_low, has_high = lam_low > -BIG, lam_high < BIG
     span = g_high - g_low
     interpolated = lam_low + (c - g_low) * (lam_high - lam_low) / ca.if_else(
         ca.fabs(span) > 0, span, 1.0)

@@ -16,6 +16,7 @@ from cdpr_sym import plots
 from cdpr_sym.controllers import controller_by_name
 from cdpr_sym.cvx_designs import cvx_design
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.report_format import number
 from cdpr_sym.robot import Robot, preset
 from cdpr_sym.simulation import simulate
 from cdpr_sym.sweep import SweepConfig, run_sweep
@@ -42,7 +43,7 @@ def run_compare_study(out_dir: Path, *, robot: Robot | None = None, pairs: int =
                         title="Paper case: distance to the goal")
     results = out_dir / "sweep.csv"
     config = SweepConfig(robot=robot.name, controllers=tuple(designs), pairs=pairs, seed=seed)
-    run_sweep(config, results, progress=progress)
+    run_sweep(config, results, progress=progress, restart_if_stale=True)
     rows, _ = load_results(results)
     summary = summarise(rows)
     feasibility_maps(rows, out_dir / "sweep_maps_xy.png", axes=(0, 1))
@@ -104,9 +105,10 @@ def _markdown(case: dict[str, Any], summary: dict[str, Any], agreement: dict[str
         "|---|---|---|---|---|---|---|---|",
     ]
     for name, m in case.items():
-        lines.append(f"| {name} | {_f(m['min_tension'])} | {_f(m['max_tension'])} | "
-                     f"{_f(m['settle_time'])} | {m['final_error']:.3g} | {_f(m['min_alpha'])} | "
-                     f"{m['max_tension_step']:.3g} | {m['tension_total_variation']:.3g} |")
+        cells = [number(m[key]) for key in ("min_tension", "max_tension", "settle_time",
+                                            "final_error", "min_alpha", "max_tension_step",
+                                            "tension_total_variation")]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
     lines += [
         "", "![Paper case](paper_case_tensions.png)", "",
         "![Paper case errors](paper_case_errors.png)", "",
@@ -134,12 +136,8 @@ def _conclusion(summary: dict[str, Any], best: str) -> str:
         parts.append(
             f"`{name}`: tensions feasible on {100 * s['feasible']:.0f} %, converged on "
             f"{100 * s['converged']:.0f} %, stopped on {s['stopped_or_failed']} runs, median "
-            f"largest per-step tension change {_f(s['median_max_step'])} N.")
+            f"largest per-step tension change {number(s['median_max_step'])} N.")
     smooth = [n for n, s in summary.items() if (s["median_max_step"] or 1e9) <= 1.0]
     parts.append("No design keeps the per-step tension change within 1 N on a typical pair."
                  if not smooth else f"Smooth (median step ≤ 1 N): {', '.join(smooth)}.")
     return " ".join(parts)
-
-
-def _f(value: float | None) -> str:
-    return "–" if value is None else f"{value:.3g}"

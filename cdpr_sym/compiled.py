@@ -130,6 +130,11 @@ class CompiledLibrary:
         return NativeFunction(ctypes.CDLL(str(self.path)), name)
 
 
+def c_identifier(text: str) -> str:
+    """``text`` with every character that may not appear in a C identifier replaced by _."""
+    return "".join(ch if ch.isalnum() else "_" for ch in text)
+
+
 def generate_source(functions: Sequence[ca.Function], name: str, extra_source: str = "") -> str:
     """C99 source of ``functions`` (plus ``extra_source``) in one translation unit."""
     generator = ca.CodeGenerator(f"{name}.c", {"with_header": False, "verbose": False})

@@ -16,6 +16,7 @@ from cdpr_sym import plots
 from cdpr_sym.compare_study import case_figure
 from cdpr_sym.controllers import controller_by_name
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.report_format import number, share
 from cdpr_sym.robot import Robot, preset
 from cdpr_sym.simulation import simulate
 from cdpr_sym.sweep import SweepConfig, run_sweep
@@ -41,7 +42,8 @@ def run_designs_study(out_dir: Path, *, robot: Robot | None = None, pairs: int =
     for scale in MASS_SCALES:
         config = SweepConfig(robot=robot.name, controllers=tuple(designs), pairs=pairs,
                              seed=seed, mass_scale=scale)
-        path = run_sweep(config, out_dir / f"sweep_mass_{scale:.1f}.csv", progress=progress)
+        path = run_sweep(config, out_dir / f"sweep_mass_{scale:.1f}.csv", progress=progress,
+                         restart_if_stale=True)
         sweeps[scale] = load_results(path)[0]
     _distributions(sweeps[1.0], out_dir / "distributions.png")
     table = {f"{scale:.1f}": {name: summary["meets_target"]
@@ -96,8 +98,8 @@ def _markdown(summary: dict[str, Any], designs: tuple[str, ...]) -> str:
         "| design | nominal | plant mass +10 % | plant mass −10 % |", "|---|---|---|---|",
     ]
     for name in designs:
-        lines.append(f"| {name} | {_pct(table['1.0'][name])} | {_pct(table['1.1'][name])} | "
-                     f"{_pct(table['0.9'][name])} |")
+        lines.append(f"| {name} | {share(table['1.0'][name])} | {share(table['1.1'][name])} | "
+                     f"{share(table['0.9'][name])} |")
     lines += [
         "", "## The paper's case", "",
         "| design | min τ [N] | max τ [N] | settle [s] | largest step [N] | start jump [N] |",
@@ -105,8 +107,8 @@ def _markdown(summary: dict[str, Any], designs: tuple[str, ...]) -> str:
     ]
     for name in designs:
         m = case[name]
-        lines.append(f"| {name} | {_f(m['min_tension'])} | {_f(m['max_tension'])} | "
-                     f"{_f(m['settle_time'])} | {m['max_tension_step']:.3g} | "
+        lines.append(f"| {name} | {number(m['min_tension'])} | {number(m['max_tension'])} | "
+                     f"{number(m['settle_time'])} | {m['max_tension_step']:.3g} | "
                      f"{m.get('start_jump', float('nan')):.3g} |")
     lines += [
         "", "![Paper case](paper_case.png)", "", "![Errors](paper_case_errors.png)", "",
@@ -116,8 +118,8 @@ def _markdown(summary: dict[str, Any], designs: tuple[str, ...]) -> str:
     ]
     for name in designs:
         s = nominal[name]
-        lines.append(f"| {name} | {_pct(s['feasible'])} | {_pct(s['converged'])} | "
-                     f"{_f(s['median_settle_s'])} | {_f(s['median_max_step'])} |")
+        lines.append(f"| {name} | {share(s['feasible'])} | {share(s['converged'])} | "
+                     f"{number(s['median_settle_s'])} | {number(s['median_max_step'])} |")
     lines += ["", "![Distributions](distributions.png)", "", "## Recommendation", "",
               _recommendation(table, case, designs), ""]
     return "\n".join(lines)
@@ -128,21 +130,14 @@ def _recommendation(table: dict[str, dict[str, float]], case: dict[str, Any],
     best = max(designs, key=lambda name: (table["1.0"][name], min(table["1.1"][name],
                                                                    table["0.9"][name])))
     worst_mass = min(table["1.1"][best], table["0.9"][best])
-    text = [f"Use **{best}**: it meets the target on {_pct(table['1.0'][best])} of pairs "
-            f"nominally and on at least {_pct(worst_mass)} with the plant mass off by 10 %; "
-            f"on the paper's case it settles in {_f(case[best]['settle_time'])} s with "
-            f"tensions in [{_f(case[best]['min_tension'])}, {_f(case[best]['max_tension'])}] N."]
+    text = [f"Use **{best}**: it meets the target on {share(table['1.0'][best])} of pairs "
+            f"nominally and on at least {share(worst_mass)} with the plant mass off by 10 %; "
+            f"on the paper's case it settles in {number(case[best]['settle_time'])} s with "
+            f"tensions in [{number(case[best]['min_tension'])}, "
+            f"{number(case[best]['max_tension'])}] N."]
     for name in designs:
         if name == best:
             continue
-        text.append(f"`{name}`: {_pct(table['1.0'][name])} nominal, "
-                    f"{_pct(min(table['1.1'][name], table['0.9'][name]))} worst with ±10 % mass.")
+        text.append(f"`{name}`: {share(table['1.0'][name])} nominal, "
+                    f"{share(min(table['1.1'][name], table['0.9'][name]))} worst with ±10 % mass.")
     return " ".join(text)
-
-
-def _pct(share: float) -> str:
-    return f"{100 * share:.1f} %"
-
-
-def _f(value: float | None) -> str:
-    return "–" if value is None else f"{value:.3g}"

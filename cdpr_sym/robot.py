@@ -138,9 +138,11 @@ class Robot:
             raise InvalidRobot(field, f"the point {q.tolist()} coincides with an anchor")
         det = np.linalg.det((offsets / lengths[:, None]).T)
         if abs(det) < SINGULAR_DET:
-            raise InvalidRobot(
+            error = InvalidRobot(
                 "anchors", f"the structure matrix W is singular at the {field} point "
                 f"{q.tolist()} (|det W| = {abs(det):.2e} < {SINGULAR_DET:.0e})")
+            error.point = field  # the case field, for callers that validate a start or goal
+            raise error
 
 
 def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:

@@ -26,7 +26,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.compiled import BuildOptions, CompiledLibrary, build
+from cdpr_sym.compiled import BuildOptions, CompiledLibrary, build, c_identifier
 from cdpr_sym.controllers import FLAG_SINGULAR, Controller, law_function, memory_size
 from cdpr_sym.errors import InvalidCase, InvalidRobot
 from cdpr_sym.model import SymbolicModel
@@ -297,7 +297,8 @@ class Simulator:
             # keeps a large planning function out of the compiled library
             functions = [*self.model.functions.values(), self.law, self.step]
             suffix = "_rate" if rate_limited else ""
-            self.library = build(functions, f"cdpr_{robot.name}_{_c_name(controller)}{suffix}",
+            name = f"cdpr_{c_identifier(robot.name)}_{_c_name(controller)}{suffix}"
+            self.library = build(functions, name,
                                  extra_source=rollout_source(self.step, self.layout),
                                  options=build_options)
             self._rollout = _NativeRollout(self.library, self.step)
@@ -371,7 +372,7 @@ class Simulator:
 
 def _c_name(controller: Controller) -> str:
     """A C identifier for a controller and its options (options hashed)."""
-    base = "".join(ch if ch.isalnum() else "_" for ch in controller.name)
+    base = c_identifier(controller.name)
     options = json.dumps(controller.options(), sort_keys=True)
     if options == "{}":
         return base
@@ -415,7 +416,8 @@ class Case:
         try:
             checked = robot.with_case(**changes) if changes else robot
         except InvalidRobot as bad:
-            raise InvalidCase(bad.field, str(bad).split(": ", 1)[1]) from None
+            field = getattr(bad, "point", bad.field)
+            raise InvalidCase(field, str(bad).split(": ", 1)[1]) from None
         model = SymbolicModel(robot)
         tau_1 = np.array(model.functions["static_tension"](checked.goal).full()).ravel()
         if np.any(tau_1 < robot.t_min) or np.any(tau_1 > robot.t_max):
@@ -455,6 +457,27 @@ def simulate(robot: Robot, controller: Controller, *, start=None, goal=None, k=N
                          duration=duration, dt=dt, plant=plant)
 
 
+def _first_stop(model: SymbolicModel, q: np.ndarray) -> tuple[int, str] | None:
+    """First sample (index, reason) at which the step's stop rules would have fired.
+
+    The same rules as the sampled-data step: non-finite state, |det W| below threshold or a
+    sign change of det W since the start (the anchor plane was crossed), leaving the frame.
+    """
+    from cdpr_sym.robot import SINGULAR_DET
+
+    robot = model.robot
+    finite = np.all(np.isfinite(q), axis=1)
+    safe = np.where(finite[:, None], q, robot.start)
+    stacked = np.array(model.functions["structure_matrix"].map(len(q))(safe.T))
+    det = np.linalg.det(stacked.reshape(robot.n, len(q), robot.n).transpose(1, 0, 2))
+    singular = finite & ((np.abs(det) < SINGULAR_DET) | (det * det[0] <= 0))
+    outside = finite & np.any((q < robot.frame_lower) | (q > robot.frame_upper), axis=1)
+    candidates = [(int(np.flatnonzero(hit)[0]), reason) for reason, hit in
+                  (("non_finite", ~finite), ("singular", singular), ("left_frame", outside))
+                  if hit.any()]
+    return min(candidates) if candidates else None
+
+
 def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=None, k=None,
                       r_d=None, duration: float = 10.0, dt: float = 1e-3,
                       plant: Plant = Plant(), rtol: float = 1e-10,
@@ -490,6 +513,9 @@ def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=
         states = np.column_stack([z0, np.array(integrator(x0=z0, p=params)["xf"].full())]).T
     except RuntimeError:
         states, reason = z0[None, :], "integrator_failed"
+    stop = _first_stop(model, states[:, :n])
+    if stop is not None:
+        states, reason = states[: stop[0]], stop[1]
     law_map = law_function(model, controller).map(states.shape[0])
     outputs = law_map(states[:, :n].T, states[:, n:].T, case.goal, case.k, case.r_d)
     logs = np.vstack([np.array(out.full()) for out in outputs]).T[:-1]

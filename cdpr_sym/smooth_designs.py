@@ -16,7 +16,7 @@ from typing import ClassVar
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.box_designs import alpha_interval
+from cdpr_sym.box_designs import BIG, alpha_interval
 from cdpr_sym.controllers import (
     FLAG_INFEASIBLE,
     FLAG_SATURATED,
@@ -111,8 +111,10 @@ class SmoothReference:
             slow_enough[T] = ca.mmax(rates) <= self.max_rate
         chosen_T, chosen_margin = ca.SX(max(self.durations)), ca.SX(-1.0)
         for margin in reversed(self.margins):
+            # interval of x = 1 / T^2 (any positive value) keeping a + b x inside the band
             low, high = alpha_interval(a, b, ca.DM.ones(a.shape[0]) * (robot.t_min + margin),
-                                       ca.DM.ones(a.shape[0]) * (robot.t_max - margin))
+                                       ca.DM.ones(a.shape[0]) * (robot.t_max - margin),
+                                       within=(0.0, BIG))
             for T in sorted(self.durations, reverse=True):
                 x = 1.0 / T**2
                 ok = ca.logic_and(ca.logic_and(low <= x, x <= high), slow_enough[T])
@@ -175,7 +177,7 @@ class VirtualReferenceIdaPbc:
     ``goal_stiffness`` (N/m) stiffens the well (delta = F / goal_stiffness); on the design
     study's pairs 600 N/m lifted the ±10 % mass cases from 0 % to ~45 % meeting the target
     but dropped the nominal case from 96 % to 69 %, so the default keeps ``delta``.
-    Memory: [xi (n), dxi (n), F, a].
+    Memory: [xi (n), dxi (n), F, a, d0] with d0 = |goal - q0|.
     """
 
     delta: float = 0.4

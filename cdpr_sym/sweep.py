@@ -170,20 +170,37 @@ def _versions() -> dict[str, str]:
             "casadi": casadi.__version__, "cvxpy": cvxpy.__version__, "cdpr_sym": __version__}
 
 
-def _prepare_output(config: SweepConfig, out: Path) -> set[tuple[int, str]]:
+def _identity(config: SweepConfig, robot: Robot) -> dict[str, Any]:
+    """What a row depends on besides the config: robot data, controller options, versions."""
+    return {"robot": robot.as_dict(), "versions": _versions(),
+            "controller_options": {name: controller_by_name(name).options()
+                                   for name in config.controllers}}
+
+
+def _prepare_output(config: SweepConfig, robot: Robot, out: Path) -> set[tuple[int, str]]:
+    """Check or create the sidecar; return the (pair, controller) rows already written.
+
+    Rows are reused only when the configuration, the robot description, the controllers'
+    options and the package versions are all unchanged.
+    """
     sidecar = sidecar_path(out)
+    identity = json.loads(json.dumps(_identity(config, robot)))
     if sidecar.exists():
-        stored = json.loads(sidecar.read_text())["config"]
-        if stored != config.as_dict():
+        stored = json.loads(sidecar.read_text())
+        if stored["config"] != config.as_dict():
             raise InvalidCase("out", f"{out} holds a sweep with another configuration "
-                              f"({stored}); choose another --out or the same options")
+                              f"({stored['config']}); choose another --out or the same options")
+        if stored.get("identity") != identity:
+            raise InvalidCase("out", f"{out} was written by another robot description, "
+                              "controller options or package versions; start a new --out")
     elif out.exists():
         raise InvalidCase("out", f"{out} exists without its sidecar {sidecar.name}; refusing "
                           "to append to an unknown file")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    sidecar.write_text(json.dumps({"config": config.as_dict(), "versions": _versions(),
-                                   "columns": "see header", "created": time.time()},
-                                  indent=2) + "\n")
+    else:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        sidecar.write_text(json.dumps({"config": config.as_dict(), "identity": identity,
+                                       "versions": identity["versions"],
+                                       "created": time.time()}, indent=2) + "\n")
     return {(int(row["pair"]), row["controller"]) for row in read_rows(out)}
 
 
@@ -241,10 +258,22 @@ def _dask_map(address: str, function: Callable, config_dict: dict, chunks: list[
 
 def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
               dask_address: str | None = None, progress: bool = True,
-              chunk_size: int | None = None) -> Path:
-    """Run (or resume) a sweep, appending rows to the CSV file ``out``; returns ``out``."""
+              chunk_size: int | None = None, restart_if_stale: bool = False) -> Path:
+    """Run (or resume) a sweep, appending rows to the CSV file ``out``; returns ``out``.
+
+    Results written under another configuration or identity are refused, unless
+    ``restart_if_stale`` (used by the studies, which own their files): then they are
+    deleted and the sweep starts again.
+    """
     robot = resolve_robot(config.robot)
-    done = _prepare_output(config, out)
+    try:
+        done = _prepare_output(config, robot, out)
+    except InvalidCase:
+        if not restart_if_stale:
+            raise
+        out.unlink(missing_ok=True)
+        sidecar_path(out).unlink(missing_ok=True)
+        done = _prepare_output(config, robot, out)
     starts, goals = draw_pairs(robot, config)
     items = [(pair, name, starts[pair].tolist(), goals[pair].tolist())
              for pair in range(config.pairs) for name in config.controllers

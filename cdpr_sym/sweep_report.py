@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.report_format import number, share
 from cdpr_sym.sweep import sidecar_path
 
 OUTCOMES = (("feasible and converged", "#2a9d4b"), ("feasible, not converged", "#f4a261"),
@@ -104,10 +105,10 @@ def summary_table(summary: dict[str, dict[str, Any]]) -> str:
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, s in summary.items():
         lines.append(
-            f"| {name} | {s['runs']} | {_pct(s['feasible'])} | {_pct(s['converged'])} | "
-            f"{_pct(s['feasible_and_converged'])} | {_pct(s['meets_target'])} | "
-            f"{_fmt(s['median_settle_s'])} | {_fmt(s['median_total_variation'])} | "
-            f"{_fmt(s['median_max_step'])} | {_fmt(s['median_min_alpha'])} | "
+            f"| {name} | {s['runs']} | {share(s['feasible'])} | {share(s['converged'])} | "
+            f"{share(s['feasible_and_converged'])} | {share(s['meets_target'])} | "
+            f"{number(s['median_settle_s'])} | {number(s['median_total_variation'])} | "
+            f"{number(s['median_max_step'])} | {number(s['median_min_alpha'])} | "
             f"{s['runs_with_infeasible_steps']} | {s['stopped_or_failed']} |")
     lines.append("")
     lines.append("\\* target: tensions in the box for t > 0, settled within 5 s, no tension "
@@ -116,12 +117,8 @@ def summary_table(summary: dict[str, dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def _pct(share: float) -> str:
-    return f"{100 * share:.1f} %"
 
 
-def _fmt(value: float | None) -> str:
-    return "–" if value is None else f"{value:.3g}"
 
 
 def feasibility_maps(rows: list[dict[str, Any]], path: Path, *, axes: tuple[int, int] = (0, 1)

@@ -12,7 +12,7 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.compiled import BuildOptions, build
+from cdpr_sym.compiled import BuildOptions, build, c_identifier
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import SINGULAR_DET, Robot
@@ -56,7 +56,8 @@ class WorkspaceEvaluator:
                                    ["q"], ["tau_1", "feasible", "ball"])
         self._native = None
         if build_options.resolved_backend() == "c":
-            library = build([self._mapped], f"workspace_{robot.name}", options=build_options)
+            library = build([self._mapped], f"workspace_{c_identifier(robot.name)}",
+                            options=build_options)
             self._native = library.native("classify_block")
 
     def classify(self, points: np.ndarray) -> Classification:

@@ -184,3 +184,13 @@ def test_casadi_virtual_machine_gives_the_same_trajectory_as_c(aras3, cache_dir,
     np.testing.assert_allclose(virtual.tau, compiled.tau, rtol=1e-9,
                                atol=1e-9 * np.abs(compiled.tau).max())
     np.testing.assert_array_equal(virtual.flags, compiled.flags)
+
+
+def test_adaptive_cross_check_stops_where_the_sampled_run_stops(aras3, build_options):
+    soft = np.full(aras3.n, 1.0)
+    options = {"duration": 2.0, "k": soft, "r_d": soft, "plant": Plant(mass_scale=0.05)}
+    sampled = simulate(aras3, PD(), build_options=build_options, **options)
+    adaptive = simulate_adaptive(aras3, PD(), **options)
+    assert adaptive.stop_reason in ("singular", "left_frame")
+    assert abs(adaptive.t[-1] - sampled.t[-1]) < 0.05
+    assert np.all(adaptive.q[:, 2] <= aras3.frame_upper[2])

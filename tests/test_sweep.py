@@ -202,3 +202,21 @@ def test_metric_columns_are_the_simulate_metrics(planar2, build_options):
     metrics = simulate(planar2, controller_by_name("pd-sat"), duration=0.1,
                        build_options=build_options).metrics(static_tension=np.zeros(2))
     assert set(METRIC_COLUMNS) <= set(metrics)
+
+
+def test_resume_keeps_the_sidecar_and_refuses_a_changed_identity(tmp_path):
+    import json
+
+    from cdpr_sym.sweep import SweepConfig, run_sweep, sidecar_path
+
+    config = SweepConfig(robot="planar2", controllers=("pd-sat",), pairs=1, seed=0,
+                         duration=0.2)
+    out = run_sweep(config, tmp_path / "rows.csv", workers=1, progress=False)
+    first = sidecar_path(out).read_text()
+    run_sweep(config, out, workers=1, progress=False)
+    assert sidecar_path(out).read_text() == first
+    stored = json.loads(first)
+    stored["identity"]["controller_options"]["pd-sat"] = {"changed": True}
+    sidecar_path(out).write_text(json.dumps(stored))
+    with pytest.raises(InvalidCase, match="controller options"):
+        run_sweep(config, out, workers=1, progress=False)
