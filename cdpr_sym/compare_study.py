@@ -119,7 +119,7 @@ def _markdown(case: dict[str, Any], summary: dict[str, Any], agreement: dict[str
         "reaches the anchor plane (det W = 0).", "",
         "![Outcomes by start and goal](sweep_maps_xy.png)", "",
         "## The fast path against cvxpy + Clarabel", "",
-        "| design | states | max |Δτ| [N] | cvxpy solve per step [ms] | solver failures |",
+        "| design | states | largest Δτ [N] | cvxpy solve per step [ms] | solver failures |",
         "|---|---|---|---|---|",
     ]
     for name, a in agreement.items():
@@ -140,4 +140,7 @@ def _conclusion(summary: dict[str, Any], best: str) -> str:
     smooth = [n for n, s in summary.items() if (s["median_max_step"] or 1e9) <= 1.0]
     parts.append("No design keeps the per-step tension change within 1 N on a typical pair."
                  if not smooth else f"Smooth (median step ≤ 1 N): {', '.join(smooth)}.")
+    parts.append("Stopped runs left the frame (the floor or a wall) or reached the anchor "
+                 "plane. For designs that are feasible, fast and smooth at once see "
+                 "`cdpr-sym study designs` (reports/designs).")
     return " ".join(parts)
