@@ -37,7 +37,8 @@ FLAG_BETA = 2
 FLAG_SATURATED = 4
 #: alpha < 1: the PD action was scaled down to keep the tension in the box.
 FLAG_ALPHA = 8
-#: |det W| fell below the singularity threshold; the simulation stops here.
+#: |det W| fell below the singularity threshold. The simulation stops before applying this
+#: command, so a Trajectory ends at the previous step and records ``stop_reason`` instead.
 FLAG_SINGULAR = 16
 
 #: The exact tension box is unreachable for every alpha in (0, 1] (box and l∞ designs).

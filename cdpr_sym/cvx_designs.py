@@ -83,7 +83,7 @@ class CvxExactBoxDesign:
         A_unit = ca.solve(W, model.p_matrix(dq / ca.fmax(speed, design.low_speed)))
         self._pieces = ca.Function(
             "pieces", [q, dq, goal, k, r_d],
-            [ca.solve(W, model.grad_potential(q)), -ca.solve(W, k * (q - goal) + r_d * dq),
+            [model.static_tension(q), -ca.solve(W, k * (q - goal) + r_d * dq),
              A_unit, speed])
 
     @property

@@ -77,6 +77,10 @@ class SymbolicModel:
         q = ca.SX.sym("q", self.n)
         return ca.Function("grad_V", [q], [ca.gradient(self.potential(q), q)])
 
+    def static_tension(self, q: ca.SX) -> ca.SX:
+        """tau_1 = W^{-1} grad V, N: the tension holding the end-effector at rest at q."""
+        return ca.solve(self.structure_matrix(q), self.grad_potential(q))
+
     def acceleration(self, q: ca.SX, dq: ca.SX, tau: ca.SX, mass_scale: ca.SX = 1.0) -> ca.SX:
         """ddq = M_plant^{-1} (W tau - C dq - grad V_plant), m/s^2.
 
@@ -141,7 +145,7 @@ class SymbolicModel:
             ("coriolis_matrix", [q, dq], ["q", "dq"], self.coriolis_matrix(q, dq), "C"),
             ("potential", [q], ["q"], self.potential(q), "V"),
             ("grad_potential", [q], ["q"], grad_v, "grad_V"),
-            ("static_tension", [q], ["q"], ca.solve(self.structure_matrix(q), grad_v), "tau_1"),
+            ("static_tension", [q], ["q"], self.static_tension(q), "tau_1"),
             ("p_matrix", [dq], ["dq"], self.p_matrix(dq), "P"),
             ("interconnection_matrix", [j], ["j"], self.interconnection_matrix(j), "J_d"),
             ("a_matrix", [q, dq], ["q", "dq"], self.a_matrix(q, dq), "A"),

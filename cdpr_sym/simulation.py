@@ -440,7 +440,8 @@ def simulate(robot: Robot, controller: Controller, *, start=None, goal=None, k=N
              build_options: BuildOptions = BuildOptions()) -> Trajectory:
     """Simulate the sampled-data closed loop (tension held over each RK4 step of ``dt`` s).
 
-    Start, goal and gains default to the robot's case; see :class:`Case`.
+    Start, goal and gains default to the robot's case; see :class:`Case`. The run has
+    round(duration / dt) steps.
 
     Examples
     --------

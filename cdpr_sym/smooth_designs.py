@@ -100,7 +100,7 @@ class SmoothReference:
             s, _, dds = minimum_jerk(ca.SX(value))
             q_r = q0 + delta * s
             W = model.structure_matrix(q_r)
-            static.append(ca.solve(W, model.grad_potential(q_r)))
+            static.append(model.static_tension(q_r))
             accel.append(ca.solve(W, robot.mass * dds * delta))
         a, b = ca.vertcat(*static), ca.vertcat(*accel)
         step = u[1] - u[0]

@@ -180,6 +180,9 @@ def _identity(config: SweepConfig, robot: Robot) -> dict[str, Any]:
 def _prepare_output(config: SweepConfig, robot: Robot, out: Path) -> set[tuple[int, str]]:
     """Check or create the sidecar; return the (pair, controller) rows already written.
 
+    Rows with status ``error`` count as written: runs are deterministic, so a retry would
+    fail the same way.
+
     Rows are reused only when the configuration, the robot description, the controllers'
     options and the package versions are all unchanged.
     """
