@@ -180,7 +180,7 @@ def step_function(model: SymbolicModel, controller: Controller, *,
         previous = x[layout.applied_index: layout.status_index]
         largest = p[layout.n_p - 1] * dt
         actuator = previous + ca.fmin(ca.fmax(law.tau - previous, -largest), largest)
-    applied = ca.if_else(slack > 0.5, ca.fmax(actuator, 0), actuator)
+    applied = _applied_tension(actuator, slack)
     z_next = rk4(_closed_loop_rhs(model, applied, mass_scale), x[: 2 * n], dt)
     # singular at the sample, or det W changes sign within the step (the plane was crossed)
     crossed = ca.det(model.structure_matrix(q)) * ca.det(model.structure_matrix(z_next[:n])) <= 0
@@ -359,15 +359,24 @@ class Simulator:
             t=np.arange(last + 1) * dt, q=states[: last + 1, :n].copy(),
             dq=states[: last + 1, n: 2 * n].copy(), q_goal=np.array(goal, dtype=float),
             t_min=self.robot.t_min, t_max=self.robot.t_max, stop_reason=reason,
-            info=self._info(dt, k, r_d, plant, integrator="rk4-sampled"),
+            info=_run_info(self.robot, self.controller, dt, k, r_d, plant,
+                           integrator="rk4-sampled", backend=self.backend),
             memory=states[: last + 1, 2 * n: self.layout.applied_index].copy(), **parts)
 
-    def _info(self, dt, k, r_d, plant, *, integrator: str) -> dict[str, Any]:
-        return {"robot": self.robot.name, "controller": self.controller.name,
-                "controller_options": self.controller.options(), "dt": dt,
-                "k": np.asarray(k).tolist(), "r_d": np.asarray(r_d).tolist(),
-                "plant": dataclasses.asdict(plant), "integrator": integrator,
-                "backend": self.backend}
+
+
+def _run_info(robot: Robot, controller: Controller, dt: float, k, r_d, plant: Plant, *,
+              integrator: str, **extra: Any) -> dict[str, Any]:
+    """What a Trajectory records about how it was made."""
+    return {"robot": robot.name, "controller": controller.name,
+            "controller_options": controller.options(), "dt": dt,
+            "k": np.asarray(k).tolist(), "r_d": np.asarray(r_d).tolist(),
+            "plant": dataclasses.asdict(plant), "integrator": integrator, **extra}
+
+
+def _applied_tension(tau: ca.SX, slack: ca.SX) -> ca.SX:
+    """The tension the plant applies: max(tau, 0) for a slack-cable plant."""
+    return ca.if_else(slack > 0.5, ca.fmax(tau, 0), tau)
 
 
 def _c_name(controller: Controller) -> str:
@@ -501,7 +510,7 @@ def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=
     n = robot.n
     z, p = ca.SX.sym("z", 2 * n), ca.SX.sym("p", layout.n_p)
     law = controller.law(model, z[:n], z[n:], p[:n], p[n: 2 * n], p[2 * n: 3 * n])
-    applied = ca.if_else(p[3 * n + 2] > 0.5, ca.fmax(law.tau, 0), law.tau)
+    applied = _applied_tension(law.tau, p[3 * n + 2])
     ode = _closed_loop_rhs(model, applied, p[3 * n + 1])(z)
     n_steps = max(1, round(duration / dt))
     grid = np.arange(1, n_steps + 1) * dt
@@ -521,10 +530,8 @@ def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=
     outputs = law_map(states[:, :n].T, states[:, n:].T, case.goal, case.k, case.r_d)
     logs = np.vstack([np.array(out.full()) for out in outputs]).T[:-1]
     parts = layout.split_log(logs)
-    simulator_info = {"robot": robot.name, "controller": controller.name,
-                      "controller_options": controller.options(), "dt": dt,
-                      "plant": dataclasses.asdict(plant), "integrator": "cvodes",
-                      "rtol": rtol, "atol": atol}
+    simulator_info = _run_info(robot, controller, dt, case.k, case.r_d, plant,
+                               integrator="cvodes", rtol=rtol, atol=atol)
     return Trajectory(t=np.arange(states.shape[0]) * dt, q=states[:, :n], dq=states[:, n:],
                       q_goal=case.goal, t_min=robot.t_min, t_max=robot.t_max,
                       stop_reason=reason, info=simulator_info, **parts)
