@@ -54,6 +54,29 @@ def find_compiler(preferred: str | None = None) -> str | None:
     return None
 
 
+def require_compiler(preferred: str | None = None) -> str:
+    """:func:`find_compiler`, raising :class:`CompilerNotFound` when there is none."""
+    compiler = find_compiler(preferred)
+    if compiler is None:
+        raise CompilerNotFound(
+            "no C compiler found (looked for "
+            + (preferred if preferred else "$CC, cc, gcc, clang")
+            + "); install one (e.g. 'apt-get install gcc') or pass backend='casadi' "
+            "to run CasADi's slower virtual machine instead")
+    return compiler
+
+
+def run_command(command: Sequence[str]) -> str:
+    """Run a compiler (or a program it built); its stdout, or :class:`CompilationFailed`."""
+    try:
+        return subprocess.run(list(command), check=True, capture_output=True,
+                              text=True).stdout
+    except subprocess.CalledProcessError as failure:
+        raise CompilationFailed(
+            f"{' '.join(command)} failed with exit code {failure.returncode}:\n"
+            f"{failure.stderr[-4000:]}") from None
+
+
 @dataclasses.dataclass(frozen=True)
 class BuildOptions:
     """How generated code is built.
@@ -92,11 +115,7 @@ class BuildOptions:
         if find_compiler(self.compiler) is not None:
             return "c"
         if self.backend == "c" or self.compiler:
-            raise CompilerNotFound(
-                "no C compiler found (looked for $CC, cc, gcc, clang"
-                + (f", {self.compiler}" if self.compiler else "")
-                + "); install one (e.g. 'apt-get install gcc') or pass backend='casadi' "
-                "to run CasADi's slower virtual machine instead")
+            require_compiler(self.compiler)
         return "casadi"
 
 
@@ -157,11 +176,7 @@ def build(functions: Sequence[ca.Function], name: str, *, extra_source: str = ""
     CompilationFailed
         The compiler rejected the generated code (its output is in the message).
     """
-    compiler = find_compiler(options.compiler)
-    if compiler is None:
-        raise CompilerNotFound(
-            "no C compiler found (looked for $CC, cc, gcc, clang); install one or use "
-            "BuildOptions(backend='casadi')")
+    compiler = require_compiler(options.compiler)
     source_text = generate_source(functions, name, extra_source)
     key = _cache_key(source_text, compiler, options.flags)
     folder = (options.cache_dir or default_cache_dir()) / f"{name}-{key}"
@@ -194,14 +209,11 @@ def _write_atomically(path: Path, text: str) -> None:
 def _compile(compiler: str, flags: Sequence[str], source: Path, library: Path) -> None:
     handle, partial = tempfile.mkstemp(dir=library.parent, suffix=".so.tmp")
     os.close(handle)
-    command = [compiler, *flags, *_LINK_FLAGS, str(source), "-o", partial, "-lm"]
     try:
-        subprocess.run(command, check=True, capture_output=True, text=True)
-    except subprocess.CalledProcessError as failure:
+        run_command([compiler, *flags, *_LINK_FLAGS, str(source), "-o", partial, "-lm"])
+    except CompilationFailed:
         os.unlink(partial)
-        raise CompilationFailed(
-            f"{' '.join(command)} failed with exit code {failure.returncode}:\n"
-            f"{failure.stderr[-4000:]}") from None
+        raise
     os.replace(partial, library)
 
 

@@ -27,7 +27,6 @@ import dataclasses
 import hashlib
 import json
 import re
-import subprocess
 import tempfile
 import textwrap
 from pathlib import Path
@@ -35,9 +34,9 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.compiled import find_compiler
+from cdpr_sym.compiled import require_compiler, run_command
 from cdpr_sym.controllers import FLAG_NAMES, Controller, controller_by_name, law_function
-from cdpr_sym.errors import CompilationFailed, CompilerNotFound, InvalidCase
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export_templates import (
     BENCH_C,
     CMAKE,
@@ -297,16 +296,15 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
     """
     robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
-    cc = find_compiler(compiler)
-    if cc is None:
-        raise CompilerNotFound("no C compiler found (looked for $CC, cc, gcc, clang)")
+    cc = require_compiler(compiler)
     rng = np.random.default_rng(0)
     states = np.column_stack([robot.start + rng.normal(scale=0.05, size=(64, robot.n)),
                               rng.normal(scale=0.3, size=(64, robot.n))])
     states[::8, robot.n:] = 0.0
-    memory = np.array(initial_memory_function(SymbolicModel(robot), controller)(
+    model = SymbolicModel(robot)
+    memory = np.array(initial_memory_function(model, controller)(
         robot.start, robot.goal, robot.k, robot.r_d)).ravel()
-    law = law_function(SymbolicModel(robot), controller)
+    law = law_function(model, controller)
     values = {"q": "s", "dq": "s + CDPR_BENCH_N", "q_goal": "cdpr_bench_case_goal", "k": "0",
               "r_d": "0", "memory": "memory", "dt": "1e-3", "tau": "tau", "alpha": "0",
               "beta": "0", "j": "0", "flags": "0", "memory_next": "memory_next"}
@@ -319,10 +317,10 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
             states=",\n".join(_c_array(row) for row in states),
             memory=_c_array(memory if memory.size else np.zeros(1))))
         program = Path(folder) / "bench"
-        _run([cc, "-std=c99", "-O2", "-I", folder, str(bench), str(result.source),
+        run_command([cc, "-std=c99", "-O2", "-I", folder, str(bench), str(result.source),
               *([str(result.plan_source), "-O0"] if result.plan_source else []), "-o",
               str(program), "-lm"])
-        return float(_run([str(program)]).split()[-1])
+        return float(run_command([str(program)]).split()[-1])
 
 
 # -- consistent functions -----------------------------------------------------------------
@@ -564,11 +562,3 @@ def _make_folder(out: Path) -> Path:
     except OSError as failure:
         raise InvalidCase("out_dir", f"cannot create the folder {out}: {failure}") from None
     return out
-
-
-def _run(command: list[str]) -> str:
-    try:
-        return subprocess.run(command, check=True, capture_output=True, text=True).stdout
-    except subprocess.CalledProcessError as failure:
-        raise CompilationFailed(f"{' '.join(command)} failed with exit code "
-                                f"{failure.returncode}:\n{failure.stderr[-4000:]}") from None
