@@ -7,12 +7,9 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from cdpr_sym.compiled import BuildOptions
 from cdpr_sym.controllers import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, InvalidCase
-from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import resolve_robot
 from cdpr_sym.simulation import Plant, simulate
 
@@ -93,8 +90,7 @@ def _simulate(args: argparse.Namespace) -> int:
                    plant=Plant(mass_scale=args.mass_scale, slack=args.slack,
                                rate_limit=args.rate_limit),
                    build_options=BuildOptions(backend=args.backend))
-    static = np.array(SymbolicModel(robot).functions["static_tension"](run.q[0])).ravel()
-    metrics = run.metrics(static_tension=static)
+    metrics = run.metrics()
     saved = run.save(args.save) if args.save else None
     if args.json:
         print(json.dumps({**metrics, "robot": robot.name, "controller": controller.name,

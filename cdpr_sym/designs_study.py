@@ -15,7 +15,6 @@ import numpy as np
 from cdpr_sym import plots
 from cdpr_sym.compare_study import case_figure
 from cdpr_sym.controllers import controller_by_name
-from cdpr_sym.model import SymbolicModel
 from cdpr_sym.report_format import number, share
 from cdpr_sym.robot import Robot, preset
 from cdpr_sym.simulation import simulate
@@ -32,9 +31,8 @@ def run_designs_study(out_dir: Path, *, robot: Robot | None = None, pairs: int =
     """Paper case and seeded sweeps (nominal and ±10 % plant mass) for every design."""
     robot = robot or preset("aras3")
     out_dir.mkdir(parents=True, exist_ok=True)
-    static = np.array(SymbolicModel(robot).functions["static_tension"](robot.start)).ravel()
     runs = {name: simulate(robot, controller_by_name(name)) for name in designs}
-    case = {name: run.metrics(static_tension=static) for name, run in runs.items()}
+    case = {name: run.metrics() for name, run in runs.items()}
     case_figure(runs, out_dir / "paper_case.png")
     plots.figure_errors(runs, out_dir / "paper_case_errors.png",
                         title="Paper case: distance to the goal")

@@ -51,8 +51,7 @@ def run_paper_study(out_dir: Path, *, robot: Robot | None = None, duration: floa
     robot = robot or preset("aras3")
     out_dir.mkdir(parents=True, exist_ok=True)
     runs = _simulate_all(robot, duration, long_duration)
-    static = np.array(SymbolicModel(robot).functions["static_tension"](robot.start)).ravel()
-    metrics = {name: run.metrics(static_tension=static) for name, run in runs.items()}
+    metrics = {name: run.metrics() for name, run in runs.items()}
     claims = _judge(runs, metrics)
     _figures(runs, out_dir)
     (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2, default=_json) + "\n")

@@ -330,8 +330,7 @@ class Simulator:
             raise InvalidCase("plant", "a rate-limited plant needs a simulator built with "
                               "rate_limited=True (simulate() chooses it)")
         if layout.rate_limited:
-            states[0, layout.applied_index: layout.status_index] = np.array(
-                self.model.functions["static_tension"](start)).ravel()
+            states[0, layout.applied_index: layout.status_index] = self._static_tension(start)
         p = layout.parameters(goal, k, r_d, dt, plant)
         if self.backend == "c":
             self._rollout(states, logs, p, n_steps)
@@ -361,7 +360,11 @@ class Simulator:
             t_min=self.robot.t_min, t_max=self.robot.t_max, stop_reason=reason,
             info=_run_info(self.robot, self.controller, dt, k, r_d, plant,
                            integrator="rk4-sampled", backend=self.backend),
-            memory=states[: last + 1, 2 * n: self.layout.applied_index].copy(), **parts)
+            memory=states[: last + 1, 2 * n: self.layout.applied_index].copy(),
+            static_tension=self._static_tension(states[0, :n]), **parts)
+
+    def _static_tension(self, q: np.ndarray) -> np.ndarray:
+        return np.array(self.model.functions["static_tension"](q)).ravel()
 
 
 
@@ -534,4 +537,6 @@ def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=
                                integrator="cvodes", rtol=rtol, atol=atol)
     return Trajectory(t=np.arange(states.shape[0]) * dt, q=states[:, :n], dq=states[:, n:],
                       q_goal=case.goal, t_min=robot.t_min, t_max=robot.t_max,
-                      stop_reason=reason, info=simulator_info, **parts)
+                      stop_reason=reason, info=simulator_info,
+                      static_tension=np.array(
+                          model.functions["static_tension"](case.start)).ravel(), **parts)

@@ -27,7 +27,6 @@ import numpy as np
 
 from cdpr_sym.controllers import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, InvalidCase
-from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot, resolve_robot
 from cdpr_sym.simulation import Plant, get_simulator
 from cdpr_sym.workspace import WorkspaceEvaluator, sample_static_workspace
@@ -111,23 +110,12 @@ def run_one(robot: Robot, controller_name: str, start: np.ndarray, goal: np.ndar
         simulator = get_simulator(robot, controller_by_name(controller_name))
         run = simulator.run(start, goal, robot.k, robot.r_d, duration=duration, dt=dt,
                             plant=Plant(mass_scale=mass_scale))
-        static = _static_tension(robot, start)
-        row.update(run.metrics(static_tension=static))
+        row.update(run.metrics())
         if run.stop_reason is not None:
             row["status"] = "stopped"
     except (CdprError, RuntimeError, ValueError, FloatingPointError) as failure:
         row.update(status="error", error=f"{type(failure).__name__}: {failure}")
     return row
-
-
-_STATIC: dict[str, Any] = {}
-
-
-def _static_tension(robot: Robot, q: np.ndarray) -> np.ndarray:
-    key = robot.name + json.dumps(robot.anchors.tolist())
-    if key not in _STATIC:
-        _STATIC[key] = SymbolicModel(robot).functions["static_tension"]
-    return np.array(_STATIC[key](q)).ravel()
 
 
 def run_items(config_dict: dict[str, Any], items: Sequence[tuple[int, str, list, list]]

@@ -47,6 +47,8 @@ class Trajectory:
         Robot, controller, options and integrator, for the record.
     memory : ndarray, shape (N + 1, m)
         The controller's internal state at each sample (m = 0 for memoryless controllers).
+    static_tension : ndarray, shape (n,), optional
+        W^{-1} grad V at the start, N: the tension holding the robot at rest there.
     """
 
     t: np.ndarray
@@ -63,6 +65,7 @@ class Trajectory:
     stop_reason: str | None = None
     info: dict[str, Any] = dataclasses.field(default_factory=dict)
     memory: np.ndarray | None = None
+    static_tension: np.ndarray | None = None
 
     @property
     def error(self) -> np.ndarray:
@@ -97,9 +100,11 @@ class Trajectory:
 
         ``max_tension_step`` and ``tension_total_variation`` cover every change of command,
         |tau_k - tau_{k-1}| for k >= 1 (the first change happens at t = dt > 0).
-        ``start_jump`` (N), max_i |tau_0 - tau_static|, needs the static tension
-        W^{-1} grad V at the start.
+        ``start_jump`` (N), max_i |tau_0 - tau_static|, uses ``static_tension`` (the
+        argument, else the trajectory's own) and is left out when neither is known.
         """
+        if static_tension is None:
+            static_tension = self.static_tension
         after_start = self.tau[1:]
         steps = np.abs(np.diff(self.tau, axis=0))
         settle = self.settle_time()
@@ -136,6 +141,8 @@ class Trajectory:
             path, t=self.t, q=self.q, dq=self.dq, tau=self.tau, alpha=self.alpha,
             beta=self.beta, j=self.j, flags=self.flags, q_goal=self.q_goal,
             memory=self.memory if self.memory is not None else np.zeros((len(self.t), 0)),
+            static_tension=(self.static_tension if self.static_tension is not None
+                            else np.full(self.q.shape[1], np.nan)),
             t_min=self.t_min, t_max=self.t_max,
             stop_reason=np.array(self.stop_reason or ""),
             info=np.array(json.dumps(self.info, default=str)))
