@@ -421,8 +421,12 @@ class Case:
     r_d: np.ndarray
 
     @classmethod
-    def of(cls, robot: Robot, *, start=None, goal=None, k=None, r_d=None) -> Case:
-        """Resolve defaults and validate (raises :class:`InvalidCase` naming the field)."""
+    def of(cls, robot: Robot, *, start=None, goal=None, k=None, r_d=None,
+           model: SymbolicModel | None = None) -> Case:
+        """Resolve defaults and validate (raises :class:`InvalidCase` naming the field).
+
+        ``model`` (of ``robot``) is reused for the static-workspace test when given.
+        """
         values = {"start": start, "goal": goal, "k": k, "r_d": r_d}
         changes = {name: value for name, value in values.items() if value is not None}
         try:
@@ -430,7 +434,7 @@ class Case:
         except InvalidRobot as bad:
             field = getattr(bad, "point", bad.field)
             raise InvalidCase(field, str(bad).split(": ", 1)[1]) from None
-        model = SymbolicModel(robot)
+        model = model or SymbolicModel(robot)
         tau_1 = np.array(model.functions["static_tension"](checked.goal).full()).ravel()
         if np.any(tau_1 < robot.t_min) or np.any(tau_1 > robot.t_max):
             raise InvalidCase(
@@ -462,10 +466,10 @@ def simulate(robot: Robot, controller: Controller, *, start=None, goal=None, k=N
     >>> bool(run.metrics()["tension_feasible"])
     True
     """
-    case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d)
     _check_timing(duration, dt)
     simulator = get_simulator(robot, controller, build_options=build_options,
                               rate_limited=plant.rate_limit is not None)
+    case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d, model=simulator.model)
     return simulator.run(case.start, case.goal, case.k, case.r_d,
                          duration=duration, dt=dt, plant=plant)
 
@@ -501,14 +505,14 @@ def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=
     at those states. If CVODES fails, the trajectory ends at the last reported time with
     ``stop_reason="integrator_failed"``.
     """
-    case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d)
+    model = SymbolicModel(robot)
+    case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d, model=model)
     _check_timing(duration, dt)
     if plant.rate_limit is not None:
         raise InvalidCase("plant", "the continuous-time cross-check has no rate-limited plant")
-    if memory_size(SymbolicModel(robot), controller):
+    if memory_size(model, controller):
         raise InvalidCase("controller", f"{controller.name} has an internal state updated at "
                           "the control rate; the continuous-time cross-check does not apply")
-    model = SymbolicModel(robot)
     layout = _Layout(robot.n, robot.n_j)
     n = robot.n
     z, p = ca.SX.sym("z", 2 * n), ca.SX.sym("p", layout.n_p)
