@@ -105,7 +105,7 @@ def tension_parts(model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX,
     tau_1 = W_inv @ model.grad_potential(q)
     tau_2_full = -W_inv @ (k * (q - q_goal) + r_d * dq)
     return TensionParts(W=W, W_inv=W_inv, tau_1=tau_1, tau_2_full=tau_2_full,
-                         singular=ca.fabs(ca.det(W)) < SINGULAR_DET)
+                         singular=model.singularity_measure(W) < SINGULAR_DET)
 
 
 def clip_to_box(model: SymbolicModel, tau: ca.SX) -> tuple[ca.SX, ca.SX]:

@@ -69,11 +69,13 @@ REQUIRED_MODEL_TERMS = ("cable_lengths", "structure_matrix", "mass_matrix", "pot
                         "p_matrix", "a_matrix")
 
 _ARGUMENT_DOCS = {
-    "q": "position of the end-effector, m", "dq": "velocity, m/s",
-    "q_goal": "goal position, m", "k": "stiffness gains K (diagonal), N/m",
-    "r_d": "damping gains R_d (diagonal), N s/m", "tau": "cable tensions, N (> 0 pulls)",
+    "q": "generalized position: positions (m), then angles (rad) of a rigid body",
+    "dq": "generalized velocity, m/s (rad/s)", "momentum": "M dq, kg m/s (kg m^2/s)",
+    "q_goal": "goal position, m (rad)", "k": "stiffness gains K (diagonal), N/m (N m/rad)",
+    "r_d": "damping gains R_d (diagonal), N s/m (N m s/rad)",
+    "tau": "cable tensions, N (> 0 pulls)",
     "j": "free entries of J_d (row-major strict upper triangle), N s/m",
-    "q0": "start position of the move, m",
+    "q0": "start position of the move, m (rad)",
     "memory": "the controller's internal state at the start of the move (NMEM doubles)",
     "x": "state [q (m), dq (m/s), memory, status] (X_* offsets; status 0 at the start)",
     "p": "parameters (P_* offsets; fill with the _parameters function)",
@@ -83,10 +85,13 @@ _ARGUMENT_DOCS = {
 #: C names of arguments whose CasADi name would shadow a C library function.
 _C_NAMES = {"log": "log_out"}
 _MODEL_DOCS = {
-    "cable_lengths": "cable lengths l_i = |q - a_i|, m",
-    "structure_matrix": "structure matrix W (column i = unit vector towards anchor i), -",
+    "cable_lengths": "cable lengths l_i = |a_i - P_i(q)|, m",
+    "structure_matrix": "structure matrix W = -(dl/dq)^T (point mass: unit vectors), -",
     "jacobian_ja": "the paper's J_a = -W^T (l_dot = J_a dq), -",
-    "mass_matrix": "inertia matrix M, kg",
+    "singularity": "[det W, |det W| / prod |w_i|]; the loop stops below 1e-6",
+    "mass_matrix": "inertia matrix M(q), kg (kg m, kg m^2 for angles)",
+    "kinetic_energy": "kinetic energy T = dq^T M dq / 2, J",
+    "ida_pbc_tension": "the law (3) in (q, p) with M_d = M (reference form), N",
     "coriolis_matrix": "Coriolis matrix C, kg/s",
     "potential": "potential energy V, J",
     "grad_potential": "gradient of V, N",
@@ -96,14 +101,14 @@ _MODEL_DOCS = {
     "a_matrix": "A = W^-1 P(dq) (tau_3 = A j), m/s",
     "hamiltonian": "energy H = dq^T M dq / 2 + V, J",
     "hamiltonian_d": "desired energy H_d = dq^T M dq / 2 + sum k_i e_i^2 / 2, J",
-    "acceleration": "acceleration ddq = M^-1 (W tau - C dq - grad V), m/s^2",
+    "acceleration": "acceleration ddq = M^-1 (W tau - C dq - grad V), m/s^2 (rad/s^2)",
 }
 _FLAG_DOCS = {
     "low_speed": "|dq| below the low-speed threshold (Remark 2); fallback law applied",
     "beta_nonpositive": "beta <= 0 in (20): no certified margin; the law saturates",
     "saturated": "the commanded tension was clipped to [T_MIN, T_MAX]",
     "alpha_below_one": "alpha < 1: the PD action was scaled down (the design, not a fault)",
-    "singular": "|det W| below 1e-6: singular configuration; the step stops the loop",
+    "singular": "|det W| / prod |w_i| below 1e-6: singular; the step stops the loop",
     "infeasible": "no admissible command or plan reaches the tension box",
 }
 #: Arguments of ``<prefix>_control`` by the law's input / output names:

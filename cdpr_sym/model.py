@@ -1,13 +1,17 @@
-"""The symbolic model of a point-mass CDPR, built with CasADi.
+"""The symbolic model of a CDPR (point mass or rigid body), built with CasADi.
 
 :class:`SymbolicModel` turns a :class:`~cdpr_sym.robot.Robot` into CasADi expressions and
 named ``ca.Function`` objects: cable lengths, the structure matrix W, the Jacobian J_a = -W^T,
-M, C, V and its gradient, P(dq) with J_d dq = P j, A = W^{-1} P, the energies H and H_d, and
-the forward dynamics. Controllers and the simulator build on the expression methods, so every
-formula exists once, symbolically.
+M(q), C(q, dq), V and its gradient, P(dq) with J_d dq = P j, A = W^{-1} P, the energies H and
+H_d, the IDA-PBC law (3) written literally in (q, p), and the forward dynamics. Controllers
+and the simulator build on the expression methods, so every formula exists once, symbolically.
 
-Conventions (see the project's CONVENTIONS): column i of W is the unit vector from the
-end-effector towards anchor i; M ddq + C dq + grad V = W tau with tau >= 0 pulling.
+Conventions (see the project's CONVENTIONS): W = -(dl/dq)^T (for a point mass, column i is
+the unit vector towards anchor i); M ddq + C dq + grad V = W tau with tau >= 0 pulling.
+Rigid bodies: M is the Hessian in dq of the kinetic energy
+T = 1/2 m |v_c|^2 + 1/2 w^T I w (v_c the velocity of the centre of mass, w the body angular
+velocity), C comes from its Christoffel symbols (so dM/dt - 2C is skew-symmetric), and
+V = m g (height of the centre of mass). Coordinates: :mod:`cdpr_sym.kinematics`.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ import functools
 import casadi as ca
 import numpy as np
 
+from cdpr_sym import kinematics
 from cdpr_sym.robot import Robot
 
 
@@ -26,7 +31,7 @@ class SymbolicModel:
     Parameters
     ----------
     robot : Robot
-        The validated description; its geometry and mass are baked in as constants.
+        The validated description; its geometry, mass and inertia are baked in as constants.
 
     Notes
     -----
@@ -38,38 +43,91 @@ class SymbolicModel:
         self.robot = robot
         self.n = robot.n
         self.n_j = robot.n_j
-        self._anchors = ca.DM(robot.anchors)
 
     # -- kinematics -------------------------------------------------------------------
     def cable_lengths(self, q: ca.SX) -> ca.SX:
-        """Cable lengths l_i = ||q - a_i||, m, shape (n, 1)."""
-        return ca.vertcat(*[ca.norm_2(q - self._anchors[i, :].T) for i in range(self.n)])
+        """Cable lengths l_i = |a_i - P_i(q)|, m, shape (n, 1)."""
+        return kinematics.cable_lengths(self.robot, q)
 
     def structure_matrix(self, q: ca.SX) -> ca.SX:
-        """W(q), shape (n, n): column i is u_i = (a_i - q) / l_i (dimensionless)."""
-        inverse_lengths = 1.0 / self.cable_lengths(q)
-        return ca.horzcat(*[(self._anchors[i, :].T - q) * inverse_lengths[i]
-                            for i in range(self.n)])
+        """W(q) = -(dl/dq)^T, shape (n, n); point mass: column i is (a_i - q) / l_i."""
+        if self.robot.kind == "point":
+            return kinematics.structure_matrix(self.robot, q)
+        return self._structure_matrix_of_symbol(q)
+
+    @functools.cached_property
+    def _structure_matrix_of_symbol(self) -> ca.Function:
+        q = ca.SX.sym("q", self.n)
+        return ca.Function("W", [q], [kinematics.structure_matrix(self.robot, q)])
 
     def jacobian_ja(self, q: ca.SX) -> ca.SX:
-        """The paper's J_a = -W^T (rows (q - a_i)^T / l_i); l_dot = J_a dq."""
+        """The paper's J_a = -W^T = dl/dq; l_dot = J_a dq."""
         return -self.structure_matrix(q).T
 
+    def singularity_measure(self, W: ca.SX) -> ca.SX:
+        """|det W| / prod |w_i| (columns w_i), in [0, 1]; compared with ``SINGULAR_DET``."""
+        return kinematics.singularity_measure(self.robot, W)
+
     # -- dynamics ---------------------------------------------------------------------
+    def kinetic_energy(self, q: ca.SX, dq: ca.SX) -> ca.SX:
+        """T = 1/2 m |v_c|^2 + 1/2 w^T I w, J (w the body angular velocity)."""
+        return self._kinetic_energy_of_symbol(q, dq)
+
+    @functools.cached_property
+    def _kinetic_energy_of_symbol(self) -> ca.Function:
+        q, dq = ca.SX.sym("q", self.n), ca.SX.sym("dq", self.n)
+        return ca.Function("T", [q, dq], [self._kinetic_energy_expression(q, dq)])
+
+    def _kinetic_energy_expression(self, q: ca.SX, dq: ca.SX) -> ca.SX:
+        robot = self.robot
+        v_c = ca.jtimes(kinematics.center_of_mass(robot, q), q, dq)
+        energy = 0.5 * robot.mass * ca.dot(v_c, v_c)
+        if robot.kind != "point":
+            w = kinematics.body_angular_velocity(robot, q, dq)
+            energy += 0.5 * ca.bilin(ca.DM(robot.inertia), w, w)
+        return energy
+
     def mass_matrix(self, q: ca.SX) -> ca.SX:
-        """M = m I_n, kg (constant for a point mass)."""
-        return self.robot.mass * ca.SX.eye(self.n)
+        """M(q), kg (kg m for angle-position terms, kg m^2 for angles); m I_n for a point."""
+        if self.robot.kind == "point":
+            return self.robot.mass * ca.SX.eye(self.n)
+        return self._mass_matrix_of_symbol(q)
+
+    @functools.cached_property
+    def _mass_matrix_of_symbol(self) -> ca.Function:
+        q, dq = ca.SX.sym("q", self.n), ca.SX.sym("dq", self.n)
+        M = ca.hessian(self.kinetic_energy(q, dq), dq)[0]
+        return ca.Function("M", [q], [ca.substitute(M, dq, ca.DM.zeros(self.n))])
 
     def coriolis_matrix(self, q: ca.SX, dq: ca.SX) -> ca.SX:
-        """C(q, dq) = 0 for a point mass, kg/s."""
-        return ca.SX.zeros(self.n, self.n)
+        """C(q, dq) from the Christoffel symbols of M, kg/s; 0 for a point mass.
+
+        C_kj = sum_i 1/2 (dM_kj/dq_i + dM_ki/dq_j - dM_ij/dq_k) dq_i.
+        """
+        if self.robot.kind == "point":
+            return ca.SX.zeros(self.n, self.n)
+        return self._coriolis_of_symbol(q, dq)
+
+    @functools.cached_property
+    def _coriolis_of_symbol(self) -> ca.Function:
+        n = self.n
+        q, dq = ca.SX.sym("q", n), ca.SX.sym("dq", n)
+        M = self.mass_matrix(q)
+        dM = [ca.jacobian(M[:, col], q) for col in range(n)]  # dM[j][k, i] = dM_kj / dq_i
+        C = ca.SX.zeros(n, n)
+        for k in range(n):
+            for j in range(n):
+                C[k, j] = 0.5 * sum((dM[j][k, i] + dM[i][k, j] - dM[j][i, k]) * dq[i]
+                                    for i in range(n))
+        return ca.Function("C", [q, dq], [C])
 
     def potential(self, q: ca.SX) -> ca.SX:
-        """V = m g q[-1], J."""
-        return self.robot.mass * self.robot.gravity * q[self.n - 1]
+        """V = m g (height of the centre of mass), J."""
+        com = kinematics.center_of_mass(self.robot, q)
+        return self.robot.mass * self.robot.gravity * com[self.robot.dimension - 1]
 
     def grad_potential(self, q: ca.SX) -> ca.SX:
-        """grad V = dV/dq, N, shape (n, 1) (derived by CasADi, not by hand)."""
+        """grad V = dV/dq, N (N m for angles), shape (n, 1) (derived by CasADi)."""
         return self._grad_potential_of_symbol(q)
 
     @functools.cached_property
@@ -82,10 +140,10 @@ class SymbolicModel:
         return ca.solve(self.structure_matrix(q), self.grad_potential(q))
 
     def acceleration(self, q: ca.SX, dq: ca.SX, tau: ca.SX, mass_scale: ca.SX = 1.0) -> ca.SX:
-        """ddq = M_plant^{-1} (W tau - C dq - grad V_plant), m/s^2.
+        """ddq = M_plant^{-1} (W tau - C dq - grad V_plant), m/s^2 (rad/s^2 for angles).
 
-        ``mass_scale`` multiplies the mass of the plant (and so its weight), to simulate a
-        plant that differs from the controller's model.
+        ``mass_scale`` multiplies the mass and inertia of the plant (and so its weight), to
+        simulate a plant that differs from the controller's model.
         """
         force = (self.structure_matrix(q) @ tau
                  - mass_scale * (self.coriolis_matrix(q, dq) @ dq + self.grad_potential(q)))
@@ -124,6 +182,30 @@ class SymbolicModel:
         """H = 1/2 dq^T M dq + V, J."""
         return 0.5 * ca.bilin(self.mass_matrix(q), dq, dq) + self.potential(q)
 
+    def hamiltonian_momentum(self, q: ca.SX, p: ca.SX) -> ca.SX:
+        """H(q, p) = 1/2 p^T M(q)^{-1} p + V(q), J, with the momentum p = M dq."""
+        return 0.5 * ca.dot(p, ca.solve(self.mass_matrix(q), p)) + self.potential(q)
+
+    def ida_pbc_tension(self, q: ca.SX, p: ca.SX, q_goal: ca.SX, k: ca.SX, r_d: ca.SX,
+                        j: ca.SX, alpha: ca.SX = 1.0) -> ca.SX:
+        """The law (3) as printed, in (q, p), with M_d = M and H_d of (5), N.
+
+        tau = W^{-1} (grad_q H - M_d M^{-1} grad_q H_d + (J_d - R_d) grad_p H_d), with the PD
+        part scaled by alpha as in (8). The kinetic parts of grad_q H and grad_q H_d are
+        kept (they cancel only because M_d = M); controllers use the reduced form
+        tau_1 + tau_2 + tau_3 of (8), which tests compare against this one.
+        """
+        H = self.hamiltonian_momentum(q, p)
+        error = q - q_goal
+        H_d = 0.5 * ca.dot(p, ca.solve(self.mass_matrix(q), p)) + 0.5 * ca.dot(k * error, error)
+        V_d = 0.5 * ca.dot(k * error, error)
+        kinetic_d = H_d - V_d
+        grad_H_d = ca.gradient(kinetic_d, q) + alpha * ca.gradient(V_d, q)
+        grad_p_H_d = ca.gradient(H_d, p)
+        force = (ca.gradient(H, q) - grad_H_d
+                 + (self.interconnection_matrix(j) - alpha * ca.diag(r_d)) @ grad_p_H_d)
+        return ca.solve(self.structure_matrix(q), force)
+
     def hamiltonian_d(self, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX) -> ca.SX:
         """H_d = 1/2 dq^T M dq + 1/2 sum k_i (q_i - q_goal_i)^2, J (M_d = M, V_d of eq. (5))."""
         error = q - q_goal
@@ -136,6 +218,8 @@ class SymbolicModel:
         n, n_j = self.n, self.n_j
         q, dq, tau = ca.SX.sym("q", n), ca.SX.sym("dq", n), ca.SX.sym("tau", n)
         q_goal, k, j = ca.SX.sym("q_goal", n), ca.SX.sym("k", n), ca.SX.sym("j", n_j)
+        p, r_d = ca.SX.sym("momentum", n), ca.SX.sym("r_d", n)
+        alpha = ca.SX.sym("alpha")
         grad_v = self.grad_potential(q)
         specs = [
             ("cable_lengths", [q], ["q"], self.cable_lengths(q), "l"),
@@ -154,6 +238,13 @@ class SymbolicModel:
              self.hamiltonian_d(q, dq, q_goal, k), "H_d"),
             ("acceleration", [q, dq, tau], ["q", "dq", "tau"],
              self.acceleration(q, dq, tau), "ddq"),
+            ("singularity", [q], ["q"], ca.vertcat(
+                ca.det(self.structure_matrix(q)),
+                self.singularity_measure(self.structure_matrix(q))), "det_W_and_measure"),
+            ("kinetic_energy", [q, dq], ["q", "dq"], self.kinetic_energy(q, dq), "T"),
+            ("ida_pbc_tension", [q, p, q_goal, k, r_d, j, alpha],
+             ["q", "momentum", "q_goal", "k", "r_d", "j", "alpha"],
+             self.ida_pbc_tension(q, p, q_goal, k, r_d, j, alpha), "tau"),
         ]
         return {name: ca.Function(name, args, [expr], arg_names, [out_name])
                 for name, args, arg_names, expr, out_name in specs}

@@ -1,9 +1,11 @@
-"""Robot descriptions: a frozen, validated point-mass CDPR and its default case.
+"""Robot descriptions: a frozen, validated CDPR and its default case.
 
-A :class:`Robot` holds what the paper calls the robot and its case: anchors, mass, tension
-bounds, the frame the end-effector must stay in, and the default start, goal and gains.
-It is loaded from a TOML file (:func:`load_robot`) or a named preset (:func:`preset`).
-Every field is checked on construction; a bad field raises :class:`InvalidRobot` naming it.
+A :class:`Robot` holds what the paper calls the robot and its case: anchors, the end-effector
+(a point mass, or a planar or spatial rigid body with cable attachment points and an inertia
+tensor), tension bounds, the frame the end-effector must stay in, and the default start, goal
+and gains. It is loaded from a TOML file (:func:`load_robot`, layout in ``ROBOT_FILES.md``) or
+a named preset (:func:`preset`). Every field is checked on construction; a bad field raises
+:class:`InvalidRobot` naming it.
 """
 
 from __future__ import annotations
@@ -21,23 +23,35 @@ from cdpr_sym.errors import InvalidRobot, UnknownName
 #: |det W| below this is treated as a singular configuration (W has unit columns).
 SINGULAR_DET = 1e-6
 
-PRESET_NAMES = ("aras3", "planar2")
+PRESET_NAMES = ("aras3", "planar2", "planar3", "spatial6")
+
+#: Generalized coordinates by kind and dimension: names and units.
+COORDINATES = {
+    ("point", 2): (("x", "z"), ("m", "m")),
+    ("point", 3): (("x", "y", "z"), ("m", "m", "m")),
+    ("planar", 2): (("x", "z", "theta"), ("m", "m", "rad")),
+    ("spatial", 3): (("x", "y", "z", "roll", "pitch", "yaw"),
+                     ("m", "m", "m", "rad", "rad", "rad")),
+}
+
+#: Roll-pitch-yaw is singular at pitch = +-pi/2; frames must keep this far from it, rad.
+PITCH_LIMIT = 1.5
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Robot:
-    """A fully actuated point-mass cable robot (n cables, n degrees of freedom).
+    """A fully actuated cable robot: n cables, n degrees of freedom.
 
     Parameters
     ----------
     name : str
         Identifier used in reports and cache keys.
-    anchors : ndarray, shape (n, n)
-        Row i is the frame anchor a_i of cable i, m.
+    anchors : ndarray, shape (n, d)
+        Row i is the frame anchor a_i of cable i in the world (d = 2 or 3), m.
     mass : float
         End-effector mass, kg.
     gravity : float
-        Gravitational acceleration along -q[-1], m/s^2.
+        Gravitational acceleration along minus the last world axis, m/s^2.
     t_min, t_max : float
         Tension bounds T_m < T_M, N.
     frame_lower, frame_upper : ndarray, shape (n,)
@@ -45,7 +59,22 @@ class Robot:
     start, goal : ndarray, shape (n,)
         Default start q0 and goal q_goal of the robot's case, m.
     k, r_d : ndarray, shape (n,)
-        Diagonals of the potential-shaping gain K (N/m) and damping R_d (N s/m).
+        Diagonals of the potential-shaping gain K (N/m; N m/rad for angles) and damping
+        R_d (N s/m; N m s/rad).
+    attachments : ndarray, shape (n, d), optional
+        Row i is the attachment point b_i of cable i in the body frame, m. Given, the
+        end-effector is a rigid body (``kind`` "planar" for d = 2, "spatial" for d = 3,
+        coordinates in :mod:`cdpr_sym.kinematics`); omitted, it is a point mass.
+    inertia : ndarray, optional
+        Rigid bodies: inertia about the centre of mass in the body frame, kg m^2; shape
+        (1, 1) for a planar body, (3, 3) symmetric positive definite for a spatial one.
+    center_of_mass : ndarray, shape (d,), optional
+        Rigid bodies: centre of mass in the body frame, m (default: the body-frame origin).
+
+    Notes
+    -----
+    Coordinates, frame bounds, start, goal and gains all have n entries: positions (m) then,
+    for rigid bodies, angles (rad).
     """
 
     name: str
@@ -60,15 +89,18 @@ class Robot:
     goal: np.ndarray
     k: np.ndarray
     r_d: np.ndarray
+    attachments: np.ndarray | None = None
+    inertia: np.ndarray | None = None
+    center_of_mass: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         anchors = _float_array("anchors", self.anchors, ndim=2)
-        n = anchors.shape[1]
-        if n < 2 or anchors.shape[0] != n:
-            raise InvalidRobot(
-                "anchors", f"expected an (n, n) array with n >= 2 (one anchor per cable), "
-                f"got shape {anchors.shape}")
         _set(self, "anchors", anchors)
+        if self.attachments is None:
+            self._check_point_body()
+        else:
+            self._check_rigid_body()
+        n = self.n
         for field in ("frame_lower", "frame_upper", "start", "goal", "k", "r_d"):
             vector = _float_array(field, getattr(self, field), ndim=1)
             if vector.shape != (n,):
@@ -78,14 +110,44 @@ class Robot:
             _set(self, field, _float_scalar(field, getattr(self, field)))
         self._check_physics()
         self._check_frame()
+        if self.kind == "spatial":
+            self._check_pitch_range()
         for field in ("start", "goal"):
             self._check_inside_frame(field, getattr(self, field))
             self._check_not_singular(field, getattr(self, field))
 
     @property
+    def kind(self) -> str:
+        """End-effector kind: ``"point"``, ``"planar"`` or ``"spatial"`` (rigid bodies)."""
+        if self.attachments is None:
+            return "point"
+        return "planar" if self.dimension == 2 else "spatial"
+
+    @property
+    def dimension(self) -> int:
+        """Dimension d of the world the anchors live in (2 or 3; more for abstract points)."""
+        return self.anchors.shape[1]
+
+    @property
     def n(self) -> int:
         """Degrees of freedom (= number of cables)."""
-        return self.anchors.shape[1]
+        return {"point": self.dimension, "planar": 3, "spatial": 6}[self.kind]
+
+    @property
+    def coordinate_names(self) -> tuple[str, ...]:
+        """Names of the generalized coordinates, e.g. ("x", "z", "theta")."""
+        return COORDINATES.get((self.kind, self.dimension),
+                               (tuple(f"q{i + 1}" for i in range(self.n)), ()))[0]
+
+    @property
+    def coordinate_units(self) -> tuple[str, ...]:
+        """Units of the generalized coordinates, "m" or "rad"."""
+        return COORDINATES.get((self.kind, self.dimension), ((), ("m",) * self.n))[1]
+
+    @property
+    def height_index(self) -> int:
+        """Index in q of the vertical position coordinate (gravity acts along minus it)."""
+        return self.dimension - 1
 
     @property
     def n_j(self) -> int:
@@ -103,6 +165,46 @@ class Robot:
             value = getattr(self, field.name)
             out[field.name] = value.tolist() if isinstance(value, np.ndarray) else value
         return out
+
+    def _check_point_body(self) -> None:
+        anchors = self.anchors
+        if anchors.shape[1] < 2 or anchors.shape[0] != anchors.shape[1]:
+            raise InvalidRobot(
+                "anchors", f"expected an (n, n) array with n >= 2 for a point mass (one "
+                f"anchor per cable and coordinate), got shape {anchors.shape}")
+        for field in ("inertia", "center_of_mass"):
+            if getattr(self, field) is not None:
+                raise InvalidRobot(f"body.{field}", "a rigid body needs body.attachments; "
+                                   "without them the end-effector is a point mass")
+
+    def _check_rigid_body(self) -> None:
+        d = self.anchors.shape[1]
+        if d not in (2, 3):
+            raise InvalidRobot("anchors", f"expected 2 or 3 coordinates per anchor for a "
+                               f"rigid body, got {d}")
+        n = 3 if d == 2 else 6
+        if self.anchors.shape[0] != n:
+            raise InvalidRobot("anchors", f"expected {n} anchors (one cable per degree of "
+                               f"freedom of a {'planar' if d == 2 else 'spatial'} body), "
+                               f"got {self.anchors.shape[0]}")
+        attachments = _float_array("body.attachments", self.attachments, ndim=2)
+        if attachments.shape != (n, d):
+            raise InvalidRobot("body.attachments", f"expected shape {(n, d)} (one body-frame "
+                               f"point per cable), got {attachments.shape}")
+        _set(self, "attachments", attachments)
+        _set(self, "inertia", _inertia_tensor(self.inertia, d))
+        com = np.zeros(d) if self.center_of_mass is None else self.center_of_mass
+        com = _float_array("body.center_of_mass", com, ndim=1)
+        if com.shape != (d,):
+            raise InvalidRobot("body.center_of_mass", f"expected {d} values, got {com.shape[0]}")
+        _set(self, "center_of_mass", com)
+
+    def _check_pitch_range(self) -> None:
+        if self.frame_lower[4] < -PITCH_LIMIT or self.frame_upper[4] > PITCH_LIMIT:
+            raise InvalidRobot(
+                "frame_upper", f"expected the pitch range inside [-{PITCH_LIMIT}, "
+                f"{PITCH_LIMIT}] rad (roll-pitch-yaw is singular at +-pi/2), got "
+                f"[{self.frame_lower[4]}, {self.frame_upper[4]}]")
 
     def _check_physics(self) -> None:
         if self.mass <= 0:
@@ -132,21 +234,37 @@ class Robot:
                 f"{self.frame_lower.tolist()}..{self.frame_upper.tolist()}, got {q.tolist()}")
 
     def _check_not_singular(self, field: str, q: np.ndarray) -> None:
-        offsets = self.anchors - q
-        lengths = np.linalg.norm(offsets, axis=1)
-        if np.any(lengths < 1e-9):
+        from cdpr_sym.kinematics import singularity_measure_at
+
+        if self.kind == "point" and np.any(np.linalg.norm(self.anchors - q, axis=1) < 1e-9):
             raise InvalidRobot(field, f"the point {q.tolist()} coincides with an anchor")
-        det = np.linalg.det((offsets / lengths[:, None]).T)
-        if abs(det) < SINGULAR_DET:
+        measure = singularity_measure_at(self, q)
+        if not measure >= SINGULAR_DET:  # also NaN (an attachment on its anchor)
             error = InvalidRobot(
                 "anchors", f"the structure matrix W is singular at the {field} point "
-                f"{q.tolist()} (|det W| = {abs(det):.2e} < {SINGULAR_DET:.0e})")
+                f"{q.tolist()} (|det W| / prod |w_i| = {measure:.2e} < {SINGULAR_DET:.0e})")
             error.point = field  # the case field, for callers that validate a start or goal
             raise error
 
 
 def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
-    """Build a :class:`Robot` from the TOML layout documented in ``presets/aras3.toml``."""
+    """Build a :class:`Robot` from the robot-file layout (``ROBOT_FILES.md``)."""
+    known = {"name", "mass", "gravity", "anchors", "tension", "frame", "case", "body"}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise InvalidRobot(unknown[0], f"unknown field in {source}; expected one of "
+                           f"{', '.join(sorted(known))}")
+    body = data.get("body", {})
+    if not isinstance(body, dict):
+        raise InvalidRobot("body", f"expected a table in {source}")
+    unknown = sorted(set(body) - {"attachments", "inertia", "center_of_mass"})
+    if unknown:
+        raise InvalidRobot(f"body.{unknown[0]}", f"unknown field in {source}; expected "
+                           "attachments, inertia or center_of_mass")
+    if body and "attachments" not in body:
+        raise InvalidRobot("body.attachments", f"required field missing in {source}")
+    if "attachments" in body and "inertia" not in body:
+        raise InvalidRobot("body.inertia", f"required field missing in {source}")
 
     def get(path: str, default: Any = None) -> Any:
         node: Any = data
@@ -166,6 +284,8 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
         t_min=get("tension.min"), t_max=get("tension.max"),
         frame_lower=get("frame.lower"), frame_upper=get("frame.upper"),
         start=get("case.start"), goal=get("case.goal"), k=get("case.k"), r_d=get("case.r_d"),
+        attachments=body.get("attachments"), inertia=body.get("inertia"),
+        center_of_mass=body.get("center_of_mass"),
     )
 
 
@@ -182,7 +302,9 @@ def load_robot(path: str | Path) -> Robot:
 
 
 def preset(name: str) -> Robot:
-    """A named preset: ``aras3`` (the paper's Section IV robot) or ``planar2``."""
+    """A named preset: ``aras3`` (the paper's Section IV robot), ``planar2`` (a planar point
+    mass on two cables), ``planar3`` (a planar rigid body on three cables) or ``spatial6``
+    (a suspended 6-DOF platform on six cables)."""
     if name not in PRESET_NAMES:
         raise UnknownName(f"unknown preset {name!r}; expected one of {', '.join(PRESET_NAMES)}")
     text = resources.files("cdpr_sym.presets").joinpath(f"{name}.toml").read_text()
@@ -209,6 +331,40 @@ def _float_array(field: str, value: Any, *, ndim: int) -> np.ndarray:
         raise InvalidRobot(field, f"expected a {ndim}-D array, got shape {array.shape}")
     if not np.all(np.isfinite(array)):
         raise InvalidRobot(field, f"expected finite numbers, got {array.tolist()}")
+    array.setflags(write=False)
+    return array
+
+
+def _inertia_tensor(value: Any, d: int) -> np.ndarray:
+    """The body inertia about the centre of mass as a matrix: (1, 1) planar, (3, 3) spatial."""
+    field = "body.inertia"
+    if value is None:
+        raise InvalidRobot(field, "required for a rigid body")
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidRobot(field, f"expected numbers, got {value!r}") from None
+    if d == 2:
+        if array.size != 1:
+            raise InvalidRobot(field, f"expected one moment of inertia (kg m^2) for a planar "
+                               f"body, got {array.tolist()}")
+        array = array.reshape(1, 1)
+    elif array.shape == (3,):
+        array = np.diag(array)
+    elif array.shape != (3, 3):
+        raise InvalidRobot(field, f"expected 3 principal moments or a 3x3 tensor (kg m^2), "
+                           f"got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise InvalidRobot(field, f"expected finite numbers, got {array.tolist()}")
+    if not np.allclose(array, array.T, rtol=0, atol=1e-12 * np.abs(array).max()):
+        raise InvalidRobot(field, f"expected a symmetric tensor, got {array.tolist()}")
+    moments = np.linalg.eigvalsh(array)
+    if moments[0] <= 0:
+        raise InvalidRobot(field, f"expected a positive definite inertia, got principal "
+                           f"moments {moments.tolist()} kg m^2")
+    if d == 3 and moments[0] + moments[1] < moments[2] * (1 - 1e-9):
+        raise InvalidRobot(field, f"expected principal moments of a physical body "
+                           f"(I1 + I2 >= I3), got {moments.tolist()} kg m^2")
     array.setflags(write=False)
     return array
 

@@ -485,9 +485,8 @@ def _first_stop(model: SymbolicModel, q: np.ndarray) -> tuple[int, str] | None:
     robot = model.robot
     finite = np.all(np.isfinite(q), axis=1)
     safe = np.where(finite[:, None], q, robot.start)
-    stacked = np.array(model.functions["structure_matrix"].map(len(q))(safe.T))
-    det = np.linalg.det(stacked.reshape(robot.n, len(q), robot.n).transpose(1, 0, 2))
-    singular = finite & ((np.abs(det) < SINGULAR_DET) | (det * det[0] <= 0))
+    det, measure = np.array(model.functions["singularity"].map(len(q))(safe.T))
+    singular = finite & ((measure < SINGULAR_DET) | (det * det[0] <= 0))
     outside = finite & np.any((q < robot.frame_lower) | (q > robot.frame_upper), axis=1)
     candidates = [(int(np.flatnonzero(hit)[0]), reason) for reason, hit in
                   (("non_finite", ~finite), ("singular", singular), ("left_frame", outside))

@@ -26,7 +26,7 @@ def classification_function(model: SymbolicModel) -> ca.Function:
     q = ca.SX.sym("q", model.n)
     W = model.structure_matrix(q)
     tau_1 = model.static_tension(q)
-    regular = ca.fabs(ca.det(W)) >= SINGULAR_DET
+    regular = model.singularity_measure(W) >= SINGULAR_DET
     in_box = ca.sum1(tau_1 >= robot.t_min) + ca.sum1(tau_1 <= robot.t_max) > 2 * model.n - 0.5
     mid, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
     in_ball = ca.norm_2(tau_1 - mid) <= half

@@ -1,4 +1,4 @@
-"""Shared fixtures: the two preset robots, their models, a private build cache, random states.
+"""Shared fixtures: the preset robots, models, a private build cache, random states.
 
 Every test that compiles uses ``build_options``, so generated libraries land in a
 session-private cache folder (compiled once per session, never in the user's cache).
@@ -28,6 +28,18 @@ def aras3() -> Robot:
 def planar2() -> Robot:
     """A planar point mass on two cables."""
     return preset("planar2")
+
+
+@pytest.fixture(scope="session")
+def planar3() -> Robot:
+    """A planar rigid body on three cables (centre of mass off the body-frame origin)."""
+    return preset("planar3")
+
+
+@pytest.fixture(scope="session")
+def spatial6() -> Robot:
+    """A suspended 6-DOF platform on six cables."""
+    return preset("spatial6")
 
 
 @pytest.fixture(scope="session")

@@ -39,6 +39,10 @@ def _value(name: str, simulator: Simulator, rng: np.random.Generator, draw_state
         return q[0] if name == "q" else q[1]
     if name == "dq":
         return dq[0]
+    if name == "momentum":
+        return robot.mass * dq[0]
+    if name == "alpha":
+        return rng.uniform(0.0, 1.0, 1)
     if name == "tau":
         return rng.uniform(robot.t_min, robot.t_max, robot.n)
     if name in ("k", "r_d"):
@@ -64,8 +68,10 @@ def _assert_same_outputs(compiled: ca.Function, symbolic: ca.Function, args) -> 
     assert len(got) == len(want) == symbolic.n_out()
     for g, w in zip(got, want, strict=True):
         g, w = np.array(g.full()), np.array(w.full())
-        # compiled with re-association allowed: relative, with a small absolute floor
-        np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-12 * max(1.0, np.abs(w).max()))
+        # compiled with re-association allowed: relative, with a small absolute floor scaled
+        # by the output's largest entry (j of the paper's LS reaches 1e3-1e4 at creeping
+        # speed, and its normal equations amplify round-off by their condition number)
+        np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-11 * max(1.0, np.abs(w).max()))
 
 
 def test_simulator_compiles_to_a_shared_library(simulator):

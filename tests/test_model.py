@@ -35,9 +35,10 @@ def _inputs(robot: Robot, rng: np.random.Generator, draw_states) -> dict[str, np
     """One random value per input name used by SymbolicModel.functions."""
     q, dq = draw_states(robot, rng, 1)
     goal, _ = draw_states(robot, rng, 1)
-    return {"q": q[0], "dq": dq[0], "q_goal": goal[0],
+    return {"q": q[0], "dq": dq[0], "q_goal": goal[0], "momentum": robot.mass * dq[0],
             "tau": rng.uniform(robot.t_min, robot.t_max, robot.n),
-            "k": rng.uniform(1.0, 2000.0, robot.n),
+            "k": rng.uniform(1.0, 2000.0, robot.n), "r_d": rng.uniform(1.0, 200.0, robot.n),
+            "alpha": rng.uniform(0.0, 1.0),
             "j": rng.normal(size=robot.n_j) * 10.0}
 
 
@@ -61,6 +62,15 @@ REFERENCE = {
         v["q"], v["dq"], v["q_goal"], r.mass, v["k"], None),
     "acceleration": lambda r, v: ref.closed_loop_rhs(
         np.concatenate([v["q"], v["dq"]]), v["tau"], r.anchors, r.mass, r.gravity)[r.n:],
+    "singularity": lambda r, v: [
+        np.linalg.det(ref.structure_matrix(v["q"], r.anchors)),
+        abs(np.linalg.det(ref.structure_matrix(v["q"], r.anchors)))],
+    # (3) with p = m dq: W^{-1} (grad V - K e - R_d dq + J_d dq), the kinetic parts cancel
+    "ida_pbc_tension": lambda r, v: np.linalg.solve(
+        ref.structure_matrix(v["q"], r.anchors),
+        ref.grad_potential(r.mass, r.gravity, r.n)
+        - v["alpha"] * (v["k"] * (v["q"] - v["q_goal"]) + v["r_d"] * v["dq"])
+        + ref.interconnection_matrix(v["j"], r.n) @ v["dq"]),
 }
 
 #: The paper's stated point-mass facts, for the functions the oracle does not cover:
@@ -71,6 +81,7 @@ PAPER_FACTS = {
     "potential": lambda r, v: r.mass * r.gravity * v["q"][-1],
     "hamiltonian": lambda r, v: 0.5 * r.mass * v["dq"] @ v["dq"]
     + r.mass * r.gravity * v["q"][-1],
+    "kinetic_energy": lambda r, v: 0.5 * r.mass * v["dq"] @ v["dq"],
 }
 
 

@@ -1,0 +1,204 @@
+"""Rigid-body end-effectors: the symbolic model against Newton-Euler, energy and the law (3).
+
+The reference (tests/rigid_reference.py) is written separately in numpy from Newton-Euler
+about the centre of mass; it shares no code with the Lagrangian model (M from the kinetic
+energy, C from Christoffel symbols) it checks.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import casadi as ca
+import numpy as np
+import pytest
+import rigid_reference as nref
+
+from cdpr_sym import Robot, SymbolicModel, simulate
+from cdpr_sym.controllers import PD, L2Design, law_function
+from cdpr_sym.robot import SINGULAR_DET
+from cdpr_sym.simulation import rk4
+
+ROBOTS = ["planar3", "spatial6", "spatial6_skew"]
+
+
+def skewed(robot: Robot) -> Robot:
+    """spatial6 with a full (non-diagonal) inertia tensor and an off-axis centre of mass."""
+    inertia = np.array([[0.30, 0.02, -0.03], [0.02, 0.26, 0.01], [-0.03, 0.01, 0.45]])
+    return dataclasses.replace(robot, name="spatial6_skew", inertia=inertia,
+                               center_of_mass=np.array([0.04, -0.03, -0.12]))
+
+
+@pytest.fixture(scope="module", params=ROBOTS)
+def robot(request) -> Robot:
+    if request.param == "spatial6_skew":
+        return skewed(request.getfixturevalue("spatial6"))
+    return request.getfixturevalue(request.param)
+
+
+@pytest.fixture(scope="module")
+def model(robot) -> SymbolicModel:
+    return SymbolicModel(robot)
+
+
+def geometry(robot: Robot) -> nref.RigidGeometry:
+    inertia = robot.inertia[0, 0] if robot.kind == "planar" else np.array(robot.inertia)
+    return nref.RigidGeometry(anchors=robot.anchors, attachments=robot.attachments,
+                              mass=robot.mass, gravity=robot.gravity, inertia=inertia,
+                              center_of_mass=robot.center_of_mass)
+
+
+def _value(function: ca.Function, *args) -> np.ndarray:
+    return np.array(function(*args).full()).squeeze()
+
+
+def test_acceleration_matches_newton_euler_on_random_states(robot, model, rng,
+                                                            random_states):
+    reference = geometry(robot)
+    q_all, dq_all = random_states(robot, rng, 200, speed=2.0)
+    for q, dq in zip(q_all, dq_all, strict=True):
+        tau = rng.uniform(-robot.t_max, robot.t_max, robot.n)
+        expected = nref.acceleration(reference, q, dq, tau)
+        actual = _value(model.functions["acceleration"], q, dq, tau)
+        np.testing.assert_allclose(actual, expected, rtol=0,
+                                   atol=1e-9 * max(1.0, np.abs(expected).max()))
+
+
+def test_lengths_and_energies_match_the_reference(robot, model, rng, random_states):
+    reference = geometry(robot)
+    q_all, dq_all = random_states(robot, rng, 100, speed=2.0)
+    for q, dq in zip(q_all, dq_all, strict=True):
+        np.testing.assert_allclose(_value(model.functions["cable_lengths"], q),
+                                   nref.cable_lengths(reference, q), rtol=1e-13)
+        np.testing.assert_allclose(float(model.functions["kinetic_energy"](q, dq)),
+                                   nref.kinetic_energy(reference, q, dq), rtol=1e-12)
+        np.testing.assert_allclose(float(model.functions["potential"](q)),
+                                   nref.potential_energy(reference, q), rtol=1e-12)
+
+
+def test_cable_power_is_dq_transposed_w_tau(robot, model, rng, random_states):
+    reference = geometry(robot)
+    q_all, dq_all = random_states(robot, rng, 50, speed=2.0)
+    for q, dq in zip(q_all, dq_all, strict=True):
+        tau = rng.uniform(robot.t_min, robot.t_max, robot.n)
+        W = _value(model.functions["structure_matrix"], q)
+        np.testing.assert_allclose(dq @ W @ tau, nref.cable_power(reference, q, dq, tau),
+                                   rtol=1e-11, atol=1e-11)
+
+
+def test_structure_matrix_is_minus_transposed_length_jacobian_by_finite_differences(
+        robot, model, rng, random_states):
+    lengths, W_of = model.functions["cable_lengths"], model.functions["structure_matrix"]
+    step = 1e-6
+    for q in random_states(robot, rng, 20)[0]:
+        dl_dq = np.column_stack([(_value(lengths, q + step * e) - _value(lengths, q - step * e))
+                                 / (2 * step) for e in np.eye(robot.n)])
+        np.testing.assert_allclose(_value(W_of, q), -dl_dq.T, rtol=0, atol=1e-8)
+
+
+def test_mass_matrix_is_symmetric_positive_definite_and_varies_with_orientation(
+        robot, model, rng, random_states):
+    q_all, _ = random_states(robot, rng, 20)
+    matrices = [_value(model.functions["mass_matrix"], q) for q in q_all]
+    for M in matrices:
+        np.testing.assert_allclose(M, M.T, rtol=0, atol=1e-14)
+        assert np.linalg.eigvalsh(M)[0] > 0
+    assert max(np.abs(M - matrices[0]).max() for M in matrices) > 1e-3
+
+
+def test_mass_matrix_derivative_minus_twice_coriolis_is_skew(robot, model, rng,
+                                                            random_states):
+    """dM/dt - 2C skew-symmetric: the passivity property IDA-PBC's energy argument uses."""
+    M_of, C_of = model.functions["mass_matrix"], model.functions["coriolis_matrix"]
+    step = 1e-6
+    q_all, dq_all = random_states(robot, rng, 20, speed=2.0)
+    for q, dq in zip(q_all, dq_all, strict=True):
+        M_dot = (_value(M_of, q + step * dq) - _value(M_of, q - step * dq)) / (2 * step)
+        N = M_dot - 2 * _value(C_of, q, dq)
+        np.testing.assert_allclose(N, -N.T, rtol=0, atol=1e-7 * max(1.0, np.abs(M_dot).max()))
+    C = _value(C_of, q_all[0], dq_all[0] / np.linalg.norm(dq_all[0]))
+    assert np.abs(C).max() > 1e-3  # C != 0 for these bodies
+
+
+def _energy_defect(model: SymbolicModel, robot: Robot, dt: float, duration: float) -> float:
+    """|H(T) - H(0) - int dq^T W tau dt| along the simulator's RK4 with prescribed tensions."""
+    n = robot.n
+    z = ca.SX.sym("z", 2 * n + 2)  # [q, dq, work, t]
+    q, dq, t = z[:n], z[n: 2 * n], z[2 * n + 1]
+    tau_0 = model.static_tension(ca.DM(robot.start))
+    tau = tau_0 * (1 + 0.3 * ca.sin(3 * t + ca.DM(np.arange(n))))
+
+    def rhs(state: ca.SX) -> ca.SX:
+        qs, dqs, ts = state[:n], state[n: 2 * n], state[2 * n + 1]
+        tau_s = ca.substitute(tau, t, ts)
+        return ca.vertcat(dqs, model.acceleration(qs, dqs, tau_s),
+                          ca.dot(dqs, model.structure_matrix(qs) @ tau_s), 1.0)
+
+    del q, dq
+    step = ca.Function("step", [z], [rk4(rhs, z, dt)])
+    steps = round(duration / dt)
+    state = np.concatenate([robot.start, np.zeros(n), [0.0, 0.0]])
+    start_energy = float(model.functions["hamiltonian"](state[:n], state[n: 2 * n]))
+    final = np.array(step.mapaccum(steps)(state)[:, -1].full()).ravel()
+    end_energy = float(model.functions["hamiltonian"](final[:n], final[n: 2 * n]))
+    assert np.abs(final[: 2 * n] - state[: 2 * n]).max() > 0.05  # it really moved
+    return abs(end_energy - start_energy - final[2 * n])
+
+
+def test_energy_change_equals_cable_work_to_rk4_order(robot, model):
+    coarse = _energy_defect(model, robot, 4e-3, 0.8)
+    fine = _energy_defect(model, robot, 2e-3, 0.8)
+    assert fine < 1e-6
+    assert coarse / fine > 10.0  # fourth order: halving dt divides the defect by ~16
+
+
+def _regular_states(robot, model, rng, random_states, count):
+    q_all, dq_all = random_states(robot, rng, 4 * count)
+    measure = model.functions["singularity"]
+    keep = [i for i, q in enumerate(q_all) if _value(measure, q)[1] > 100 * SINGULAR_DET]
+    return q_all[keep][:count], dq_all[keep][:count]
+
+
+@pytest.mark.parametrize("controller", [PD(), L2Design()], ids=["pd", "l2"])
+def test_controllers_equal_the_law_3_written_in_momentum(robot, model, controller, rng,
+                                                        random_states):
+    """tau_1 + tau_2 + tau_3 of (8) is (3) with M_d = M, whose kinetic terms cancel."""
+    law = law_function(model, controller)
+    literal = model.functions["ida_pbc_tension"]
+    M_of = model.functions["mass_matrix"]
+    q_all, dq_all = _regular_states(robot, model, rng, random_states, 40)
+    goal = robot.goal
+    for q, dq in zip(q_all, dq_all, strict=True):
+        tau, alpha, _, j, flags = (np.array(out.full()).ravel()
+                                   for out in law(q, dq, goal, robot.k, robot.r_d))
+        if flags[0] != 0:
+            continue  # a fallback (saturation) acted; (3) does not describe it
+        p = _value(M_of, q) @ dq
+        expected = _value(literal, q, p, goal, robot.k, robot.r_d, j, alpha[0])
+        np.testing.assert_allclose(tau, expected, rtol=1e-9, atol=1e-9 * robot.t_max)
+
+
+def test_kinetic_terms_of_grad_q_h_do_not_vanish_separately(robot, model, rng,
+                                                           random_states):
+    """The literal (3) carries grad_q of p^T M^-1 p / 2; it is non-zero for these bodies."""
+    q = ca.SX.sym("q", robot.n)
+    p = ca.SX.sym("p", robot.n)
+    kinetic = 0.5 * ca.dot(p, ca.solve(model.mass_matrix(q), p))
+    gradient = ca.Function("g", [q, p], [ca.gradient(kinetic, q)])
+    q_all, dq_all = random_states(robot, rng, 5, speed=2.0)
+    largest = max(np.abs(_value(gradient, q, _value(model.functions["mass_matrix"], q) @ dq))
+                  .max() for q, dq in zip(q_all, dq_all, strict=True))
+    assert largest > 1e-3
+
+
+@pytest.mark.parametrize("name", ["aras3", "planar2", "planar3", "spatial6"])
+def test_pd_with_gravity_compensation_converges_from_a_nearby_start(name, request,
+                                                                    build_options):
+    robot = request.getfixturevalue(name)
+    offset = np.where(np.array(robot.coordinate_units) == "rad", 0.05, 0.08)
+    start = robot.goal + offset * np.sign(np.arange(robot.n) % 2 - 0.5)
+    run = simulate(robot, PD(), start=start, duration=6.0, build_options=build_options)
+    assert run.stop_reason is None
+    assert np.abs(run.q[0] - robot.goal).max() > 0.04
+    np.testing.assert_allclose(run.q[-1], robot.goal, atol=1e-4)
+    np.testing.assert_allclose(run.dq[-1], 0.0, atol=1e-3)
