@@ -35,12 +35,14 @@ def bench_controllers(robot: Robot, *, duration: float = 5.0, dt: float = 1e-3,
     for name, controller in CONTROLLERS.items():
         simulator = get_simulator(robot, controller, build_options=build_options)
 
-        def run(simulator=simulator) -> None:
-            simulator.run(robot.start, robot.goal, robot.k, robot.r_d, duration=duration,
-                          dt=dt, plant=Plant())
+        def run(simulator=simulator):
+            return simulator.run(robot.start, robot.goal, robot.k, robot.r_d,
+                                 duration=duration, dt=dt, plant=Plant())
+        trajectory = run()
+        steps = len(trajectory.t) - 1  # a run that stops early takes fewer steps
         rate = _rate(run, min_seconds=min_seconds)
-        steps = round(duration / dt)
-        out[name] = {"sims_per_s": rate, "us_per_step": 1e6 / (rate * steps)}
+        out[name] = {"sims_per_s": rate, "us_per_step": 1e6 / (rate * max(steps, 1)),
+                     "steps": steps, "stop_reason": trajectory.stop_reason}
     return out
 
 
@@ -108,7 +110,9 @@ def format_table(result: dict[str, Any]) -> str:
              f"{1 / result['dt_s']:.0f} Hz, one core (target >= {result['target_sims_per_s']})",
              f"{'controller':<14}{'sims/s':>10}{'us/step':>10}"]
     for name, row in result["controllers"].items():
-        lines.append(f"{name:<14}{row['sims_per_s']:>10.0f}{row['us_per_step']:>10.3f}")
+        stopped = row.get("stop_reason")
+        note = f"  (stopped after {row['steps']} steps: {stopped})" if stopped else ""
+        lines.append(f"{name:<14}{row['sims_per_s']:>10.0f}{row['us_per_step']:>10.3f}{note}")
     lines.append("")
     lines.append("box / l∞ design, one control step: fast path (generated C, whole closed-loop "
                  "step) vs cvxpy + Clarabel (solve only)")

@@ -41,6 +41,8 @@ def _parser() -> argparse.ArgumentParser:
 
     study = commands.add_parser("study", help="run a study and write its report")
     study.add_argument("name", choices=["paper", "compare", "designs"])
+    study.add_argument("--robot", default="aras3", help="preset name or robot TOML file "
+                       "(the paper's claims are about aras3; others are judged on their case)")
     study.add_argument("--out", type=Path, help="output folder (default reports/<name>)")
     study.add_argument("--pairs", type=int, default=200, help="sweep pairs (compare)")
     study.add_argument("--seed", type=int, default=0, help="sweep seed (compare)")
@@ -48,6 +50,8 @@ def _parser() -> argparse.ArgumentParser:
     workspace = commands.add_parser("workspace", help="map the static workspace")
     workspace.add_argument("--robot", default="aras3")
     workspace.add_argument("--resolution", type=int, default=61, help="grid points per axis")
+    workspace.add_argument("--orientation", nargs="+", type=float, metavar="RAD",
+                           help="angles held fixed for a rigid body (default: the goal's)")
     workspace.add_argument("--out", type=Path, default=Path("reports/workspace"))
 
     sweep = commands.add_parser("sweep", help="run many start/goal pairs (resumable)")
@@ -105,23 +109,27 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def _study(args: argparse.Namespace) -> int:
-    out = args.out or Path("reports") / args.name
+    robot = resolve_robot(args.robot)
+    out = args.out or Path("reports") / (
+        args.name if robot.name == "aras3" else f"{args.name}_{robot.name}")
     if args.name == "paper":
         from cdpr_sym.paper_study import run_paper_study
 
-        for claim in run_paper_study(out):
+        for claim in run_paper_study(out, robot=robot):
             print(f"{claim.verdict:<13} {claim.source:<11} {claim.claim}")
     elif args.name == "compare":
         from cdpr_sym.compare_study import run_compare_study
 
-        summary = run_compare_study(out, pairs=args.pairs, seed=args.seed)["sweep"]
+        summary = run_compare_study(out, robot=robot, pairs=args.pairs,
+                                    seed=args.seed)["sweep"]
         for name, row in summary.items():
             print(f"{name:<10} feasible {100 * row['feasible']:5.1f} %  converged "
                   f"{100 * row['converged']:5.1f} %")
     else:
         from cdpr_sym.designs_study import run_designs_study
 
-        table = run_designs_study(out, pairs=args.pairs, seed=args.seed)["meets_target"]
+        table = run_designs_study(out, robot=robot, pairs=args.pairs,
+                                  seed=args.seed)["meets_target"]
         for name in table["1.0"]:
             print(f"{name:<10} meets target: nominal {100 * table['1.0'][name]:5.1f} %, "
                   f"mass +10 % {100 * table['1.1'][name]:5.1f} %, "
@@ -134,7 +142,7 @@ def _workspace(args: argparse.Namespace) -> int:
     from cdpr_sym.workspace_study import run_workspace_study
 
     summary = run_workspace_study(resolve_robot(args.robot), args.out,
-                                  resolution=args.resolution)
+                                  resolution=args.resolution, orientation=args.orientation)
     print(f"{summary['points']} poses, {summary['poses_per_s']:.3g} poses/s; feasible "
           f"{100 * summary['feasible_share']:.1f} %, ball (13) "
           f"{100 * summary['ball_share']:.1f} %")

@@ -16,17 +16,19 @@ from cdpr_sym.trajectory import Trajectory
 _AXES = {2: ("x", "z"), 3: ("x", "y", "z")}
 
 
-def _coordinate_names(n: int) -> Sequence[str]:
-    return _AXES.get(n, [f"q{i + 1}" for i in range(n)])
+def _coordinate_names(run: Trajectory) -> Sequence[str]:
+    n = run.q.shape[1]
+    return run.info.get("coordinates") or _AXES.get(n, [f"q{i + 1}" for i in range(n)])
 
 
 def plot_positions(ax: plt.Axes, run: Trajectory) -> None:
     """Coordinates (solid) and their goals (dashed) against time."""
-    for i, name in enumerate(_coordinate_names(run.q.shape[1])):
+    for i, name in enumerate(_coordinate_names(run)):
         line, = ax.plot(run.t, run.q[:, i], label=name)
         ax.axhline(run.q_goal[i], color=line.get_color(), linestyle="--", linewidth=0.8)
-    ax.set_ylabel("position [m]")
-    ax.legend(loc="best", fontsize=8)
+    angles = "rad" in run.info.get("units", ())
+    ax.set_ylabel("position [m, rad]" if angles else "position [m]")
+    ax.legend(loc="best", fontsize=8, ncol=2 if angles else 1)
     ax.grid(alpha=0.3)
 
 

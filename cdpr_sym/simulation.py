@@ -371,7 +371,8 @@ class Simulator:
 def _run_info(robot: Robot, controller: Controller, dt: float, k, r_d, plant: Plant, *,
               integrator: str, **extra: Any) -> dict[str, Any]:
     """What a Trajectory records about how it was made."""
-    return {"robot": robot.name, "controller": controller.name,
+    return {"robot": robot.name, "coordinates": list(robot.coordinate_names),
+            "units": list(robot.coordinate_units), "controller": controller.name,
             "controller_options": controller.options(), "dt": dt,
             "k": np.asarray(k).tolist(), "r_d": np.asarray(r_d).tolist(),
             "plant": dataclasses.asdict(plant), "integrator": integrator, **extra}

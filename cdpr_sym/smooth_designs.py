@@ -97,11 +97,14 @@ class SmoothReference:
         u = np.linspace(0.0, 1.0, self.samples)
         static, accel = [], []
         for value in u:
-            s, _, dds = minimum_jerk(ca.SX(value))
+            s, ds, dds = minimum_jerk(ca.SX(value))
             q_r = q0 + delta * s
             W = model.structure_matrix(q_r)
             static.append(model.static_tension(q_r))
-            accel.append(ca.solve(W, robot.mass * dds * delta))
+            # M q_r'' + C(q_r, q_r') q_r' = (M dds delta + C(q_r, ds delta) ds delta) / T^2
+            inertial = (model.mass_matrix(q_r) @ (dds * delta)
+                        + model.coriolis_matrix(q_r, ds * delta) @ (ds * delta))
+            accel.append(ca.solve(W, inertial))
         a, b = ca.vertcat(*static), ca.vertcat(*accel)
         step = u[1] - u[0]
         slow_enough = {}
@@ -131,8 +134,8 @@ class SmoothReference:
         delta = q_goal - q_start
         q_r, dq_r, ddq_r = q_start + delta * s, delta * ds / T, delta * dds / T**2
         parts = tension_parts(model, q, dq, q_goal, k, r_d)
-        force = (model.robot.mass * ddq_r + model.grad_potential(q)
-                 - k * (q - q_r) - r_d * (dq - dq_r))
+        force = (model.mass_matrix(q) @ ddq_r + model.coriolis_matrix(q, dq) @ dq_r
+                 + model.grad_potential(q) - k * (q - q_r) - r_d * (dq - dq_r))
         tau, clipped = clip_to_box(model, parts.W_inv @ force)
         flags = (flag_if(clipped, FLAG_SATURATED) + flag_if(margin < 0, FLAG_INFEASIBLE)
                  + flag_if(parts.singular, FLAG_SINGULAR))

@@ -120,6 +120,17 @@ def test_mass_matrix_derivative_minus_twice_coriolis_is_skew(robot, model, rng,
     assert np.abs(C).max() > 1e-3  # C != 0 for these bodies
 
 
+def test_coriolis_force_equals_christoffel_matrix_times_dq(robot, model, rng, random_states):
+    q_sym, dq_sym = ca.SX.sym("q", robot.n), ca.SX.sym("dq", robot.n)
+    force = ca.Function("c", [q_sym, dq_sym], [model.coriolis_force(q_sym, dq_sym)])
+    C_of = model.functions["coriolis_matrix"]
+    q_all, dq_all = random_states(robot, rng, 30, speed=2.0)
+    for q, dq in zip(q_all, dq_all, strict=True):
+        expected = _value(C_of, q, dq) @ dq
+        np.testing.assert_allclose(_value(force, q, dq), expected, rtol=0,
+                                   atol=1e-12 * max(1.0, np.abs(expected).max()))
+
+
 def _energy_defect(model: SymbolicModel, robot: Robot, dt: float, duration: float) -> float:
     """|H(T) - H(0) - int dq^T W tau dt| along the simulator's RK4 with prescribed tensions."""
     n = robot.n
