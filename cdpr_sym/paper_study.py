@@ -29,6 +29,8 @@ from cdpr_sym.simulation import simulate, simulate_adaptive
 from cdpr_sym.trajectory import Trajectory
 
 CONFIRMED, PARTLY, CONTRADICTED = "confirmed", "partly", "contradicted"
+#: No step met the claim's premise (e.g. beta <= 0 everywhere), so nothing was tested.
+UNTESTED = "not tested"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,8 +133,9 @@ def _judge(runs: dict[str, Trajectory], m: dict[str, dict[str, Any]]) -> list[Cl
         f"{in_box[0]} of {in_box[1]} such steps in the box (l2, 1 kHz); "
         f"α ≥ {m['l2']['min_alpha']:.2e}, α < 1 on {100 * m['l2']['share_alpha_below_one']:.1f}"
         " % of steps",
-        CONFIRMED if in_box[0] == in_box[1] else CONTRADICTED,
-        "confirmed if every step without a fallback is inside the box"))
+        UNTESTED if in_box[1] == 0 else CONFIRMED if in_box[0] == in_box[1] else CONTRADICTED,
+        "confirmed if every step without a fallback is inside the box; not tested if every "
+        "step fell back"))
 
     claims.append(Claim(
         "Fig. 3(a)", "PD + gravity compensation with saturated inputs converges",

@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import subprocess
 import sys
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from cdpr_sym import SymbolicModel, preset, simulate
+from cdpr_sym import SymbolicModel, load_robot, preset, simulate
 from cdpr_sym.cli import main
-from cdpr_sym.controllers import controller_by_name
+from cdpr_sym.controllers import CONTROLLERS, controller_by_name
 
 #: Keys ``simulate --json`` documents, with the JSON types each may take.
 DOCUMENTED = {"min_tension": (float,), "max_tension": (float,),
@@ -148,3 +150,82 @@ def test_installed_console_script_runs_simulate():
     value = _one_json_object(done.stdout)
     assert value["controller"] == "l2" and value["robot"] == "aras3"
     assert value["duration"] == 1.0 and isinstance(value["tension_feasible"], bool)
+
+
+# -- every command for rigid-body robot files -----------------------------------------------
+@pytest.fixture(scope="module", params=["planar3", "spatial6"])
+def robot_file(request, tmp_path_factory) -> Path:
+    """A rigid-body preset written out as a user's robot file."""
+    text = resources.files("cdpr_sym.presets").joinpath(f"{request.param}.toml").read_text()
+    path = tmp_path_factory.mktemp("robots") / f"my_{request.param}.toml"
+    path.write_text(text)
+    return path
+
+
+def test_simulate_runs_a_rigid_robot_file(capsys, robot_file):
+    status, out, err = _run(capsys, "simulate", "--robot", str(robot_file), "--controller",
+                            "smooth", "--duration", "3", "--json")
+    assert status == 0 and err == ""
+    value = _one_json_object(out)
+    assert value["robot"] == load_robot(robot_file).name
+    assert value["tension_feasible"] is True and value["final_error"] < 1e-3
+
+
+def test_workspace_maps_a_rigid_robot_file_at_constant_orientation(capsys, tmp_path,
+                                                                   robot_file):
+    robot = load_robot(robot_file)
+    status, out, _ = _run(capsys, "workspace", "--robot", str(robot_file), "--resolution", "9",
+                          "--out", str(tmp_path / "ws"))
+    summary = json.loads((tmp_path / "ws" / "workspace.json").read_text())
+    assert status == 0 and "report:" in out
+    assert summary["points"] == 9 ** robot.dimension
+    assert summary["orientation_rad"] == robot.goal[robot.dimension:].tolist()
+    assert 0 < summary["feasible_share"] < 1
+    assert all((tmp_path / "ws" / name).read_bytes()[:8] == PNG
+               for name in ("workspace_plane.png", "workspace_slices.png")
+               if (tmp_path / "ws" / name).exists())
+    assert "Constant-orientation workspace" in (tmp_path / "ws" / "workspace.md").read_text()
+
+
+def test_sweep_and_its_report_run_a_rigid_robot_file(capsys, tmp_path, robot_file):
+    out = tmp_path / "runs.csv"
+    status, _, _ = _run(capsys, "sweep", "--robot", str(robot_file), "--pairs", "2",
+                        "--controllers", "pd-sat,smooth", "--duration", "0.5",
+                        "--workers", "1", "--no-progress", "--out", str(out))
+    assert status == 0
+    rows = list(csv.DictReader(out.open()))
+    assert len(rows) == 4 and {row["status"] for row in rows} <= {"ok", "stopped"}
+    assert len([key for key in rows[0] if key.startswith("goal_")]) == load_robot(robot_file).n
+    status, printed, _ = _run(capsys, "report", "sweep", str(out), "--out", str(tmp_path / "r"))
+    assert status == 0 and "report:" in printed and (tmp_path / "r" / "summary.md").exists()
+
+
+def test_export_c_package_of_a_rigid_robot_file_builds_and_converges(capsys, tmp_path,
+                                                                     robot_file):
+    folder = tmp_path / "pkg"
+    status, _, _ = _run(capsys, "export-c", "--robot", str(robot_file), "--controller",
+                        "pd-sat", "--out", str(folder))
+    assert status == 0
+    subprocess.run(["make", "-s", "-C", str(folder)], check=True, capture_output=True)
+    printed = subprocess.run([str(folder / "example")], check=True, capture_output=True,
+                             text=True).stdout
+    values = dict(line.split(maxsplit=1) for line in printed.strip().splitlines())
+    assert float(values["final_error_m"]) < 1e-6
+
+
+def test_paper_study_runs_on_a_rigid_robot_file(capsys, tmp_path, robot_file):
+    status, out, _ = _run(capsys, "study", "paper", "--robot", str(robot_file), "--out",
+                          str(tmp_path / "paper"))
+    assert status == 0 and "Theorem 1" in out
+    report = (tmp_path / "paper" / "report.md").read_text()
+    assert f"applied to `{load_robot(robot_file).name}`" in report
+    assert (tmp_path / "paper" / "fig2_l2_design.png").read_bytes()[:8] == PNG
+
+
+def test_bench_runs_on_a_rigid_robot_file(capsys, robot_file):
+    status, out, _ = _run(capsys, "bench", "--robot", str(robot_file), "--seconds", "0.01",
+                          "--json")
+    value = _one_json_object(out)
+    assert status == 0 and value["robot"] == load_robot(robot_file).name
+    assert set(value["controllers"]) == set(CONTROLLERS)
+    assert all(row["sims_per_s"] > 0 for row in value["controllers"].values())

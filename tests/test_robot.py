@@ -168,3 +168,94 @@ def test_preset_with_an_unknown_name_raises_unknown_name():
     with pytest.raises(UnknownName):
         preset("aras4")
 
+
+
+# -- rigid bodies ---------------------------------------------------------------------------
+def test_rigid_presets_have_the_documented_kinds_and_coordinates(planar3, spatial6):
+    assert (planar3.kind, planar3.n, planar3.n_j) == ("planar", 3, 3)
+    assert planar3.coordinate_names == ("x", "z", "theta")
+    assert (spatial6.kind, spatial6.n, spatial6.n_j) == ("spatial", 6, 15)
+    assert spatial6.coordinate_units == ("m",) * 3 + ("rad",) * 3
+    assert spatial6.inertia.shape == (3, 3) and planar3.inertia.shape == (1, 1)
+
+
+def test_spatial6_preset_matches_its_documented_layout(spatial6):
+    """Anchors in pairs at 90/210/330 +- 5 degrees on a 2 m circle, 3 m up; attachments on a
+    0.3 m hexagon, each 90 degrees from its anchor pair's centre (the file's comment)."""
+    angles = np.degrees(np.arctan2(spatial6.anchors[:, 1], spatial6.anchors[:, 0])) % 360
+    np.testing.assert_allclose(np.sort(angles), [85, 95, 205, 215, 325, 335], atol=5e-3)
+    np.testing.assert_allclose(np.linalg.norm(spatial6.anchors[:, :2], axis=1), 2.0, atol=1e-4)
+    np.testing.assert_array_equal(spatial6.anchors[:, 2], 3.0)
+    np.testing.assert_allclose(np.linalg.norm(spatial6.attachments, axis=1), 0.3, atol=1e-4)
+    centres = angles + np.tile([5.0, -5.0], 3)
+    body = np.degrees(np.arctan2(spatial6.attachments[:, 1], spatial6.attachments[:, 0]))
+    np.testing.assert_allclose(np.abs((body - centres + 180) % 360 - 180), 90, atol=1e-2)
+
+
+@pytest.mark.parametrize(("change", "field"), [
+    ({"attachments": [[0.0, 0.0], [0.1, 0.0]]}, "body.attachments"),  # 2 rows, 3 cables
+    ({"attachments": [[0.0, 0.0, 0.0]] * 3}, "body.attachments"),  # 3-D points, planar body
+    ({"inertia": -0.1}, "body.inertia"),
+    ({"inertia": [0.1, 0.2]}, "body.inertia"),
+    ({"inertia": None}, "body.inertia"),
+    ({"center_of_mass": [0.0, 0.0, 0.0]}, "body.center_of_mass"),
+    ({"anchors": [[-1.5, 2.5], [1.5, 2.5]]}, "anchors"),  # 2 cables for 3 DOF
+    ({"k": [400.0, 400.0]}, "k"),
+    ({"frame_lower": [-1.5, 0.0], "frame_upper": [1.5, 2.5]}, "frame_lower"),
+])
+def test_invalid_planar_body_is_refused_naming_its_field(planar3, change, field):
+    with pytest.raises(InvalidRobot) as raised:
+        planar3.with_case(**change)
+    assert raised.value.field == field
+
+
+@pytest.mark.parametrize(("inertia", "why"), [
+    ([[0.3, 0.4, 0.0], [0.4, 0.3, 0.0], [0.0, 0.0, 0.4]], "positive definite"),
+    ([[0.3, 0.1, 0.0], [0.0, 0.3, 0.0], [0.0, 0.0, 0.4]], "symmetric"),
+    ([0.1, 0.1, 0.5], r"I1 \+ I2 >= I3"),
+    ([[0.1, 0.2, 0.3]], "3 principal moments"),
+])
+def test_unphysical_inertia_is_refused_with_the_reason(spatial6, inertia, why):
+    with pytest.raises(InvalidRobot, match=why) as raised:
+        spatial6.with_case(inertia=inertia)
+    assert raised.value.field == "body.inertia"
+
+
+def test_pitch_range_reaching_the_roll_pitch_yaw_singularity_is_refused(spatial6):
+    upper = spatial6.frame_upper.copy()
+    upper[4] = 1.6
+    with pytest.raises(InvalidRobot, match="pitch") as raised:
+        spatial6.with_case(frame_upper=upper)
+    assert raised.value.field == "frame_upper"
+
+
+def test_point_mass_with_inertia_but_no_attachments_is_refused(aras3):
+    with pytest.raises(InvalidRobot) as raised:
+        aras3.with_case(inertia=0.1)
+    assert raised.value.field == "body.inertia"
+
+
+@pytest.mark.parametrize(("edit", "field"), [
+    (("inertia = 0.05", ""), "body.inertia"),
+    (("[body]", "[body]\ncolour = 'red'"), "body.colour"),
+    (("name = \"planar3\"", "name = \"planar3\"\nmas = 5.0"), "mas"),
+])
+def test_robot_file_with_a_missing_or_unknown_body_field_is_refused(tmp_path, edit, field):
+    text = _preset_text("planar3")
+    assert edit[0] in text
+    with pytest.raises(InvalidRobot) as raised:
+        load_robot(_write(tmp_path, text.replace(edit[0], edit[1], 1)))
+    assert raised.value.field == field
+
+
+def test_rigid_start_with_concurrent_cable_lines_is_singular_and_refused(planar3):
+    """Attachments all at the body origin: the three cable lines meet there, W is singular."""
+    with pytest.raises(InvalidRobot, match="singular") as raised:
+        planar3.with_case(attachments=[[0.0, 0.0]] * 3)
+    assert raised.value.field == "anchors"
+
+
+@pytest.mark.parametrize("name", ["planar3", "spatial6"])
+def test_rigid_preset_file_reads_back_identically(tmp_path, name):
+    loaded = load_robot(_write(tmp_path, _preset_text(name)))
+    assert loaded.as_dict() == preset(name).as_dict()
