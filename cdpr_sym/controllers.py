@@ -183,6 +183,12 @@ class L2Design:
         v = W^T dq of A as A^T (A A^T + c v v^T / |v|^2)^{-1} b.
         Both give the same tau_3 = A j wherever (21) is well defined; where it is not
         (|v_n| < 1e-4 |v|, v = W^T dq), ``"paper"`` uses the minimum-norm solution.
+        The paper's normal equations have a condition number growing like cond(A)^4: fine
+        for aras3 (median ~50) and planar rigid bodies (~1e5), but ~1e10 for the 6-cable
+        platform, where its tau_3 is off the exact least squares by up to tens of N (in
+        60-digit arithmetic the two agree to 1e-50). alpha of (24) is computed from the
+        tension actually delivered, so Theorem 1's bound still holds; prefer
+        ``"min_norm"`` (accurate to ~1e-12) for n >= 4.
     low_speed : float
         Remark 2 threshold on ||dq||, m/s: below it A ~ 0 and the law falls back.
     fallback : {"saturate", "scale"}

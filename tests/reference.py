@@ -435,15 +435,38 @@ def tension_l2(
         ``fallback`` : bool -- whether the saturating fallback was used.
     """
     q = _vec(q)
+    return tension_l2_from_parts(structure_matrix(q, anchors), grad_potential(m, g, q.size),
+                                 q, dq, q_goal, k, r_d, t_min, t_max, low_speed=low_speed)
+
+
+def tension_l2_from_parts(
+    w: npt.ArrayLike,
+    grad_v: npt.ArrayLike,
+    q: npt.ArrayLike,
+    dq: npt.ArrayLike,
+    q_goal: npt.ArrayLike,
+    k: npt.ArrayLike,
+    r_d: npt.ArrayLike,
+    t_min: npt.ArrayLike,
+    t_max: npt.ArrayLike,
+    *,
+    low_speed: float = 1e-6,
+) -> dict[str, Any]:
+    """:func:`tension_l2` for any robot, given its structure matrix ``w`` and ``grad_v``.
+
+    ``w`` (n, n) maps tensions to generalized forces and ``grad_v`` (n,) is the gradient of
+    the potential (N, N m for angles); the rest is as in :func:`tension_l2`.
+    """
+    w = np.asarray(w, dtype=np.float64)
+    q = _vec(q)
     dq = _vec(dq)
     n = q.size
     n_j = n * (n - 1) // 2
     t_lo = np.broadcast_to(np.asarray(t_min, dtype=np.float64), (n,))
     t_hi = np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,))
-    w = structure_matrix(q, anchors)
     e = q - _vec(q_goal)
 
-    tau1 = np.linalg.solve(w, grad_potential(m, g, n))
+    tau1 = np.linalg.solve(w, _vec(grad_v))
     tau2u = -np.linalg.solve(w, _vec(k) * e + _vec(r_d) * dq)
     mid = 0.5 * (t_lo + t_hi)
     half = 0.5 * (t_hi - t_lo)
