@@ -3,9 +3,9 @@
 A :class:`Robot` holds what the paper calls the robot and its case: anchors, the end-effector
 (a point mass, or a planar or spatial rigid body with cable attachment points and an inertia
 tensor), tension bounds, the frame the end-effector must stay in, and the default start, goal
-and gains. It is loaded from a TOML file (:func:`load_robot`, layout in ``ROBOT_FILES.md``) or
-a named preset (:func:`preset`). Every field is checked on construction; a bad field raises
-:class:`InvalidRobot` naming it.
+and gains. It is loaded from a TOML file (:func:`load_robot`; layout in the README, "Robot
+files") or a named preset (:func:`preset`). Every field is checked on construction; a bad
+field raises :class:`InvalidRobot` naming it.
 """
 
 from __future__ import annotations
@@ -248,7 +248,7 @@ class Robot:
 
 
 def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
-    """Build a :class:`Robot` from the robot-file layout (``ROBOT_FILES.md``)."""
+    """Build a :class:`Robot` from the robot-file layout (README, "Robot files")."""
     known = {"name", "mass", "gravity", "anchors", "tension", "frame", "case", "body"}
     unknown = sorted(set(data) - known)
     if unknown:
