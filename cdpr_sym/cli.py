@@ -40,7 +40,7 @@ def _parser() -> argparse.ArgumentParser:
     sim.add_argument("--save", type=Path, help="write the trajectory to an .npz file")
 
     study = commands.add_parser("study", help="run a study and write its report")
-    study.add_argument("name", choices=["paper", "compare", "designs"])
+    study.add_argument("name", choices=["paper", "compare", "designs", "rigid"])
     study.add_argument("--robot", default="aras3", help="preset name or robot TOML file "
                        "(the paper's claims are about aras3; others are judged on their case)")
     study.add_argument("--out", type=Path, help="output folder (default reports/<name>)")
@@ -111,7 +111,8 @@ def _simulate(args: argparse.Namespace) -> int:
 def _study(args: argparse.Namespace) -> int:
     robot = resolve_robot(args.robot)
     out = args.out or Path("reports") / (
-        args.name if robot.name == "aras3" else f"{args.name}_{robot.name}")
+        args.name if robot.name == "aras3" or args.name == "rigid"
+        else f"{args.name}_{robot.name}")
     if args.name == "paper":
         from cdpr_sym.paper_study import run_paper_study
 
@@ -120,15 +121,22 @@ def _study(args: argparse.Namespace) -> int:
     elif args.name == "compare":
         from cdpr_sym.compare_study import run_compare_study
 
-        summary = run_compare_study(out, robot=robot, pairs=args.pairs,
+        summary = run_compare_study(out, robot=args.robot, pairs=args.pairs,
                                     seed=args.seed)["sweep"]
         for name, row in summary.items():
             print(f"{name:<10} feasible {100 * row['feasible']:5.1f} %  converged "
                   f"{100 * row['converged']:5.1f} %")
+    elif args.name == "rigid":
+        from cdpr_sym.rigid_study import run_rigid_study
+
+        for name, summary in run_rigid_study(out, pairs=args.pairs, seed=args.seed).items():
+            best = max(summary["sweep"], key=lambda key: summary["sweep"][key]["meets_target"])
+            print(f"{name:<10} best {best}: meets target on "
+                  f"{100 * summary['sweep'][best]['meets_target']:5.1f} % of pairs")
     else:
         from cdpr_sym.designs_study import run_designs_study
 
-        table = run_designs_study(out, robot=robot, pairs=args.pairs,
+        table = run_designs_study(out, robot=args.robot, pairs=args.pairs,
                                   seed=args.seed)["meets_target"]
         for name in table["1.0"]:
             print(f"{name:<10} meets target: nominal {100 * table['1.0'][name]:5.1f} %, "

@@ -17,9 +17,9 @@ from cdpr_sym.controllers import controller_by_name
 from cdpr_sym.cvx_designs import cvx_design
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.report_format import number
-from cdpr_sym.robot import Robot, preset
+from cdpr_sym.robot import Robot
 from cdpr_sym.simulation import simulate
-from cdpr_sym.sweep import SweepConfig, run_sweep
+from cdpr_sym.sweep import SweepConfig, robot_reference, run_sweep
 from cdpr_sym.sweep_report import (
     feasibility_maps,
     load_results,
@@ -31,18 +31,19 @@ from cdpr_sym.trajectory import Trajectory
 DESIGNS = ("l2", "linf", "box", "pd-sat")
 
 
-def run_compare_study(out_dir: Path, *, robot: Robot | None = None, pairs: int = 200,
+def run_compare_study(out_dir: Path, *, robot: Robot | str | Path = "aras3",
+                      pairs: int = 200,
                       seed: int = 0, designs: tuple[str, ...] = DESIGNS,
                       progress: bool = True) -> dict[str, Any]:
     """Paper case and a seeded sweep for ``designs``; writes figures and ``report.md``."""
-    robot = robot or preset("aras3")
+    robot, robot_source = robot_reference(robot)
     out_dir.mkdir(parents=True, exist_ok=True)
     runs = {name: simulate(robot, controller_by_name(name)) for name in designs}
     case_figure(runs, out_dir / "paper_case_tensions.png")
     plots.figure_errors(runs, out_dir / "paper_case_errors.png",
                         title="Paper case: distance to the goal")
     results = out_dir / "sweep.csv"
-    config = SweepConfig(robot=robot.name, controllers=tuple(designs), pairs=pairs, seed=seed)
+    config = SweepConfig(robot=robot_source, controllers=tuple(designs), pairs=pairs, seed=seed)
     run_sweep(config, results, progress=progress, restart_if_stale=True)
     rows, _ = load_results(results)
     summary = summarise(rows)

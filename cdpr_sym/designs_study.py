@@ -16,20 +16,21 @@ from cdpr_sym import plots
 from cdpr_sym.compare_study import case_figure
 from cdpr_sym.controllers import controller_by_name
 from cdpr_sym.report_format import number, share
-from cdpr_sym.robot import Robot, preset
+from cdpr_sym.robot import Robot
 from cdpr_sym.simulation import simulate
-from cdpr_sym.sweep import SweepConfig, run_sweep
+from cdpr_sym.sweep import SweepConfig, robot_reference, run_sweep
 from cdpr_sym.sweep_report import load_results, summarise
 
 DESIGNS = ("l2", "linf", "box", "pd-sat", "ida-ref", "smooth")
 MASS_SCALES = (1.0, 1.1, 0.9)
 
 
-def run_designs_study(out_dir: Path, *, robot: Robot | None = None, pairs: int = 200,
+def run_designs_study(out_dir: Path, *, robot: Robot | str | Path = "aras3",
+                      pairs: int = 200,
                       seed: int = 0, designs: tuple[str, ...] = DESIGNS,
                       progress: bool = True) -> dict[str, Any]:
     """Paper case and seeded sweeps (nominal and ±10 % plant mass) for every design."""
-    robot = robot or preset("aras3")
+    robot, robot_source = robot_reference(robot)
     out_dir.mkdir(parents=True, exist_ok=True)
     runs = {name: simulate(robot, controller_by_name(name)) for name in designs}
     case = {name: run.metrics() for name, run in runs.items()}
@@ -38,7 +39,7 @@ def run_designs_study(out_dir: Path, *, robot: Robot | None = None, pairs: int =
                         title="Paper case: distance to the goal")
     sweeps: dict[float, list[dict[str, Any]]] = {}
     for scale in MASS_SCALES:
-        config = SweepConfig(robot=robot.name, controllers=tuple(designs), pairs=pairs,
+        config = SweepConfig(robot=robot_source, controllers=tuple(designs), pairs=pairs,
                              seed=seed, mass_scale=scale)
         path = run_sweep(config, out_dir / f"sweep_mass_{scale:.1f}.csv", progress=progress,
                          restart_if_stale=True)

@@ -27,7 +27,7 @@ import numpy as np
 
 from cdpr_sym.controllers import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, InvalidCase
-from cdpr_sym.robot import Robot, resolve_robot
+from cdpr_sym.robot import PRESET_NAMES, Robot, preset, resolve_robot
 from cdpr_sym.simulation import Plant, get_simulator
 from cdpr_sym.workspace import WorkspaceEvaluator, sample_static_workspace
 
@@ -84,6 +84,20 @@ class SweepConfig:
 
     def as_dict(self) -> dict[str, Any]:
         return {**dataclasses.asdict(self), "controllers": list(self.controllers)}
+
+
+def robot_reference(robot: Robot | str | Path) -> tuple[Robot, str]:
+    """The robot and the string sweep workers load it from (a preset name or a file path).
+
+    A :class:`Robot` object is accepted when it equals the preset of its name; any other robot
+    must be given as its file, since the workers run in other processes.
+    """
+    if isinstance(robot, (str, Path)):
+        return resolve_robot(robot), str(robot)
+    if robot.name in PRESET_NAMES and preset(robot.name).as_dict() == robot.as_dict():
+        return robot, robot.name
+    raise InvalidCase("robot", f"sweep workers load the robot by preset name or file, and "
+                      f"{robot.name!r} is not an unchanged preset; pass its TOML file instead")
 
 
 def draw_pairs(robot: Robot, config: SweepConfig) -> tuple[np.ndarray, np.ndarray]:

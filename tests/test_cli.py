@@ -229,3 +229,16 @@ def test_bench_runs_on_a_rigid_robot_file(capsys, robot_file):
     assert status == 0 and value["robot"] == load_robot(robot_file).name
     assert set(value["controllers"]) == set(CONTROLLERS)
     assert all(row["sims_per_s"] > 0 for row in value["controllers"].values())
+
+
+def test_rigid_study_writes_its_report_for_both_rigid_presets(capsys, tmp_path):
+    status, out, _ = _run(capsys, "study", "rigid", "--pairs", "2", "--out",
+                          str(tmp_path / "rigid"))
+    assert status == 0 and "planar3" in out and "spatial6" in out
+    report = (tmp_path / "rigid" / "report.md").read_text()
+    assert "## `planar3` (planar body, n = 3)" in report
+    assert "## `spatial6` (spatial body, n = 6)" in report
+    summary = json.loads((tmp_path / "rigid" / "summary.json").read_text())
+    assert summary["spatial6"]["n_j"] == 15
+    assert set(summary["planar3"]["sweep"]) == set(CONTROLLERS)
+    assert (tmp_path / "rigid" / "spatial6_case.png").read_bytes()[:8] == PNG
