@@ -78,7 +78,7 @@ def body_angular_velocity(robot: Robot, q: ca.SX, dq: ca.SX) -> ca.SX:
 def cable_lengths(robot: Robot, q: ca.SX) -> ca.SX:
     """l_i = |a_i - P_i(q)|, m, shape (n, 1)."""
     points = attachment_points(robot, q)
-    return ca.vertcat(*[ca.norm_2(ca.DM(robot.anchors[i]) - points[i])
+    return ca.vertcat(*[ca.norm_2(points[i] - ca.DM(robot.anchors[i]))
                         for i in range(robot.n)])
 
 

@@ -34,6 +34,9 @@ COORDINATES = {
                      ("m", "m", "m", "rad", "rad", "rad")),
 }
 
+#: Fields that only a rigid body has.
+_BODY_FIELDS = ("attachments", "inertia", "center_of_mass")
+
 #: Roll-pitch-yaw is singular at pitch = +-pi/2; frames must keep this far from it, rad.
 PITCH_LIMIT = 1.5
 
@@ -159,10 +162,17 @@ class Robot:
         return dataclasses.replace(self, **changes)
 
     def as_dict(self) -> dict[str, Any]:
-        """Plain-Python view (lists), suitable for JSON, TOML or hashing."""
+        """Plain-Python view (lists), suitable for JSON, TOML or hashing.
+
+        A point mass has no body fields here, so its description (and the identity of the
+        sweeps that store it) does not depend on them; ``Robot(**robot.as_dict())`` rebuilds
+        either kind.
+        """
         out: dict[str, Any] = {}
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)
+            if value is None and field.name in _BODY_FIELDS:
+                continue
             out[field.name] = value.tolist() if isinstance(value, np.ndarray) else value
         return out
 
