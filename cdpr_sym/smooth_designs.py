@@ -63,6 +63,9 @@ class SmoothReference:
     ``samples`` path points). Assumptions: the straight segment from start to goal lies in
     the static workspace with some margin (else FLAG_INFEASIBLE and the slowest plan);
     the plant's mass is close to the model's (the feedback absorbs the rest).
+    Command: W^{-1} (M(q) ddq_r + C(q, dq) dq_r + grad V - K (q - q_r) - R_d (dq - dq_r)),
+    clipped; the plan's feed-forward is M(q_r) ddq_r + C(q_r, dq_r) dq_r + grad V (m ddq_r
+    + grad V for a point mass).
     Memory: [t, q_start (n), T, margin].
     """
 
@@ -181,6 +184,9 @@ class VirtualReferenceIdaPbc:
     study's pairs 600 N/m lifted the ±10 % mass cases from 0 % to ~45 % meeting the target
     but dropped the nominal case from 96 % to 69 %, so the default keeps ``delta``.
     Memory: [xi (n), dxi (n), F, a, d0] with d0 = |goal - q0|.
+
+    Rigid bodies: the particle lives in q-space with the scalar mass m for every coordinate
+    (angles included, 1 m per rad); the H_d argument above holds unchanged.
     """
 
     delta: float = 0.4
