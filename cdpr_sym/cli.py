@@ -41,11 +41,13 @@ def _parser() -> argparse.ArgumentParser:
 
     study = commands.add_parser("study", help="run a study and write its report")
     study.add_argument("name", choices=["paper", "compare", "designs", "rigid"])
-    study.add_argument("--robot", default="aras3", help="preset name or robot TOML file "
-                       "(the paper's claims are about aras3; others are judged on their case)")
+    study.add_argument("--robot", help="preset name or robot TOML file (default aras3; the "
+                       "paper's claims are about aras3, others are judged on their case; "
+                       "rigid: planar3 and spatial6 unless given)")
     study.add_argument("--out", type=Path, help="output folder (default reports/<name>)")
-    study.add_argument("--pairs", type=int, default=200, help="sweep pairs (compare)")
-    study.add_argument("--seed", type=int, default=0, help="sweep seed (compare)")
+    study.add_argument("--pairs", type=int, default=200,
+                       help="sweep pairs (compare, designs, rigid)")
+    study.add_argument("--seed", type=int, default=0, help="sweep seed (compare, designs, rigid)")
 
     workspace = commands.add_parser("workspace", help="map the static workspace")
     workspace.add_argument("--robot", default="aras3")
@@ -109,10 +111,10 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def _study(args: argparse.Namespace) -> int:
-    robot = resolve_robot(args.robot)
+    robot = resolve_robot(args.robot or "aras3")
+    default = args.robot is None or args.name == "rigid" or args.robot == "aras3"
     out = args.out or Path("reports") / (
-        args.name if robot.name == "aras3" or args.name == "rigid"
-        else f"{args.name}_{robot.name}")
+        args.name if default else f"{args.name}_{Path(args.robot).stem}")
     if args.name == "paper":
         from cdpr_sym.paper_study import run_paper_study
 
@@ -121,22 +123,24 @@ def _study(args: argparse.Namespace) -> int:
     elif args.name == "compare":
         from cdpr_sym.compare_study import run_compare_study
 
-        summary = run_compare_study(out, robot=args.robot, pairs=args.pairs,
+        summary = run_compare_study(out, robot=args.robot or "aras3", pairs=args.pairs,
                                     seed=args.seed)["sweep"]
         for name, row in summary.items():
             print(f"{name:<10} feasible {100 * row['feasible']:5.1f} %  converged "
                   f"{100 * row['converged']:5.1f} %")
     elif args.name == "rigid":
-        from cdpr_sym.rigid_study import run_rigid_study
+        from cdpr_sym.rigid_study import ROBOTS, best_design, run_rigid_study
 
-        for name, summary in run_rigid_study(out, pairs=args.pairs, seed=args.seed).items():
-            best = max(summary["sweep"], key=lambda key: summary["sweep"][key]["meets_target"])
+        robots = (args.robot,) if args.robot else ROBOTS
+        for name, summary in run_rigid_study(out, pairs=args.pairs, seed=args.seed,
+                                             robots=robots).items():
+            best = best_design(summary["sweep"])
             print(f"{name:<10} best {best}: meets target on "
                   f"{100 * summary['sweep'][best]['meets_target']:5.1f} % of pairs")
     else:
         from cdpr_sym.designs_study import run_designs_study
 
-        table = run_designs_study(out, robot=args.robot, pairs=args.pairs,
+        table = run_designs_study(out, robot=args.robot or "aras3", pairs=args.pairs,
                                   seed=args.seed)["meets_target"]
         for name in table["1.0"]:
             print(f"{name:<10} meets target: nominal {100 * table['1.0'][name]:5.1f} %, "
@@ -161,9 +165,9 @@ def _workspace(args: argparse.Namespace) -> int:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from cdpr_sym.sweep import SweepConfig, run_sweep
+    from cdpr_sym.sweep import SweepConfig, robot_reference, run_sweep
 
-    config = SweepConfig(robot=args.robot, pairs=args.pairs, seed=args.seed,
+    config = SweepConfig(robot=robot_reference(args.robot)[1], pairs=args.pairs, seed=args.seed,
                          controllers=tuple(n.strip() for n in args.controllers.split(",") if n),
                          duration=args.duration, dt=args.dt, mass_scale=args.mass_scale)
     if args.workers is not None and args.workers <= 0:

@@ -47,7 +47,8 @@ def run_compare_study(out_dir: Path, *, robot: Robot | str | Path = "aras3",
     run_sweep(config, results, progress=progress, restart_if_stale=True)
     rows, _ = load_results(results)
     summary = summarise(rows)
-    feasibility_maps(rows, out_dir / "sweep_maps_xy.png", axes=(0, 1))
+    feasibility_maps(rows, out_dir / "sweep_maps_xy.png", axes=(0, 1),
+                     names=robot.coordinate_names)
     agreement = _reference_agreement(robot, runs)
     case = {name: run.metrics() for name, run in runs.items()}
     report = {"paper_case": case, "sweep": summary, "cvxpy_agreement": agreement,

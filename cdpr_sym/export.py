@@ -74,10 +74,11 @@ _ARGUMENT_DOCS = {
     "q_goal": "goal position, m (rad)", "k": "stiffness gains K (diagonal), N/m (N m/rad)",
     "r_d": "damping gains R_d (diagonal), N s/m (N m s/rad)",
     "tau": "cable tensions, N (> 0 pulls)",
-    "j": "free entries of J_d (row-major strict upper triangle), N s/m",
+    "j": "free entries of J_d (row-major strict upper triangle), N s/m (N m s/rad)",
     "q0": "start position of the move, m (rad)",
     "memory": "the controller's internal state at the start of the move (NMEM doubles)",
-    "x": "state [q (m), dq (m/s), memory, status] (X_* offsets; status 0 at the start)",
+    "x": "state [q (m, rad), dq (m/s, rad/s), memory, status] (X_* offsets; status 0 "
+         "at the start)",
     "p": "parameters (P_* offsets; fill with the _parameters function)",
     "x_next": "state after dt; frozen, with status != 0 (STATUS_*), once the loop stopped",
     "log": "this period's [tau (N), alpha, beta (N), j (N s/m), flags] (LOG_* offsets)",

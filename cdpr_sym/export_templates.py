@@ -157,7 +157,7 @@ int main(void) {
   for (i = 0; i < @UPPER@_N; ++i) printf(" %.17g", x[@UPPER@_X_Q + i]);
   printf("\\nfinal_dq");
   for (i = 0; i < @UPPER@_N; ++i) printf(" %.17g", x[@UPPER@_X_DQ + i]);
-  printf("\\nfinal_error_m %.6e\\n", sqrt(error));
+  printf("\\nfinal_error %.6e\\n", sqrt(error)); /* |q - q_goal|: m (and rad) */
   printf("tension_min_N %.17g\\ntension_max_N %.17g\\n", tau_min, tau_max);
   printf("tension_bounds_N %g %g\\n", @UPPER@_T_MIN, @UPPER@_T_MAX);
   return 0;

@@ -100,7 +100,8 @@ class SymbolicModel:
         return ca.Function("M", [q], [ca.substitute(M, dq, ca.DM.zeros(self.n))])
 
     def coriolis_matrix(self, q: ca.SX, dq: ca.SX) -> ca.SX:
-        """C(q, dq) from the Christoffel symbols of M, kg/s; 0 for a point mass.
+        """C(q, dq) from the Christoffel symbols of M, kg/s (kg m/s, kg m^2/s for angles);
+        0 for a point mass.
 
         C_kj = sum_i 1/2 (dM_kj/dq_i + dM_ki/dq_j - dM_ij/dq_k) dq_i.
         """
@@ -214,11 +215,10 @@ class SymbolicModel:
         """
         H = self.hamiltonian_momentum(q, p)
         error = q - q_goal
-        H_d = 0.5 * ca.dot(p, ca.solve(self.mass_matrix(q), p)) + 0.5 * ca.dot(k * error, error)
         V_d = 0.5 * ca.dot(k * error, error)
-        kinetic_d = H_d - V_d
+        kinetic_d = H - self.potential(q)  # M_d = M
         grad_H_d = ca.gradient(kinetic_d, q) + alpha * ca.gradient(V_d, q)
-        grad_p_H_d = ca.gradient(H_d, p)
+        grad_p_H_d = ca.gradient(kinetic_d + V_d, p)
         force = (ca.gradient(H, q) - grad_H_d
                  + (self.interconnection_matrix(j) - alpha * ca.diag(r_d)) @ grad_p_H_d)
         return ca.solve(self.structure_matrix(q), force)

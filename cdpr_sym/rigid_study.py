@@ -14,49 +14,68 @@ from typing import Any
 import numpy as np
 
 from cdpr_sym.compare_study import case_figure
-from cdpr_sym.controllers import CONTROLLERS, L2Design, controller_by_name, law_function
+from cdpr_sym.controllers import (
+    CONTROLLERS,
+    FLAG_BETA,
+    FLAG_LOW_SPEED,
+    L2Design,
+    controller_by_name,
+    law_function,
+)
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.report_format import number, share
-from cdpr_sym.robot import preset
+from cdpr_sym.robot import Robot
 from cdpr_sym.simulation import simulate
-from cdpr_sym.sweep import SweepConfig, run_sweep
+from cdpr_sym.sweep import SweepConfig, robot_reference, run_sweep
 from cdpr_sym.sweep_report import load_results, summarise, summary_table
 from cdpr_sym.workspace import WorkspaceEvaluator, interior_box
 
 ROBOTS = ("planar3", "spatial6")
 SHOWN = ("l2", "pd-sat", "smooth", "ida-ref")
+#: The l2 law's fallbacks: below the low-speed threshold, or beta <= 0.
+FELL_BACK = FLAG_LOW_SPEED | FLAG_BETA
 
 
 def run_rigid_study(out_dir: Path, *, pairs: int = 200, seed: int = 0,
-                    robots: tuple[str, ...] = ROBOTS, progress: bool = True) -> dict[str, Any]:
-    """Case runs, sweeps and checks for each robot; writes figures and ``report.md``."""
+                    robots: tuple[str | Path, ...] = ROBOTS, progress: bool = True
+                    ) -> dict[str, Any]:
+    """Case runs, sweeps and checks for each robot (preset names or robot files); writes
+    figures and ``report.md``."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    summary = {name: _study_robot(name, out_dir, pairs, seed, progress) for name in robots}
+    summary = {}
+    for spec in robots:
+        robot, source = robot_reference(spec)
+        summary[robot.name] = _study_robot(robot, source, out_dir, pairs, seed, progress)
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
     (out_dir / "report.md").write_text(_markdown(summary, pairs, seed))
     return summary
 
 
-def _study_robot(name: str, out_dir: Path, pairs: int, seed: int, progress: bool
-                 ) -> dict[str, Any]:
-    robot = preset(name)
+def best_design(sweep: dict[str, dict[str, Any]]) -> str:
+    """The design meeting the target most often (ties: the more often feasible)."""
+    return max(sweep, key=lambda key: (sweep[key]["meets_target"], sweep[key]["feasible"]))
+
+
+def _study_robot(robot: Robot, source: str, out_dir: Path, pairs: int, seed: int,
+                 progress: bool) -> dict[str, Any]:
+    name = robot.name
     runs = {controller: simulate(robot, controller_by_name(controller))
             for controller in CONTROLLERS}
     case_figure({key: runs[key] for key in SHOWN}, out_dir / f"{name}_case.png")
-    config = SweepConfig(robot=name, controllers=tuple(CONTROLLERS), pairs=pairs, seed=seed)
+    config = SweepConfig(robot=source, controllers=tuple(CONTROLLERS), pairs=pairs, seed=seed)
     path = run_sweep(config, out_dir / f"{name}_sweep.csv", progress=progress,
                      restart_if_stale=True)
     rows, _ = load_results(path)
     return {"kind": robot.kind, "n": robot.n, "n_j": robot.n_j,
             "case": {key: run.metrics() for key, run in runs.items()},
-            "case_fallback_share": {key: float(np.mean(run.flags & 3 != 0)) if len(run.flags)
-                                    else 0.0 for key, run in runs.items()},
+            "case_fallback_share": {key: float(np.mean(run.flags & FELL_BACK != 0))
+                                    if len(run.flags) else 0.0 for key, run in runs.items()},
             "sweep": summarise(rows),
             "ball_share": _ball_share(robot, seed),
             "ls_gap_n": _construction_gap(robot, seed)}
 
 
-def _ball_share(robot, seed: int, count: int = 20000) -> dict[str, float]:
+def _ball_share(robot: Robot, seed: int, count: int = 20000) -> dict[str, float]:
     """Shares of uniform frame poses that are statically feasible / satisfy the ball (13)."""
     rng = np.random.default_rng(seed)
     low, high = interior_box(robot, 0.05)
@@ -67,7 +86,8 @@ def _ball_share(robot, seed: int, count: int = 20000) -> dict[str, float]:
             else 0.0}
 
 
-def _construction_gap(robot, seed: int, count: int = 500) -> dict[str, float] | None:
+def _construction_gap(robot: Robot, seed: int, count: int = 500
+                      ) -> dict[str, float] | None:
     """|tau_paper - tau_min_norm| (N), largest and median, on random states with beta > 0.
 
     Poses are drawn uniformly from the frame and kept where the ball (13) holds; velocities
@@ -89,7 +109,9 @@ def _construction_gap(robot, seed: int, count: int = 500) -> dict[str, float] | 
         out = mapped(poses.T, dq.T, goals.T, robot.k, robot.r_d)
         taus.append(np.array(out[0]))
         flags = np.array(out[4]).ravel()
-    designed = (flags.astype(int) & 3) == 0
+    designed = (flags.astype(int) & FELL_BACK) == 0
+    if not designed.any():
+        return None
     gaps = np.abs(taus[0] - taus[1])[:, designed].max(axis=0)
     return {"states": int(designed.sum()), "max": float(gaps.max()),
             "median": float(np.median(gaps))}
@@ -140,7 +162,7 @@ def _reading(summary: dict[str, Any]) -> str:
     text = []
     for name, s in summary.items():
         sweep = s["sweep"]
-        best = max(sweep, key=lambda key: (sweep[key]["meets_target"], sweep[key]["feasible"]))
+        best = best_design(sweep)
         text.append(
             f"- `{name}`: **{best}** meets the target on {share(sweep[best]['meets_target'])} "
             f"of pairs; l2 {share(sweep['l2']['meets_target'])} (feasible "

@@ -20,7 +20,9 @@ import numpy as np
 
 from cdpr_sym.errors import InvalidRobot, UnknownName
 
-#: |det W| below this is treated as a singular configuration (W has unit columns).
+#: |det W| / prod |w_i| (w_i the columns of W) below this is a singular configuration. For
+#: a point mass the columns are unit vectors; for a rigid body the moment rows are in m, so
+#: the measure (not the singularity) depends on the length unit.
 SINGULAR_DET = 1e-6
 
 PRESET_NAMES = ("aras3", "planar2", "planar3", "spatial6")
@@ -134,7 +136,9 @@ class Robot:
     @property
     def n(self) -> int:
         """Degrees of freedom (= number of cables)."""
-        return {"point": self.dimension, "planar": 3, "spatial": 6}[self.kind]
+        if self.kind == "point":
+            return self.dimension
+        return len(COORDINATES[self.kind, self.dimension][0])
 
     @property
     def coordinate_names(self) -> tuple[str, ...]:
@@ -147,10 +151,6 @@ class Robot:
         """Units of the generalized coordinates, "m" or "rad"."""
         return COORDINATES.get((self.kind, self.dimension), ((), ("m",) * self.n))[1]
 
-    @property
-    def height_index(self) -> int:
-        """Index in q of the vertical position coordinate (gravity acts along minus it)."""
-        return self.dimension - 1
 
     @property
     def n_j(self) -> int:
@@ -192,7 +192,7 @@ class Robot:
         if d not in (2, 3):
             raise InvalidRobot("anchors", f"expected 2 or 3 coordinates per anchor for a "
                                f"rigid body, got {d}")
-        n = 3 if d == 2 else 6
+        n = len(COORDINATES["planar" if d == 2 else "spatial", d][0])
         if self.anchors.shape[0] != n:
             raise InvalidRobot("anchors", f"expected {n} anchors (one cable per degree of "
                                f"freedom of a {'planar' if d == 2 else 'spatial'} body), "
@@ -212,7 +212,8 @@ class Robot:
     def _check_pitch_range(self) -> None:
         if self.frame_lower[4] < -PITCH_LIMIT or self.frame_upper[4] > PITCH_LIMIT:
             raise InvalidRobot(
-                "frame_upper", f"expected the pitch range inside [-{PITCH_LIMIT}, "
+                "frame_lower" if self.frame_lower[4] < -PITCH_LIMIT else "frame_upper",
+                f"expected the pitch range inside [-{PITCH_LIMIT}, "
                 f"{PITCH_LIMIT}] rad (roll-pitch-yaw is singular at +-pi/2), got "
                 f"[{self.frame_lower[4]}, {self.frame_upper[4]}]")
 
@@ -259,20 +260,11 @@ class Robot:
 
 def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
     """Build a :class:`Robot` from the robot-file layout (README, "Robot files")."""
-    known = {"name", "mass", "gravity", "anchors", "tension", "frame", "case", "body"}
-    unknown = sorted(set(data) - known)
-    if unknown:
-        raise InvalidRobot(unknown[0], f"unknown field in {source}; expected one of "
-                           f"{', '.join(sorted(known))}")
+    _check_known_fields(data, source)
     body = data.get("body", {})
-    if not isinstance(body, dict):
-        raise InvalidRobot("body", f"expected a table in {source}")
-    unknown = sorted(set(body) - {"attachments", "inertia", "center_of_mass"})
-    if unknown:
-        raise InvalidRobot(f"body.{unknown[0]}", f"unknown field in {source}; expected "
-                           "attachments, inertia or center_of_mass")
-    if body and "attachments" not in body:
-        raise InvalidRobot("body.attachments", f"required field missing in {source}")
+    if "body" in data and "attachments" not in body:
+        raise InvalidRobot("body.attachments", f"required field missing in {source} (a [body] "
+                           "table makes the end-effector a rigid body)")
     if "attachments" in body and "inertia" not in body:
         raise InvalidRobot("body.inertia", f"required field missing in {source}")
 
@@ -297,6 +289,26 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
         attachments=body.get("attachments"), inertia=body.get("inertia"),
         center_of_mass=body.get("center_of_mass"),
     )
+
+
+#: The robot-file layout: top-level fields, and the fields of each table.
+FILE_FIELDS = {"": {"name", "mass", "gravity", "anchors", "tension", "frame", "case", "body"},
+               "tension": {"min", "max"}, "frame": {"lower", "upper"},
+               "case": {"start", "goal", "k", "r_d"},
+               "body": {"attachments", "inertia", "center_of_mass"}}
+
+
+def _check_known_fields(data: dict[str, Any], source: str) -> None:
+    """Refuse a misspelt or unknown field anywhere in a robot file, naming it."""
+    for table, known in FILE_FIELDS.items():
+        node = data if not table else data.get(table, {})
+        if not isinstance(node, dict):
+            raise InvalidRobot(table, f"expected a table in {source}, got {node!r}")
+        unknown = sorted(set(node) - known)
+        if unknown:
+            raise InvalidRobot(f"{table}.{unknown[0]}" if table else unknown[0],
+                               f"unknown field in {source}; expected one of "
+                               f"{', '.join(sorted(known))}")
 
 
 def load_robot(path: str | Path) -> Robot:
@@ -333,6 +345,8 @@ def resolve_robot(name_or_path: str | Path) -> Robot:
 
 
 def _float_array(field: str, value: Any, *, ndim: int) -> np.ndarray:
+    if _holds_bool(value):
+        raise InvalidRobot(field, f"expected numbers, got {value!r}")
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError):
@@ -350,6 +364,8 @@ def _inertia_tensor(value: Any, d: int) -> np.ndarray:
     field = "body.inertia"
     if value is None:
         raise InvalidRobot(field, "required for a rigid body")
+    if _holds_bool(value):  # numpy would read true as 1.0
+        raise InvalidRobot(field, f"expected numbers, got {value!r}")
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError):
@@ -377,6 +393,12 @@ def _inertia_tensor(value: Any, d: int) -> np.ndarray:
                            f"(I1 + I2 >= I3), got {moments.tolist()} kg m^2")
     array.setflags(write=False)
     return array
+
+
+def _holds_bool(value: Any) -> bool:
+    if isinstance(value, (list, tuple)):
+        return any(_holds_bool(item) for item in value)
+    return isinstance(value, bool)
 
 
 def _float_scalar(field: str, value: Any) -> float:

@@ -106,7 +106,7 @@ class SmoothReference:
             static.append(model.static_tension(q_r))
             # M q_r'' + C(q_r, q_r') q_r' = (M dds delta + C(q_r, ds delta) ds delta) / T^2
             inertial = (model.mass_matrix(q_r) @ (dds * delta)
-                        + model.coriolis_matrix(q_r, ds * delta) @ (ds * delta))
+                        + model.coriolis_force(q_r, ds * delta))
             accel.append(ca.solve(W, inertial))
         a, b = ca.vertcat(*static), ca.vertcat(*accel)
         step = u[1] - u[0]

@@ -93,7 +93,10 @@ def robot_reference(robot: Robot | str | Path) -> tuple[Robot, str]:
     must be given as its file, since the workers run in other processes.
     """
     if isinstance(robot, (str, Path)):
-        return resolve_robot(robot), str(robot)
+        resolved = resolve_robot(robot)
+        # a file by its absolute path, so workers and a resume elsewhere find the same file
+        return resolved, (str(robot) if str(robot) in PRESET_NAMES
+                          else str(Path(robot).resolve()))
     if robot.name in PRESET_NAMES and preset(robot.name).as_dict() == robot.as_dict():
         return robot, robot.name
     raise InvalidCase("robot", f"sweep workers load the robot by preset name or file, and "

@@ -13,8 +13,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from cdpr_sym.errors import InvalidCase
+from cdpr_sym.errors import CdprError, InvalidCase
 from cdpr_sym.report_format import number, share
+from cdpr_sym.robot import Robot
 from cdpr_sym.sweep import sidecar_path
 
 OUTCOMES = (("feasible and converged", "#2a9d4b"), ("feasible, not converged", "#f4a261"),
@@ -121,9 +122,12 @@ def summary_table(summary: dict[str, dict[str, Any]]) -> str:
 
 
 
-def feasibility_maps(rows: list[dict[str, Any]], path: Path, *, axes: tuple[int, int] = (0, 1)
-                     ) -> Path:
-    """Start and goal positions per controller, coloured by outcome (a grid of panels)."""
+def feasibility_maps(rows: list[dict[str, Any]], path: Path, *, axes: tuple[int, int] = (0, 1),
+                     names: tuple[str, ...] = ("x", "y", "z")) -> Path:
+    """Start and goal positions per controller, coloured by outcome (a grid of panels).
+
+    ``names`` labels the coordinates (the robot's ``coordinate_names``).
+    """
     names = list(dict.fromkeys(row["controller"] for row in rows))
     fig, grid = plt.subplots(2, len(names), figsize=(3.2 * len(names), 6.4), squeeze=False,
                              sharex=True, sharey=True)
@@ -140,9 +144,9 @@ def feasibility_maps(rows: list[dict[str, Any]], path: Path, *, axes: tuple[int,
             ax.set_title(f"{name}: by {prefix}", fontsize=9)
             ax.grid(alpha=0.3)
     for ax in grid[-1]:
-        ax.set_xlabel("xyz"[a] if a < 3 else f"q{a}")
+        ax.set_xlabel(f"{names[a]} [m]" if a < len(names) else f"q{a + 1}")
     for ax in grid[:, 0]:
-        ax.set_ylabel("xyz"[b] if b < 3 else f"q{b}")
+        ax.set_ylabel(f"{names[b]} [m]" if b < len(names) else f"q{b + 1}")
     fig.legend(loc="lower center", ncol=len(OUTCOMES), fontsize=8)
     fig.tight_layout(rect=(0, 0.05, 1, 1))
     fig.savefig(path, dpi=110)
@@ -150,15 +154,28 @@ def feasibility_maps(rows: list[dict[str, Any]], path: Path, *, axes: tuple[int,
     return path
 
 
+def _map_planes(meta: dict[str, Any]) -> tuple[tuple[str, ...], list[tuple[int, int]]]:
+    """Coordinate names of the stored robot and the position planes to map: (0, 1), and
+    (0, d - 1) too in 3-D (d the number of position coordinates)."""
+    try:
+        robot = Robot(**meta["identity"]["robot"])
+    except (KeyError, TypeError, CdprError):
+        return ("x", "y", "z"), [(0, 1)]
+    d = robot.dimension
+    return robot.coordinate_names, [(0, 1)] + ([(0, d - 1)] if d >= 3 else [])
+
+
 def write_sweep_report(results: Path, out_dir: Path) -> Path:
     """``cdpr-sym report sweep``: summary.md, summary.json and maps from stored results."""
     rows, meta = load_results(results)
     out_dir.mkdir(parents=True, exist_ok=True)
     summary = summarise(rows)
-    n = sum(1 for key in rows[0] if key.startswith("start_")) if rows else 0
-    feasibility_maps(rows, out_dir / "maps_xy.png", axes=(0, 1))
-    if n >= 3:
-        feasibility_maps(rows, out_dir / "maps_xz.png", axes=(0, 2))
+    names, planes = _map_planes(meta)
+    figures = []
+    for a, b in planes:
+        figure = f"maps_{names[a]}{names[b]}.png"
+        feasibility_maps(rows, out_dir / figure, axes=(a, b), names=names)
+        figures += [f"![Outcome by start and goal, {names[a]}-{names[b]}]({figure})", ""]
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     config = meta.get("config", {})
     text = "\n".join([
@@ -167,9 +184,7 @@ def write_sweep_report(results: Path, out_dir: Path) -> Path:
         f"(seed {config.get('seed')}), {config.get('duration')} s runs at "
         f"{1 / config['dt'] if config.get('dt') else '?'} Hz, plant mass x "
         f"{config.get('mass_scale')}.", "",
-        summary_table(summary), "",
-        "![Outcome by start and goal, x-y](maps_xy.png)", "",
-        *(["![Outcome by start and goal, x-z](maps_xz.png)", ""] if n >= 3 else []),
+        summary_table(summary), "", *figures,
     ])
     (out_dir / "summary.md").write_text(text)
     return out_dir / "summary.md"

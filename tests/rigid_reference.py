@@ -10,6 +10,7 @@ towards its anchor ``a_i`` with the force ``tau_i u_i``, ``u_i = (a_i - P_i) / l
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -23,6 +24,7 @@ __all__ = [
     "cable_lengths",
     "cable_power",
     "center_of_mass",
+    "geometry_of",
     "kinetic_energy",
     "potential_energy",
     "rotation",
@@ -229,3 +231,14 @@ def cable_power(
     v_attach = _split(geometry, dq)[0] + _omega_cross(omega, lever)
     length_rate = -np.sum(_cable_vectors(geometry, q)[1] * v_attach, axis=1)
     return float(np.asarray(tau, dtype=np.float64).reshape(-1) @ -length_rate)
+
+
+def geometry_of(robot: Any) -> RigidGeometry:
+    """The geometry of any object with the robot-file fields (anchors, attachments, mass,
+    gravity, inertia (1, 1) or (3, 3), center_of_mass), e.g. a ``cdpr_sym.Robot``."""
+    inertia = np.asarray(robot.inertia, dtype=float)
+    return RigidGeometry(anchors=np.asarray(robot.anchors, dtype=float),
+                         attachments=np.asarray(robot.attachments, dtype=float),
+                         mass=float(robot.mass), gravity=float(robot.gravity),
+                         inertia=float(inertia[0, 0]) if inertia.shape == (1, 1) else inertia,
+                         center_of_mass=np.asarray(robot.center_of_mass, dtype=float))

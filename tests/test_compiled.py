@@ -9,6 +9,7 @@ import casadi as ca
 import numpy as np
 import pytest
 import reference as ref
+import rigid_reference as nref
 
 from cdpr_sym import (
     PD,
@@ -183,3 +184,33 @@ def test_auto_backend_without_compiler_falls_back_to_casadi_and_simulates(no_com
     assert run.stop_reason is None and len(run.t) == 51
     assert np.all(np.isfinite(run.q)) and np.all(np.isfinite(run.tau))
     assert not (no_compiler / "c").exists()
+
+
+@pytest.fixture(scope="module", params=["planar3", "spatial6"])
+def rigid_simulator(request, build_options) -> Simulator:
+    """A compiled closed loop of a rigid-body preset (M(q), C != 0, law (3) in momentum)."""
+    return get_simulator(request.getfixturevalue(request.param), controller_by_name("pd"),
+                         build_options=build_options)
+
+
+def test_compiled_rigid_body_functions_match_symbolic_on_random_inputs(rigid_simulator, rng,
+                                                                      random_states):
+    for name, symbolic in _symbolic_functions(rigid_simulator).items():
+        compiled = rigid_simulator.compiled_function(name)
+        for _ in range(10):
+            args = [_value(arg, rigid_simulator, rng, random_states)
+                    for arg in symbolic.name_in()]
+            _assert_same_outputs(compiled, symbolic, args)
+
+
+def test_compiled_rigid_body_acceleration_matches_newton_euler(rigid_simulator, rng,
+                                                               random_states):
+    robot = rigid_simulator.robot
+    acceleration = rigid_simulator.compiled_function("acceleration")
+    body = nref.geometry_of(robot)
+    q_all, dq_all = random_states(robot, rng, 30, speed=2.0)
+    for q, dq in zip(q_all, dq_all, strict=True):
+        tau = rng.uniform(robot.t_min, robot.t_max, robot.n)
+        expected = nref.acceleration(body, q, dq, tau)
+        np.testing.assert_allclose(np.array(acceleration(q, dq, tau).full()).ravel(), expected,
+                                   rtol=0, atol=1e-9 * max(1.0, np.abs(expected).max()))

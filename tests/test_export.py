@@ -259,7 +259,7 @@ def test_example_closed_loop_matches_python_simulation(package, aras3):
     np.testing.assert_allclose(printed["final_dq"], run.dq[-1], rtol=0, atol=1e-9)
     np.testing.assert_allclose(printed["tension_min_N"], run.tau.min(), rtol=1e-9)
     np.testing.assert_allclose(printed["tension_max_N"], run.tau.max(), rtol=1e-9)
-    np.testing.assert_allclose(printed["final_error_m"], np.linalg.norm(run.q[-1] - aras3.goal),
+    np.testing.assert_allclose(printed["final_error"], np.linalg.norm(run.q[-1] - aras3.goal),
                                rtol=1e-6)
 
 

@@ -12,11 +12,16 @@ import numpy as np
 import pytest
 import reference as ref
 import rigid_reference as nref
-from test_rigid_bodies import geometry
 
 from cdpr_sym import PD, L2Design, SaturatedPD
 from cdpr_sym.box_designs import BoxDesign, LinfDesign
-from cdpr_sym.controllers import FLAG_INFEASIBLE, FLAG_LOW_SPEED, tension
+from cdpr_sym.controllers import (
+    FALLBACK_FLAGS,
+    FLAG_INFEASIBLE,
+    FLAG_LOW_SPEED,
+    FLAG_SATURATED,
+    tension,
+)
 from cdpr_sym.cvx_designs import CvxExactBoxDesign
 from cdpr_sym.model import SymbolicModel
 
@@ -31,13 +36,41 @@ def robot_and_model(request):
 
 def oracle_parts(robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """W = -(dl/dq)^T and grad V by central differences of the Newton-Euler reference."""
-    body = geometry(robot)
+    body = nref.geometry_of(robot)
     basis = np.eye(robot.n) * STEP
     dl = np.column_stack([nref.cable_lengths(body, q + e) - nref.cable_lengths(body, q - e)
                           for e in basis]) / (2 * STEP)
     grad_v = np.array([nref.potential_energy(body, q + e) - nref.potential_energy(body, q - e)
                        for e in basis]) / (2 * STEP)
     return -dl.T, grad_v
+
+
+def oracle_mass_matrix(robot, q: np.ndarray) -> np.ndarray:
+    """M from the reference's kinetic energy by polarization (exact: T is quadratic in dq)."""
+    body, n = nref.geometry_of(robot), robot.n
+    T = [[nref.kinetic_energy(body, q, e_i + e_j) for e_j in np.eye(n)] for e_i in np.eye(n)]
+    diagonal = np.array([nref.kinetic_energy(body, q, e) for e in np.eye(n)])
+    return np.array(T) - diagonal[:, None] - diagonal[None, :]  # T(a + b) - T(a) - T(b)
+
+
+def oracle_law_3(robot, q, p, goal, j, alpha) -> np.ndarray:
+    """(3) as printed, M_d = M: W^{-1} (grad_q H - grad_q H_d + (J_d - R_d) grad_p H_d) with
+    the PD part scaled by alpha; every gradient by central differences of the reference's
+    energies at fixed momentum p."""
+    body = nref.geometry_of(robot)
+
+    def kinetic(qq):  # 1/2 p^T M(qq)^{-1} p
+        return 0.5 * p @ np.linalg.solve(oracle_mass_matrix(robot, qq), p)
+
+    def grad(f):
+        return np.array([(f(q + e) - f(q - e)) / (2 * STEP) for e in np.eye(robot.n) * STEP])
+
+    grad_h = grad(lambda qq: kinetic(qq) + nref.potential_energy(body, qq))
+    grad_h_d = grad(kinetic) + alpha * robot.k * (q - goal)
+    dq = np.linalg.solve(oracle_mass_matrix(robot, q), p)  # grad_p H_d
+    J_d = ref.interconnection_matrix(j, robot.n)
+    W, _ = oracle_parts(robot, q)
+    return np.linalg.solve(W, grad_h - grad_h_d + (J_d - alpha * np.diag(robot.r_d)) @ dq)
 
 
 def _states(robot, model, rng, random_states, count, *, need_beta: bool):
@@ -139,12 +172,11 @@ def test_l2_tension_stays_in_the_box_where_beta_is_positive_theorem_1(robot_and_
         out = tension(model, L2Design(), q, dq, goal)
         mid, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
         assert np.linalg.norm(out.tau - mid) <= half * (1 + 1e-9)
-        # the design's tension differs from tau_1 + alpha tau_2 only by A j
-        W, _ = oracle_parts(robot, q)
-        P = ref.p_matrix(dq)
-        parts = tension(model, PD(), q, dq, goal).tau
-        tau_1 = tension(model, PD(), q, np.zeros(robot.n), q).tau
-        expected = tau_1 + out.alpha * (parts - tau_1) + np.linalg.solve(W, P @ out.j)
+        # the design's tension is tau_1 + alpha tau_2 + A j, all from the oracle
+        W, grad_v = oracle_parts(robot, q)
+        tau_2 = -np.linalg.solve(W, robot.k * (q - goal) + robot.r_d * dq)
+        expected = (np.linalg.solve(W, grad_v) + out.alpha * tau_2
+                    + np.linalg.solve(W, ref.p_matrix(dq) @ out.j))
         if not out.flags & FLAG_LOW_SPEED:
             np.testing.assert_allclose(out.tau, expected, rtol=0, atol=1e-5 * robot.t_max)
 
@@ -166,3 +198,33 @@ def test_box_designs_fast_path_matches_cvxpy_clarabel(robot_and_model, design, r
         np.testing.assert_allclose(fast.tau, slow.tau, rtol=0, atol=1e-4)
         compared += 1
     assert compared >= 10
+
+
+@pytest.mark.parametrize("controller", [PD(), L2Design(construction="min_norm")],
+                         ids=["pd", "l2"])
+def test_controllers_equal_law_3_written_in_momentum_by_the_oracle(robot_and_model, controller,
+                                                                   rng, random_states):
+    """tau_1 + tau_2 + tau_3 of (8) equals (3) with M_d = M, whose grad_q H and grad_q H_d
+    each carry a non-zero kinetic part (they cancel only because M_d = M)."""
+    robot, model = robot_and_model
+    compared = 0
+    for q, dq, goal in _states(robot, model, rng, random_states, 25, need_beta=True):
+        out = tension(model, controller, q, dq, goal)
+        if out.flags & (FALLBACK_FLAGS | FLAG_SATURATED):
+            continue  # a fallback acted: (3) does not describe the command
+        p = oracle_mass_matrix(robot, q) @ dq
+        expected = oracle_law_3(robot, q, p, goal, out.j, out.alpha)
+        np.testing.assert_allclose(out.tau, expected, rtol=0, atol=1e-5 * robot.t_max)
+        literal = np.array(model.functions["ida_pbc_tension"](
+            q, p, goal, robot.k, robot.r_d, out.j, out.alpha)).ravel()
+        np.testing.assert_allclose(literal, expected, rtol=0, atol=1e-5 * robot.t_max)
+        compared += 1
+    assert compared >= 20
+
+
+def test_mass_matrix_equals_the_references_kinetic_energy_form(robot_and_model, rng,
+                                                               random_states):
+    robot, model = robot_and_model
+    for q in random_states(robot, rng, 20)[0]:
+        np.testing.assert_allclose(np.array(model.functions["mass_matrix"](q)),
+                                   oracle_mass_matrix(robot, q), rtol=0, atol=1e-12)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import reference as ref
 
-from cdpr_sym import InvalidRobot, UnknownName, load_robot, preset, resolve_robot
+from cdpr_sym import InvalidRobot, Robot, UnknownName, load_robot, preset, resolve_robot
 
 
 def _preset_text(name: str) -> str:
@@ -255,7 +255,39 @@ def test_rigid_start_with_concurrent_cable_lines_is_singular_and_refused(planar3
     assert raised.value.field == "anchors"
 
 
-@pytest.mark.parametrize("name", ["planar3", "spatial6"])
-def test_rigid_preset_file_reads_back_identically(tmp_path, name):
-    loaded = load_robot(_write(tmp_path, _preset_text(name)))
-    assert loaded.as_dict() == preset(name).as_dict()
+@pytest.mark.parametrize("name", ["aras3", "planar2", "planar3", "spatial6"])
+def test_robot_rebuilds_from_its_plain_description(name):
+    """Sweep workers and sidecars rely on Robot(**robot.as_dict()) being the same robot."""
+    robot = preset(name)
+    rebuilt = Robot(**robot.as_dict())
+    assert rebuilt.as_dict() == robot.as_dict()
+    assert rebuilt.kind == robot.kind and rebuilt.n == robot.n
+    assert ("inertia" in robot.as_dict()) == (robot.kind != "point")
+
+
+@pytest.mark.parametrize(("edit", "field"), [
+    (("[tension]\nmin = 2.0", "[tension]\nmin = 2.0\nmaxx = 80.0"), "tension.maxx"),
+    (("[body]\nattachments", "[body]\nattachment"), "body.attachment"),
+    (("inertia = 0.05", "inertia = true"), "body.inertia"),
+])
+def test_robot_file_typos_and_bools_are_refused_naming_the_field(tmp_path, edit, field):
+    text = _preset_text("planar3")
+    assert edit[0] in text
+    with pytest.raises(InvalidRobot) as raised:
+        load_robot(_write(tmp_path, text.replace(edit[0], edit[1], 1)))
+    assert raised.value.field == field
+
+
+def test_empty_body_table_is_refused_rather_than_read_as_a_point_mass(tmp_path):
+    text = _preset_text("aras3") + "\n[body]\n"
+    with pytest.raises(InvalidRobot) as raised:
+        load_robot(_write(tmp_path, text))
+    assert raised.value.field == "body.attachments"
+
+
+def test_pitch_lower_bound_beyond_the_limit_is_blamed_on_frame_lower(spatial6):
+    lower = spatial6.frame_lower.copy()
+    lower[4] = -1.6
+    with pytest.raises(InvalidRobot) as raised:
+        spatial6.with_case(frame_lower=lower)
+    assert raised.value.field == "frame_lower"
