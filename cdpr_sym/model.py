@@ -168,7 +168,23 @@ class SymbolicModel:
         M = self.mass_matrix(q)
         if M.is_constant():  # invert once, numerically, instead of a symbolic solve per call
             return (ca.DM(np.linalg.inv(np.array(ca.DM(M)))) @ force) * (1.0 / mass_scale)
-        return ca.solve(mass_scale * M, force)
+        return self._solve_mass(M, force) * (1.0 / mass_scale)
+
+    def _solve_mass(self, M: ca.SX, force: ca.SX) -> ca.SX:
+        """M^{-1} force for a rigid body, through the Schur complement of the position block.
+
+        The position block of M is m I (positions are world coordinates of the body-frame
+        origin), so only the (n - d) x (n - d) angle block is solved symbolically: about a
+        third of the code of a generic 6 x 6 solve.
+        """
+        d, mass = self.robot.dimension, self.robot.mass
+        top = M[:d, :d]
+        if not (top.is_constant() and np.allclose(np.array(ca.DM(top)), mass * np.eye(d))):
+            return ca.solve(M, force)
+        B, D = M[:d, d:], M[d:, d:]
+        f_position, f_angle = force[:d], force[d:]
+        x_angle = ca.solve(D - B.T @ B / mass, f_angle - B.T @ f_position / mass)
+        return ca.vertcat((f_position - B @ x_angle) / mass, x_angle)
 
     # -- interconnection --------------------------------------------------------------
     def skew_pairs(self) -> list[tuple[int, int]]:

@@ -178,3 +178,22 @@ def test_pd_with_gravity_compensation_converges_from_a_nearby_start(name, reques
     assert np.abs(run.q[0] - robot.goal).max() > 0.04
     np.testing.assert_allclose(run.q[-1], robot.goal, atol=1e-4)
     np.testing.assert_allclose(run.dq[-1], 0.0, atol=1e-3)
+
+
+def test_interconnection_identities_hold_for_n_6(spatial6, rng, random_states):
+    """J_d (15 entries) dq = P j, P^T dq = 0 (eq. 12), rank A = n - 1, A = 0 at rest."""
+    functions = SymbolicModel(spatial6).functions
+    q_all, dq_all = random_states(spatial6, rng, 30)
+    for q, dq in zip(q_all, dq_all, strict=True):
+        j = rng.normal(size=15)
+        J_d = _value(functions["interconnection_matrix"], j)
+        P = _value(functions["p_matrix"], dq)
+        assert P.shape == (6, 15)
+        np.testing.assert_array_equal(J_d, -J_d.T)
+        np.testing.assert_allclose(J_d @ dq, P @ j, rtol=0, atol=1e-13 * max(1.0, abs(j).max()))
+        np.testing.assert_allclose(P.T @ dq, 0.0, atol=1e-15 * max(1.0, dq @ dq))
+        A = _value(functions["a_matrix"], q, dq)
+        assert np.linalg.matrix_rank(A) == 5
+        np.testing.assert_allclose(A, np.linalg.solve(_value(functions["structure_matrix"], q),
+                                                      P), rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(_value(functions["a_matrix"], q_all[0], np.zeros(6)), 0.0)
