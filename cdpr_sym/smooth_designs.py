@@ -61,7 +61,9 @@ class SmoothReference:
     W^{-1} grad V at a start at rest (no start jump); the planned feed-forward tension is in
     the box with the chosen margin and changes by at most ``max_rate`` (checked at the
     ``samples`` path points). Assumptions: the straight segment from start to goal lies in
-    the static workspace with some margin (else FLAG_INFEASIBLE and the slowest plan);
+    the static workspace with some margin and does not cross det W = 0 (checked at the
+    samples; else FLAG_INFEASIBLE and the slowest plan, and the run may stop as singular:
+    the 6-cable platform's workspace has such internal singular surfaces);
     the plant's mass is close to the model's (the feedback absorbs the rest).
     Command: W^{-1} (M(q) ddq_r + C(q, dq) dq_r + grad V - K (q - q_r) - R_d (dq - dq_r)),
     clipped; the plan's feed-forward is M(q_r) ddq_r + C(q_r, dq_r) dq_r + grad V (m ddq_r
@@ -98,11 +100,12 @@ class SmoothReference:
         robot = model.robot
         delta = q_goal - q0
         u = np.linspace(0.0, 1.0, self.samples)
-        static, accel = [], []
+        static, accel, dets = [], [], []
         for value in u:
             s, ds, dds = minimum_jerk(ca.SX(value))
             q_r = q0 + delta * s
             W = model.structure_matrix(q_r)
+            dets.append(ca.det(W))
             static.append(model.static_tension(q_r))
             # M q_r'' + C(q_r, q_r') q_r' = (M dds delta + C(q_r, ds delta) ds delta) / T^2
             inertial = (model.mass_matrix(q_r) @ (dds * delta)
@@ -126,6 +129,9 @@ class SmoothReference:
                 ok = ca.logic_and(ca.logic_and(low <= x, x <= high), slow_enough[T])
                 chosen_T = ca.if_else(ok, T, chosen_T)
                 chosen_margin = ca.if_else(ok, margin, chosen_margin)
+        # a straight path through det W = 0 (the sign changes between samples) has no plan
+        crosses = ca.sum1(ca.vertcat(*dets) * dets[0] <= 0) > 0
+        chosen_margin = ca.if_else(crosses, -1.0, chosen_margin)
         return ca.vertcat(0.0, q0, chosen_T, chosen_margin)
 
     def law_with_memory(self, model: SymbolicModel, q, dq, q_goal, k, r_d, memory, dt
