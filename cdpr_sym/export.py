@@ -115,12 +115,12 @@ _FLAG_DOCS = {
 #: Arguments of ``<prefix>_control`` by the law's input / output names:
 #: (C parameter, value handed to CasADi, may be NULL, documentation).
 _CONTROL_INPUTS = {
-    "q": ("const double q[@n@]", "q", False, "position, m"),
+    "q": ("const double q[@n@]", "q", False, "position, m (angles: rad)"),
     "dq": ("const double dq[@n@]", "dq", False,
-           "velocity, m/s (rest and |dq| below any low-speed threshold included)"),
-    "q_goal": ("const double q_goal[@n@]", "q_goal", False, "goal position, m"),
+           "velocity, m/s, rad/s (rest and |dq| below any low-speed threshold included)"),
+    "q_goal": ("const double q_goal[@n@]", "q_goal", False, "goal position, m (rad)"),
     "k": ("const double k[@n@]", "k ? k : @PREFIX@_case_k", True,
-          "stiffness gains K (diagonal), N/m; NULL: the robot's case gains"),
+          "stiffness gains K (diagonal), N/m, N m/rad; NULL: the robot's case gains"),
     "r_d": ("const double r_d[@n@]", "r_d ? r_d : @PREFIX@_case_r_d", True,
             "damping gains R_d (diagonal), N s/m; NULL: the robot's case gains"),
     "memory": ("const double memory[@nmem@]", "memory", False,
@@ -228,7 +228,7 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     :func:`cdpr_sym.controllers.law_function`, :class:`cdpr_sym.model.SymbolicModel`,
     :func:`cdpr_sym.simulation.step_function` and (for a controller with internal state)
     :func:`cdpr_sym.simulation.initial_memory_function`; all quantities are SI
-    (m, m/s, N, s).
+    (m, rad, m/s, N, s).
 
     Examples
     --------
