@@ -112,7 +112,7 @@ def _simulate(args: argparse.Namespace) -> int:
 
 def _study(args: argparse.Namespace) -> int:
     robot = resolve_robot(args.robot or "aras3")
-    default = args.robot is None or args.name == "rigid" or args.robot == "aras3"
+    default = args.robot is None or (args.robot == "aras3" and args.name != "rigid")
     out = args.out or Path("reports") / (
         args.name if default else f"{args.name}_{Path(args.robot).stem}")
     if args.name == "paper":

@@ -243,3 +243,13 @@ def test_rigid_study_writes_its_report_for_both_rigid_presets(capsys, tmp_path):
     assert summary["spatial6"]["n_j"] == 15
     assert set(summary["planar3"]["sweep"]) == set(CONTROLLERS)
     assert (tmp_path / "rigid" / "spatial6_case.png").read_bytes()[:8] == PNG
+
+
+def test_study_of_another_robot_writes_beside_the_default_report(capsys, tmp_path,
+                                                                monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    status, out, _ = _run(capsys, "study", "rigid", "--robot", "planar3", "--pairs", "1")
+    assert status == 0
+    assert (tmp_path / "reports" / "rigid_planar3" / "report.md").exists()
+    assert not (tmp_path / "reports" / "rigid").exists()
+    assert "spatial6" not in out
