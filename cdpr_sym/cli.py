@@ -10,7 +10,7 @@ from pathlib import Path
 from cdpr_sym.compiled import BuildOptions
 from cdpr_sym.controllers import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, InvalidCase
-from cdpr_sym.robot import resolve_robot
+from cdpr_sym.robot import PRESET_NAMES, resolve_robot
 from cdpr_sym.simulation import Plant, simulate
 
 _SUMMARY_KEYS = ("min_tension", "max_tension", "settle_time", "final_error", "min_alpha",
@@ -113,8 +113,11 @@ def _simulate(args: argparse.Namespace) -> int:
 def _study(args: argparse.Namespace) -> int:
     robot = resolve_robot(args.robot or "aras3")
     default = args.robot is None or (args.robot == "aras3" and args.name != "rigid")
-    out = args.out or Path("reports") / (
-        args.name if default else f"{args.name}_{Path(args.robot).stem}")
+    stem = Path(args.robot).stem if args.robot else ""
+    if not args.out and args.robot not in PRESET_NAMES and stem in PRESET_NAMES:
+        raise InvalidCase("out", f"the robot file {args.robot} is named like the preset "
+                          f"{stem!r}, whose report folder it would replace; pass --out")
+    out = args.out or Path("reports") / (args.name if default else f"{args.name}_{stem}")
     if args.name == "paper":
         from cdpr_sym.paper_study import run_paper_study
 

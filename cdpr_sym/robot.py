@@ -349,8 +349,8 @@ def _float_array(field: str, value: Any, *, ndim: int) -> np.ndarray:
         raise InvalidRobot(field, f"expected numbers, got {value!r}")
     try:
         array = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidRobot(field, f"expected numbers, got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidRobot(field, f"expected finite numbers, got {value!r}") from None
     if array.ndim != ndim:
         raise InvalidRobot(field, f"expected a {ndim}-D array, got shape {array.shape}")
     if not np.all(np.isfinite(array)):
@@ -368,8 +368,8 @@ def _inertia_tensor(value: Any, d: int) -> np.ndarray:
         raise InvalidRobot(field, f"expected numbers, got {value!r}")
     try:
         array = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidRobot(field, f"expected numbers, got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidRobot(field, f"expected finite numbers, got {value!r}") from None
     if d == 2:
         if array.size != 1:
             raise InvalidRobot(field, f"expected one moment of inertia (kg m^2) for a planar "
@@ -404,9 +404,13 @@ def _holds_bool(value: Any) -> bool:
 def _float_scalar(field: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
         raise InvalidRobot(field, f"expected a number, got {value!r}")
-    if not np.isfinite(value):
+    try:
+        number = float(value)
+    except OverflowError:
+        number = float("inf")
+    if not np.isfinite(number):
         raise InvalidRobot(field, f"expected a finite number, got {value}")
-    return float(value)
+    return number
 
 
 def _set(robot: Robot, field: str, value: Any) -> None:

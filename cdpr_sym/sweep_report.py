@@ -128,11 +128,20 @@ def feasibility_maps(rows: list[dict[str, Any]], path: Path, *, axes: tuple[int,
 
     ``names`` labels the coordinates (the robot's ``coordinate_names``).
     """
-    names = list(dict.fromkeys(row["controller"] for row in rows))
-    fig, grid = plt.subplots(2, len(names), figsize=(3.2 * len(names), 6.4), squeeze=False,
-                             sharex=True, sharey=True)
+    fig = maps_figure(rows, axes=axes, names=names)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def maps_figure(rows: list[dict[str, Any]], *, axes: tuple[int, int],
+                names: tuple[str, ...]) -> plt.Figure:
+    """The figure of :func:`feasibility_maps`, not yet saved."""
+    controllers = list(dict.fromkeys(row["controller"] for row in rows))
+    fig, grid = plt.subplots(2, len(controllers), figsize=(3.2 * len(controllers), 6.4),
+                             squeeze=False, sharex=True, sharey=True)
     a, b = axes
-    for column, name in enumerate(names):
+    for column, name in enumerate(controllers):
         mine = [row for row in rows if row["controller"] == name]
         for line, prefix in enumerate(("start", "goal")):
             ax = grid[line][column]
@@ -149,9 +158,7 @@ def feasibility_maps(rows: list[dict[str, Any]], path: Path, *, axes: tuple[int,
         ax.set_ylabel(f"{names[b]} [m]" if b < len(names) else f"q{b + 1}")
     fig.legend(loc="lower center", ncol=len(OUTCOMES), fontsize=8)
     fig.tight_layout(rect=(0, 0.05, 1, 1))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return fig
 
 
 def _map_planes(meta: dict[str, Any]) -> tuple[tuple[str, ...], list[tuple[int, int]]]:

@@ -253,3 +253,14 @@ def test_study_of_another_robot_writes_beside_the_default_report(capsys, tmp_pat
     assert (tmp_path / "reports" / "rigid_planar3" / "report.md").exists()
     assert not (tmp_path / "reports" / "rigid").exists()
     assert "spatial6" not in out
+
+
+def test_study_of_a_robot_file_named_like_a_preset_needs_out(capsys, tmp_path, monkeypatch):
+    (tmp_path / "mine").mkdir()
+    text = resources.files("cdpr_sym.presets").joinpath("planar2.toml").read_text()
+    (tmp_path / "mine" / "planar2.toml").write_text(text.replace("mass = 1.0", "mass = 1.2"))
+    monkeypatch.chdir(tmp_path)
+    status, _, err = _run(capsys, "study", "compare", "--robot", "mine/planar2.toml",
+                          "--pairs", "1")
+    assert status == 2 and "out:" in err and "--out" in err
+    assert not (tmp_path / "reports").exists()

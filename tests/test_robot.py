@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import tomllib
 from importlib import resources
 from pathlib import Path
 
@@ -10,6 +11,7 @@ import pytest
 import reference as ref
 
 from cdpr_sym import InvalidRobot, Robot, UnknownName, load_robot, preset, resolve_robot
+from cdpr_sym.robot import robot_from_dict
 
 
 def _preset_text(name: str) -> str:
@@ -291,3 +293,16 @@ def test_pitch_lower_bound_beyond_the_limit_is_blamed_on_frame_lower(spatial6):
     with pytest.raises(InvalidRobot) as raised:
         spatial6.with_case(frame_lower=lower)
     assert raised.value.field == "frame_lower"
+
+
+@pytest.mark.parametrize("field", ["mass", "anchors"])
+def test_integers_too_large_for_a_float_are_refused_naming_the_field(field):
+    """TOML integers have no size limit; 10**400 does not fit a float."""
+    data = tomllib.loads(_preset_text("aras3"))
+    if field == "mass":
+        data["mass"] = 10**400
+    else:
+        data["anchors"][0][0] = 10**400
+    with pytest.raises(InvalidRobot) as raised:
+        robot_from_dict(data)
+    assert raised.value.field == field

@@ -9,13 +9,14 @@ from pathlib import Path
 
 import casadi
 import cvxpy
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
 from cdpr_sym import InvalidCase, SymbolicModel, UnknownName, __version__, preset, simulate
 from cdpr_sym.controllers import controller_by_name
 from cdpr_sym.sweep import METRIC_COLUMNS, SweepConfig, columns, run_sweep, sidecar_path
-from cdpr_sym.sweep_report import write_sweep_report
+from cdpr_sym.sweep_report import load_results, maps_figure, write_sweep_report
 
 CONFIG = SweepConfig(robot="aras3", controllers=("l2", "box"), pairs=3, seed=11,
                      duration=2.0)
@@ -220,3 +221,13 @@ def test_resume_keeps_the_sidecar_and_refuses_a_changed_identity(tmp_path):
     sidecar_path(out).write_text(json.dumps(stored))
     with pytest.raises(InvalidCase, match="controller options"):
         run_sweep(config, out, workers=1, progress=False)
+
+
+def test_sweep_maps_are_labelled_with_the_robots_coordinates(local_sweep):
+    rows, _ = load_results(local_sweep)
+    fig = maps_figure(rows, axes=(0, 1), names=("x", "z"))
+    try:
+        assert fig.axes[len(fig.axes) // 2].get_xlabel() == "x [m]"  # bottom row
+        assert fig.axes[0].get_ylabel() == "z [m]"
+    finally:
+        plt.close(fig)
