@@ -254,9 +254,10 @@ class SymbolicModel:
         p, r_d = ca.SX.sym("momentum", n), ca.SX.sym("r_d", n)
         alpha = ca.SX.sym("alpha")
         grad_v = self.grad_potential(q)
+        W = self.structure_matrix(q)
         specs = [
             ("cable_lengths", [q], ["q"], self.cable_lengths(q), "l"),
-            ("structure_matrix", [q], ["q"], self.structure_matrix(q), "W"),
+            ("structure_matrix", [q], ["q"], W, "W"),
             ("jacobian_ja", [q], ["q"], self.jacobian_ja(q), "J_a"),
             ("mass_matrix", [q], ["q"], self.mass_matrix(q), "M"),
             ("coriolis_matrix", [q, dq], ["q", "dq"], self.coriolis_matrix(q, dq), "C"),
@@ -271,9 +272,8 @@ class SymbolicModel:
              self.hamiltonian_d(q, dq, q_goal, k), "H_d"),
             ("acceleration", [q, dq, tau], ["q", "dq", "tau"],
              self.acceleration(q, dq, tau), "ddq"),
-            ("singularity", [q], ["q"], ca.vertcat(
-                ca.det(self.structure_matrix(q)),
-                self.singularity_measure(self.structure_matrix(q))), "det_W_and_measure"),
+            ("singularity", [q], ["q"], ca.vertcat(ca.det(W), self.singularity_measure(W)),
+             "det_W_and_measure"),
             ("kinetic_energy", [q, dq], ["q", "dq"], self.kinetic_energy(q, dq), "T"),
             ("ida_pbc_tension", [q, p, q_goal, k, r_d, j, alpha],
              ["q", "momentum", "q_goal", "k", "r_d", "j", "alpha"],

@@ -143,14 +143,18 @@ class Robot:
     @property
     def coordinate_names(self) -> tuple[str, ...]:
         """Names of the generalized coordinates, e.g. ("x", "z", "theta")."""
-        return COORDINATES.get((self.kind, self.dimension),
-                               (tuple(f"q{i + 1}" for i in range(self.n)), ()))[0]
+        return self._coordinates()[0]
 
     @property
     def coordinate_units(self) -> tuple[str, ...]:
         """Units of the generalized coordinates, "m" or "rad"."""
-        return COORDINATES.get((self.kind, self.dimension), ((), ("m",) * self.n))[1]
+        return self._coordinates()[1]
 
+    def _coordinates(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """(names, units); a point mass in more than 3-D gets q1, q2, ... in m."""
+        if (self.kind, self.dimension) in COORDINATES:
+            return COORDINATES[self.kind, self.dimension]
+        return tuple(f"q{i + 1}" for i in range(self.n)), ("m",) * self.n
 
     @property
     def n_j(self) -> int:
