@@ -32,8 +32,7 @@ DESIGNS = ("l2", "linf", "box", "pd-sat")
 
 
 def run_compare_study(out_dir: Path, *, robot: Robot | str | Path = "aras3",
-                      pairs: int = 200,
-                      seed: int = 0, designs: tuple[str, ...] = DESIGNS,
+                      pairs: int = 200, seed: int = 0, designs: tuple[str, ...] = DESIGNS,
                       progress: bool = True) -> dict[str, Any]:
     """Paper case and a seeded sweep for ``designs``; writes figures and ``report.md``."""
     robot, robot_source = robot_reference(robot)

@@ -26,8 +26,7 @@ MASS_SCALES = (1.0, 1.1, 0.9)
 
 
 def run_designs_study(out_dir: Path, *, robot: Robot | str | Path = "aras3",
-                      pairs: int = 200,
-                      seed: int = 0, designs: tuple[str, ...] = DESIGNS,
+                      pairs: int = 200, seed: int = 0, designs: tuple[str, ...] = DESIGNS,
                       progress: bool = True) -> dict[str, Any]:
     """Paper case and seeded sweeps (nominal and ±10 % plant mass) for every design."""
     robot, robot_source = robot_reference(robot)
