@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import reference as ref
 
-from cdpr_sym import Plant, preset, simulate
-from cdpr_sym.controllers import FLAG_SATURATED
+from cdpr_sym import Plant, SymbolicModel, preset, simulate
+from cdpr_sym.controllers import FLAG_INFEASIBLE, FLAG_SATURATED
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.smooth_designs import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.sweep import SweepConfig, draw_pairs
@@ -137,3 +137,18 @@ def test_smooth_tracks_its_plan_on_rigid_bodies(name, request, build_options):
     assert np.abs(q_r[-1] - robot.goal).max() < 1e-12  # the plan ended within the run
     assert np.abs(run.q[: len(q_r)] - q_r).max() < 1e-3
     assert run.metrics()["tension_feasible"]
+
+
+def test_smooth_plan_through_det_w_zero_is_flagged_infeasible(spatial6, build_options):
+    """Start and goal on opposite sides of a singular surface of the 6-cable platform: every
+    path between them crosses det W = 0. With 3 samples the tension check alone passes this
+    plan (margin 5 N), so only the sign check of det W can flag it."""
+    start = np.array([0.209, 1.084, 2.716, -0.323, -0.087, -0.331])
+    goal = np.array([-0.272, -0.319, 0.602, -0.276, 0.088, -0.084])
+    singularity = SymbolicModel(spatial6).functions["singularity"]
+    det_start, det_goal = (float(np.array(singularity(q))[0, 0]) for q in (start, goal))
+    assert det_start * det_goal < 0
+    run = simulate(spatial6, SmoothReference(samples=3), start=start, goal=goal, duration=0.01,
+                   build_options=build_options)
+    assert run.flags[0] & FLAG_INFEASIBLE
+    assert run.memory[0, spatial6.n + 2] == -1.0  # no admissible margin
