@@ -15,6 +15,7 @@ import pytest
 from cdpr_sym import SymbolicModel, load_robot, preset, simulate
 from cdpr_sym.cli import main
 from cdpr_sym.controllers import CONTROLLERS, controller_by_name
+from cdpr_sym.sweep import sidecar_path
 
 #: Keys ``simulate --json`` documents, with the JSON types each may take.
 DOCUMENTED = {"min_tension": (float,), "max_tension": (float,),
@@ -264,3 +265,21 @@ def test_study_of_a_robot_file_named_like_a_preset_needs_out(capsys, tmp_path, m
                           "--pairs", "1")
     assert status == 2 and "out:" in err and "--out" in err
     assert not (tmp_path / "reports").exists()
+
+
+def test_sweep_of_a_relative_robot_file_resumes_from_another_folder(capsys, tmp_path,
+                                                                   monkeypatch):
+    (tmp_path / "a").mkdir()
+    text = resources.files("cdpr_sym.presets").joinpath("planar2.toml").read_text()
+    (tmp_path / "a" / "bot.toml").write_text(text)
+    out = tmp_path / "runs.csv"
+    argv = ["sweep", "--pairs", "2", "--controllers", "pd-sat", "--duration", "0.2",
+            "--workers", "1", "--no-progress", "--out", str(out)]
+    monkeypatch.chdir(tmp_path / "a")
+    assert _run(capsys, *argv, "--robot", "bot.toml")[0] == 0
+    sidecar = json.loads(sidecar_path(out).read_text())
+    assert sidecar["config"]["robot"] == str((tmp_path / "a" / "bot.toml").resolve())
+    monkeypatch.chdir(tmp_path)
+    status, _, err = _run(capsys, *argv, "--robot", "a/bot.toml")
+    assert status == 0 and err == ""  # the same configuration: resumed, nothing added
+    assert len(list(csv.DictReader(out.open()))) == 2
