@@ -228,3 +228,16 @@ def test_mass_matrix_equals_the_references_kinetic_energy_form(robot_and_model, 
     for q in random_states(robot, rng, 20)[0]:
         np.testing.assert_allclose(np.array(model.functions["mass_matrix"](q)),
                                    oracle_mass_matrix(robot, q), rtol=0, atol=1e-12)
+
+
+def test_singularity_measure_is_det_w_over_its_column_norms(robot_and_model, rng,
+                                                           random_states):
+    """[det W, |det W| / prod |w_i|] against the oracle's W; the measure lies in [0, 1]."""
+    robot, model = robot_and_model
+    for q in random_states(robot, rng, 20)[0]:
+        W, _ = oracle_parts(robot, q)
+        det, measure = np.array(model.functions["singularity"](q)).ravel()
+        np.testing.assert_allclose(det, np.linalg.det(W), rtol=1e-7)
+        np.testing.assert_allclose(measure, abs(np.linalg.det(W)) / np.prod(
+            np.linalg.norm(W, axis=0)), rtol=1e-7)
+        assert 0.0 <= measure <= 1.0
