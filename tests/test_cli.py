@@ -222,6 +222,10 @@ def test_paper_study_runs_on_a_rigid_robot_file(capsys, tmp_path, robot_file):
     report = (tmp_path / "paper" / "report.md").read_text()
     assert f"applied to `{load_robot(robot_file).name}`" in report
     assert (tmp_path / "paper" / "fig2_l2_design.png").read_bytes()[:8] == PNG
+    # Theorem 1 is "not tested" exactly when every l2 step fell back (spatial6: beta <= 0)
+    metrics = json.loads((tmp_path / "paper" / "metrics.json").read_text())
+    theorem = next(line for line in report.splitlines() if line.startswith("| Theorem 1 |"))
+    assert ("**not tested**" in theorem) == (metrics["l2"]["share_fallback"] == 1.0)
 
 
 def test_bench_runs_on_a_rigid_robot_file(capsys, robot_file):
