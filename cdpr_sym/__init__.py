@@ -1,11 +1,23 @@
-"""cdpr_sym: symbolic modelling, generated C and tension-feasible control of CDPRs."""
+"""cdpr_sym: symbolic modelling, generated C and tension-feasible control of CDPRs.
 
-from cdpr_sym.compiled import BuildOptions
-from cdpr_sym.controllers import (
+The package follows the flow of the work, one folder a stage: ``robot`` (the description)
+→ ``model`` (CasADi) → ``codegen`` (generated C) → ``control`` (the laws) → ``results``
+(trajectories and their files) → ``closed_loop`` (simulation) → ``workspace``, ``sweep``
+→ ``reporting``, ``studies``, ``export`` → ``cli``.
+"""
+
+from cdpr_sym.closed_loop import Case, Plant, Simulator, get_simulator, simulate, simulate_adaptive
+from cdpr_sym.codegen import BuildOptions
+from cdpr_sym.control import (
     CONTROLLERS,
     PD,
+    BoxDesign,
+    Controller,
     L2Design,
+    LinfDesign,
     SaturatedPD,
+    SmoothReference,
+    VirtualReferenceIdaPbc,
     controller_by_name,
     tension,
 )
@@ -18,15 +30,15 @@ from cdpr_sym.errors import (
     UnknownName,
 )
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.results import Trajectory
 from cdpr_sym.robot import Robot, load_robot, preset, resolve_robot
-from cdpr_sym.simulation import Case, Plant, Simulator, get_simulator, simulate, simulate_adaptive
-from cdpr_sym.trajectory import Trajectory
+from cdpr_sym.version import __version__
 
 __all__ = [
-    "CONTROLLERS", "PD", "BuildOptions", "Case", "CdprError", "CompilationFailed",
-    "CompilerNotFound", "InvalidCase", "InvalidRobot", "L2Design", "Plant", "Robot",
-    "SaturatedPD", "Simulator", "SymbolicModel", "Trajectory", "UnknownName",
-    "controller_by_name", "get_simulator", "load_robot", "preset", "resolve_robot",
-    "simulate", "simulate_adaptive", "tension",
+    "CONTROLLERS", "PD", "BoxDesign", "BuildOptions", "Case", "CdprError",
+    "CompilationFailed", "CompilerNotFound", "Controller", "InvalidCase", "InvalidRobot",
+    "L2Design", "LinfDesign", "Plant", "Robot", "SaturatedPD", "Simulator",
+    "SmoothReference", "SymbolicModel", "Trajectory", "UnknownName",
+    "VirtualReferenceIdaPbc", "__version__", "controller_by_name", "get_simulator",
+    "load_robot", "preset", "resolve_robot", "simulate", "simulate_adaptive", "tension",
 ]
-__version__ = "0.1.0"

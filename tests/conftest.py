@@ -1,7 +1,9 @@
 """Shared fixtures: the preset robots, models, a private build cache, random states.
 
-Every test that compiles uses ``build_options``, so generated libraries land in a
-session-private cache folder (compiled once per session, never in the user's cache).
+The whole session builds into a private cache: ``XDG_CACHE_HOME`` points into the session's
+temporary folder (for the library, the command line and its subprocesses alike), and
+``build_options`` names the same folder, so each library is compiled once per session and
+never in the user's cache.
 """
 
 from __future__ import annotations
@@ -52,10 +54,19 @@ def planar2_model(planar2: Robot) -> SymbolicModel:
     return SymbolicModel(planar2)
 
 
+@pytest.fixture(scope="session", autouse=True)
+def private_cache_home(tmp_path_factory: pytest.TempPathFactory):
+    """``XDG_CACHE_HOME`` of the whole session: a temporary folder, restored afterwards."""
+    home = tmp_path_factory.mktemp("cache_home")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("XDG_CACHE_HOME", str(home))
+        yield home
+
+
 @pytest.fixture(scope="session")
-def cache_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A build cache private to this test session."""
-    return tmp_path_factory.mktemp("cdpr_sym_cache")
+def cache_dir(private_cache_home: Path) -> Path:
+    """The build cache private to this test session (the default cache under it)."""
+    return private_cache_home / "cdpr_sym"
 
 
 @pytest.fixture(scope="session")

@@ -13,9 +13,9 @@ import reference as ref
 from scipy.optimize import linprog
 
 from cdpr_sym import InvalidCase, L2Design, simulate
-from cdpr_sym.box_designs import BoxDesign, LinfDesign
-from cdpr_sym.controllers import FLAG_BETA, FLAG_INFEASIBLE, FLAG_LOW_SPEED, tension
-from cdpr_sym.cvx_designs import CvxExactBoxDesign
+from cdpr_sym.control import FLAG_BETA, FLAG_INFEASIBLE, FLAG_LOW_SPEED, tension
+from cdpr_sym.control.cvx_reference import CvxExactBoxDesign
+from cdpr_sym.control.exact_box import BoxDesign, LinfDesign
 
 DESIGNS = {"box": BoxDesign(), "linf": LinfDesign()}
 #: Random states per robot in the fast-path / cvxpy comparison (plus the special states).

@@ -14,8 +14,8 @@ import pytest
 
 from cdpr_sym import SymbolicModel, load_robot, preset, simulate
 from cdpr_sym.cli import main
-from cdpr_sym.controllers import CONTROLLERS, controller_by_name
-from cdpr_sym.sweep import sidecar_path
+from cdpr_sym.control import CONTROLLERS, controller_by_name
+from cdpr_sym.results.store import sidecar_path
 
 #: Keys ``simulate --json`` documents, with the JSON types each may take.
 DOCUMENTED = {"min_tension": (float,), "max_tension": (float,),
@@ -157,7 +157,7 @@ def test_installed_console_script_runs_simulate():
 @pytest.fixture(scope="module", params=["planar3", "spatial6"])
 def robot_file(request, tmp_path_factory) -> Path:
     """A rigid-body preset written out as a user's robot file."""
-    text = resources.files("cdpr_sym.presets").joinpath(f"{request.param}.toml").read_text()
+    text = resources.files("cdpr_sym.robot.presets").joinpath(f"{request.param}.toml").read_text()
     path = tmp_path_factory.mktemp("robots") / f"my_{request.param}.toml"
     path.write_text(text)
     return path
@@ -262,7 +262,7 @@ def test_study_of_another_robot_writes_beside_the_default_report(capsys, tmp_pat
 
 def test_study_of_a_robot_file_named_like_a_preset_needs_out(capsys, tmp_path, monkeypatch):
     (tmp_path / "mine").mkdir()
-    text = resources.files("cdpr_sym.presets").joinpath("planar2.toml").read_text()
+    text = resources.files("cdpr_sym.robot.presets").joinpath("planar2.toml").read_text()
     (tmp_path / "mine" / "planar2.toml").write_text(text.replace("mass = 1.0", "mass = 1.2"))
     monkeypatch.chdir(tmp_path)
     status, _, err = _run(capsys, "study", "compare", "--robot", "mine/planar2.toml",
@@ -274,7 +274,7 @@ def test_study_of_a_robot_file_named_like_a_preset_needs_out(capsys, tmp_path, m
 def test_sweep_of_a_relative_robot_file_resumes_from_another_folder(capsys, tmp_path,
                                                                    monkeypatch):
     (tmp_path / "a").mkdir()
-    text = resources.files("cdpr_sym.presets").joinpath("planar2.toml").read_text()
+    text = resources.files("cdpr_sym.robot.presets").joinpath("planar2.toml").read_text()
     (tmp_path / "a" / "bot.toml").write_text(text)
     out = tmp_path / "runs.csv"
     argv = ["sweep", "--pairs", "2", "--controllers", "pd-sat", "--duration", "0.2",

@@ -15,7 +15,6 @@ from cdpr_sym import (
     PD,
     BuildOptions,
     CompilerNotFound,
-    Plant,
     Simulator,
     controller_by_name,
     get_simulator,
@@ -50,12 +49,16 @@ def _value(name: str, simulator: Simulator, rng: np.random.Generator, draw_state
         return getattr(robot, name) * rng.uniform(0.2, 2.0, robot.n)
     if name == "j":
         return rng.normal(size=robot.n_j) * 10.0
+    if name == "memory":  # the controllers tested here are stateless
+        return np.zeros(simulator.layout.n_memory)
+    if name == "dt":
+        return rng.uniform(1e-4, 1e-2, 1)
     if name == "x":
         return np.concatenate([q[0], dq[0], [0.0]])
     if name == "p":
         return simulator.layout.parameters(
             q[1], robot.k, robot.r_d, rng.uniform(1e-4, 1e-2),
-            Plant(mass_scale=rng.uniform(0.5, 2.0), slack=bool(rng.integers(2))))
+            mass_scale=rng.uniform(0.5, 2.0), slack=bool(rng.integers(2)))
     raise AssertionError(f"no generator for input {name!r}")
 
 
@@ -72,7 +75,8 @@ def _assert_same_outputs(compiled: ca.Function, symbolic: ca.Function, args) -> 
         # compiled with re-association allowed: relative, with a small absolute floor scaled
         # by the output's largest entry (j of the paper's LS reaches 1e3-1e4 at creeping
         # speed, and its normal equations amplify round-off by their condition number)
-        np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-11 * max(1.0, np.abs(w).max()))
+        np.testing.assert_allclose(g, w, rtol=1e-12,
+                                   atol=1e-11 * max(1.0, np.abs(w).max(initial=0.0)))
 
 
 def test_simulator_compiles_to_a_shared_library(simulator):
@@ -214,3 +218,12 @@ def test_compiled_rigid_body_acceleration_matches_newton_euler(rigid_simulator, 
         expected = nref.acceleration(body, q, dq, tau)
         np.testing.assert_allclose(np.array(acceleration(q, dq, tau).full()).ravel(), expected,
                                    rtol=0, atol=1e-9 * max(1.0, np.abs(expected).max()))
+
+
+def test_the_suite_builds_into_its_private_cache(cache_dir, private_cache_home):
+    """Default build options in tests (and the CLI's subprocesses) never touch the user's
+    cache: the default cache folder is the session's."""
+    from cdpr_sym.codegen import default_cache_dir
+
+    assert default_cache_dir() == cache_dir
+    assert private_cache_home in default_cache_dir().parents

@@ -7,7 +7,7 @@ import pytest
 import reference as ref
 
 from cdpr_sym import PD, InvalidCase, L2Design, SaturatedPD, UnknownName, controller_by_name
-from cdpr_sym.controllers import FALLBACK_FLAGS, FLAG_BETA, FLAG_LOW_SPEED, tension
+from cdpr_sym.control import FALLBACK_FLAGS, FLAG_BETA, FLAG_LOW_SPEED, tension
 
 #: Skip (and count) l2 comparisons where the paper's Gram matrix 𝔄ᵀ𝔄 is this ill conditioned.
 MAX_COND = 1e10

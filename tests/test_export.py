@@ -1,7 +1,7 @@
 """The exported C package: strict builds, agreement with Python, valgrind, errors, CLI.
 
 Every test compiles for real (gcc, make, cmake) and checks the C against the Python twin:
-the control law of :func:`cdpr_sym.controllers.law_function`, the model terms of
+the control law of :func:`cdpr_sym.control.law_function`, the model terms of
 :class:`cdpr_sym.SymbolicModel` and the closed loop of :func:`cdpr_sym.simulate`.
 """
 
@@ -29,10 +29,9 @@ from cdpr_sym import (
     simulate,
 )
 from cdpr_sym.cli import main
-from cdpr_sym.controllers import CONTROLLERS, FLAG_NAMES, law_function, memory_size
+from cdpr_sym.control import CONTROLLERS, FLAG_NAMES, initial_memory_function, law_function
 from cdpr_sym.export import REQUIRED_MODEL_TERMS, ExportResult, bench_export, export_c
 from cdpr_sym.robot import PRESET_NAMES
-from cdpr_sym.simulation import initial_memory_function
 
 STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-O2")
 HARNESS = Path(__file__).parent / "export_harness" / "harness.c"
@@ -119,7 +118,7 @@ def _states(robot, controller: str, rng, draw_states, count: int) -> np.ndarray:
     use_case = (np.arange(count) % 7 == 0).astype(float)
     k[use_case == 1], r_d[use_case == 1] = robot.k, robot.r_d
     model, law = SymbolicModel(robot), controller_by_name(controller)
-    if not memory_size(model, law):
+    if not law.memory_size(model):
         return np.column_stack([q, dq, goal, k, r_d, use_case])
     start, _ = draw_states(robot, rng, count)
     memory = initial_memory_function(model, law).map(count)(start.T, goal.T, k.T, r_d.T)
@@ -159,10 +158,12 @@ def _split(output: np.ndarray, n: int, n_j: int, n_memory: int = 0) -> dict[str,
 def _python_law(robot, controller: str, states: np.ndarray) -> dict[str, np.ndarray]:
     """The law (and plan) of ``controller`` at the harness's states, evaluated by CasADi."""
     n, model, law = robot.n, SymbolicModel(robot), controller_by_name(controller)
-    size = memory_size(model, law)
+    size = law.memory_size(model)
     columns = [states[:, i * n: (i + 1) * n].T for i in range(5)]
     if size:
         columns += [states[:, 5 * n: 5 * n + size].T, states[:, 5 * n + size]]
+    else:  # a stateless law: empty memory, and dt does not matter
+        columns += [np.zeros((0, len(states))), 1e-3]
     mapped = law_function(model, law).map(len(states))
     out = {name: np.array(value.full()).T
            for name, value in zip(mapped.name_out(), mapped(*columns), strict=True)}
@@ -334,7 +335,7 @@ def test_other_designs_match_python_law(package, robot_name, controller, rng, ra
     robot = preset(robot_name)
     built = package(robot_name, controller)
     states = _states(robot, controller, rng, random_states, 200)
-    n_memory = memory_size(SymbolicModel(robot), controller_by_name(controller))
+    n_memory = controller_by_name(controller).memory_size(SymbolicModel(robot))
     c_out = _split(_run_harness(built, states, tmp_path), robot.n, robot.n_j, n_memory)
     python = _python_law(robot, controller, states)
     assert np.all(c_out["ret"] == 0)
@@ -345,7 +346,8 @@ def test_other_designs_match_python_law(package, robot_name, controller, rng, ra
 
 
 def test_two_robots_link_into_one_program(package, tmp_path):
-    toml = (Path(__file__).parents[1] / "cdpr_sym" / "presets" / "planar2.toml").read_text()
+    presets = Path(__file__).parents[1] / "cdpr_sym" / "robot" / "presets"
+    toml = (presets / "planar2.toml").read_text()
     robot_file = tmp_path / "bot.toml"
     robot_file.write_text(toml.replace('name = "planar2"', 'name = "my bot-2"'))
     other = export_c(robot_file, "pd-sat", tmp_path / "other")
@@ -375,7 +377,7 @@ int main(void) {{
                                    (preset("planar2"), "pd-sat", values[5:7])):
         law = law_function(SymbolicModel(robot), controller_by_name(controller))
         expected = np.array(law(robot.start, np.zeros(robot.n), robot.goal, robot.k,
-                                robot.r_d)[0].full()).ravel()
+                                robot.r_d, np.zeros(0), 1e-3)[0].full()).ravel()
         np.testing.assert_allclose(tau, expected, rtol=1e-12)
 
 

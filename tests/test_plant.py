@@ -6,23 +6,18 @@ import numpy as np
 import pytest
 
 from cdpr_sym import Plant, SaturatedPD, controller_by_name, preset, simulate
+from cdpr_sym.closed_loop import get_simulator
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.simulation import get_simulator
 
 
 def _applied_tension(robot, controller, plant, duration):
     """Run the rate-limited simulator and read the actuators' state column by column."""
     simulator = get_simulator(robot, controller, rate_limited=True)
     layout = simulator.layout
-    n_steps = round(duration / 1e-3)
-    states = np.zeros((n_steps + 1, layout.n_x))
-    logs = np.zeros((n_steps, layout.n_log))
-    states[0, : robot.n] = robot.start
-    states[0, layout.applied_index: layout.status_index] = np.array(
-        simulator.model.functions["static_tension"](robot.start)).ravel()
-    p = layout.parameters(robot.goal, robot.k, robot.r_d, 1e-3, plant)
-    simulator._rollout(states, logs, p, n_steps)
-    return states[:, layout.applied_index: layout.status_index], logs[:, : robot.n]
+    p = layout.parameters(robot.goal, robot.k, robot.r_d, 1e-3, rate_limit=plant.rate_limit)
+    x0 = simulator.initial_state(robot.start, robot.goal, robot.k, robot.r_d)
+    states, logs = simulator.rollout(x0, p, round(duration / 1e-3))
+    return states[:, layout.x.slice("applied")], logs[:, layout.log.slice("tau")]
 
 
 def test_rate_limit_bounds_the_applied_tension_change():

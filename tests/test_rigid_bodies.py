@@ -15,8 +15,8 @@ import pytest
 import rigid_reference as nref
 
 from cdpr_sym import Robot, SymbolicModel, simulate
-from cdpr_sym.controllers import PD
-from cdpr_sym.simulation import rk4
+from cdpr_sym.closed_loop import rk4
+from cdpr_sym.control import PD
 
 ROBOTS = ["planar3", "spatial6", "spatial6_skew"]
 

@@ -14,15 +14,15 @@ import reference as ref
 import rigid_reference as nref
 
 from cdpr_sym import PD, L2Design, SaturatedPD
-from cdpr_sym.box_designs import BoxDesign, LinfDesign
-from cdpr_sym.controllers import (
+from cdpr_sym.control import (
     FALLBACK_FLAGS,
     FLAG_INFEASIBLE,
     FLAG_LOW_SPEED,
     FLAG_SATURATED,
     tension,
 )
-from cdpr_sym.cvx_designs import CvxExactBoxDesign
+from cdpr_sym.control.cvx_reference import CvxExactBoxDesign
+from cdpr_sym.control.exact_box import BoxDesign, LinfDesign
 from cdpr_sym.model import SymbolicModel
 
 STEP = 1e-6  # central differences: truncation ~1e-13, round-off ~1e-10 relative

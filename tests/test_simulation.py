@@ -18,7 +18,7 @@ from cdpr_sym import (
     simulate,
     simulate_adaptive,
 )
-from cdpr_sym.controllers import FALLBACK_FLAGS
+from cdpr_sym.control import FALLBACK_FLAGS
 
 CONTROLLERS = {"pd": PD(), "pd-sat": SaturatedPD(), "l2": L2Design()}
 

@@ -7,9 +7,9 @@ import pytest
 import reference as ref
 
 from cdpr_sym import Plant, SymbolicModel, preset, simulate
-from cdpr_sym.controllers import FLAG_INFEASIBLE, FLAG_SATURATED
+from cdpr_sym.control import FLAG_INFEASIBLE, FLAG_SATURATED
+from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.smooth_designs import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.sweep import SweepConfig, draw_pairs
 
 PAIRS = 6

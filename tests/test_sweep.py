@@ -14,9 +14,12 @@ import numpy as np
 import pytest
 
 from cdpr_sym import InvalidCase, SymbolicModel, UnknownName, __version__, preset, simulate
-from cdpr_sym.controllers import controller_by_name
-from cdpr_sym.sweep import METRIC_COLUMNS, SweepConfig, columns, run_sweep, sidecar_path
-from cdpr_sym.sweep_report import load_results, maps_figure, write_sweep_report
+from cdpr_sym.control import controller_by_name
+from cdpr_sym.reporting.sweep_report import maps_figure, write_sweep_report
+from cdpr_sym.results import SCALAR_METRICS as METRIC_COLUMNS
+from cdpr_sym.results.store import load_table as load_results
+from cdpr_sym.results.store import sidecar_path
+from cdpr_sym.sweep import SweepConfig, columns, run_sweep
 
 CONFIG = SweepConfig(robot="aras3", controllers=("l2", "box"), pairs=3, seed=11,
                      duration=2.0)
@@ -208,7 +211,8 @@ def test_metric_columns_are_the_simulate_metrics(planar2, build_options):
 def test_resume_keeps_the_sidecar_and_refuses_a_changed_identity(tmp_path):
     import json
 
-    from cdpr_sym.sweep import SweepConfig, run_sweep, sidecar_path
+    from cdpr_sym.results.store import sidecar_path
+    from cdpr_sym.sweep import SweepConfig, run_sweep
 
     config = SweepConfig(robot="planar2", controllers=("pd-sat",), pairs=1, seed=0,
                          duration=0.2)

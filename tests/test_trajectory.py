@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cdpr_sym import Trajectory
-from cdpr_sym.controllers import FLAG_ALPHA, FLAG_BETA, FLAG_LOW_SPEED, FLAG_SATURATED
+from cdpr_sym.control import FLAG_ALPHA, FLAG_BETA, FLAG_LOW_SPEED, FLAG_SATURATED
 
 T_MIN, T_MAX = 2.0, 60.0
 

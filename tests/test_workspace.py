@@ -7,7 +7,7 @@ import pytest
 import reference as ref
 
 from cdpr_sym import BuildOptions, InvalidCase
-from cdpr_sym.robot import SINGULAR_DET
+from cdpr_sym.model import SINGULAR_DET
 from cdpr_sym.workspace import BLOCK, WorkspaceEvaluator, interior_box, sample_static_workspace
 
 #: Poses closer than this to a classification boundary may fall either way (round-off).

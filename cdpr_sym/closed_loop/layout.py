@@ -1,0 +1,131 @@
+"""The declared layout of the closed-loop step: its state x, parameters p and log.
+
+One :class:`StepLayout` describes the vectors that the generated step reads and writes; the
+step, the simulator, the C rollout and the exported header all take their offsets from it,
+so the layout is written down once::
+
+    x   = [q (n), dq (n), memory (m), applied (n, rate-limited plants only), status (1)]
+    p   = [q_goal (n), k (n), r_d (n), dt, mass_scale, slack, rate_limit (rate-limited only)]
+    log = [tau (n), alpha, beta, j (n(n-1)/2), flags]
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+import casadi as ca
+import numpy as np
+
+
+@dataclasses.dataclass(frozen=True)
+class Fields:
+    """Named, contiguous fields of one flat vector, in order: ((name, size), ...)."""
+
+    fields: tuple[tuple[str, int], ...]
+
+    @property
+    def size(self) -> int:
+        """Total length of the vector."""
+        return sum(size for _, size in self.fields)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(name for name, _ in self.fields)
+
+    def offset(self, name: str) -> int:
+        """Index of the first entry of field ``name``."""
+        start = 0
+        for field, size in self.fields:
+            if field == name:
+                return start
+            start += size
+        raise KeyError(f"no field {name!r} in {self.names}")
+
+    def width(self, name: str) -> int:
+        """Number of entries of field ``name``."""
+        return dict(self.fields)[name]
+
+    def slice(self, name: str) -> slice:
+        """The entries of field ``name``."""
+        start = self.offset(name)
+        return slice(start, start + self.width(name))
+
+    def offsets(self) -> dict[str, int]:
+        """Every field's offset, in order."""
+        return {name: self.offset(name) for name in self.names}
+
+    def split(self, vector: ca.SX | np.ndarray) -> dict[str, ca.SX | np.ndarray]:
+        """The fields of a symbolic or numeric vector (numeric: along its last axis)."""
+        if isinstance(vector, np.ndarray):
+            return {name: vector[..., self.slice(name)] for name in self.names}
+        return {name: vector[self.slice(name)] for name in self.names}
+
+    def pack(self, values: Mapping[str, object]) -> np.ndarray:
+        """A numeric vector from one value (scalar or array) per field."""
+        parts = []
+        for name, size in self.fields:
+            part = np.asarray(values[name], dtype=float).ravel()
+            if part.size != size:
+                raise ValueError(f"field {name}: expected {size} values, got {part.size}")
+            parts.append(part)
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+
+@dataclasses.dataclass(frozen=True)
+class StepLayout:
+    """The layout of one robot and controller's closed-loop step (see the module docstring).
+
+    Parameters
+    ----------
+    n, n_j : int
+        Degrees of freedom and free entries of J_d.
+    n_memory : int
+        Length of the controller's internal state.
+    rate_limited : bool
+        Whether the plant limits the applied tension's rate (then x holds the applied
+        tension and p the rate limit, N/s).
+    """
+
+    n: int
+    n_j: int
+    n_memory: int = 0
+    rate_limited: bool = False
+
+    @property
+    def x(self) -> Fields:
+        """The state: q (m, rad), dq, the controller's memory, applied tension (N), status."""
+        return Fields((("q", self.n), ("dq", self.n), ("memory", self.n_memory),
+                       ("applied", self.n if self.rate_limited else 0), ("status", 1)))
+
+    @property
+    def p(self) -> Fields:
+        """The parameters: goal, gains, dt (s), plant mass factor, slack switch, rate limit."""
+        return Fields((("q_goal", self.n), ("k", self.n), ("r_d", self.n), ("dt", 1),
+                       ("mass_scale", 1), ("slack", 1),
+                       ("rate_limit", 1 if self.rate_limited else 0)))
+
+    @property
+    def log(self) -> Fields:
+        """Per step: tau (N), alpha, beta (N), j, flags."""
+        return Fields((("tau", self.n), ("alpha", 1), ("beta", 1), ("j", self.n_j),
+                       ("flags", 1)))
+
+    @property
+    def status_index(self) -> int:
+        """Offset of the stop status in x."""
+        return self.x.offset("status")
+
+    def parameters(self, goal, k, r_d, dt: float, *, mass_scale: float = 1.0,
+                   slack: bool = False, rate_limit: float | None = None) -> np.ndarray:
+        """p for one run (``rate_limit`` in N/s, used by a rate-limited layout only)."""
+        return self.p.pack({"q_goal": goal, "k": k, "r_d": r_d, "dt": dt,
+                            "mass_scale": mass_scale, "slack": float(slack),
+                            "rate_limit": [rate_limit or 0.0] if self.rate_limited else []})
+
+    def split_log(self, log: np.ndarray) -> dict[str, np.ndarray]:
+        """The per-step columns of a log array of shape (N, log size)."""
+        fields = self.log.split(log)
+        return {"tau": fields["tau"], "alpha": fields["alpha"][..., 0],
+                "beta": fields["beta"][..., 0], "j": fields["j"],
+                "flags": fields["flags"][..., 0].astype(np.int64)}

@@ -1,0 +1,76 @@
+"""The simulated plant: how it differs from the controller's model, and its dynamics.
+
+The plant is M ddq + C dq + grad V = W tau_applied with mass (and weight) scaled by
+``Plant.mass_scale``; a slack-cable plant applies max(tau, 0); a rate-limited plant moves
+the applied tension towards the command by at most ``rate_limit * dt`` per control period.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+
+import casadi as ca
+
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SymbolicModel
+
+
+@dataclasses.dataclass(frozen=True)
+class Plant:
+    """How the simulated plant differs from the controller's model.
+
+    Parameters
+    ----------
+    mass_scale : float
+        Plant mass (and weight) = ``mass_scale`` x the model's; 1.0 is the nominal plant.
+    slack : bool
+        If True the plant applies max(tau, 0) (a cable cannot push); metrics still report
+        the commanded tension.
+    rate_limit : float, optional
+        Actuator tension-rate limit, N/s: the applied tension moves towards the command by
+        at most ``rate_limit * dt`` per control step, starting from the static tension at
+        the start. None (default) applies the command at once.
+    """
+
+    mass_scale: float = 1.0
+    slack: bool = False
+    rate_limit: float | None = None
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.mass_scale) and self.mass_scale > 0):
+            raise InvalidCase("mass_scale", f"expected a positive factor, got {self.mass_scale}")
+        if self.rate_limit is not None and not (math.isfinite(self.rate_limit)
+                                                and self.rate_limit > 0):
+            raise InvalidCase("rate_limit", f"expected a positive rate in N/s, "
+                              f"got {self.rate_limit}")
+
+    @property
+    def rate_limited(self) -> bool:
+        """Whether the applied tension is rate limited (a state of the plant)."""
+        return self.rate_limit is not None
+
+
+def rk4(rhs: Callable[[ca.SX], ca.SX], x: ca.SX, h: ca.SX) -> ca.SX:
+    """One classic Runge-Kutta 4 step of dx/dt = rhs(x) with step h."""
+    k1 = rhs(x)
+    k2 = rhs(x + 0.5 * h * k1)
+    k3 = rhs(x + 0.5 * h * k2)
+    k4 = rhs(x + h * k3)
+    return x + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+def applied_tension(tau: ca.SX, slack: ca.SX) -> ca.SX:
+    """The tension the plant applies: max(tau, 0) for a slack-cable plant (slack = 1)."""
+    return ca.if_else(slack > 0.5, ca.fmax(tau, 0), tau)
+
+
+def plant_rhs(model: SymbolicModel, tau: ca.SX, mass_scale: ca.SX
+              ) -> Callable[[ca.SX], ca.SX]:
+    """d/dt [q, dq] of the plant with the tension ``tau`` held (W(q) re-evaluated)."""
+    n = model.n
+
+    def rhs(z: ca.SX) -> ca.SX:
+        return ca.vertcat(z[n:], model.acceleration(z[:n], z[n:], tau, mass_scale))
+    return rhs

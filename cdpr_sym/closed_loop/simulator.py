@@ -1,0 +1,232 @@
+"""Closed-loop simulation: the generated step, compiled with a C rollout loop, run from Python.
+
+The step of :mod:`cdpr_sym.closed_loop.step` is generated to C together with a rollout loop
+(rendered from ``templates/rollout.c.j2``), so the whole time loop runs in one C call; Python
+only hands over the buffers. Without a compiler the same step runs in CasADi's virtual
+machine, ``chunk`` steps per call. A run that reaches a singular configuration, leaves the
+frame or produces a non-finite state stops there, and the returned
+:class:`~cdpr_sym.results.Trajectory` ends at the last good sample.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import dataclasses
+import hashlib
+import json
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.closed_loop.case import Case, check_timing
+from cdpr_sym.closed_loop.layout import StepLayout
+from cdpr_sym.closed_loop.plant import Plant
+from cdpr_sym.closed_loop.step import STOP_REASONS, chunk_function, step_function, step_layout
+from cdpr_sym.codegen import BuildOptions, CompiledLibrary, build, c_identifier, render
+from cdpr_sym.control import Controller, initial_memory_function, law_function
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SymbolicModel
+from cdpr_sym.results import Trajectory
+from cdpr_sym.robot import Robot
+
+
+class _Rollout:
+    """The compiled rollout loop, with the step's work memory."""
+
+    def __init__(self, library: CompiledLibrary) -> None:
+        native = library.native()
+        self._call = native.entry("rollout", ctypes.c_longlong,
+                                  [ctypes.c_void_p] * 3 + [ctypes.c_longlong]
+                                  + [ctypes.c_void_p] * 2)
+        self._iw, self._w = native.casadi_function("step").work()
+        self._native = native
+
+    def __call__(self, states: np.ndarray, logs: np.ndarray, p: np.ndarray, n_steps: int) -> int:
+        taken = self._call(states.ctypes.data, logs.ctypes.data, p.ctypes.data, n_steps,
+                           self._iw.ctypes.data, self._w.ctypes.data)
+        if taken < 0:
+            raise RuntimeError("the generated step function reported an error")
+        return int(taken)
+
+
+def rollout_source(step: ca.Function, layout: StepLayout) -> str:
+    """C source of the rollout loop over the generated ``step`` function."""
+    return render("cdpr_sym.closed_loop", "rollout.c.j2", step=step.name(),
+                  sz_arg=max(step.sz_arg(), 2), sz_res=max(step.sz_res(), 2),
+                  n_x=layout.x.size, n_log=layout.log.size, status=layout.status_index)
+
+
+class Simulator:
+    """A closed loop of one robot and controller, generated and (by default) compiled.
+
+    Parameters
+    ----------
+    robot : Robot
+    controller : Controller
+    chunk : int
+        Control steps per call of CasADi's virtual machine (``backend="casadi"`` only; the
+        compiled backend runs the whole time loop in one C call).
+    build_options : BuildOptions
+        Backend (C or CasADi's virtual machine), cache folder, compiler.
+    rate_limited : bool
+        Build the step of a plant with a tension-rate limit (see :class:`Plant`).
+    """
+
+    def __init__(self, robot: Robot, controller: Controller, *, chunk: int = 1000,
+                 build_options: BuildOptions = BuildOptions(),
+                 rate_limited: bool = False) -> None:
+        self.robot = robot
+        self.controller = controller
+        self.model = SymbolicModel(robot)
+        self.layout = step_layout(self.model, controller, rate_limited=rate_limited)
+        self.chunk = chunk
+        self.step = step_function(self.model, controller, rate_limited=rate_limited)
+        self.law = law_function(self.model, controller)
+        self.initial_memory = initial_memory_function(self.model, controller)
+        self.backend = build_options.resolved_backend()
+        self.library: CompiledLibrary | None = None
+        if self.backend == "c":
+            # initial_memory runs once per run: CasADi's virtual machine is fast enough and
+            # keeps a large planning function out of the compiled library
+            functions = [*self.model.functions.values(), self.law, self.step]
+            suffix = "_rate" if rate_limited else ""
+            name = f"cdpr_{c_identifier(robot.name)}_{controller_identifier(controller)}{suffix}"
+            self.library = build(functions, name,
+                                 extra_source=rollout_source(self.step, self.layout),
+                                 options=build_options)
+            self._rollout = _Rollout(self.library)
+        else:
+            self._chunk_function = chunk_function(self.step, chunk)
+
+    def compiled_function(self, name: str) -> ca.Function:
+        """A model term, ``law_*`` or ``step`` loaded from the compiled library."""
+        if self.library is None:
+            raise InvalidCase("backend", "this simulator runs CasADi's virtual machine; "
+                              "there is no compiled library")
+        return self.library.function(name)
+
+    def initial_state(self, start: np.ndarray, goal: np.ndarray, k: np.ndarray,
+                      r_d: np.ndarray, *, dq0: np.ndarray | None = None) -> np.ndarray:
+        """x at the start of a move: at rest (or ``dq0``), the controller's plan, and for a
+        rate-limited plant the static tension as the applied one."""
+        fields = {"q": start, "dq": np.zeros(self.robot.n) if dq0 is None else dq0,
+                  "memory": np.array(self.initial_memory(start, goal, k, r_d)).ravel(),
+                  "applied": self._static_tension(start) if self.layout.rate_limited else [],
+                  "status": 0.0}
+        return self.layout.x.pack(fields)
+
+    def rollout(self, x0: np.ndarray, p: np.ndarray, n_steps: int
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """States (n_steps + 1, x size) and logs (n_steps, log size) from ``x0`` with ``p``.
+
+        Rows after a stop repeat the frozen state (compiled backend: left as zeros).
+        """
+        padded = n_steps if self.backend == "c" else -(-n_steps // self.chunk) * self.chunk
+        states = np.zeros((padded + 1, self.layout.x.size))
+        logs = np.zeros((padded, self.layout.log.size))
+        states[0] = x0
+        if self.backend == "c":
+            self._rollout(states, logs, p, n_steps)
+        else:
+            self._run_virtual_machine(states, logs, p, n_steps)
+        return states, logs
+
+    def run(self, start: np.ndarray, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, *,
+            duration: float, dt: float, plant: Plant, dq0: np.ndarray | None = None
+            ) -> Trajectory:
+        """Simulate from rest (or ``dq0``) at ``start`` towards ``goal`` for ``duration`` s."""
+        if self.layout.rate_limited != plant.rate_limited:
+            raise InvalidCase("plant", "a rate-limited plant needs a simulator built with "
+                              "rate_limited=True (simulate() chooses it)")
+        n_steps = max(1, round(duration / dt))
+        p = self.layout.parameters(goal, k, r_d, dt, mass_scale=plant.mass_scale,
+                                   slack=plant.slack, rate_limit=plant.rate_limit)
+        states, logs = self.rollout(self.initial_state(start, goal, k, r_d, dq0=dq0), p,
+                                    n_steps)
+        return self._trajectory(states, logs, n_steps, dt, goal, k, r_d, plant)
+
+    def _run_virtual_machine(self, states: np.ndarray, logs: np.ndarray, p: np.ndarray,
+                             n_steps: int) -> None:
+        for first in range(0, n_steps, self.chunk):
+            x_out, log_out = self._chunk_function(states[first], p)
+            states[first + 1: first + 1 + self.chunk] = np.array(x_out.full()).T
+            logs[first: first + self.chunk] = np.array(log_out.full()).T
+            if states[first + self.chunk, self.layout.status_index] != 0:
+                break
+
+    def _trajectory(self, states, logs, n_steps, dt, goal, k, r_d, plant) -> Trajectory:
+        status = states[1: n_steps + 1, self.layout.status_index]
+        stopped = np.flatnonzero(status != 0)
+        last = int(stopped[0]) if stopped.size else n_steps
+        reason = STOP_REASONS[int(status[last])] if stopped.size else None
+        x = self.layout.x.split(states[: last + 1])
+        return Trajectory(
+            t=np.arange(last + 1) * dt, q=x["q"].copy(), dq=x["dq"].copy(),
+            q_goal=np.array(goal, dtype=float), t_min=self.robot.t_min,
+            t_max=self.robot.t_max, stop_reason=reason,
+            info=run_info(self.robot, self.controller, dt, k, r_d, plant,
+                          integrator="rk4-sampled", backend=self.backend),
+            memory=x["memory"].copy(),
+            static_tension=self._static_tension(states[0, : self.robot.n]),
+            **self.layout.split_log(logs[:last]))
+
+    def _static_tension(self, q: np.ndarray) -> np.ndarray:
+        return np.array(self.model.functions["static_tension"](q)).ravel()
+
+
+def run_info(robot: Robot, controller: Controller, dt: float, k, r_d, plant: Plant, *,
+             integrator: str, **extra: Any) -> dict[str, Any]:
+    """What a Trajectory records about how it was made."""
+    return {"robot": robot.name, "coordinates": list(robot.coordinate_names),
+            "units": list(robot.coordinate_units), "controller": controller.name,
+            "controller_options": controller.options(), "dt": dt,
+            "k": np.asarray(k).tolist(), "r_d": np.asarray(r_d).tolist(),
+            "plant": dataclasses.asdict(plant), "integrator": integrator, **extra}
+
+
+def controller_identifier(controller: Controller) -> str:
+    """A C identifier for a controller and its options (options hashed)."""
+    base = c_identifier(controller.name)
+    options = json.dumps(controller.options(), sort_keys=True)
+    if options == "{}":
+        return base
+    return f"{base}_{hashlib.sha256(options.encode()).hexdigest()[:8]}"
+
+
+_SIMULATORS: dict[tuple, Simulator] = {}
+
+
+def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
+                  build_options: BuildOptions = BuildOptions(),
+                  rate_limited: bool = False) -> Simulator:
+    """A :class:`Simulator`, reused within the process for equal robots and options."""
+    key = (json.dumps(robot.as_dict(), sort_keys=True), controller, chunk, build_options,
+           build_options.resolved_backend(), rate_limited)
+    if key not in _SIMULATORS:
+        _SIMULATORS[key] = Simulator(robot, controller, chunk=chunk,
+                                     build_options=build_options, rate_limited=rate_limited)
+    return _SIMULATORS[key]
+
+
+def simulate(robot: Robot, controller: Controller, *, start=None, goal=None, k=None,
+             r_d=None, duration: float = 10.0, dt: float = 1e-3, plant: Plant = Plant(),
+             build_options: BuildOptions = BuildOptions()) -> Trajectory:
+    """Simulate the sampled-data closed loop (tension held over each RK4 step of ``dt`` s).
+
+    Start, goal and gains default to the robot's case; see :class:`Case`. The run has
+    round(duration / dt) steps.
+
+    Examples
+    --------
+    >>> from cdpr_sym import preset, simulate, L2Design
+    >>> run = simulate(preset("aras3"), L2Design(), duration=1.0)
+    >>> bool(run.metrics()["tension_feasible"])
+    True
+    """
+    check_timing(duration, dt)
+    simulator = get_simulator(robot, controller, build_options=build_options,
+                              rate_limited=plant.rate_limited)
+    case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d, model=simulator.model)
+    return simulator.run(case.start, case.goal, case.k, case.r_d,
+                         duration=duration, dt=dt, plant=plant)

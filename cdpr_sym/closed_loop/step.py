@@ -1,0 +1,78 @@
+"""The closed-loop step: one control period, as one CasADi function.
+
+The tension is computed at the control rate, held (the tension, not the force: W(q) is
+re-evaluated at each RK4 stage) and the plant integrated with one RK4 step per period. A
+step that reaches a singular configuration (|det W| below threshold, or det W changing sign
+within the step), a non-finite state or a pose outside the frame sets a stop status and
+freezes the state. The vectors follow :class:`~cdpr_sym.closed_loop.layout.StepLayout`.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from cdpr_sym.closed_loop.layout import StepLayout
+from cdpr_sym.closed_loop.plant import applied_tension, plant_rhs, rk4
+from cdpr_sym.control import FLAG_SINGULAR, Controller
+from cdpr_sym.model import SymbolicModel
+
+STOP_REASONS = {1: "singular", 2: "non_finite", 3: "left_frame"}
+STOP_CODES = {name: code for code, name in STOP_REASONS.items()}
+
+
+def step_layout(model: SymbolicModel, controller: Controller, *,
+                rate_limited: bool = False) -> StepLayout:
+    """The layout of the step of ``controller`` on ``model``."""
+    return StepLayout(model.n, model.n_j, controller.memory_size(model), rate_limited)
+
+
+def step_function(model: SymbolicModel, controller: Controller, *,
+                  rate_limited: bool = False) -> ca.Function:
+    """One sampled-data control period: (x, p) -> (x_next, log), laid out by :func:`step_layout`.
+
+    Once status is non-zero the state is frozen.
+    """
+    layout = step_layout(model, controller, rate_limited=rate_limited)
+    n = model.n
+    x, p = ca.SX.sym("x", layout.x.size), ca.SX.sym("p", layout.p.size)
+    state, par = layout.x.split(x), layout.p.split(p)
+    q, dq, memory, status = state["q"], state["dq"], state["memory"], state["status"]
+    dt = par["dt"]
+    law, memory_next = controller.step(model, q, dq, par["q_goal"], par["k"], par["r_d"],
+                                       memory, dt)
+    actuator = law.tau
+    if rate_limited:
+        largest = par["rate_limit"] * dt
+        actuator = state["applied"] + ca.fmin(ca.fmax(law.tau - state["applied"], -largest),
+                                              largest)
+    applied = applied_tension(actuator, par["slack"])
+    z_next = rk4(plant_rhs(model, applied, par["mass_scale"]), ca.vertcat(q, dq), dt)
+    # singular at the sample, or det W changes sign within the step (the plane was crossed)
+    crossed = ca.det(model.structure_matrix(q)) * ca.det(model.structure_matrix(z_next[:n])) <= 0
+    singular = ca.logic_or(ca.fmod(ca.floor(law.flags / FLAG_SINGULAR), 2) > 0.5, crossed)
+    # the command too: a slack or rate-limited plant would otherwise turn NaN into a number
+    finite = ca.sum1(ca.fabs(ca.vertcat(z_next, law.tau)) <= 1e300) > 3 * n - 0.5
+    lower, upper = model.robot.frame_lower, model.robot.frame_upper
+    outside = ca.sum1(z_next[:n] < lower) + ca.sum1(z_next[:n] > upper) > 0
+    new_status = ca.if_else(
+        status != 0, status,
+        ca.if_else(singular, STOP_CODES["singular"],
+                   ca.if_else(ca.logic_not(finite), STOP_CODES["non_finite"],
+                              ca.if_else(outside, STOP_CODES["left_frame"], 0))))
+    stopped = new_status != 0
+    x_next = ca.vertcat(ca.if_else(stopped, ca.vertcat(q, dq), z_next),
+                        ca.if_else(stopped, memory, memory_next),
+                        ca.if_else(stopped, state["applied"], actuator) if rate_limited
+                        else ca.SX.zeros(0, 1),
+                        new_status)
+    log = ca.vertcat(law.tau, law.alpha, law.beta, law.j, law.flags)
+    return ca.Function("step", [x, p], [x_next, log], ["x", "p"], ["x_next", "log"],
+                       {"cse": True})
+
+
+def chunk_function(step: ca.Function, n_steps: int) -> ca.Function:
+    """``n_steps`` steps in one call: (x0, p) -> (x (n_x x n_steps), log (n_log x n_steps))."""
+    x0 = ca.MX.sym("x0", step.size1_in(0))
+    p = ca.MX.sym("p", step.size1_in(1))
+    states, logs = step.mapaccum("steps", n_steps)(x0, ca.repmat(p, 1, n_steps))
+    return ca.Function("chunk", [x0, p], [states, logs], ["x0", "p"], ["x", "log"])

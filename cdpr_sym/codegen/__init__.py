@@ -1,0 +1,26 @@
+"""Generated code: CasADi functions to C, compiled, cached and called from Python.
+
+:mod:`~cdpr_sym.codegen.generate` is the one code-generation driver,
+:mod:`~cdpr_sym.codegen.build` compiles and caches, :mod:`~cdpr_sym.codegen.native` calls
+the result through ctypes, :mod:`~cdpr_sym.codegen.names` makes free text safe for C, and
+:mod:`~cdpr_sym.codegen.templates` renders hand-written C from template files.
+"""
+
+from cdpr_sym.codegen.build import (
+    BACKENDS,
+    BuildOptions,
+    CompiledLibrary,
+    build,
+    default_cache_dir,
+    find_compiler,
+    require_compiler,
+    run_command,
+)
+from cdpr_sym.codegen.generate import generate_c
+from cdpr_sym.codegen.names import c_identifier, is_c_identifier, plain_text
+from cdpr_sym.codegen.native import NativeFunction, NativeLibrary
+from cdpr_sym.codegen.templates import render
+
+__all__ = ["BACKENDS", "BuildOptions", "CompiledLibrary", "NativeFunction", "NativeLibrary",
+           "build", "c_identifier", "default_cache_dir", "find_compiler", "generate_c",
+           "is_c_identifier", "plain_text", "render", "require_compiler", "run_command"]

@@ -1,0 +1,94 @@
+"""The one controller interface, for stateless and stateful laws alike.
+
+A controller is a small frozen object. Like a diffrax solver it has an initial memory and a
+step that returns the command and the next memory; a stateless law carries an empty memory.
+Everything is symbolic (CasADi ``SX``), so the same law runs in the simulator's generated
+step, in the exported C and in the numeric helpers of :mod:`cdpr_sym.control.evaluate`::
+
+    memory_0                 = initial_memory(model, q0, q_goal, k, r_d)
+    (law, memory_next)       = step(model, q, dq, q_goal, k, r_d, memory, dt)
+
+``law`` is a :class:`ControlLaw`: tau (N) the commanded tension, alpha the scale on the PD
+part (24), beta the margin of (20) (N), j the n(n-1)/2 free entries of J_d, and flags a bit
+set of :mod:`cdpr_sym.control.flags`.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar, NamedTuple, Protocol, runtime_checkable
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.model import SymbolicModel
+
+
+class ControlLaw(NamedTuple):
+    """Symbolic outputs of one control step (see the module docstring)."""
+
+    tau: ca.SX
+    alpha: ca.SX
+    beta: ca.SX
+    j: ca.SX
+    flags: ca.SX
+
+
+class ControlOutput(NamedTuple):
+    """Numeric outputs of one control step: tau (N), alpha, beta (N), j, flags (int)."""
+
+    tau: np.ndarray
+    alpha: float
+    beta: float
+    j: np.ndarray
+    flags: int
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """What every controller provides (see the module docstring)."""
+
+    name: ClassVar[str]
+
+    def options(self) -> dict[str, Any]:
+        """The options that shape the generated code (for cache keys, reports, rebuilding)."""
+
+    def memory_size(self, model: SymbolicModel) -> int:
+        """Length of the internal state (0 for a stateless law)."""
+
+    def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
+                       r_d: ca.SX) -> ca.SX:
+        """The internal state at the start of a move from q0 to q_goal, (memory_size, 1)."""
+
+    def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
+             r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
+        """One control step at the state (q, dq): the law and the next memory."""
+
+
+class StatelessLaw:
+    """Base of the controllers without internal state: they write :meth:`law` only.
+
+    Their memory is empty, and :meth:`step` returns it unchanged.
+    """
+
+    def memory_size(self, model: SymbolicModel) -> int:
+        """0: no internal state."""
+        return 0
+
+    def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
+                       r_d: ca.SX) -> ca.SX:
+        """The empty memory, shape (0, 1)."""
+        return ca.SX.zeros(0, 1)
+
+    def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
+             r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
+        """:meth:`law` at (q, dq); the (empty) memory is passed through."""
+        return self.law(model, q, dq, q_goal, k, r_d), memory
+
+    def law(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
+            r_d: ca.SX) -> ControlLaw:  # pragma: no cover - every subclass defines it
+        """The symbolic control law at (q, dq) for the goal q_goal and gains k, r_d."""
+        raise NotImplementedError
+
+    def options(self) -> dict[str, Any]:
+        """No options by default."""
+        return {}

@@ -1,0 +1,100 @@
+"""Symbolic pieces that several control laws share.
+
+The decomposition (8) of the IDA-PBC tension: tau_1 = W^{-1} grad V (gravity holding) and
+the PD part tau_2 = -W^{-1} (K e + R_d dq) at alpha = 1; the tension box, the margin beta of
+(20), the two least-squares constructions of J_d, and the interval test that both the exact
+box designs and the smooth planner use.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import casadi as ca
+
+from cdpr_sym.model import SINGULAR_DET, SymbolicModel
+
+#: A stand-in for infinity that survives generated C compiled with re-association.
+BIG = 1e300
+
+
+@dataclasses.dataclass(frozen=True)
+class TensionParts:
+    """Common pieces of (8): tau_1 = W^{-1} grad V and the PD part at alpha = 1."""
+
+    W: ca.SX
+    W_inv: ca.SX
+    tau_1: ca.SX
+    tau_2_full: ca.SX
+    singular: ca.SX
+
+
+def tension_parts(model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX,
+                  k: ca.SX, r_d: ca.SX) -> TensionParts:
+    """W, W^{-1}, tau_1 (N), tau_2 at alpha = 1 (N) and the singularity test at (q, dq)."""
+    W = model.structure_matrix(q)
+    W_inv = ca.inv(W)
+    tau_1 = W_inv @ model.grad_potential(q)
+    tau_2_full = -W_inv @ (k * (q - q_goal) + r_d * dq)
+    return TensionParts(W=W, W_inv=W_inv, tau_1=tau_1, tau_2_full=tau_2_full,
+                        singular=model.singularity_measure(W) < SINGULAR_DET)
+
+
+def clip_to_box(model: SymbolicModel, tau: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """Tension clipped to the robot's box, and whether any entry was clipped."""
+    t_min, t_max = model.robot.t_min, model.robot.t_max
+    clipped = ca.fmin(ca.fmax(tau, t_min), t_max)
+    return clipped, ca.sum1(tau < t_min) + ca.sum1(tau > t_max) > 0
+
+
+def flag_if(condition: ca.SX, bit: int) -> ca.SX:
+    """``bit`` where ``condition`` holds, else 0 (flags add up to a bit set)."""
+    return ca.if_else(condition, bit, 0)
+
+
+def beta_margin(model: SymbolicModel, tau_1: ca.SX) -> ca.SX:
+    """beta of (20): (T_M - T_m)/2 - ||tau_1 - (T_m + T_M)/2||_2, N."""
+    t_min, t_max = model.robot.t_min, model.robot.t_max
+    return 0.5 * (t_max - t_min) - ca.norm_2(tau_1 - 0.5 * (t_min + t_max))
+
+
+def least_squares_paper(A: ca.SX, b: ca.SX) -> ca.SX:
+    """The paper's (21)–(23): j = A^T N j', j' = (𝔄^T 𝔄)^{-1} 𝔄^T b, 𝔄 = A A^T N.
+
+    N is A A^T without its last column. Equals the minimum-norm least-squares solution
+    when 𝔄 has full column rank n - 1.
+    """
+    gram = A @ A.T
+    N = gram[:, : gram.shape[1] - 1]
+    frak_A = gram @ N
+    j_prime = ca.solve(frak_A.T @ frak_A, frak_A.T @ b)
+    return A.T @ (N @ j_prime)
+
+
+def least_squares_min_norm(A: ca.SX, b: ca.SX, null_vector: ca.SX) -> ca.SX:
+    """Minimum-norm least squares j = A^+ b for A of rank n - 1 with known left null vector.
+
+    With v spanning the left null space of A, (A A^T + c v v^T / |v|^2)^{-1} equals
+    (A A^T)^+ + v v^T / (c |v|^2), and A^T v = 0, so A^T times it is exactly A^+ for any
+    c > 0; c = trace(A A^T) / (n - 1) keeps the matrix well scaled.
+    """
+    gram = A @ A.T
+    n = gram.shape[0]
+    unit = null_vector / ca.fmax(ca.norm_2(null_vector), 1e-300)
+    scale = ca.trace(gram) / (n - 1)
+    return A.T @ ca.solve(gram + scale * (unit @ unit.T), b)
+
+
+def alpha_interval(s0: ca.SX, s1: ca.SX, lower: ca.SX, upper: ca.SX, *,
+                   within: tuple[float, float] = (0.0, 1.0)) -> tuple[ca.SX, ca.SX]:
+    """The interval of alpha (intersected with ``within``) with lower <= s0 + alpha s1 <= upper.
+
+    Works elementwise on vectors and intersects the intervals; an empty result has
+    low > high.
+    """
+    safe = ca.if_else(ca.fabs(s1) > 1e-300, s1, 1.0)
+    a, b = (lower - s0) / safe, (upper - s0) / safe
+    inside = ca.logic_and(s0 >= lower, s0 <= upper)
+    low = ca.if_else(ca.fabs(s1) > 1e-300, ca.fmin(a, b), ca.if_else(inside, -BIG, BIG))
+    high = ca.if_else(ca.fabs(s1) > 1e-300, ca.fmax(a, b), ca.if_else(inside, BIG, -BIG))
+    return ca.fmax(ca.mmax(low), within[0]), ca.fmin(ca.mmin(high), within[1])

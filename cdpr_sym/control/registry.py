@@ -1,0 +1,45 @@
+"""Registered controllers by their command-line names, and rebuilding one from its options."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from cdpr_sym.control.exact_box import BoxDesign, LinfDesign
+from cdpr_sym.control.ida_pbc import PD, L2Design, SaturatedPD
+from cdpr_sym.control.interface import Controller
+from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
+from cdpr_sym.errors import UnknownName
+
+#: Every design under its command-line name, with its default options. ``l2`` is the
+#: paper's; ``smooth`` is the recommended one (see reports/designs).
+CONTROLLERS: dict[str, Controller] = {
+    "pd": PD(),
+    "pd-sat": SaturatedPD(),
+    "l2": L2Design(),
+    "l2-minnorm": L2Design(construction="min_norm"),
+    "linf": LinfDesign(),
+    "box": BoxDesign(),
+    "smooth": SmoothReference(),
+    "ida-ref": VirtualReferenceIdaPbc(),
+}
+
+
+def controller_by_name(name: str) -> Controller:
+    """A registered controller by its command-line name.
+
+    Raises
+    ------
+    UnknownName
+        ``name`` is not registered.
+    """
+    try:
+        return CONTROLLERS[name]
+    except KeyError:
+        raise UnknownName(f"unknown controller {name!r}; expected one of "
+                          f"{', '.join(CONTROLLERS)}") from None
+
+
+def controller_from_options(name: str, options: dict[str, Any]) -> Controller:
+    """The controller of class ``CONTROLLERS[name]`` built from ``options`` (as
+    ``controller.options()`` returns them); the options are validated."""
+    return type(controller_by_name(name))(**options)

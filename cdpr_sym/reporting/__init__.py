@@ -1,0 +1,1 @@
+"""Reporting: figures and tables drawn only from stored results."""

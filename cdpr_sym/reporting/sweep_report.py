@@ -1,0 +1,108 @@
+"""Sweep tables and feasibility maps, built only from stored sweep results (CSV + sidecar)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from matplotlib.figure import Figure
+
+from cdpr_sym.errors import CdprError
+from cdpr_sym.reporting.format import number, share
+from cdpr_sym.results.judging import OUTCOMES, outcome, summarise
+from cdpr_sym.results.store import load_table, write_json
+from cdpr_sym.robot import Robot
+
+
+def summary_table(summary: dict[str, dict[str, Any]]) -> str:
+    """Markdown table of :func:`summarise`."""
+    lines = ["| controller | runs | feasible | converged (1 cm, horizon) | both | meets target* "
+             "| median settle [s] | median TV [N] | median largest step [N] | median min α "
+             "| runs with infeasible steps | stopped/failed |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for name, s in summary.items():
+        lines.append(
+            f"| {name} | {s['runs']} | {share(s['feasible'])} | {share(s['converged'])} | "
+            f"{share(s['feasible_and_converged'])} | {share(s['meets_target'])} | "
+            f"{number(s['median_settle_s'])} | {number(s['median_total_variation'])} | "
+            f"{number(s['median_max_step'])} | {number(s['median_min_alpha'])} | "
+            f"{s['runs_with_infeasible_steps']} | {s['stopped_or_failed']} |")
+    lines.append("")
+    lines.append("\\* target: tensions in the box for t > 0, settled within 5 s, no tension "
+                 "change above 1 N per step and a first command within 1 N of the static "
+                 "tension.")
+    return "\n".join(lines)
+
+
+def feasibility_maps(rows: list[dict[str, Any]], path: Path, *, axes: tuple[int, int] = (0, 1),
+                     names: tuple[str, ...] = ("x", "y", "z")) -> Path:
+    """Start and goal positions per controller, coloured by outcome (a grid of panels).
+
+    ``names`` labels the coordinates (the robot's ``coordinate_names``).
+    """
+    fig = maps_figure(rows, axes=axes, names=names)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def maps_figure(rows: list[dict[str, Any]], *, axes: tuple[int, int],
+                names: tuple[str, ...]) -> Figure:
+    """The figure of :func:`feasibility_maps`, not yet saved."""
+    controllers = list(dict.fromkeys(row["controller"] for row in rows))
+    fig = Figure(figsize=(3.2 * len(controllers), 6.4))
+    grid = fig.subplots(2, len(controllers), squeeze=False, sharex=True, sharey=True)
+    a, b = axes
+    for column, name in enumerate(controllers):
+        mine = [row for row in rows if row["controller"] == name]
+        for line, prefix in enumerate(("start", "goal")):
+            ax = grid[line][column]
+            for index, (label, colour) in enumerate(OUTCOMES):
+                chosen = [row for row in mine if outcome(row) == index]
+                ax.scatter([row[f"{prefix}_{a}"] for row in chosen],
+                           [row[f"{prefix}_{b}"] for row in chosen], s=9, c=colour,
+                           label=label if column == 0 and line == 0 else None)
+            ax.set_title(f"{name}: by {prefix}", fontsize=9)
+            ax.grid(alpha=0.3)
+    for ax in grid[-1]:
+        ax.set_xlabel(f"{names[a]} [m]" if a < len(names) else f"q{a + 1}")
+    for ax in grid[:, 0]:
+        ax.set_ylabel(f"{names[b]} [m]" if b < len(names) else f"q{b + 1}")
+    fig.legend(loc="lower center", ncol=len(OUTCOMES), fontsize=8)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    return fig
+
+
+def _map_planes(meta: dict[str, Any]) -> tuple[tuple[str, ...], list[tuple[int, int]]]:
+    """Coordinate names of the stored robot and the position planes to map: (0, 1), and
+    (0, d - 1) too in 3-D (d the number of position coordinates)."""
+    try:
+        robot = Robot(**meta["identity"]["robot"])
+    except (KeyError, TypeError, CdprError):
+        return ("x", "y", "z"), [(0, 1)]
+    d = robot.dimension
+    return robot.coordinate_names, [(0, 1)] + ([(0, d - 1)] if d >= 3 else [])
+
+
+def write_sweep_report(results: Path, out_dir: Path) -> Path:
+    """``cdpr-sym report sweep``: summary.md, summary.json and maps from stored results."""
+    rows, meta = load_table(results)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summary = summarise(rows)
+    names, planes = _map_planes(meta)
+    figures = []
+    for a, b in planes:
+        figure = f"maps_{names[a]}{names[b]}.png"
+        feasibility_maps(rows, out_dir / figure, axes=(a, b), names=names)
+        figures += [f"![Outcome by start and goal, {names[a]}-{names[b]}]({figure})", ""]
+    write_json(out_dir / "summary.json", summary)
+    config = meta.get("config", {})
+    text = "\n".join([
+        "# Sweep report", "",
+        f"Results `{results.name}`: robot `{config.get('robot')}`, {config.get('pairs')} pairs "
+        f"(seed {config.get('seed')}), {config.get('duration')} s runs at "
+        f"{1 / config['dt'] if config.get('dt') else '?'} Hz, plant mass x "
+        f"{config.get('mass_scale')}.", "",
+        summary_table(summary), "", *figures,
+    ])
+    (out_dir / "summary.md").write_text(text)
+    return out_dir / "summary.md"

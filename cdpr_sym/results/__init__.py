@@ -1,0 +1,10 @@
+"""Results: what a closed-loop run produces, how it is judged, and how it is stored.
+
+:class:`Trajectory` holds one run and its metrics; :mod:`~cdpr_sym.results.store` owns the
+file formats (trajectories as ``.npz``, sweep tables as CSV with a JSON sidecar,
+summaries as JSON); :mod:`~cdpr_sym.results.judging` turns rows into outcomes and shares.
+"""
+
+from cdpr_sym.results.trajectory import SCALAR_METRICS, SETTLE_TOLERANCE, Trajectory
+
+__all__ = ["SCALAR_METRICS", "SETTLE_TOLERANCE", "Trajectory"]

@@ -1,0 +1,181 @@
+"""Closed-loop trajectories and their metrics."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cdpr_sym.control.flags import FALLBACK_FLAGS, FLAG_ALPHA, FLAG_INFEASIBLE, FLAG_NAMES
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.results.store import load_arrays, save_arrays
+
+#: Settling band on ||q - q_goal||, m.
+SETTLE_TOLERANCE = 0.01
+#: Slack on the tension bounds when judging feasibility, N (round-off only).
+FEASIBILITY_SLACK = 1e-9
+#: The one-number metrics of :meth:`Trajectory.metrics`, in table order (a sweep's columns);
+#: ``start_jump`` is present only when the static tension is known.
+SCALAR_METRICS = ("min_tension", "max_tension", "settle_time", "final_error", "min_alpha",
+                  "tension_feasible", "converged", "share_alpha_below_one", "share_fallback",
+                  "fallback_steps", "infeasible_steps", "tension_total_variation",
+                  "max_tension_step", "start_jump", "stop_reason", "duration")
+_ARRAYS = ("t", "q", "dq", "tau", "alpha", "beta", "j", "flags", "q_goal")
+
+
+@dataclasses.dataclass(frozen=True)
+class Trajectory:
+    """A simulated closed-loop run.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N + 1,)
+        Sample times, s. Row k of ``q``/``dq`` is the state at t[k]; row k of the per-step
+        arrays is the command computed at t[k] and held until t[k + 1].
+    q, dq : ndarray, shape (N + 1, n)
+        Position (m) and velocity (m/s).
+    tau : ndarray, shape (N, n)
+        Commanded tension, N (the plant may apply it clipped, see ``Plant.slack``).
+    alpha, beta : ndarray, shape (N,)
+        Scale on the PD part (24) and margin beta of (20), N.
+    j : ndarray, shape (N, n(n-1)/2)
+        Free entries of J_d.
+    flags : ndarray of int, shape (N,)
+        Bit set of ``cdpr_sym.controllers.FLAG_*`` per step.
+    q_goal : ndarray, shape (n,)
+        Goal, m.
+    t_min, t_max : float
+        Tension bounds, N.
+    stop_reason : str or None
+        Why the run ended before its duration (``"singular"``, ``"non_finite"``,
+        ``"left_frame"``), or None when it ran to the end.
+    info : dict
+        Robot, controller, options and integrator, for the record.
+    memory : ndarray, shape (N + 1, m)
+        The controller's internal state at each sample (m = 0 for memoryless controllers).
+    static_tension : ndarray, shape (n,), optional
+        W^{-1} grad V at the start, N: the tension holding the robot at rest there.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+    alpha: np.ndarray
+    beta: np.ndarray
+    j: np.ndarray
+    flags: np.ndarray
+    q_goal: np.ndarray
+    t_min: float
+    t_max: float
+    stop_reason: str | None = None
+    info: dict[str, Any] = dataclasses.field(default_factory=dict)
+    memory: np.ndarray | None = None
+    static_tension: np.ndarray | None = None
+
+    @property
+    def error(self) -> np.ndarray:
+        """||q(t) - q_goal||, m, shape (N + 1,)."""
+        return np.linalg.norm(self.q - self.q_goal, axis=1)
+
+    def settle_time(self, tolerance: float = SETTLE_TOLERANCE) -> float | None:
+        """First time after which the error stays within ``tolerance`` (m), or None."""
+        outside = np.flatnonzero(self.error > tolerance)
+        if self.stop_reason is not None:
+            return None
+        if outside.size == 0:
+            return float(self.t[0])
+        if outside[-1] == len(self.t) - 1:
+            return None
+        return float(self.t[outside[-1] + 1])
+
+    def flag_share(self, mask: int) -> float:
+        """Share of control steps with any of the bits in ``mask`` set."""
+        return float(np.mean((self.flags & mask) != 0)) if len(self.flags) else 0.0
+
+    def flag_counts(self) -> dict[str, int]:
+        """Number of control steps per flag name."""
+        return {name: int(np.count_nonzero(self.flags & bit)) for bit, name in FLAG_NAMES.items()}
+
+    def metrics(self, *, static_tension: np.ndarray | None = None) -> dict[str, Any]:
+        """Summary numbers (SI units); tensions are judged over t > 0 (steps k >= 1).
+
+        ``tension_feasible`` is False for a run that stopped early or has no command after
+        t = 0 (nothing certifies the remainder); ``min_tension``/``max_tension`` still
+        cover the simulated part.
+
+        ``max_tension_step`` and ``tension_total_variation`` cover every change of command,
+        |tau_k - tau_{k-1}| for k >= 1 (the first change happens at t = dt > 0).
+        ``start_jump`` (N), max_i |tau_0 - tau_static|, uses ``static_tension`` (the
+        argument, else the trajectory's own) and is left out when neither is known.
+        """
+        if static_tension is None:
+            static_tension = self.static_tension
+        after_start = self.tau[1:]
+        steps = np.abs(np.diff(self.tau, axis=0))
+        settle = self.settle_time()
+        # feasible only if the run reached its end and every command for t > 0 was judged
+        feasible = bool(self.stop_reason is None and after_start.size > 0
+                        and after_start.min() >= self.t_min - FEASIBILITY_SLACK
+                        and after_start.max() <= self.t_max + FEASIBILITY_SLACK)
+        out: dict[str, Any] = {
+            "min_tension": _float(after_start.min()) if after_start.size else None,
+            "max_tension": _float(after_start.max()) if after_start.size else None,
+            "settle_time": settle,
+            "final_error": float(self.error[-1]),
+            "min_alpha": _float(self.alpha.min()) if self.alpha.size else None,
+            "tension_feasible": feasible,
+            "converged": settle is not None,
+            "share_alpha_below_one": self.flag_share(FLAG_ALPHA),
+            "share_fallback": self.flag_share(FALLBACK_FLAGS),
+            "fallback_steps": int(np.count_nonzero(self.flags & FALLBACK_FLAGS)),
+            "infeasible_steps": int(np.count_nonzero(self.flags & FLAG_INFEASIBLE)),
+            "tension_total_variation": float(steps.sum()),
+            "max_tension_step": float(steps.max()) if steps.size else 0.0,
+            "flag_counts": self.flag_counts(),
+            "stop_reason": self.stop_reason,
+            "duration": float(self.t[-1] - self.t[0]),
+        }
+        if static_tension is not None and len(self.tau):
+            out["start_jump"] = float(np.max(np.abs(self.tau[0] - static_tension)))
+        return {name: out[name] for name in (*SCALAR_METRICS, "flag_counts") if name in out}
+
+    def save(self, path: str | Path) -> Path:
+        """Write the run to an ``.npz`` file that ``numpy.load`` reads directly (``.npz`` is
+        appended to a path without it); :meth:`load` reads it back. Returns the path."""
+        n = self.q.shape[1]
+        return save_arrays(path, {
+            **{name: getattr(self, name) for name in _ARRAYS},
+            "memory": self.memory if self.memory is not None else np.zeros((len(self.t), 0)),
+            "static_tension": (self.static_tension if self.static_tension is not None
+                               else np.full(n, np.nan)),
+            "t_min": self.t_min, "t_max": self.t_max,
+            "stop_reason": self.stop_reason or "", "info": self.info})
+
+    @classmethod
+    def load(cls, path: str | Path) -> Trajectory:
+        """A run written by :meth:`save`.
+
+        Raises
+        ------
+        InvalidCase
+            The file is missing or is not a stored trajectory.
+        """
+        data = load_arrays(path)
+        missing = [name for name in (*_ARRAYS, "t_min", "t_max", "info") if name not in data]
+        if missing:
+            raise InvalidCase("path", f"{path} is not a stored trajectory (no {missing[0]})")
+        static = data.get("static_tension", np.full(data["q"].shape[1], np.nan))
+        return cls(**{name: data[name] for name in _ARRAYS},
+                   t_min=float(data["t_min"]), t_max=float(data["t_max"]),
+                   stop_reason=str(data.get("stop_reason", "")) or None,
+                   info=json.loads(str(data["info"])), memory=data.get("memory"),
+                   static_tension=None if np.isnan(static).all() else static)
+
+
+def _float(value: Any) -> float | None:
+    value = float(value)
+    return value if np.isfinite(value) else None

@@ -1,0 +1,317 @@
+"""A robot description: a frozen, validated CDPR and its default case.
+
+A :class:`Robot` holds what the paper calls the robot and its case: anchors, the end-effector
+(a point mass, or a planar or spatial rigid body with cable attachment points and an inertia
+tensor), tension bounds, the frame the end-effector must stay in, and the default start, goal
+and gains. Every field is checked on construction with numpy alone; a bad field raises
+:class:`InvalidRobot` naming it. Checks that need the kinematics (is W singular at the start
+or goal?) belong to the case that is simulated: :class:`cdpr_sym.closed_loop.Case`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from cdpr_sym.errors import InvalidRobot
+
+#: Generalized coordinates by kind and dimension: names and units.
+COORDINATES = {
+    ("point", 2): (("x", "z"), ("m", "m")),
+    ("point", 3): (("x", "y", "z"), ("m", "m", "m")),
+    ("planar", 2): (("x", "z", "theta"), ("m", "m", "rad")),
+    ("spatial", 3): (("x", "y", "z", "roll", "pitch", "yaw"),
+                     ("m", "m", "m", "rad", "rad", "rad")),
+}
+
+#: Fields that only a rigid body has.
+_BODY_FIELDS = ("attachments", "inertia", "center_of_mass")
+
+#: Roll-pitch-yaw is singular at pitch = +-pi/2; frames must keep this far from it, rad.
+PITCH_LIMIT = 1.5
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Robot:
+    """A fully actuated cable robot: n cables, n degrees of freedom.
+
+    Parameters
+    ----------
+    name : str
+        Identifier used in reports and cache keys.
+    anchors : ndarray, shape (n, d)
+        Row i is the frame anchor a_i of cable i in the world (d = 2 or 3), m.
+    mass : float
+        End-effector mass, kg.
+    gravity : float
+        Gravitational acceleration along minus the last world axis, m/s^2.
+    t_min, t_max : float
+        Tension bounds T_m < T_M, N.
+    frame_lower, frame_upper : ndarray, shape (n,)
+        Axis-aligned box the end-effector must stay inside, m.
+    start, goal : ndarray, shape (n,)
+        Default start q0 and goal q_goal of the robot's case, m.
+    k, r_d : ndarray, shape (n,)
+        Diagonals of the potential-shaping gain K (N/m; N m/rad for angles) and damping
+        R_d (N s/m; N m s/rad).
+    attachments : ndarray, shape (n, d), optional
+        Row i is the attachment point b_i of cable i in the body frame, m. Given, the
+        end-effector is a rigid body (``kind`` "planar" for d = 2, "spatial" for d = 3,
+        coordinates in :mod:`cdpr_sym.kinematics`); omitted, it is a point mass.
+    inertia : ndarray, optional
+        Rigid bodies: inertia about the centre of mass in the body frame, kg m^2; shape
+        (1, 1) for a planar body, (3, 3) symmetric positive definite for a spatial one.
+    center_of_mass : ndarray, shape (d,), optional
+        Rigid bodies: centre of mass in the body frame, m (default: the body-frame origin).
+
+    Notes
+    -----
+    Coordinates, frame bounds, start, goal and gains all have n entries: positions (m) then,
+    for rigid bodies, angles (rad).
+    """
+
+    name: str
+    anchors: np.ndarray
+    mass: float
+    gravity: float
+    t_min: float
+    t_max: float
+    frame_lower: np.ndarray
+    frame_upper: np.ndarray
+    start: np.ndarray
+    goal: np.ndarray
+    k: np.ndarray
+    r_d: np.ndarray
+    attachments: np.ndarray | None = None
+    inertia: np.ndarray | None = None
+    center_of_mass: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        anchors = _float_array("anchors", self.anchors, ndim=2)
+        _set(self, "anchors", anchors)
+        if self.attachments is None:
+            self._check_point_body()
+        else:
+            self._check_rigid_body()
+        n = self.n
+        for field in ("frame_lower", "frame_upper", "start", "goal", "k", "r_d"):
+            vector = _float_array(field, getattr(self, field), ndim=1)
+            if vector.shape != (n,):
+                raise InvalidRobot(field, f"expected {n} values, got {vector.shape[0]}")
+            _set(self, field, vector)
+        for field in ("mass", "gravity", "t_min", "t_max"):
+            _set(self, field, _float_scalar(field, getattr(self, field)))
+        self._check_physics()
+        self._check_frame()
+        if self.kind == "spatial":
+            self._check_pitch_range()
+        for field in ("start", "goal"):
+            self._check_inside_frame(field, getattr(self, field))
+            self._check_off_the_anchors(field, getattr(self, field))
+
+    @property
+    def kind(self) -> str:
+        """End-effector kind: ``"point"``, ``"planar"`` or ``"spatial"`` (rigid bodies)."""
+        if self.attachments is None:
+            return "point"
+        return "planar" if self.dimension == 2 else "spatial"
+
+    @property
+    def dimension(self) -> int:
+        """Dimension d of the world the anchors live in (2 or 3; more for abstract points)."""
+        return self.anchors.shape[1]
+
+    @property
+    def n(self) -> int:
+        """Degrees of freedom (= number of cables)."""
+        if self.kind == "point":
+            return self.dimension
+        return len(COORDINATES[self.kind, self.dimension][0])
+
+    @property
+    def coordinate_names(self) -> tuple[str, ...]:
+        """Names of the generalized coordinates, e.g. ("x", "z", "theta")."""
+        return self._coordinates()[0]
+
+    @property
+    def coordinate_units(self) -> tuple[str, ...]:
+        """Units of the generalized coordinates, "m" or "rad"."""
+        return self._coordinates()[1]
+
+    def _coordinates(self) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """(names, units); a point mass in more than 3-D gets q1, q2, ... in m."""
+        if (self.kind, self.dimension) in COORDINATES:
+            return COORDINATES[self.kind, self.dimension]
+        return tuple(f"q{i + 1}" for i in range(self.n)), ("m",) * self.n
+
+    @property
+    def n_j(self) -> int:
+        """Number of free entries of the skew matrix J_d, n(n-1)/2."""
+        return self.n * (self.n - 1) // 2
+
+    def with_case(self, **changes: Any) -> Robot:
+        """A copy with some fields replaced (e.g. ``start=...``), validated again."""
+        return dataclasses.replace(self, **changes)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain-Python view (lists), suitable for JSON, TOML or hashing.
+
+        A point mass has no body fields here, so its description (and the identity of the
+        sweeps that store it) does not depend on them; ``Robot(**robot.as_dict())`` rebuilds
+        either kind.
+        """
+        out: dict[str, Any] = {}
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            if value is None and field.name in _BODY_FIELDS:
+                continue
+            out[field.name] = value.tolist() if isinstance(value, np.ndarray) else value
+        return out
+
+    def _check_point_body(self) -> None:
+        anchors = self.anchors
+        if anchors.shape[1] < 2 or anchors.shape[0] != anchors.shape[1]:
+            raise InvalidRobot(
+                "anchors", f"expected an (n, n) array with n >= 2 for a point mass (one "
+                f"anchor per cable and coordinate), got shape {anchors.shape}")
+        for field in ("inertia", "center_of_mass"):
+            if getattr(self, field) is not None:
+                raise InvalidRobot(f"body.{field}", "a rigid body needs body.attachments; "
+                                   "without them the end-effector is a point mass")
+
+    def _check_rigid_body(self) -> None:
+        d = self.anchors.shape[1]
+        if d not in (2, 3):
+            raise InvalidRobot("anchors", f"expected 2 or 3 coordinates per anchor for a "
+                               f"rigid body, got {d}")
+        n = len(COORDINATES["planar" if d == 2 else "spatial", d][0])
+        if self.anchors.shape[0] != n:
+            raise InvalidRobot("anchors", f"expected {n} anchors (one cable per degree of "
+                               f"freedom of a {'planar' if d == 2 else 'spatial'} body), "
+                               f"got {self.anchors.shape[0]}")
+        attachments = _float_array("body.attachments", self.attachments, ndim=2)
+        if attachments.shape != (n, d):
+            raise InvalidRobot("body.attachments", f"expected shape {(n, d)} (one body-frame "
+                               f"point per cable), got {attachments.shape}")
+        _set(self, "attachments", attachments)
+        _set(self, "inertia", _inertia_tensor(self.inertia, d))
+        com = np.zeros(d) if self.center_of_mass is None else self.center_of_mass
+        com = _float_array("body.center_of_mass", com, ndim=1)
+        if com.shape != (d,):
+            raise InvalidRobot("body.center_of_mass", f"expected {d} values, got {com.shape[0]}")
+        _set(self, "center_of_mass", com)
+
+    def _check_pitch_range(self) -> None:
+        if self.frame_lower[4] < -PITCH_LIMIT or self.frame_upper[4] > PITCH_LIMIT:
+            raise InvalidRobot(
+                "frame_lower" if self.frame_lower[4] < -PITCH_LIMIT else "frame_upper",
+                f"expected the pitch range inside [-{PITCH_LIMIT}, "
+                f"{PITCH_LIMIT}] rad (roll-pitch-yaw is singular at +-pi/2), got "
+                f"[{self.frame_lower[4]}, {self.frame_upper[4]}]")
+
+    def _check_physics(self) -> None:
+        if self.mass <= 0:
+            raise InvalidRobot("mass", f"expected a positive mass in kg, got {self.mass}")
+        if self.gravity < 0:
+            raise InvalidRobot("gravity", f"expected g >= 0 in m/s^2, got {self.gravity}")
+        if self.t_min < 0:
+            raise InvalidRobot("t_min", f"expected a tension bound >= 0 N, got {self.t_min}")
+        if self.t_min >= self.t_max:
+            raise InvalidRobot(
+                "t_max", f"expected t_min < t_max, got t_min={self.t_min}, t_max={self.t_max}")
+        if np.any(self.k <= 0):
+            raise InvalidRobot("k", f"expected positive stiffness gains, got {self.k.tolist()}")
+        if np.any(self.r_d <= 0):
+            raise InvalidRobot("r_d", f"expected positive damping gains, got {self.r_d.tolist()}")
+
+    def _check_frame(self) -> None:
+        if np.any(self.frame_lower >= self.frame_upper):
+            raise InvalidRobot(
+                "frame_upper", f"expected frame_lower < frame_upper on every axis, got "
+                f"{self.frame_lower.tolist()} and {self.frame_upper.tolist()}")
+
+    def _check_off_the_anchors(self, field: str, q: np.ndarray) -> None:
+        if self.kind == "point" and np.any(np.linalg.norm(self.anchors - q, axis=1) < 1e-9):
+            raise InvalidRobot(field, f"the point {q.tolist()} coincides with an anchor")
+
+    def _check_inside_frame(self, field: str, q: np.ndarray) -> None:
+        if np.any(q <= self.frame_lower) or np.any(q >= self.frame_upper):
+            raise InvalidRobot(
+                field, f"expected a point strictly inside the frame "
+                f"{self.frame_lower.tolist()}..{self.frame_upper.tolist()}, got {q.tolist()}")
+
+
+
+def _float_array(field: str, value: Any, *, ndim: int) -> np.ndarray:
+    if _holds_bool(value):
+        raise InvalidRobot(field, f"expected numbers, got {value!r}")
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidRobot(field, f"expected finite numbers, got {value!r}") from None
+    if array.ndim != ndim:
+        raise InvalidRobot(field, f"expected a {ndim}-D array, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise InvalidRobot(field, f"expected finite numbers, got {array.tolist()}")
+    array.setflags(write=False)
+    return array
+
+
+def _inertia_tensor(value: Any, d: int) -> np.ndarray:
+    """The body inertia about the centre of mass as a matrix: (1, 1) planar, (3, 3) spatial."""
+    field = "body.inertia"
+    if value is None:
+        raise InvalidRobot(field, "required for a rigid body")
+    if _holds_bool(value):  # numpy would read true as 1.0
+        raise InvalidRobot(field, f"expected numbers, got {value!r}")
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidRobot(field, f"expected finite numbers, got {value!r}") from None
+    if d == 2:
+        if array.size != 1:
+            raise InvalidRobot(field, f"expected one moment of inertia (kg m^2) for a planar "
+                               f"body, got {array.tolist()}")
+        array = array.reshape(1, 1)
+    elif array.shape == (3,):
+        array = np.diag(array)
+    elif array.shape != (3, 3):
+        raise InvalidRobot(field, f"expected 3 principal moments or a 3x3 tensor (kg m^2), "
+                           f"got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise InvalidRobot(field, f"expected finite numbers, got {array.tolist()}")
+    if not np.allclose(array, array.T, rtol=0, atol=1e-12 * np.abs(array).max()):
+        raise InvalidRobot(field, f"expected a symmetric tensor, got {array.tolist()}")
+    moments = np.linalg.eigvalsh(array)
+    if moments[0] <= 0:
+        raise InvalidRobot(field, f"expected a positive definite inertia, got principal "
+                           f"moments {moments.tolist()} kg m^2")
+    if d == 3 and moments[0] + moments[1] < moments[2] * (1 - 1e-9):
+        raise InvalidRobot(field, f"expected principal moments of a physical body "
+                           f"(I1 + I2 >= I3), got {moments.tolist()} kg m^2")
+    array.setflags(write=False)
+    return array
+
+
+def _holds_bool(value: Any) -> bool:
+    if isinstance(value, (list, tuple)):
+        return any(_holds_bool(item) for item in value)
+    return isinstance(value, bool)
+
+
+def _float_scalar(field: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise InvalidRobot(field, f"expected a number, got {value!r}")
+    try:
+        number = float(value)
+    except OverflowError:
+        number = float("inf")
+    if not np.isfinite(number):
+        raise InvalidRobot(field, f"expected a finite number, got {value}")
+    return number
+
+
+def _set(robot: Robot, field: str, value: Any) -> None:
+    object.__setattr__(robot, field, value)

@@ -1,0 +1,99 @@
+"""Robot files: the TOML layout of a robot (README, "Robot files"), presets and loading."""
+
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from cdpr_sym.errors import InvalidRobot, UnknownName
+from cdpr_sym.robot.description import Robot
+
+PRESET_NAMES = ("aras3", "planar2", "planar3", "spatial6")
+
+
+def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
+    """Build a :class:`Robot` from the robot-file layout (README, "Robot files")."""
+    _check_known_fields(data, source)
+    body = data.get("body", {})
+    if "body" in data and "attachments" not in body:
+        raise InvalidRobot("body.attachments", f"required field missing in {source} (a [body] "
+                           "table makes the end-effector a rigid body)")
+    if "attachments" in body and "inertia" not in body:
+        raise InvalidRobot("body.inertia", f"required field missing in {source}")
+
+    def get(path: str, default: Any = None) -> Any:
+        node: Any = data
+        for key in path.split("."):
+            if not isinstance(node, dict):
+                raise InvalidRobot(path, f"expected a table above {key!r} in {source}")
+            if key not in node:
+                if default is not None:
+                    return default
+                raise InvalidRobot(path, f"required field missing in {source}")
+            node = node[key]
+        return node
+
+    return Robot(
+        name=str(data.get("name", Path(source).stem)),
+        anchors=get("anchors"), mass=get("mass"), gravity=get("gravity", 9.81),
+        t_min=get("tension.min"), t_max=get("tension.max"),
+        frame_lower=get("frame.lower"), frame_upper=get("frame.upper"),
+        start=get("case.start"), goal=get("case.goal"), k=get("case.k"), r_d=get("case.r_d"),
+        attachments=body.get("attachments"), inertia=body.get("inertia"),
+        center_of_mass=body.get("center_of_mass"),
+    )
+
+
+#: The robot-file layout: top-level fields, and the fields of each table.
+FILE_FIELDS = {"": {"name", "mass", "gravity", "anchors", "tension", "frame", "case", "body"},
+               "tension": {"min", "max"}, "frame": {"lower", "upper"},
+               "case": {"start", "goal", "k", "r_d"},
+               "body": {"attachments", "inertia", "center_of_mass"}}
+
+
+def _check_known_fields(data: dict[str, Any], source: str) -> None:
+    """Refuse a misspelt or unknown field anywhere in a robot file, naming it."""
+    for table, known in FILE_FIELDS.items():
+        node = data if not table else data.get(table, {})
+        if not isinstance(node, dict):
+            raise InvalidRobot(table, f"expected a table in {source}, got {node!r}")
+        unknown = sorted(set(node) - known)
+        if unknown:
+            raise InvalidRobot(f"{table}.{unknown[0]}" if table else unknown[0],
+                               f"unknown field in {source}; expected one of "
+                               f"{', '.join(sorted(known))}")
+
+
+def load_robot(path: str | Path) -> Robot:
+    """Load and validate a robot description from a TOML file."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise InvalidRobot("path", f"no robot file at {path}") from None
+    except tomllib.TOMLDecodeError as bad:
+        raise InvalidRobot("path", f"{path} is not valid TOML: {bad}") from None
+    return robot_from_dict(data, source=str(path))
+
+
+def preset(name: str) -> Robot:
+    """A named preset: ``aras3`` (the paper's Section IV robot), ``planar2`` (a planar point
+    mass on two cables), ``planar3`` (a planar rigid body on three cables) or ``spatial6``
+    (a suspended 6-DOF platform on six cables)."""
+    if name not in PRESET_NAMES:
+        raise UnknownName(f"unknown preset {name!r}; expected one of {', '.join(PRESET_NAMES)}")
+    text = resources.files("cdpr_sym.robot.presets").joinpath(f"{name}.toml").read_text()
+    return robot_from_dict(tomllib.loads(text), source=f"{name}.toml")
+
+
+def resolve_robot(name_or_path: str | Path) -> Robot:
+    """A preset by name, or else a TOML file by path."""
+    if str(name_or_path) in PRESET_NAMES:
+        return preset(str(name_or_path))
+    if Path(name_or_path).suffix == ".toml" or Path(name_or_path).exists():
+        return load_robot(name_or_path)
+    raise UnknownName(
+        f"unknown robot {str(name_or_path)!r}; expected a preset "
+        f"({', '.join(PRESET_NAMES)}) or a path to a .toml file")

@@ -1,0 +1,69 @@
+"""What every study shares: runs and sweeps stored as files, and a report built from them.
+
+A study has two halves. ``compute`` simulates and writes its results into the study's
+folder: each case run as ``runs/<name>.npz`` (:meth:`Trajectory.save`, listed in
+``runs/index.json``), each sweep as a CSV table with its sidecar, and whatever else it
+measured as ``study.json``. ``write_report`` then rebuilds the report (``report.md``, its
+figures and summary) from those files alone, so a report can be redrawn without simulating
+again (``cdpr-sym report <study> <folder>``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from cdpr_sym.closed_loop import simulate
+from cdpr_sym.control import controller_by_name
+from cdpr_sym.results import Trajectory
+from cdpr_sym.results.store import load_table, read_json, write_json
+from cdpr_sym.robot import Robot
+from cdpr_sym.sweep import SweepConfig, run_sweep
+
+RUNS = "runs"
+STUDY_FILE = "study.json"
+
+
+def case_runs(robot: Robot, names: Iterable[str], **options: Any) -> dict[str, Trajectory]:
+    """Each named controller on the robot's own case (``options`` go to ``simulate``)."""
+    return {name: simulate(robot, controller_by_name(name), **options) for name in names}
+
+
+def save_runs(runs: dict[str, Trajectory], folder: Path) -> None:
+    """Write each run to ``folder/runs/<name>.npz`` and their order to ``runs/index.json``."""
+    target = folder / RUNS
+    target.mkdir(parents=True, exist_ok=True)
+    for name, run in runs.items():
+        run.save(target / f"{name}.npz")
+    write_json(target / "index.json", list(runs))
+
+
+def load_runs(folder: Path) -> dict[str, Trajectory]:
+    """The runs written by :func:`save_runs`, in their order."""
+    names = read_json(folder / RUNS / "index.json")
+    return {name: Trajectory.load(folder / RUNS / f"{name}.npz") for name in names}
+
+
+def sweep_rows(config: SweepConfig, table: Path, *, progress: bool) -> list[dict[str, Any]]:
+    """Run (or resume) a study's sweep into ``table``; its rows as stored.
+
+    The study owns the file: results of another configuration are replaced.
+    """
+    run_sweep(config, table, progress=progress, restart_if_stale=True)
+    return load_table(table)[0]
+
+
+def write_study(folder: Path, robot: Robot | None, **measured: Any) -> None:
+    """``study.json``: the robot description and what the study measured besides runs."""
+    folder.mkdir(parents=True, exist_ok=True)
+    write_json(folder / STUDY_FILE,
+               {"robot": None if robot is None else robot.as_dict(), **measured})
+
+
+def read_study(folder: Path) -> dict[str, Any]:
+    """``study.json`` of a computed study (its ``robot`` rebuilt as a :class:`Robot`)."""
+    data = read_json(folder / STUDY_FILE)
+    if data.get("robot") is not None:
+        data["robot"] = Robot(**data["robot"])
+    return data

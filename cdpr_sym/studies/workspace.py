@@ -1,0 +1,124 @@
+"""``cdpr-sym workspace``: the static workspace on a grid, by height, as figures and a table.
+
+For a rigid body this is the constant-orientation workspace: positions on the grid, the
+angles held at the robot's goal orientation (or a given one).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot import Robot
+from cdpr_sym.workspace import WorkspaceEvaluator
+
+
+def grid_points(robot: Robot, resolution: int, orientation: np.ndarray | None = None
+                ) -> tuple[list[np.ndarray], np.ndarray]:
+    """Position-axis samples (open grid strictly inside the frame) and all poses, (N, n).
+
+    The angles of a rigid body are held at ``orientation`` (rad; default the goal's).
+    """
+    d = robot.dimension
+    axes = [np.linspace(lo, hi, resolution + 2)[1:-1]
+            for lo, hi in zip(robot.frame_lower[:d], robot.frame_upper[:d], strict=True)]
+    mesh = np.meshgrid(*axes, indexing="ij")
+    positions = np.stack([m.ravel() for m in mesh], axis=1)
+    angles = robot.goal[d:] if orientation is None else np.asarray(orientation, dtype=float)
+    if angles.shape != (robot.n - d,):
+        raise InvalidCase("orientation", f"expected {robot.n - d} angles (rad), got "
+                          f"{angles.tolist()}")
+    return axes, np.column_stack([positions, np.tile(angles, (len(positions), 1))])
+
+
+def run_workspace_study(robot: Robot, out_dir: Path, *, resolution: int = 61,
+                        orientation: np.ndarray | None = None) -> dict[str, Any]:
+    """Classify a grid, write ``workspace.md``, ``workspace.json`` and slice figures."""
+    if resolution < 2:
+        raise InvalidCase("resolution", f"expected at least 2 points per axis, got {resolution}")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    evaluator = WorkspaceEvaluator(robot)
+    axes, points = grid_points(robot, resolution, orientation)
+    start = time.perf_counter()
+    result = evaluator.classify(points)
+    seconds = time.perf_counter() - start
+    shape = tuple(len(a) for a in axes)
+    feasible = result.feasible.reshape(shape)
+    ball = result.ball.reshape(shape)
+    heights = axes[-1]
+    other = tuple(range(len(axes) - 1))
+    by_height = [{"height_m": float(h), "feasible_share": float(f), "ball_share": float(b)}
+                 for h, f, b in zip(heights, feasible.mean(axis=other), ball.mean(axis=other),
+                                    strict=True)]
+    angles = points[0, robot.dimension:]
+    summary = {"robot": robot.name, "points": len(points), "seconds": seconds,
+               "orientation_rad": angles.tolist(),
+               "poses_per_s": len(points) / seconds, "feasible_share": float(feasible.mean()),
+               "ball_share": float(ball.mean()), "by_height": by_height}
+    (out_dir / "workspace.json").write_text(json.dumps(summary, indent=2) + "\n")
+    figures = _figures(robot, axes, feasible, ball, out_dir)
+    (out_dir / "workspace.md").write_text(_markdown(summary, figures, robot))
+    return summary
+
+
+def _figures(robot: Robot, axes, feasible, ball, out_dir: Path) -> list[str]:
+    if len(axes) > 3:
+        return []
+    if len(axes) == 2:
+        fig = Figure(figsize=(5.5, 4.5))
+        ax = fig.subplots()
+        _panel(ax, axes[0], axes[1], feasible, ball, "x [m]", "z [m]", "static workspace")
+        fig.tight_layout()
+        fig.savefig(out_dir / "workspace_plane.png", dpi=110)
+        return ["workspace_plane.png"]
+    levels = np.linspace(0, len(axes[2]) - 1, 6).round().astype(int)[1:-1]
+    fig = Figure(figsize=(3.6 * len(levels), 4.2))
+    grid = fig.subplots(1, len(levels), squeeze=False)
+    for ax, level in zip(grid[0], levels, strict=True):
+        _panel(ax, axes[0], axes[1], feasible[:, :, level], ball[:, :, level], "x [m]", "y [m]",
+               f"z = {axes[2][level]:.2f} m")
+    fig.tight_layout()
+    fig.savefig(out_dir / "workspace_slices.png", dpi=110)
+    fig = Figure(figsize=(10, 4.2))
+    grid = fig.subplots(1, 2)
+    _panel(grid[0], axes[0], axes[2], feasible.mean(axis=1) > 0, ball.mean(axis=1) > 0,
+           "x [m]", "z [m]", "projection on x-z (feasible for some y)")
+    _panel(grid[1], axes[1], axes[2], feasible.mean(axis=0) > 0, ball.mean(axis=0) > 0,
+           "y [m]", "z [m]", "projection on y-z (feasible for some x)")
+    fig.tight_layout()
+    fig.savefig(out_dir / "workspace_projections.png", dpi=110)
+    return ["workspace_slices.png", "workspace_projections.png"]
+
+
+def _panel(ax, first, second, feasible, ball, xlabel, ylabel, title) -> None:
+    image = feasible.astype(float) + ball.astype(float)
+    ax.pcolormesh(first, second, image.T, cmap="Greens", vmin=0, vmax=2, shading="nearest")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title + "\n(light: T_m ≤ τ₁ ≤ T_M, dark: also ball (13))", fontsize=8)
+    ax.set_aspect("equal")
+
+
+def _markdown(summary: dict[str, Any], figures: list[str], robot: Robot) -> str:
+    held = ""
+    if robot.kind != "point":
+        names = robot.coordinate_names[robot.dimension:]
+        held = ("Constant-orientation workspace: " + ", ".join(
+            f"{name} = {value:.3f} rad" for name, value in
+            zip(names, summary["orientation_rad"], strict=True)) + ". ")
+    lines = [f"# Static workspace of `{summary['robot']}`", "", held +
+             f"{summary['points']} grid poses classified in {summary['seconds']:.3f} s "
+             f"({summary['poses_per_s']:.2e} poses/s, generated C). Feasible (T_m ≤ W⁻¹∇V ≤ "
+             f"T_M): {100 * summary['feasible_share']:.1f} % of the frame; ball condition (13): "
+             f"{100 * summary['ball_share']:.1f} %.", "",
+             "| height [m] | feasible | ball (13) |", "|---|---|---|"]
+    lines += [f"| {row['height_m']:.3f} | {100 * row['feasible_share']:.1f} % | "
+              f"{100 * row['ball_share']:.1f} % |" for row in summary["by_height"]]
+    lines += ["", *[f"![{name}]({name})\n" for name in figures]]
+    return "\n".join(lines)

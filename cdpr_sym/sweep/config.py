@@ -1,0 +1,98 @@
+"""What a sweep is: its configuration, the robot reference its workers load, its pairs."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cdpr_sym.closed_loop import Plant
+from cdpr_sym.control import controller_by_name
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.results import SCALAR_METRICS
+from cdpr_sym.robot import PRESET_NAMES, Robot, preset, resolve_robot
+from cdpr_sym.workspace import WorkspaceEvaluator, sample_static_workspace
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepConfig:
+    """Everything that determines a sweep's rows.
+
+    Parameters
+    ----------
+    robot : str
+        Preset name or robot TOML path.
+    controllers : tuple of str
+        Controller names (see ``cdpr_sym.control.CONTROLLERS``).
+    pairs : int
+        Number of start/goal pairs.
+    seed : int
+        Seed of the pair draw.
+    duration, dt : float
+        Run length and control period, s.
+    mass_scale : float
+        Plant mass / model mass.
+    margin : float
+        Share of the frame size kept free on each side when drawing poses.
+    """
+
+    robot: str
+    controllers: tuple[str, ...]
+    pairs: int
+    seed: int = 0
+    duration: float = 10.0
+    dt: float = 1e-3
+    mass_scale: float = 1.0
+    margin: float = 0.05
+
+    def __post_init__(self) -> None:
+        if isinstance(self.pairs, bool) or not isinstance(self.pairs, int) or self.pairs <= 0:
+            raise InvalidCase("pairs", f"expected a positive number of pairs, got {self.pairs}")
+        if not self.controllers:
+            raise InvalidCase("controllers", "expected at least one controller")
+        for name in self.controllers:
+            controller_by_name(name)
+        if not (math.isfinite(self.duration) and self.duration > 0):
+            raise InvalidCase("duration", f"expected a positive duration, got {self.duration}")
+        if not (math.isfinite(self.dt) and 0 < self.dt <= self.duration):
+            raise InvalidCase("dt", f"expected 0 < dt <= duration, got {self.dt}")
+        Plant(mass_scale=self.mass_scale)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {**dataclasses.asdict(self), "controllers": list(self.controllers)}
+
+
+def robot_reference(robot: Robot | str | Path) -> tuple[Robot, str]:
+    """The robot and the string sweep workers load it from (a preset name or a file path).
+
+    A :class:`Robot` object is accepted when it equals the preset of its name; any other robot
+    must be given as its file, since the workers run in other processes.
+    """
+    if isinstance(robot, (str, Path)):
+        resolved = resolve_robot(robot)
+        # a file by its absolute path, so workers and a resume elsewhere find the same file
+        return resolved, (str(robot) if str(robot) in PRESET_NAMES
+                          else str(Path(robot).resolve()))
+    if robot.name in PRESET_NAMES and preset(robot.name).as_dict() == robot.as_dict():
+        return robot, robot.name
+    raise InvalidCase("robot", f"sweep workers load the robot by preset name or file, and "
+                      f"{robot.name!r} is not an unchanged preset; pass its TOML file instead")
+
+
+def draw_pairs(robot: Robot, config: SweepConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Seeded start and goal poses, each (pairs, n), from the static workspace."""
+    rng = np.random.default_rng(config.seed)
+    evaluator = WorkspaceEvaluator(robot)
+    poses = sample_static_workspace(robot, 2 * config.pairs, rng, margin=config.margin,
+                                    evaluator=evaluator)
+    return poses[: config.pairs], poses[config.pairs:]
+
+
+def columns(n: int) -> list[str]:
+    """CSV header for an n-DOF robot."""
+    axes = [f"{i}" for i in range(n)]
+    return ["pair", "controller", *[f"start_{a}" for a in axes], *[f"goal_{a}" for a in axes],
+            "status", "error", *SCALAR_METRICS]

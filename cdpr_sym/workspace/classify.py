@@ -1,0 +1,133 @@
+"""The static (wrench-feasible) workspace of Assumption 1, evaluated in generated C.
+
+A pose q is *statically feasible* when the gravity-holding tension tau_1 = W^{-1} grad V lies
+in [T_min, T_max], and satisfies the *ball condition* (13) when
+||tau_1 - (T_min + T_max)/2||_2 <= (T_max - T_min)/2, i.e. beta of (20) is >= 0.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.codegen import BuildOptions, build, c_identifier
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SINGULAR_DET, SymbolicModel
+from cdpr_sym.robot import Robot
+
+BLOCK = 4096
+
+
+def classification_function(model: SymbolicModel) -> ca.Function:
+    """(q) -> (tau_1, feasible, ball): static tension and the two tests (1.0 / 0.0)."""
+    robot = model.robot
+    q = ca.SX.sym("q", model.n)
+    W = model.structure_matrix(q)
+    tau_1 = model.static_tension(q)
+    regular = model.singularity_measure(W) >= SINGULAR_DET
+    in_box = ca.sum1(tau_1 >= robot.t_min) + ca.sum1(tau_1 <= robot.t_max) > 2 * model.n - 0.5
+    mid, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
+    in_ball = ca.norm_2(tau_1 - mid) <= half
+    return ca.Function("classify", [q], [tau_1, ca.logic_and(regular, in_box),
+                                         ca.logic_and(regular, in_ball)],
+                       ["q"], ["tau_1", "feasible", "ball"], {"cse": True})
+
+
+@dataclasses.dataclass(frozen=True)
+class Classification:
+    """Per-pose results: tau_1 (N, n) in N; feasible and ball (N,) booleans."""
+
+    tau_1: np.ndarray
+    feasible: np.ndarray
+    ball: np.ndarray
+
+
+class WorkspaceEvaluator:
+    """Classifies many poses at once with a generated, mapped C function."""
+
+    def __init__(self, robot: Robot, *, build_options: BuildOptions = BuildOptions()) -> None:
+        self.robot = robot
+        self.model = SymbolicModel(robot)
+        single = classification_function(self.model)
+        points = ca.MX.sym("q", robot.n, BLOCK)
+        self._mapped = ca.Function("classify_block", [points], single.map(BLOCK)(points),
+                                   ["q"], ["tau_1", "feasible", "ball"])
+        self._native = None
+        if build_options.resolved_backend() == "c":
+            library = build([self._mapped], f"workspace_{c_identifier(robot.name)}",
+                            options=build_options)
+            self._native = library.native().casadi_function("classify_block")
+
+    def classify(self, points: np.ndarray) -> Classification:
+        """Classify poses ``points`` of shape (N, n), m."""
+        points = np.asarray(points, dtype=float)
+        n = self.robot.n
+        if points.ndim != 2 or points.shape[1] != n:
+            raise InvalidCase("points", f"expected shape (N, {n}), got {points.shape}")
+        count = len(points)
+        blocks = -(-count // BLOCK)
+        padded = np.empty((blocks * BLOCK, n))
+        padded[:count] = points
+        padded[count:] = self.robot.goal  # any valid pose
+        tau = np.empty((blocks * BLOCK, n))
+        feasible = np.empty(blocks * BLOCK)
+        ball = np.empty(blocks * BLOCK)
+        for b in range(blocks):
+            rows = slice(b * BLOCK, (b + 1) * BLOCK)
+            if self._native is not None:
+                self._native.bind([padded[rows]], [tau[rows], feasible[rows], ball[rows]])
+                self._native()
+            else:
+                out = self._mapped(padded[rows].T)
+                tau[rows] = np.array(out[0]).T
+                feasible[rows] = np.array(out[1]).ravel()
+                ball[rows] = np.array(out[2]).ravel()
+        return Classification(tau[:count], feasible[:count] > 0.5, ball[:count] > 0.5)
+
+
+def interior_box(robot: Robot, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """The frame shrunk by ``margin`` (share of its size, 0..0.5) on every side, m."""
+    size = robot.frame_upper - robot.frame_lower
+    return robot.frame_lower + margin * size, robot.frame_upper - margin * size
+
+
+def sample_static_workspace(robot: Robot, count: int, rng: np.random.Generator, *,
+                            margin: float = 0.05,
+                            evaluator: WorkspaceEvaluator | None = None) -> np.ndarray:
+    """``count`` poses drawn uniformly from the statically feasible part of the frame.
+
+    Rejection sampling inside the frame shrunk by ``margin``; raises :class:`InvalidCase` if
+    the feasible part is too small to sample.
+    """
+    if count <= 0:
+        raise InvalidCase("count", f"expected a positive number of poses, got {count}")
+    evaluator = evaluator or WorkspaceEvaluator(robot)
+    low, high = interior_box(robot, margin)
+    found: list[np.ndarray] = []
+    total, drawn = 0, 0
+    while total < count:
+        batch = rng.uniform(low, high, size=(max(4 * count, 1024), robot.n))
+        drawn += len(batch)
+        keep = batch[evaluator.classify(batch).feasible]
+        found.append(keep)
+        total += len(keep)
+        if drawn > 1_000_000 and total < count:
+            raise InvalidCase("robot", f"the static workspace of {robot.name} is too small to "
+                              f"sample: {total} feasible poses in {drawn} draws")
+    return np.concatenate(found)[:count]
+
+
+def frame_shares(robot: Robot, rng: np.random.Generator, *, count: int = 20000,
+                 margin: float = 0.05, evaluator: WorkspaceEvaluator | None = None
+                 ) -> dict[str, float]:
+    """Shares of ``count`` uniform poses of the frame (shrunk by ``margin``) that are
+    statically feasible, and of those the share that satisfies the ball condition (13)."""
+    low, high = interior_box(robot, margin)
+    result = (evaluator or WorkspaceEvaluator(robot)).classify(
+        rng.uniform(low, high, (count, robot.n)))
+    feasible = result.feasible
+    return {"feasible": float(feasible.mean()),
+            "ball_given_feasible": float(result.ball[feasible].mean()) if feasible.any()
+            else 0.0}

@@ -1,0 +1,40 @@
+"""The case of a run: start, goal and gains checked against the robot and its kinematics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cdpr_sym import Case, InvalidCase, simulate
+from cdpr_sym.control import controller_by_name
+
+
+def test_start_on_the_anchor_plane_makes_w_singular_and_is_refused_as_start(aras3):
+    # Widen the frame above the anchor plane z = h so only the singularity can object.
+    robot = aras3.with_case(frame_upper=aras3.frame_upper + np.array([0.0, 0.0, 1.0]))
+    start = np.array([0.0, 0.0, aras3.anchors[0, 2]])
+    robot.with_case(start=start)  # the description alone has no kinematics to object with
+    with pytest.raises(InvalidCase, match="singular") as raised:
+        Case.of(robot, start=start)
+    assert raised.value.field == "start"
+
+
+def test_rigid_start_with_concurrent_cable_lines_is_singular_and_refused(planar3):
+    """Attachments all at the body origin: the three cable lines meet there, W is singular."""
+    robot = planar3.with_case(attachments=[[0.0, 0.0]] * 3)
+    with pytest.raises(InvalidCase, match="singular") as raised:
+        Case.of(robot)
+    assert raised.value.field == "start"
+
+
+def test_simulate_refuses_a_singular_start_before_running(aras3):
+    robot = aras3.with_case(frame_upper=aras3.frame_upper + np.array([0.0, 0.0, 1.0]))
+    with pytest.raises(InvalidCase, match="start"):
+        simulate(robot, controller_by_name("pd"), start=[0.0, 0.0, aras3.anchors[0, 2]],
+                 duration=0.01)
+
+
+def test_goal_outside_the_static_workspace_is_refused_as_goal(aras3):
+    with pytest.raises(InvalidCase) as raised:
+        Case.of(aras3, goal=[0.0, 0.0, 0.05])
+    assert raised.value.field == "goal"

@@ -1,0 +1,83 @@
+"""The package's layout: imports run one way, down the flow of the work.
+
+Each folder of ``cdpr_sym`` is one stage; a module may import its own folder and the stages
+below it, never a stage above (that is, no import loop between folders and no upward
+import). The robot description imports no CasADi.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).parents[1] / "cdpr_sym"
+
+#: Stages from the ground up; a module may import only its own stage and lower ones.
+STAGES = (("errors", "version"), ("robot",), ("model",), ("codegen",), ("control",),
+          ("results",), ("closed_loop",), ("workspace",), ("sweep",), ("reporting",),
+          ("export",), ("studies",), ("cli",), ("__main__", "__init__"))
+LEVEL = {name: level for level, names in enumerate(STAGES) for name in names}
+
+
+def _stage(module: str) -> str:
+    """``cdpr_sym.closed_loop.step`` -> ``closed_loop``; the root package is ``__init__``."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def _modules() -> list[tuple[str, Path]]:
+    out = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        relative = path.relative_to(PACKAGE.parent).with_suffix("")
+        parts = list(relative.parts)
+        if parts[-1] == "__init__" and len(parts) > 1:
+            parts = parts[:-1] + (["__init__"] if len(parts) == 2 else [])
+        out.append((".".join(parts), path))
+    return out
+
+
+def _imports(path: Path) -> list[str]:
+    """Every module ``path`` imports, at any depth of its code."""
+    names = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.append(node.module)
+    return names
+
+
+def test_every_folder_is_a_known_stage():
+    folders = {path.name for path in PACKAGE.iterdir()
+               if path.is_dir() and (path / "__init__.py").exists()}
+    modules = {path.stem for path in PACKAGE.glob("*.py")}
+    assert folders | modules <= set(LEVEL)
+
+
+def _upward(module: str, imports: list[str]) -> list[str]:
+    """The imports of ``module`` that reach its own stage's betters (above it)."""
+    own = _stage(module)
+    return [name for name in imports if name.split(".")[0] == "cdpr_sym"
+            and _stage(name) != own and LEVEL[_stage(name)] >= LEVEL[own]]
+
+
+@pytest.mark.parametrize(("module", "path"), _modules(), ids=lambda value: str(value))
+def test_imports_run_down_the_flow(module, path):
+    assert _upward(module, _imports(path)) == []
+
+
+def test_the_robot_description_imports_no_casadi():
+    for path in (PACKAGE / "robot").rglob("*.py"):
+        assert not any(name.split(".")[0] == "casadi" for name in _imports(path)), path
+
+
+def test_the_layout_check_sees_an_upward_import(tmp_path):
+    """The check can fail: a model module importing the closed loop is refused, even from
+    inside a function; importing its own folder and lower stages is not."""
+    fake = tmp_path / "fake.py"
+    fake.write_text("import numpy\nfrom cdpr_sym.model import kinematics\n"
+                    "from cdpr_sym.robot import Robot\n"
+                    "def late():\n    from cdpr_sym.closed_loop import simulate\n")
+    assert _upward("cdpr_sym.model.symbolic", _imports(fake)) == ["cdpr_sym.closed_loop"]

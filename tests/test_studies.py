@@ -1,0 +1,80 @@
+"""Studies compute into files, and their reports are rebuilt from those files alone."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cdpr_sym import InvalidCase, Trajectory, preset
+from cdpr_sym.cli import main
+from cdpr_sym.studies.outline import load_runs, save_runs
+from cdpr_sym.studies.paper import (
+    CONFIRMED,
+    CONTRADICTED,
+    UNTESTED,
+    compute_paper_study,
+    judge,
+    write_paper_report,
+)
+
+
+@pytest.fixture(scope="module")
+def paper_folder(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("paper")
+    compute_paper_study(folder, robot=preset("aras3"), duration=2.0, long_duration=3.0)
+    return folder
+
+
+def _verdicts(claims):
+    return {(claim.source, claim.claim.split()[0]): claim.verdict for claim in claims}
+
+
+def test_trajectory_round_trips_through_its_file(paper_folder, tmp_path):
+    run = load_runs(paper_folder)["l2"]
+    again = Trajectory.load(run.save(tmp_path / "again"))
+    for field in ("t", "q", "dq", "tau", "alpha", "beta", "j", "flags", "q_goal", "memory",
+                  "static_tension"):
+        np.testing.assert_array_equal(getattr(again, field), getattr(run, field))
+    assert again.metrics() == run.metrics() and again.info == run.info
+
+
+def test_loading_a_file_that_is_no_trajectory_is_refused(tmp_path):
+    path = tmp_path / "other.npz"
+    np.savez(path, x=np.zeros(3))
+    with pytest.raises(InvalidCase, match="not a stored trajectory"):
+        Trajectory.load(path)
+
+
+def test_paper_report_is_rebuilt_from_the_stored_runs_alone(paper_folder):
+    claims = write_paper_report(paper_folder)
+    first = (paper_folder / "report.md").read_text()
+    (paper_folder / "report.md").unlink()
+    assert write_paper_report(paper_folder) == claims
+    assert (paper_folder / "report.md").read_text() == first
+
+
+def test_paper_verdicts_follow_their_rules_on_the_runs(paper_folder):
+    runs = load_runs(paper_folder)
+    metrics = {name: run.metrics() for name, run in runs.items()}
+    verdicts = _verdicts(judge(runs, metrics))
+    assert verdicts[("Fig. 2(b)", "every")] == (CONFIRMED if metrics["l2"]["tension_feasible"]
+                                                else CONTRADICTED)
+    assert verdicts[("Theorem 1", "with")] in (CONFIRMED, UNTESTED)
+    # a stored l2 run whose tension leaves the box contradicts Fig. 2(b) and Theorem 1
+    l2 = runs["l2"]
+    broken = Trajectory(**{**l2.__dict__, "tau": l2.tau + 100.0})
+    metrics["l2"] = broken.metrics()
+    verdicts = _verdicts(judge({**runs, "l2": broken}, metrics))
+    assert verdicts[("Fig. 2(b)", "every")] == CONTRADICTED
+    assert verdicts[("Theorem 1", "with")] == CONTRADICTED
+
+
+def test_report_command_redraws_a_computed_study_and_refuses_an_empty_folder(
+        paper_folder, tmp_path, capsys):
+    runs = load_runs(paper_folder)
+    save_runs({**runs, "pd": runs["pd-sat"]}, paper_folder)  # the stored files are the truth
+    assert main(["report", "paper", str(paper_folder)]) == 0
+    assert "cables leaving [T_m, T_M]: 0 of 3" in (paper_folder / "report.md").read_text()
+    save_runs(runs, paper_folder)
+    assert main(["report", "paper", str(tmp_path)]) == 2
+    assert "no computed paper study" in capsys.readouterr().err
