@@ -154,7 +154,8 @@ def test_installed_console_script_runs_simulate():
 
 
 # -- every command for rigid-body robot files -----------------------------------------------
-@pytest.fixture(scope="module", params=["planar3", "spatial6"])
+@pytest.fixture(scope="module",
+                params=["planar3", pytest.param("spatial6", marks=pytest.mark.slow)])
 def robot_file(request, tmp_path_factory) -> Path:
     """A rigid-body preset written out as a user's robot file."""
     text = resources.files("cdpr_sym.robot.presets").joinpath(f"{request.param}.toml").read_text()

@@ -44,7 +44,7 @@ class Trajectory:
     j : ndarray, shape (N, n(n-1)/2)
         Free entries of J_d.
     flags : ndarray of int, shape (N,)
-        Bit set of ``cdpr_sym.controllers.FLAG_*`` per step.
+        Bit set of ``cdpr_sym.control.flags.FLAG_*`` per step.
     q_goal : ndarray, shape (n,)
         Goal, m.
     t_min, t_max : float

@@ -59,7 +59,7 @@ class Robot:
     attachments : ndarray, shape (n, d), optional
         Row i is the attachment point b_i of cable i in the body frame, m. Given, the
         end-effector is a rigid body (``kind`` "planar" for d = 2, "spatial" for d = 3,
-        coordinates in :mod:`cdpr_sym.kinematics`); omitted, it is a point mass.
+        coordinates in :mod:`cdpr_sym.model.kinematics`); omitted, it is a point mass.
     inertia : ndarray, optional
         Rigid bodies: inertia about the centre of mass in the body frame, kg m^2; shape
         (1, 1) for a planar body, (3, 3) symmetric positive definite for a spatial one.
