@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -78,3 +81,14 @@ def test_report_command_redraws_a_computed_study_and_refuses_an_empty_folder(
     save_runs(runs, paper_folder)
     assert main(["report", "paper", str(tmp_path)]) == 2
     assert "no computed paper study" in capsys.readouterr().err
+
+
+def test_importing_reports_and_studies_keeps_the_users_matplotlib_backend():
+    code = ("import matplotlib; matplotlib.use('pdf')\n"
+            "import cdpr_sym.reporting.plots, cdpr_sym.reporting.sweep_report\n"
+            "import cdpr_sym.studies.paper, cdpr_sym.studies.compare, cdpr_sym.studies.designs\n"
+            "import cdpr_sym.studies.rigid, cdpr_sym.studies.workspace\n"
+            "print(matplotlib.get_backend())")
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                         text=True).stdout
+    assert out.strip() == "pdf"
