@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from cdpr_sym.paper_study import run_paper_study
+from cdpr_sym.studies.paper import run_paper_study
 
 if __name__ == "__main__":
     out = Path(__file__).resolve().parents[1] / "reports" / "paper"

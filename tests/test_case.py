@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import re
+from importlib import resources
+
 import numpy as np
 import pytest
 
 from cdpr_sym import Case, InvalidCase, simulate
+from cdpr_sym.cli import main
 from cdpr_sym.control import controller_by_name
 
 
@@ -38,3 +42,27 @@ def test_goal_outside_the_static_workspace_is_refused_as_goal(aras3):
     with pytest.raises(InvalidCase) as raised:
         Case.of(aras3, goal=[0.0, 0.0, 0.05])
     assert raised.value.field == "goal"
+
+
+def test_goal_where_w_is_singular_is_refused_as_goal(aras3):
+    robot = aras3.with_case(frame_upper=aras3.frame_upper + np.array([0.0, 0.0, 1.0]))
+    with pytest.raises(InvalidCase, match="singular") as raised:
+        Case.of(robot, goal=[0.0, 0.0, aras3.anchors[0, 2]])
+    assert raised.value.field == "goal"
+
+
+@pytest.mark.parametrize("command", [["workspace", "--resolution", "3"], ["bench"],
+                                     ["sweep", "--pairs", "1"], ["export-c"]])
+def test_every_command_refuses_a_robot_file_with_a_singular_start(tmp_path, capsys, command):
+    text = (resources.files("cdpr_sym.robot.presets") / "aras3.toml").read_text()
+    text = text.replace("upper = [1.78, 3.525, 4.26]", "upper = [1.78, 3.525, 5.0]")
+    text = re.sub(r"start = \[[^]]*\]", "start = [0.0, 0.0, 4.26]", text)
+    robot = tmp_path / "bad.toml"
+    robot.write_text(text)
+    argv = [command[0], "--robot", str(robot), *command[1:]]
+    if command[0] in ("workspace", "sweep", "export-c"):
+        argv += ["--out", str(tmp_path / ("out.csv" if command[0] == "sweep" else "out"))]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "start: the structure matrix W is singular" in err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "out.csv").exists()

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 
 import numpy as np
 import pytest
 
-from cdpr_sym import InvalidCase, Trajectory, preset
+from cdpr_sym import InvalidCase, Trajectory, controller_by_name, preset, simulate
 from cdpr_sym.cli import main
 from cdpr_sym.studies.outline import load_runs, save_runs
 from cdpr_sym.studies.paper import (
@@ -32,8 +33,8 @@ def _verdicts(claims):
     return {(claim.source, claim.claim.split()[0]): claim.verdict for claim in claims}
 
 
-def test_trajectory_round_trips_through_its_file(paper_folder, tmp_path):
-    run = load_runs(paper_folder)["l2"]
+def test_trajectory_round_trips_through_its_file(tmp_path):
+    run = simulate(preset("aras3"), controller_by_name("smooth"), duration=0.3)
     again = Trajectory.load(run.save(tmp_path / "again"))
     for field in ("t", "q", "dq", "tau", "alpha", "beta", "j", "flags", "q_goal", "memory",
                   "static_tension"):
@@ -48,10 +49,15 @@ def test_loading_a_file_that_is_no_trajectory_is_refused(tmp_path):
         Trajectory.load(path)
 
 
-def test_paper_report_is_rebuilt_from_the_stored_runs_alone(paper_folder):
+def test_paper_report_is_rebuilt_from_the_stored_runs_alone(paper_folder, monkeypatch):
     claims = write_paper_report(paper_folder)
     first = (paper_folder / "report.md").read_text()
     (paper_folder / "report.md").unlink()
+
+    def no_simulation(*args, **kwargs):
+        raise AssertionError("a report must not simulate")
+    monkeypatch.setattr("cdpr_sym.studies.paper.simulate", no_simulation)
+    monkeypatch.setattr("cdpr_sym.studies.paper.simulate_adaptive", no_simulation)
     assert write_paper_report(paper_folder) == claims
     assert (paper_folder / "report.md").read_text() == first
 
@@ -62,7 +68,8 @@ def test_paper_verdicts_follow_their_rules_on_the_runs(paper_folder):
     verdicts = _verdicts(judge(runs, metrics))
     assert verdicts[("Fig. 2(b)", "every")] == (CONFIRMED if metrics["l2"]["tension_feasible"]
                                                 else CONTRADICTED)
-    assert verdicts[("Theorem 1", "with")] in (CONFIRMED, UNTESTED)
+    fallback_only = metrics["l2"]["share_fallback"] == 1.0
+    assert verdicts[("Theorem 1", "with")] == (UNTESTED if fallback_only else CONFIRMED)
     # a stored l2 run whose tension leaves the box contradicts Fig. 2(b) and Theorem 1
     l2 = runs["l2"]
     broken = Trajectory(**{**l2.__dict__, "tau": l2.tau + 100.0})
@@ -72,15 +79,34 @@ def test_paper_verdicts_follow_their_rules_on_the_runs(paper_folder):
     assert verdicts[("Theorem 1", "with")] == CONTRADICTED
 
 
-def test_report_command_redraws_a_computed_study_and_refuses_an_empty_folder(
-        paper_folder, tmp_path, capsys):
-    runs = load_runs(paper_folder)
-    save_runs({**runs, "pd": runs["pd-sat"]}, paper_folder)  # the stored files are the truth
-    assert main(["report", "paper", str(paper_folder)]) == 0
-    assert "cables leaving [T_m, T_M]: 0 of 3" in (paper_folder / "report.md").read_text()
-    save_runs(runs, paper_folder)
-    assert main(["report", "paper", str(tmp_path)]) == 2
-    assert "no computed paper study" in capsys.readouterr().err
+def test_report_command_redraws_a_computed_study_from_its_files(paper_folder, tmp_path):
+    folder = tmp_path / "copy"
+    shutil.copytree(paper_folder, folder)
+    runs = load_runs(folder)
+    save_runs({**runs, "pd": runs["pd-sat"]}, folder)  # the stored files are the truth
+    assert main(["report", "paper", str(folder)]) == 0
+    assert "cables leaving [T_m, T_M]: 0 of 3" in (folder / "report.md").read_text()
+
+
+@pytest.mark.parametrize(("damage", "message"), [
+    ("empty", "no computed paper study"), ("other", "holds a compare study"),
+    ("corrupt", "is damaged"), ("no_runs", "has no stored runs")])
+def test_report_command_refuses_a_folder_it_cannot_use(paper_folder, tmp_path, capsys,
+                                                       damage, message):
+    folder = tmp_path / "copy"
+    if damage != "empty":
+        shutil.copytree(paper_folder, folder)
+    if damage == "other":
+        text = (folder / "study.json").read_text()
+        (folder / "study.json").write_text(text.replace('"study": "paper"',
+                                                        '"study": "compare"'))
+    elif damage == "corrupt":
+        (folder / "study.json").write_bytes(b"\x00\xff not json")
+    elif damage == "no_runs":
+        shutil.rmtree(folder / "runs")
+    assert main(["report", "paper", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
 
 
 def test_importing_reports_and_studies_keeps_the_users_matplotlib_backend():

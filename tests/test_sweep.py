@@ -16,9 +16,8 @@ import pytest
 from cdpr_sym import InvalidCase, SymbolicModel, UnknownName, __version__, preset, simulate
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.reporting.sweep_report import maps_figure, write_sweep_report
-from cdpr_sym.results import SCALAR_METRICS as METRIC_COLUMNS
-from cdpr_sym.results.store import load_table as load_results
-from cdpr_sym.results.store import sidecar_path
+from cdpr_sym.results import SCALAR_METRICS
+from cdpr_sym.results.store import load_table, sidecar_path
 from cdpr_sym.sweep import SweepConfig, columns, run_sweep
 
 CONFIG = SweepConfig(robot="aras3", controllers=("l2", "box"), pairs=3, seed=11,
@@ -205,7 +204,7 @@ def test_sweep_report_writes_summary_and_maps(local_sweep, tmp_path):
 def test_metric_columns_are_the_simulate_metrics(planar2, build_options):
     metrics = simulate(planar2, controller_by_name("pd-sat"), duration=0.1,
                        build_options=build_options).metrics(static_tension=np.zeros(2))
-    assert set(METRIC_COLUMNS) <= set(metrics)
+    assert set(SCALAR_METRICS) <= set(metrics)
 
 
 def test_resume_keeps_the_sidecar_and_refuses_a_changed_identity(tmp_path):
@@ -228,7 +227,7 @@ def test_resume_keeps_the_sidecar_and_refuses_a_changed_identity(tmp_path):
 
 
 def test_sweep_maps_are_labelled_with_the_robots_coordinates(local_sweep):
-    rows, _ = load_results(local_sweep)
+    rows, _ = load_table(local_sweep)
     fig = maps_figure(rows, axes=(0, 1), names=("x", "z"))
     try:
         assert fig.axes[len(fig.axes) // 2].get_xlabel() == "x [m]"  # bottom row

@@ -8,7 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from cdpr_sym.closed_loop import Plant, simulate
+from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, InvalidCase
@@ -96,6 +96,14 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _robot(name_or_path: str):
+    """The robot, with its own case checked (start and goal regular, goal holdable), so a
+    bad robot file is refused before any long work."""
+    robot = resolve_robot(name_or_path)
+    Case.of(robot)
+    return robot
+
+
 def _simulate(args: argparse.Namespace) -> int:
     robot = resolve_robot(args.robot)
     controller = controller_by_name(args.controller)
@@ -119,7 +127,7 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def _study(args: argparse.Namespace) -> int:
-    robot = resolve_robot(args.robot or "aras3")
+    robot = _robot(args.robot or "aras3")
     default = args.robot is None or (args.robot == "aras3" and args.name != "rigid")
     stem = Path(args.robot).stem if args.robot else ""
     if not args.out and args.robot not in PRESET_NAMES and stem in PRESET_NAMES:
@@ -164,7 +172,7 @@ def _study(args: argparse.Namespace) -> int:
 def _workspace(args: argparse.Namespace) -> int:
     from cdpr_sym.studies.workspace import run_workspace_study
 
-    summary = run_workspace_study(resolve_robot(args.robot), args.out,
+    summary = run_workspace_study(_robot(args.robot), args.out,
                                   resolution=args.resolution, orientation=args.orientation)
     print(f"{summary['points']} poses, {summary['poses_per_s']:.3g} poses/s; feasible "
           f"{100 * summary['feasible_share']:.1f} %, ball (13) "
@@ -178,6 +186,7 @@ def _workspace(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace) -> int:
     from cdpr_sym.sweep import SweepConfig, robot_reference, run_sweep
 
+    _robot(args.robot)
     config = SweepConfig(robot=robot_reference(args.robot)[1], pairs=args.pairs, seed=args.seed,
                          controllers=tuple(n.strip() for n in args.controllers.split(",") if n),
                          duration=args.duration, dt=args.dt, mass_scale=args.mass_scale)
@@ -196,9 +205,20 @@ def _report(args: argparse.Namespace) -> int:
         print(f"report: {write_sweep_report(args.results, args.out)}")
         return 0
     module, function = _STUDY_REPORTS[args.kind]
-    if not (args.results / "study.json").exists():
+    study, runs = args.results / "study.json", args.results / "runs" / "index.json"
+    if not study.exists():
         raise InvalidCase("results", f"{args.results} holds no computed {args.kind} study "
                           "(no study.json); run 'cdpr-sym study' first")
+    try:
+        kind = json.loads(study.read_text()).get("study")
+    except (json.JSONDecodeError, UnicodeDecodeError, AttributeError):
+        raise InvalidCase("results", f"{study} is damaged; run 'cdpr-sym study "
+                          f"{args.kind}' again") from None
+    if kind != args.kind:
+        raise InvalidCase("results", f"{args.results} holds a {kind} study, not {args.kind}")
+    if not runs.exists():
+        raise InvalidCase("results", f"{args.results} has no stored runs (runs/ is not kept "
+                          f"in git); run 'cdpr-sym study {args.kind}' to compute them")
     getattr(importlib.import_module(module), function)(args.results)
     print(f"report: {args.results / 'report.md'}")
     return 0
@@ -207,7 +227,7 @@ def _report(args: argparse.Namespace) -> int:
 def _bench(args: argparse.Namespace) -> int:
     from cdpr_sym.studies.bench import format_table, run_bench
 
-    result = run_bench(resolve_robot(args.robot), min_seconds=args.seconds)
+    result = run_bench(_robot(args.robot), min_seconds=args.seconds)
     print(json.dumps(result) if args.json else format_table(result))
     return 0
 
@@ -215,7 +235,7 @@ def _bench(args: argparse.Namespace) -> int:
 def _export_c(args: argparse.Namespace) -> int:
     from cdpr_sym.export import export_c
 
-    result = export_c(args.robot, args.controller, args.out, prefix=args.prefix)
+    result = export_c(_robot(args.robot), args.controller, args.out, prefix=args.prefix)
     print("\n".join(str(path) for path in result.paths))
     return 0
 

@@ -141,7 +141,9 @@ class Trajectory:
         }
         if static_tension is not None and len(self.tau):
             out["start_jump"] = float(np.max(np.abs(self.tau[0] - static_tension)))
-        return {name: out[name] for name in (*SCALAR_METRICS, "flag_counts") if name in out}
+        order = (*SCALAR_METRICS, "flag_counts")
+        assert set(out) <= set(order), set(out) - set(order)  # a new metric is declared above
+        return {name: out[name] for name in order if name in out}
 
     def save(self, path: str | Path) -> Path:
         """Write the run to an ``.npz`` file that ``numpy.load`` reads directly (``.npz`` is

@@ -22,7 +22,7 @@ from cdpr_sym.studies.outline import (
     load_runs,
     read_study,
     save_runs,
-    sweep_rows,
+    study_sweep,
     write_study,
 )
 from cdpr_sym.sweep import SweepConfig, robot_reference
@@ -49,8 +49,8 @@ def compute_compare_study(out_dir: Path, *, robot: Robot | str | Path = "aras3",
     runs = case_runs(robot, designs)
     save_runs(runs, out_dir)
     config = SweepConfig(robot=robot_source, controllers=tuple(designs), pairs=pairs, seed=seed)
-    sweep_rows(config, out_dir / "sweep.csv", progress=progress)
-    write_study(out_dir, robot, config=config.as_dict(),
+    study_sweep(config, out_dir / "sweep.csv", progress=progress)
+    write_study(out_dir, "compare", robot, config=config.as_dict(),
                 cvxpy_agreement=_reference_agreement(robot, runs))
 
 

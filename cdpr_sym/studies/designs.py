@@ -15,7 +15,7 @@ from cdpr_sym.studies.outline import (
     load_runs,
     read_study,
     save_runs,
-    sweep_rows,
+    study_sweep,
     write_study,
 )
 from cdpr_sym.sweep import SweepConfig, robot_reference
@@ -47,8 +47,8 @@ def compute_designs_study(out_dir: Path, *, robot: Robot | str | Path = "aras3",
     for scale in MASS_SCALES:
         config = SweepConfig(robot=robot_source, controllers=tuple(designs), pairs=pairs,
                              seed=seed, mass_scale=scale)
-        sweep_rows(config, out_dir / _table(scale), progress=progress)
-    write_study(out_dir, robot, designs=list(designs), pairs=pairs, seed=seed,
+        study_sweep(config, out_dir / _table(scale), progress=progress)
+    write_study(out_dir, "designs", robot, designs=list(designs), pairs=pairs, seed=seed,
                 mass_scales=list(MASS_SCALES))
 
 

@@ -17,7 +17,7 @@ from typing import Any
 from cdpr_sym.closed_loop import simulate
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.results import Trajectory
-from cdpr_sym.results.store import load_table, read_json, write_json
+from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
 from cdpr_sym.sweep import SweepConfig, run_sweep
 
@@ -45,20 +45,21 @@ def load_runs(folder: Path) -> dict[str, Trajectory]:
     return {name: Trajectory.load(folder / RUNS / f"{name}.npz") for name in names}
 
 
-def sweep_rows(config: SweepConfig, table: Path, *, progress: bool) -> list[dict[str, Any]]:
-    """Run (or resume) a study's sweep into ``table``; its rows as stored.
+def study_sweep(config: SweepConfig, table: Path, *, progress: bool) -> None:
+    """Run (or resume) a study's sweep into ``table``.
 
     The study owns the file: results of another configuration are replaced.
     """
     run_sweep(config, table, progress=progress, restart_if_stale=True)
-    return load_table(table)[0]
 
 
-def write_study(folder: Path, robot: Robot | None, **measured: Any) -> None:
-    """``study.json``: the robot description and what the study measured besides runs."""
+def write_study(folder: Path, kind: str, robot: Robot | None, **measured: Any) -> None:
+    """``study.json``: which study, the robot description, and what the study measured
+    besides runs."""
     folder.mkdir(parents=True, exist_ok=True)
-    write_json(folder / STUDY_FILE,
-               {"robot": None if robot is None else robot.as_dict(), **measured})
+    write_json(folder / STUDY_FILE, {"study": kind,
+                                     "robot": None if robot is None else robot.as_dict(),
+                                     **measured})
 
 
 def read_study(folder: Path) -> dict[str, Any]:

@@ -55,7 +55,7 @@ def compute_paper_study(out_dir: Path, *, robot: Robot | None = None, duration: 
     save_runs(runs, out_dir)
     l2 = runs["l2"]
     gap = construction_gap(SymbolicModel(robot), l2.q, l2.dq, l2.q_goal, robot.k, robot.r_d)
-    write_study(out_dir, robot, construction_gap_N=float(gap.gaps.max()))
+    write_study(out_dir, "paper", robot, construction_gap_N=float(gap.gaps.max()))
 
 
 def write_paper_report(out_dir: Path) -> list[Claim]:

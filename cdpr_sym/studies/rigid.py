@@ -26,7 +26,7 @@ from cdpr_sym.studies.outline import (
     load_runs,
     read_study,
     save_runs,
-    sweep_rows,
+    study_sweep,
     write_study,
 )
 from cdpr_sym.sweep import SweepConfig, robot_reference
@@ -55,12 +55,12 @@ def compute_rigid_study(out_dir: Path, *, pairs: int = 200, seed: int = 0,
         save_runs(case_runs(robot, CONTROLLERS), out_dir / robot.name)
         config = SweepConfig(robot=source, controllers=tuple(CONTROLLERS), pairs=pairs,
                              seed=seed)
-        sweep_rows(config, out_dir / f"{robot.name}_sweep.csv", progress=progress)
+        study_sweep(config, out_dir / f"{robot.name}_sweep.csv", progress=progress)
         measured[robot.name] = {
             "robot": robot.as_dict(),
             "ball_share": frame_shares(robot, np.random.default_rng(seed)),
             "ls_gap_n": _construction_gap(robot, seed)}
-    write_study(out_dir, None, robots=measured, pairs=pairs, seed=seed)
+    write_study(out_dir, "rigid", None, robots=measured, pairs=pairs, seed=seed)
 
 
 def write_rigid_report(out_dir: Path) -> dict[str, Any]:

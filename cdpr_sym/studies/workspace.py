@@ -6,7 +6,6 @@ angles held at the robot's goal orientation (or a given one).
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -15,6 +14,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.results.store import write_json
 from cdpr_sym.robot import Robot
 from cdpr_sym.workspace import WorkspaceEvaluator
 
@@ -61,7 +61,7 @@ def run_workspace_study(robot: Robot, out_dir: Path, *, resolution: int = 61,
                "orientation_rad": angles.tolist(),
                "poses_per_s": len(points) / seconds, "feasible_share": float(feasible.mean()),
                "ball_share": float(ball.mean()), "by_height": by_height}
-    (out_dir / "workspace.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_json(out_dir / "workspace.json", summary)
     figures = _figures(robot, axes, feasible, ball, out_dir)
     (out_dir / "workspace.md").write_text(_markdown(summary, figures, robot))
     return summary

@@ -27,7 +27,7 @@ import numpy as np
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.control import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, InvalidCase
-from cdpr_sym.results.store import read_rows, sidecar_path
+from cdpr_sym.results.store import read_rows, sidecar_path, write_json
 from cdpr_sym.robot import Robot, resolve_robot
 from cdpr_sym.sweep.config import SweepConfig, columns, draw_pairs
 
@@ -104,9 +104,8 @@ def _prepare_output(config: SweepConfig, robot: Robot, out: Path) -> set[tuple[i
                           "to append to an unknown file")
     else:
         out.parent.mkdir(parents=True, exist_ok=True)
-        sidecar.write_text(json.dumps({"config": config.as_dict(), "identity": identity,
-                                       "versions": identity["versions"],
-                                       "created": time.time()}, indent=2) + "\n")
+        write_json(sidecar, {"config": config.as_dict(), "identity": identity,
+                             "versions": identity["versions"], "created": time.time()})
     return {(int(row["pair"]), row["controller"]) for row in read_rows(out)}
 
 
