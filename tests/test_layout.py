@@ -38,15 +38,23 @@ def _modules() -> list[tuple[str, Path]]:
     return out
 
 
-def _imports(path: Path) -> list[str]:
-    """Every module ``path`` imports, at any depth of its code."""
+def _imports(path: Path, package: str = "cdpr_sym.model") -> list[str]:
+    """Every module ``path`` imports, at any depth of its code; a relative import is
+    resolved against ``package`` (the package that holds ``path``)."""
     names = []
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.Import):
             names += [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            names.append(node.module)
+        elif isinstance(node, ast.ImportFrom):
+            base = package.split(".")[: len(package.split(".")) - node.level + 1]
+            prefix = ".".join(base) if node.level else ""
+            names.append(".".join(part for part in (prefix, node.module or "") if part))
     return names
+
+
+def _package_of(module: str, path: Path) -> str:
+    return module if path.name == "__init__.py" and module.count(".") else \
+        module.rsplit(".", 1)[0]
 
 
 def test_every_folder_is_a_known_stage():
@@ -65,7 +73,7 @@ def _upward(module: str, imports: list[str]) -> list[str]:
 
 @pytest.mark.parametrize(("module", "path"), _modules(), ids=lambda value: str(value))
 def test_imports_run_down_the_flow(module, path):
-    assert _upward(module, _imports(path)) == []
+    assert _upward(module, _imports(path, _package_of(module, path))) == []
 
 
 def test_the_robot_description_imports_no_casadi():
@@ -79,5 +87,7 @@ def test_the_layout_check_sees_an_upward_import(tmp_path):
     fake = tmp_path / "fake.py"
     fake.write_text("import numpy\nfrom cdpr_sym.model import kinematics\n"
                     "from cdpr_sym.robot import Robot\n"
-                    "def late():\n    from cdpr_sym.closed_loop import simulate\n")
-    assert _upward("cdpr_sym.model.symbolic", _imports(fake)) == ["cdpr_sym.closed_loop"]
+                    "def late():\n    from cdpr_sym.closed_loop import simulate\n"
+                    "from ..sweep import run_sweep\nfrom . import kinematics\n")
+    assert sorted(_upward("cdpr_sym.model.symbolic", _imports(fake, "cdpr_sym.model"))) == [
+        "cdpr_sym.closed_loop", "cdpr_sym.sweep"]

@@ -14,7 +14,8 @@ def _applied_tension(robot, controller, plant, duration):
     """Run the rate-limited simulator and read the actuators' state column by column."""
     simulator = get_simulator(robot, controller, rate_limited=True)
     layout = simulator.layout
-    p = layout.parameters(robot.goal, robot.k, robot.r_d, 1e-3, rate_limit=plant.rate_limit)
+    p = layout.parameters(robot.goal, robot.k, robot.r_d, 1e-3, mass_scale=plant.mass_scale,
+                          slack=plant.slack, rate_limit=plant.rate_limit)
     x0 = simulator.initial_state(robot.start, robot.goal, robot.k, robot.r_d)
     states, logs = simulator.rollout(x0, p, round(duration / 1e-3))
     return states[:, layout.x.slice("applied")], logs[:, layout.log.slice("tau")]
