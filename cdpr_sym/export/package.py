@@ -3,8 +3,9 @@
 The package needs neither Python nor CasADi to build or run. Staged as a build: the
 functions are made consistent (renamed with a C prefix, outputs made dense, matrices
 row-major), CasADi generates their C, the public header, wrappers, example and build files
-are rendered around it, and a JSON manifest records the robot, the controller and a hash of
-every file. One package is one folder:
+are rendered around it (Jinja2 templates in ``cdpr_sym/export/templates``, one per file,
+filled from a plain description of the package), and a JSON manifest records the robot, the
+controller and a hash of every file. One package is one folder:
 
 * ``<prefix>.h``: the one public header, every function, size, layout and flag documented;
 * ``<prefix>.c``: the wrappers; it includes ``<prefix>_generated.inc``, CasADi's code
@@ -26,20 +27,20 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import re
 import tempfile
-import textwrap
 from pathlib import Path
+from typing import Any, NamedTuple
 
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.closed_loop import STOP_REASONS, StepLayout, step_function, step_layout
+from cdpr_sym.closed_loop import STOP_REASONS, Fields, StepLayout, step_function, step_layout
 from cdpr_sym.codegen import (
     c_identifier,
     generate_c,
     is_c_identifier,
     plain_text,
+    render,
     require_compiler,
     run_command,
 )
@@ -51,22 +52,6 @@ from cdpr_sym.control import (
     law_function,
 )
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.export.templates_py import (
-    BENCH_C,
-    CMAKE,
-    CMAKE_PLAN,
-    EXAMPLE_C,
-    EXAMPLE_MEMORY,
-    HEADER,
-    MAKEFILE,
-    MAKEFILE_PLAN,
-    MEMORY_DOC,
-    PARAMETERS_DOC,
-    PLAN_SOURCE,
-    README,
-    README_PLAN,
-    SOURCE,
-)
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot, resolve_robot
 
@@ -118,32 +103,107 @@ _FLAG_DOCS = {
     "singular": "|det W| / prod |w_i| below 1e-6: singular; the step stops the loop",
     "infeasible": "no admissible command or plan reaches the tension box",
 }
-#: Arguments of ``<prefix>_control`` by the law's input / output names:
-#: (C parameter, value handed to CasADi, may be NULL, documentation).
-_CONTROL_INPUTS = {
-    "q": ("const double q[@n@]", "q", False, "position, m (angles: rad)"),
-    "dq": ("const double dq[@n@]", "dq", False,
-           "velocity, m/s, rad/s (rest and |dq| below any low-speed threshold included)"),
-    "q_goal": ("const double q_goal[@n@]", "q_goal", False, "goal position, m (rad)"),
-    "k": ("const double k[@n@]", "k ? k : @PREFIX@_case_k", True,
-          "stiffness gains K (diagonal), N/m, N m/rad; NULL: the robot's case gains"),
-    "r_d": ("const double r_d[@n@]", "r_d ? r_d : @PREFIX@_case_r_d", True,
-            "damping gains R_d (diagonal), N s/m; NULL: the robot's case gains"),
-    "memory": ("const double memory[@nmem@]", "memory", False,
-               "internal state: from _initial_memory at the start of a move, then the "
-               "previous call's memory_next"),
-    "dt": ("double dt", "&dt", False, "time since the previous call (control period), s"),
+class _Spec(NamedTuple):
+    """How one argument of ``<prefix>_control`` is declared (see :class:`_CArgument`)."""
+
+    c_type: str
+    length: str | None  # "n", "nj", "nmem"; None: a scalar
+    doc: str
+    optional: bool = False
+    case_default: bool = False
+    by_value: bool = False
+
+
+#: Arguments of ``<prefix>_control`` by the law's input / output names.
+_CONTROL_ARGUMENTS = {
+    "q": _Spec("double", "n", "position, m (angles: rad)"),
+    "dq": _Spec("double", "n", "velocity, m/s, rad/s (rest and |dq| below any low-speed "
+                "threshold included)"),
+    "q_goal": _Spec("double", "n", "goal position, m (rad)"),
+    "k": _Spec("double", "n", "stiffness gains K (diagonal), N/m, N m/rad; NULL: the robot's "
+               "case gains", optional=True, case_default=True),
+    "r_d": _Spec("double", "n", "damping gains R_d (diagonal), N s/m; NULL: the robot's case "
+                 "gains", optional=True, case_default=True),
+    "memory": _Spec("double", "nmem", "internal state: from _initial_memory at the start of a "
+                    "move, then the previous call's memory_next"),
+    "dt": _Spec("double", None, "time since the previous call (control period), s",
+                by_value=True),
+    "tau": _Spec("double", "n", "commanded cable tensions, N (> 0 pulls)"),
+    "alpha": _Spec("double", None, "scale on the PD part, eq. (24), 0 < alpha <= 1",
+                   optional=True),
+    "beta": _Spec("double", None, "margin of eq. (20), N: (T_MAX - T_MIN)/2 - |tau_1 - (T_MIN "
+                  "+ T_MAX)/2|", optional=True),
+    "j": _Spec("double", "nj", "free entries of J_d, N s/m", optional=True),
+    "flags": _Spec("int", None, "bit set of the FLAG_* macros above", optional=True),
+    "memory_next": _Spec("double", "nmem", "internal state for the next call (must not "
+                         "overlap memory)"),
 }
-_CONTROL_OUTPUTS = {
-    "tau": ("double tau[@n@]", "tau", False, "commanded cable tensions, N (> 0 pulls)"),
-    "alpha": ("double *alpha", "alpha", True, "scale on the PD part, eq. (24), 0 < alpha <= 1"),
-    "beta": ("double *beta", "beta", True,
-             "margin of eq. (20), N: (T_MAX - T_MIN)/2 - |tau_1 - (T_MIN + T_MAX)/2|"),
-    "j": ("double j[@nj@]", "j", True, "free entries of J_d, N s/m"),
-    "flags": ("int *flags", "&flag_value", True, "bit set of the FLAG_* macros above"),
-    "memory_next": ("double memory_next[@nmem@]", "memory_next", False,
-                    "internal state for the next call (must not overlap memory)"),
-}
+#: Arguments of a stateless law (empty memory) left out of its C signature.
+_STATEFUL_ARGUMENTS = frozenset({"memory", "dt", "memory_next"})
+
+# -- the description rendered by the templates ----------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class _CArgument:
+    """One argument of an exported C function, as ``templates/macros.j2`` declares it."""
+
+    name: str
+    direction: str  # "in" or "out"
+    length: int | None  # array length; None: a scalar, by pointer unless by_value
+    doc: str
+    c_type: str = "double"
+    matrix: tuple[int, int] | None = None  # (rows, cols) of a row-major matrix
+    optional: bool = False  # may be NULL
+    case_default: bool = False  # NULL stands for the robot's case value
+    by_value: bool = False
+    used: bool = True  # False: not in the C signature; CasADi gets NULL
+
+    @property
+    def required(self) -> bool:
+        """Whether the function returns -1 when this argument is NULL."""
+        return self.used and not self.optional and not self.by_value
+
+
+@dataclasses.dataclass(frozen=True)
+class _Macro:
+    """``#define <PREFIX>_<name> <value>``, with an optional comment."""
+
+    name: str
+    value: object
+    comment: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
+class _Function:
+    """One plain wrapper ``<prefix>_<name>`` of the generated function ``symbol``."""
+
+    name: str
+    symbol: str
+    summary: str
+    operations: int
+    inputs: tuple[_CArgument, ...]
+    outputs: tuple[_CArgument, ...]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Control:
+    """``<prefix>_control``: the law's arguments, inputs then outputs in CasADi's order."""
+
+    symbol: str
+    arguments: tuple[_CArgument, ...]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Entry:
+    """One exported function: what CasADi generates and how its wrapper is described."""
+
+    function: ca.Function
+    description: _Function
+
+    @property
+    def name(self) -> str:
+        return self.description.name
 
 
 @dataclasses.dataclass(frozen=True)
@@ -183,17 +243,6 @@ class ExportResult:
         return tuple(value for value in values if value is not None)
 
 
-@dataclasses.dataclass(frozen=True)
-class _Entry:
-    """One exported function: its public name, generated twin and C argument lists."""
-
-    name: str
-    function: ca.Function
-    summary: str
-    inputs: tuple[tuple[str, int, str], ...]
-    outputs: tuple[tuple[str, int, str], ...]
-
-
 def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: str | Path,
              *, prefix: str | None = None, avoid_stack: bool = True) -> ExportResult:
     """Write a self-contained C99 package of ``controller`` on ``robot`` to ``out_dir``.
@@ -203,7 +252,8 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     robot : Robot, str or Path
         A robot, a preset name (``"aras3"``, ``"planar2"``) or a robot TOML file.
     controller : Controller or str
-        A controller or its name in :data:`cdpr_sym.controllers.CONTROLLERS`.
+        A controller or its name in :data:`cdpr_sym.control.CONTROLLERS` (a name also
+        names the default prefix).
     out_dir : str or Path
         The package folder; created if missing, files of an earlier export overwritten.
     prefix : str, optional
@@ -231,9 +281,9 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     Notes
     -----
     The generated functions compute exactly the CasADi expressions of
-    :func:`cdpr_sym.controllers.law_function`, :class:`cdpr_sym.model.SymbolicModel`,
-    :func:`cdpr_sym.simulation.step_function` and (for a controller with internal state)
-    :func:`cdpr_sym.simulation.initial_memory_function`; all quantities are SI
+    :func:`cdpr_sym.control.law_function`, :class:`cdpr_sym.model.SymbolicModel`,
+    :func:`cdpr_sym.closed_loop.step_function` and (for a controller with internal state)
+    :func:`cdpr_sym.control.initial_memory_function`; all quantities are SI
     (m, rad, m/s, N, s).
 
     Examples
@@ -244,8 +294,10 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     'cdpr_planar2_pd.h'
     """
     robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
+    # a registered name names the package (l2-minnorm and l2 share the class name "l2")
+    label = controller if isinstance(controller, str) else controller.name
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
-    prefix = prefix if prefix is not None else c_identifier(f"cdpr_{robot.name}_{controller.name}")
+    prefix = prefix if prefix is not None else c_identifier(f"cdpr_{robot.name}_{label}")
     if not is_c_identifier(prefix):
         raise InvalidCase("prefix", f"expected a C identifier, got {prefix!r}")
     out = _make_folder(Path(out_dir))
@@ -254,23 +306,18 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     entries = _entries(model, controller, prefix)
     realtime = [entry for entry in entries if entry.name != "initial_memory"]
     plan = [entry for entry in entries if entry.name == "initial_memory"]
-    names = _names(robot, controller, layout)
-    texts = {
-        f"{prefix}_generated.inc": _generated(realtime, prefix, f"{prefix}_", avoid_stack),
-        f"{prefix}.h": _header(robot, prefix, entries, layout, avoid_stack, names),
-        f"{prefix}.c": _source(robot, prefix, realtime, layout),
-        "main.c": _render(EXAMPLE_C, prefix, **names, memory=EXAMPLE_MEMORY if plan else ""),
-        "Makefile": _render(MAKEFILE, prefix, plan=MAKEFILE_PLAN if plan else "",
-                            objects="@PREFIX@.o @PREFIX@_plan.o" if plan else "@PREFIX@.o"),
-        "CMakeLists.txt": _render(CMAKE, prefix, plan=CMAKE_PLAN if plan else "",
-                                  sources="@PREFIX@.c @PREFIX@_plan.c" if plan else "@PREFIX@.c"),
-        "README.md": _render(README, prefix, **names, plan=README_PLAN if plan else ""),
-    }
+    description = _description(robot, controller, prefix, entries, layout, avoid_stack)
+    templates = {f"{prefix}.h": "header.h.j2", f"{prefix}.c": "source.c.j2",
+                 "main.c": "main.c.j2", "Makefile": "Makefile.j2",
+                 "CMakeLists.txt": "CMakeLists.txt.j2", "README.md": "README.md.j2"}
+    if plan:
+        templates[f"{prefix}_plan.c"] = "plan.c.j2"
+    texts = {f"{prefix}_generated.inc": _generated(realtime, prefix, f"{prefix}_", avoid_stack)}
     if plan:
         texts[f"{prefix}_plan_generated.inc"] = _generated(plan, prefix, f"{prefix}_plan_",
                                                            avoid_stack)
-        texts[f"{prefix}_plan.c"] = _render(PLAN_SOURCE, prefix,
-                                            wrapper=_wrapper(prefix, plan[0]))
+    texts.update({name: render("cdpr_sym.export", template, **description)
+                  for name, template in templates.items()})
     for name, text in texts.items():
         (out / name).write_text(text)
     manifest = {"prefix": prefix, "robot": robot.as_dict(),
@@ -317,19 +364,15 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
     memory = np.array(initial_memory_function(model, controller)(
         robot.start, robot.goal, robot.k, robot.r_d)).ravel()
     law = law_function(model, controller)
-    values = {"q": "s", "dq": "s + CDPR_BENCH_N", "q_goal": "cdpr_bench_case_goal", "k": "0",
-              "r_d": "0", "memory": "memory", "dt": "1e-3", "tau": "tau", "alpha": "0",
-              "beta": "0", "j": "0", "flags": "0", "memory_next": "memory_next"}
-    unused = set() if memory.size else {"memory", "dt", "memory_next"}
-    call = ", ".join(values[name] for name in (*law.name_in(), *law.name_out())
-                     if name not in unused)
+    unused = set() if memory.size else _STATEFUL_ARGUMENTS
     with tempfile.TemporaryDirectory(prefix="cdpr_bench_") as folder:
         result = export_c(robot, controller, folder, prefix="cdpr_bench")
         bench = Path(folder) / "bench.c"
-        bench.write_text(_render(
-            BENCH_C, "cdpr_bench", call=call, seconds=repr(float(min_seconds)),
-            states=",\n".join(_c_array(row) for row in states),
-            memory=_c_array(memory if memory.size else np.zeros(1))))
+        bench.write_text(render(
+            "cdpr_sym.export", "bench.c.j2", seconds=float(min_seconds),
+            arguments=[name for name in (*law.name_in(), *law.name_out())
+                       if name not in unused],
+            states=states.tolist(), memory=memory.tolist() if memory.size else [0.0]))
         program = Path(folder) / "bench"
         run_command([cc, "-std=c99", "-O2", "-I", folder, str(bench), str(result.source),
               *([str(result.plan_source), "-O0"] if result.plan_source else []), "-o",
@@ -344,14 +387,14 @@ def _entries(model: SymbolicModel, controller: Controller, prefix: str) -> list[
         _entry("control", law_function(model, controller), prefix, "One control step"),
         _entry("step", step_function(model, controller), prefix,
                f"One closed-loop period of dt = p[P_DT] s: the tension of the control law, "
-               f"held over\n * one RK4 step of the plant (x: {layout.x.size}, p: {layout.p.size}, "
+               f"held over one RK4 step of the plant (x: {layout.x.size}, p: {layout.p.size}, "
                f"log: {layout.log.size} doubles; x and x_next must not overlap)"),
     ]
     if layout.n_memory:
         entries.append(_entry(
             "initial_memory", initial_memory_function(model, controller), prefix,
-            "The controller's internal state at the start of a move (its plan, computed once\n"
-            " * per move; put it into x[X_MEMORY] or pass it to _control)"))
+            "The controller's internal state at the start of a move (its plan, computed once "
+            "per move; put it into x[X_MEMORY] or pass it to _control)"))
     for name, function in model.functions.items():
         entries.append(_entry(name, function, prefix, _MODEL_DOCS.get(
             name, f"model term {name} (see cdpr_sym.model.SymbolicModel)")))
@@ -366,16 +409,17 @@ def _entry(name: str, function: ca.Function, prefix: str, summary: str) -> _Entr
     renamed = ca.Function(f"{prefix}_cg_{name}", inputs, outputs, function.name_in(),
                           function.name_out(), {"cse": True})
 
-    def describe(index: int, is_input: bool) -> tuple[str, int, str]:
+    def describe(index: int, is_input: bool) -> _CArgument:
         label = (function.name_in if is_input else function.name_out)(index)
         rows, cols = (function.size_in if is_input else function.size_out)(index)
         documented = is_input or name in ("step", "initial_memory")
-        doc = _ARGUMENT_DOCS.get(label, summary) if documented else summary
-        shape = f" ({rows} x {cols}, row-major)" if rows > 1 and cols > 1 else ""
-        return _C_NAMES.get(label, label), rows * cols, doc.split("\n")[0] + shape
-    return _Entry(name, renamed, summary,
-                  tuple(describe(i, True) for i in range(function.n_in())),
-                  tuple(describe(i, False) for i in range(function.n_out())))
+        return _CArgument(_C_NAMES.get(label, label), "in" if is_input else "out", rows * cols,
+                          _ARGUMENT_DOCS.get(label, summary) if documented else summary,
+                          matrix=(rows, cols) if rows > 1 and cols > 1 else None)
+    return _Entry(renamed, _Function(
+        name, renamed.name(), summary, renamed.n_instructions(),
+        tuple(describe(i, True) for i in range(function.n_in())),
+        tuple(describe(i, False) for i in range(function.n_out()))))
 
 
 def _generated(entries: list[_Entry], prefix: str, symbol_prefix: str,
@@ -387,167 +431,88 @@ def _generated(entries: list[_Entry], prefix: str, symbol_prefix: str,
             f"a wrapper, never compiled on its own. */\n" + source)
 
 
-# -- C text ---------------------------------------------------------------------------------
-def _header(robot: Robot, prefix: str, entries: list[_Entry], layout: StepLayout,
-            avoid_stack: bool, names: dict[str, str]) -> str:
-    up, n, n_j = prefix.upper(), robot.n, robot.n_j
-    sizes = {"SZ_ARG": max(max(e.function.sz_arg(), e.function.n_in()) for e in entries),
-             "SZ_RES": max(max(e.function.sz_res(), e.function.n_out()) for e in entries),
-             "SZ_IW": max(1, *(e.function.sz_iw() for e in entries)),
-             "SZ_W": max(1, *(e.function.sz_w() for e in entries))}
-    lines = [f"#define {up}_N {n}  /* degrees of freedom = cables */",
-             f"#define {up}_NJ {n_j}  /* free entries of J_d, n(n-1)/2 */",
-             f"#define {up}_NMEM {layout.n_memory}  /* the controller's internal state */",
-             f"#define {up}_NX {layout.x.size}  /* step state x = [q, dq, memory, status] */",
-             f"#define {up}_NP {layout.p.size}  /* step parameters p, see {up}_P_* */",
-             f"#define {up}_NLOG {layout.log.size}  /* step log = [tau, alpha, beta, j, flags] */",
-             f"#define {up}_T_MIN {robot.t_min!r}  /* tension bounds, N */",
-             f"#define {up}_T_MAX {robot.t_max!r}",
-             "", "/* Index layout of x, p and log (offsets into the arrays). */",
-             f"#define {up}_X_Q 0", f"#define {up}_X_DQ {n}", f"#define {up}_X_MEMORY {2 * n}",
-             f"#define {up}_X_STATUS {layout.status_index}"]
-    lines += [f"#define {up}_P_{key.upper()} {value}"
-              for key, value in _parameter_index(layout).items()]
-    lines += [f"#define {up}_LOG_TAU 0", f"#define {up}_LOG_ALPHA {n}",
-              f"#define {up}_LOG_BETA {n + 1}", f"#define {up}_LOG_J {n + 2}",
-              f"#define {up}_LOG_FLAGS {n + 2 + n_j}",
-              "", "/* Bits of flags (control output and log[LOG_FLAGS]). */"]
-    for bit, name in sorted(FLAG_NAMES.items()):
-        lines += [f"/* {_FLAG_DOCS.get(name, name)} */", f"#define {up}_FLAG_{name.upper()} {bit}"]
-    lines += ["", "/* Values of x[X_STATUS] after a step: 0 runs; else the loop stopped and the "
-              "state is frozen. */"]
-    lines += [f"#define {up}_STATUS_{name.upper()} {code}"
-              for code, name in sorted(STOP_REASONS.items())]
-    lines += ["", "/* Work memory: sizes of the arrays in the work struct (the largest over all "
-              "functions). */"]
-    lines += [f"#define {up}_{key} {value}" for key, value in sizes.items()]
-    declarations = [_control_code(prefix, entries[0], layout, definition=False), "",
-                    PARAMETERS_DOC, f"void {prefix}_parameters(const double q_goal[{n}], "
-                    f"const double k[{n}], const double r_d[{n}],\n    double dt, "
-                    f"double mass_scale, int slack, double p[{layout.p.size}]);", ""]
-    for entry in entries[1:]:
-        doc = [f"/* {entry.summary}.", f" * {entry.function.n_instructions()} straight-line "
-               "operations; returns 0, or -1 if a pointer is NULL."]
-        doc += [f" * in  {label}[{size}]: {text}" for label, size, text in entry.inputs]
-        doc += [f" * out {label}[{size}]: {text}" for label, size, text in entry.outputs]
-        declarations += [*doc, " */", f"int {_signature(prefix, entry)};", ""]
-    options = textwrap.wrap(f"(options: {names['options']})", 92, initial_indent=" * ",
-                            subsequent_indent=" *   ", break_on_hyphens=False)
-    return _render(HEADER, prefix, **names, macros="\n".join(lines),
-                   options_comment="\n".join(options),
-                   declarations="\n".join(declarations), memory=MEMORY_DOC[avoid_stack],
-                   operations=str(max(e.function.n_instructions() for e in entries
-                                      if e.name != "initial_memory")))
+# -- the description of the package, rendered by the templates -----------------------------
+def _description(robot: Robot, controller: Controller, prefix: str, entries: list[_Entry],
+                 layout: StepLayout, avoid_stack: bool) -> dict[str, Any]:
+    """Everything the templates need: names, macros, case, functions and their arguments.
+
+    ``entries[0]`` is the control law; every other entry gets a plain wrapper, the planner
+    (``initial_memory``) in ``<prefix>_plan.c``, the others in ``<prefix>.c``.
+    """
+    upper, n = prefix.upper(), robot.n
+    functions = [entry.description for entry in entries[1:]]
+    generated = [entry.function for entry in entries]
+    return {
+        "prefix": prefix, "upper": upper, "n": n, "avoid_stack": avoid_stack,
+        **_names(robot, controller),
+        "operations": max(entry.function.n_instructions() for entry in entries
+                          if entry.name != "initial_memory"),
+        "sizes": [
+            _Macro("N", n, "degrees of freedom = cables"),
+            _Macro("NJ", robot.n_j, "free entries of J_d, n(n-1)/2"),
+            _Macro("NMEM", layout.n_memory, "the controller's internal state"),
+            _Macro("NX", layout.x.size, "step state x = [q, dq, memory, status]"),
+            _Macro("NP", layout.p.size, f"step parameters p, see {upper}_P_*"),
+            _Macro("NLOG", layout.log.size, "step log = [tau, alpha, beta, j, flags]"),
+            _Macro("T_MIN", robot.t_min, "tension bounds, N"), _Macro("T_MAX", robot.t_max)],
+        "layout": [*_offsets("X", layout.x, keep=("memory",)), *_offsets("P", layout.p),
+                   *_offsets("LOG", layout.log, keep=layout.log.names)],
+        "flags": [_Macro(name.upper(), bit, _FLAG_DOCS.get(name, name))
+                  for bit, name in sorted(FLAG_NAMES.items())],
+        "statuses": [_Macro(name.upper(), code) for code, name in sorted(STOP_REASONS.items())],
+        "work_sizes": [  # the work struct serves every function
+            _Macro("SZ_ARG", max(max(f.sz_arg(), f.n_in()) for f in generated)),
+            _Macro("SZ_RES", max(max(f.sz_res(), f.n_out()) for f in generated)),
+            _Macro("SZ_IW", max(1, *(f.sz_iw() for f in generated))),
+            _Macro("SZ_W", max(1, *(f.sz_w() for f in generated)))],
+        "case": {field: np.asarray(getattr(robot, field), dtype=float).tolist()
+                 for field in ("start", "goal", "k", "r_d")},
+        "control": _control(entries[0].function, layout),
+        "parameters": [
+            *(_CArgument(name, "in", n, "", optional=True, case_default=True)
+              for name in ("q_goal", "k", "r_d")),
+            _CArgument("dt", "in", None, "", by_value=True),
+            _CArgument("mass_scale", "in", None, "", by_value=True),
+            _CArgument("slack", "in", None, "", c_type="int", by_value=True),
+            _CArgument("p", "out", layout.p.size, "")],
+        "functions": functions,
+        "planner": next((f for f in functions if f.name == "initial_memory"), None),
+    }
 
 
-def _control_code(prefix: str, entry: _Entry, layout: StepLayout, *, definition: bool) -> str:
-    """Declaration (with its documentation) or definition of ``<prefix>_control``."""
-    law = entry.function
-    unknown = [*(set(law.name_in()) - set(_CONTROL_INPUTS)),
-               *(set(law.name_out()) - set(_CONTROL_OUTPUTS))]
+def _control(law: ca.Function, layout: StepLayout) -> _Control:
+    """The arguments of ``<prefix>_control`` from the law's inputs and outputs."""
+    names = (*law.name_in(), *law.name_out())
+    unknown = [name for name in names if name not in _CONTROL_ARGUMENTS]
     if unknown:
         raise RuntimeError(f"the C exporter does not know the law arguments {unknown}")
     # a stateless law has an empty memory: no memory, dt or memory_next in its C signature
-    unused = set() if layout.n_memory else {"memory", "dt", "memory_next"}
-    arguments = ([(name, *_CONTROL_INPUTS[name]) for name in law.name_in()
-                  if name not in unused]
-                 + [(name, *_CONTROL_OUTPUTS[name]) for name in law.name_out()
-                    if name not in unused])
-    sizes = {"n": str(layout.n), "nj": str(layout.n_j), "nmem": str(layout.n_memory)}
-    head = _wrap(f"int {prefix}_control(", [parameter for _, parameter, *_ in arguments]
-                 + [f"{prefix}_work *work"])
-    if not definition:
-        inputs = set(law.name_in())
-        doc = ["/* One control step: the tension commanded at the state (q, dq) for the goal "
-               "q_goal.", " *"]
-        for name, parameter, _, optional, text in arguments:
-            label = _render(re.sub(r"^(const )?(double|int) \*?", "", parameter), prefix,
-                            **sizes)
-            text += " (may be NULL)" if optional and name not in inputs else ""
-            doc += textwrap.wrap(text, 92, initial_indent=f" * {'in ' if name in inputs else 'out'}"
-                                 f" {label:<15} ", subsequent_indent=" *" + " " * 21)
-        required = [name for name, _, _, optional, _ in arguments
-                    if not optional and name != "dt"]
-        doc += [" * work                caller-provided work memory (one per thread)",
-                *textwrap.wrap(f"Returns 0, or -1 if {', '.join(required)} or work is NULL "
-                               "(nothing is written then).", 92, initial_indent=" * ",
-                               subsequent_indent=" * "), " */"]
-        return _render("\n".join([*doc, head + ";"]), prefix, **sizes)
-    checks = textwrap.wrap(" || ".join(
-        ["work == 0"] + [f"{name} == 0" for name, _, _, optional, _ in arguments
-                         if not optional and name != "dt"]), 86, subsequent_indent="      ")
-    body = [head + " {", "  double flag_value = 0.0;", f"  if ({chr(10).join(checks)}) return -1;"]
-    body += [f"  work->arg[{i}] = {0 if name in unused else _CONTROL_INPUTS[name][1]};"
-             for i, name in enumerate(law.name_in())]
-    body += [f"  work->res[{i}] = {0 if name in unused else _CONTROL_OUTPUTS[name][1]};"
-             for i, name in enumerate(law.name_out())]
-    body += [f"  if ({law.name()}(work->arg, work->res, work->iw, work->w, 0)) return -1;",
-             "  if (flags) *flags = (int) flag_value;", "  return 0;", "}"]
-    return _render("\n".join(body), prefix, **sizes)
+    unused = frozenset() if layout.n_memory else _STATEFUL_ARGUMENTS
+    lengths = {"n": layout.n, "nj": layout.n_j, "nmem": layout.n_memory, None: None}
+
+    def argument(name: str, direction: str) -> _CArgument:
+        spec = _CONTROL_ARGUMENTS[name]
+        return _CArgument(name, direction, lengths[spec.length], spec.doc, c_type=spec.c_type,
+                          optional=spec.optional, case_default=spec.case_default,
+                          by_value=spec.by_value, used=name not in unused)
+    return _Control(law.name(), (*(argument(name, "in") for name in law.name_in()),
+                                 *(argument(name, "out") for name in law.name_out())))
 
 
-def _wrap(head: str, arguments: list[str]) -> str:
-    """``head`` followed by ``arguments`` and ``)``, wrapped at 92 columns."""
-    lines = [head]
-    for index, argument in enumerate(arguments):
-        text = argument + (", " if index < len(arguments) - 1 else ")")
-        if len(lines[-1]) + len(text) > 92:
-            lines[-1] = lines[-1].rstrip()
-            lines.append("    ")
-        lines[-1] += text
-    return "\n".join(lines)
+def _offsets(tag: str, fields: Fields, keep: tuple[str, ...] = ()) -> list[_Macro]:
+    """``<tag>_<FIELD>`` offset macros of the fields with entries (or in ``keep``).
+
+    The goal's macro is P_GOAL.
+    """
+    return [_Macro(f"{tag}_{'goal' if name == 'q_goal' else name}".upper(), offset)
+            for name, offset in fields.offsets().items() if fields.width(name) or name in keep]
 
 
-def _signature(prefix: str, entry: _Entry) -> str:
-    arguments = [f"const double {label}[{size}]" for label, size, _ in entry.inputs]
-    arguments += [f"double {label}[{size}]" for label, size, _ in entry.outputs]
-    return _wrap(f"{prefix}_{entry.name}(", [*arguments, f"{prefix}_work *work"])
-
-
-def _wrapper(prefix: str, entry: _Entry) -> str:
-    """Definition of the plain wrapper of a generated function (all pointers required)."""
-    names = [label for label, _, _ in (*entry.inputs, *entry.outputs)]
-    body = [f"int {_signature(prefix, entry)} {{",
-            f"  if (work == 0 || {' || '.join(f'{label} == 0' for label in names)}) return -1;"]
-    body += [f"  work->arg[{i}] = {label};" for i, (label, _, _) in enumerate(entry.inputs)]
-    body += [f"  work->res[{i}] = {label};" for i, (label, _, _) in enumerate(entry.outputs)]
-    body += [f"  return {entry.function.name()}(work->arg, work->res, work->iw,",
-             "      work->w, 0) ? -1 : 0;", "}", ""]
-    return "\n".join(body)
-
-
-def _source(robot: Robot, prefix: str, entries: list[_Entry], layout: StepLayout) -> str:
-    case = "\n".join(f"const double {prefix}_case_{field}[{robot.n}] = "
-                     f"{_c_array(getattr(robot, field))};"
-                     for field in ("start", "goal", "k", "r_d"))
-    wrappers = [_wrapper(prefix, entry) for entry in entries if entry.name != "control"]
-    return _render(SOURCE, prefix, case=case, wrappers="\n".join(wrappers),
-                   control=_control_code(prefix, entries[0], layout, definition=True),
-                   n=str(robot.n), np=str(layout.p.size))
-
-
-def _parameter_index(layout: StepLayout) -> dict[str, int]:
-    """Offsets of the fields of p (the goal's macro is P_GOAL)."""
-    return {("goal" if name == "q_goal" else name): offset
-            for name, offset in layout.p.offsets().items() if layout.p.width(name)}
-
-
-def _render(template: str, prefix: str, **values: str) -> str:
-    text = template
-    for key, value in values.items():
-        text = text.replace(f"@{key}@", value)
-    return text.replace("@PREFIX@", prefix).replace("@UPPER@", prefix.upper())
-
-
-def _names(robot: Robot, controller: Controller, layout: StepLayout) -> dict[str, str]:
+def _names(robot: Robot, controller: Controller) -> dict[str, str]:
     """Robot name, controller name and options, safe to paste into any generated text."""
     options = json.dumps(controller.options(), default=float).replace("*/", "* /")
     return {"robot": plain_text(robot.name), "controller": plain_text(controller.name),
-            "options": options, "n": str(layout.n)}
-
-
-def _c_array(values: np.ndarray) -> str:
-    return "{" + ", ".join(repr(float(v)) for v in values) + "}"
+            "options": options}
 
 
 def _make_folder(out: Path) -> Path:
