@@ -200,7 +200,7 @@ def test_sweep_and_its_report_run_a_rigid_robot_file(capsys, tmp_path, robot_fil
     assert len(rows) == 4 and {row["status"] for row in rows} <= {"ok", "stopped"}
     assert len([key for key in rows[0] if key.startswith("goal_")]) == load_robot(robot_file).n
     status, printed, _ = _run(capsys, "report", "sweep", str(out), "--out", str(tmp_path / "r"))
-    assert status == 0 and "report:" in printed and (tmp_path / "r" / "summary.md").exists()
+    assert status == 0 and "report:" in printed and (tmp_path / "r" / "report.md").exists()
 
 
 def test_export_c_package_of_a_rigid_robot_file_builds_and_converges(capsys, tmp_path,

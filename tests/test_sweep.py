@@ -187,7 +187,7 @@ def test_sidecar_records_config_versions_and_seed(local_sweep):
 
 def test_sweep_report_writes_summary_and_maps(local_sweep, tmp_path):
     summary_md = write_sweep_report(local_sweep, tmp_path / "report")
-    assert summary_md == tmp_path / "report" / "summary.md"
+    assert summary_md == tmp_path / "report" / "report.md"
     text = summary_md.read_text()
     for name in CONFIG.controllers:
         assert f"| {name} | {CONFIG.pairs} |" in text

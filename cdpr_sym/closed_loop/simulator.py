@@ -14,6 +14,7 @@ import ctypes
 import dataclasses
 import hashlib
 import json
+from pathlib import Path
 from typing import Any
 
 import casadi as ca
@@ -24,11 +25,16 @@ from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.step import STOP_REASONS, chunk_function, step_function, step_layout
 from cdpr_sym.codegen import BuildOptions, CompiledLibrary, build, c_identifier, render
-from cdpr_sym.control import Controller, initial_memory_function, law_function
+from cdpr_sym.control import (
+    Controller,
+    controller_by_name,
+    initial_memory_function,
+    law_function,
+)
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.results import Trajectory
-from cdpr_sym.robot import Robot
+from cdpr_sym.robot import Robot, resolve_robot
 
 
 class _Rollout:
@@ -209,21 +215,55 @@ def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
     return _SIMULATORS[key]
 
 
-def simulate(robot: Robot, controller: Controller, *, start=None, goal=None, k=None,
-             r_d=None, duration: float = 10.0, dt: float = 1e-3, plant: Plant = Plant(),
-             build_options: BuildOptions = BuildOptions()) -> Trajectory:
+def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=None,
+             goal=None, k=None, r_d=None, duration: float = 10.0, dt: float = 1e-3,
+             plant: Plant = Plant(), build_options: BuildOptions = BuildOptions()
+             ) -> Trajectory:
     """Simulate the sampled-data closed loop (tension held over each RK4 step of ``dt`` s).
 
-    Start, goal and gains default to the robot's case; see :class:`Case`. The run has
-    round(duration / dt) steps.
+    Parameters
+    ----------
+    robot : Robot, str or Path
+        A robot, a preset name (``"aras3"``) or a robot TOML file.
+    controller : Controller or str
+        A controller, or its registered name (``"l2"``, ``"smooth"``, ...; see
+        :data:`cdpr_sym.CONTROLLERS`).
+    start, goal : array_like, shape (n,), optional
+        Start (at rest) and goal q, m (rad for angles); default the robot's case.
+    k, r_d : array_like, shape (n,), optional
+        Diagonal gains K (N/m, N m/rad) and R_d (N s/m, N m s/rad); default the case's.
+    duration, dt : float
+        Simulated time and control period, s; the run has round(duration / dt) steps.
+    plant : Plant
+        How the plant differs from the model (mass, slack cables, tension-rate limit).
+    build_options : BuildOptions
+        Generated C (default, cached) or CasADi's virtual machine.
+
+    Returns
+    -------
+    Trajectory
+        The run; it ends early, with ``stop_reason`` set, at a singular pose, a non-finite
+        state or on leaving the frame.
+
+    Raises
+    ------
+    InvalidCase
+        A bad case (start or goal outside the frame or singular, a goal outside the static
+        workspace), timing or plant option; the error names the field.
+    UnknownName
+        An unknown preset or controller name.
+    InvalidRobot
+        A robot file that is missing or malformed.
 
     Examples
     --------
-    >>> from cdpr_sym import preset, simulate, L2Design
-    >>> run = simulate(preset("aras3"), L2Design(), duration=1.0)
+    >>> from cdpr_sym import simulate
+    >>> run = simulate("aras3", "l2", duration=1.0)
     >>> bool(run.metrics()["tension_feasible"])
     True
     """
+    robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
+    controller = controller_by_name(controller) if isinstance(controller, str) else controller
     check_timing(duration, dt)
     simulator = get_simulator(robot, controller, build_options=build_options,
                               rate_limited=plant.rate_limited)

@@ -14,7 +14,6 @@ an atomic rename, so two processes building the same model never see a partial f
 from __future__ import annotations
 
 import dataclasses
-import fcntl
 import hashlib
 import os
 import shutil
@@ -24,6 +23,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import casadi as ca
+
+try:  # POSIX; elsewhere builds are not locked (publishing stays atomic)
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None
 
 from cdpr_sym.codegen.generate import generate_c
 from cdpr_sym.codegen.native import NativeLibrary
@@ -171,7 +175,8 @@ def build(functions: Sequence[ca.Function], name: str, *, extra_source: str = ""
     library = folder / f"{name}.so"
     source = folder / f"{name}.c"
     with open(folder / ".lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
+        if fcntl is not None:
+            fcntl.flock(lock, fcntl.LOCK_EX)
         if library.exists():
             return CompiledLibrary(library, source, key, compiled_now=False)
         _write_atomically(source, source_text)

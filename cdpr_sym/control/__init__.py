@@ -28,10 +28,15 @@ from cdpr_sym.control.interface import (
     StatelessLaw,
 )
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
-from cdpr_sym.control.registry import CONTROLLERS, controller_by_name, controller_from_options
+from cdpr_sym.control.registry import (
+    CONTROLLERS,
+    DESCRIPTIONS,
+    controller_by_name,
+    controller_from_options,
+)
 
 __all__ = [
-    "CONTROLLERS", "FALLBACK_FLAGS", "FLAG_ALPHA", "FLAG_BETA", "FLAG_INFEASIBLE",
+    "CONTROLLERS", "DESCRIPTIONS", "FALLBACK_FLAGS", "FLAG_ALPHA", "FLAG_BETA", "FLAG_INFEASIBLE",
     "FLAG_LOW_SPEED", "FLAG_NAMES", "FLAG_SATURATED", "FLAG_SINGULAR", "PD", "BoxDesign",
     "ControlLaw", "ControlOutput", "Controller", "L2Design", "LinfDesign", "SaturatedPD",
     "SmoothReference", "StatelessLaw", "VirtualReferenceIdaPbc", "controller_by_name",

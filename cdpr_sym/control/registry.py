@@ -24,6 +24,19 @@ CONTROLLERS: dict[str, Controller] = {
 }
 
 
+#: One line per design, for help texts and reports.
+DESCRIPTIONS = {
+    "pd": "PD + gravity compensation (IDA-PBC with J_d = 0); no tension bound",
+    "pd-sat": "the same, clipped to [T_min, T_max] (the paper's Fig. 3); chatters at the bounds",
+    "l2": "the paper's design: least-squares J_d by (21)-(23) and alpha of (24)",
+    "l2-minnorm": "the paper's design with the exact minimum-norm least squares (n >= 4)",
+    "linf": "exact tension box, tensions centred in the l-infinity sense (paper's future work)",
+    "box": "exact tension box, largest alpha, smallest J_d tension",
+    "smooth": "recommended: minimum-jerk plan + feed-forward + PD; feasible, fast and smooth",
+    "ida-ref": "IDA-PBC with a virtual reference particle (H_d never increases)",
+}
+
+
 def controller_by_name(name: str) -> Controller:
     """A registered controller by its command-line name.
 

@@ -84,7 +84,7 @@ def _map_planes(meta: dict[str, Any]) -> tuple[tuple[str, ...], list[tuple[int, 
 
 
 def write_sweep_report(results: Path, out_dir: Path) -> Path:
-    """``cdpr-sym report sweep``: summary.md, summary.json and maps from stored results."""
+    """``cdpr-sym report sweep``: report.md, summary.json and maps from stored results."""
     rows, meta = load_table(results)
     out_dir.mkdir(parents=True, exist_ok=True)
     summary = summarise(rows)
@@ -104,5 +104,5 @@ def write_sweep_report(results: Path, out_dir: Path) -> Path:
         f"{config.get('mass_scale')}.", "",
         summary_table(summary), "", *figures,
     ])
-    (out_dir / "summary.md").write_text(text)
-    return out_dir / "summary.md"
+    (out_dir / "report.md").write_text(text)
+    return out_dir / "report.md"

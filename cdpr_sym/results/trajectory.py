@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import dataclasses
+import html
 import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from cdpr_sym.control.flags import FALLBACK_FLAGS, FLAG_ALPHA, FLAG_INFEASIBLE, FLAG_NAMES
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.results.figures import run_figure
 from cdpr_sym.results.store import load_arrays, save_arrays
 
 #: Settling band on ||q - q_goal||, m.
@@ -26,7 +29,7 @@ SCALAR_METRICS = ("min_tension", "max_tension", "settle_time", "final_error", "m
 _ARRAYS = ("t", "q", "dq", "tau", "alpha", "beta", "j", "flags", "q_goal")
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, repr=False)
 class Trajectory:
     """A simulated closed-loop run.
 
@@ -75,6 +78,62 @@ class Trajectory:
     info: dict[str, Any] = dataclasses.field(default_factory=dict)
     memory: np.ndarray | None = None
     static_tension: np.ndarray | None = None
+
+    def __repr__(self) -> str:
+        robot, controller = self.info.get("robot", "?"), self.info.get("controller", "?")
+        end = f", stopped: {self.stop_reason}" if self.stop_reason else ""
+        return (f"<Trajectory {robot} / {controller}: {len(self.t) - 1} steps, "
+                f"{self.t[-1] - self.t[0]:.3f} s, n = {self.q.shape[1]}{end}>")
+
+    def _repr_html_(self) -> str:
+        """A notebook's view: the run and its main metrics as a small table."""
+        m = self.metrics()
+        rows = [("tension for t > 0 [N]", f"{_text(m['min_tension'])} .. "
+                 f"{_text(m['max_tension'])} (box {self.t_min:g} .. {self.t_max:g})"),
+                ("tension feasible", str(m["tension_feasible"])),
+                ("settle time [s]", _text(m["settle_time"], "never")),
+                ("final error", _text(m["final_error"])),
+                ("largest step [N]", _text(m["max_tension_step"])),
+                ("stop reason", m["stop_reason"] or "–")]
+        cells = "".join(f"<tr><td>{key}</td><td>{value}</td></tr>" for key, value in rows)
+        return (f"<p><code>{html.escape(repr(self))}</code></p>"
+                f"<table>{cells}</table>")
+
+    def plot(self, *, alpha: bool = False, title: str | None = None) -> Figure:
+        """Positions and tensions against time (and alpha, log scale, if ``alpha``).
+
+        Returns a ``matplotlib.figure.Figure`` (shown by notebooks; ``fig.savefig(path)``
+        writes it); the user's matplotlib backend is not changed.
+        """
+        if title is None:
+            title = f"{self.info.get('robot', '')} / {self.info.get('controller', '')}"
+        return run_figure(self, title=title, alpha=alpha)
+
+    def to_pandas(self) -> Any:
+        """One row per sample: t, q_*, dq_* and the command held from that sample
+        (tau_*, alpha, beta, j_*, flags; the last sample has none, NaN). Needs pandas
+        (``pip install 'cdpr_sym[pandas]'``)."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise InvalidCase("pandas", "to_pandas needs pandas; pip install "
+                              "'cdpr_sym[pandas]'") from None
+        names = self.info.get("coordinates") or [f"q{i + 1}" for i in range(self.q.shape[1])]
+        columns: dict[str, np.ndarray] = {"t": self.t}
+        columns.update({f"q_{name}": self.q[:, i] for i, name in enumerate(names)})
+        columns.update({f"dq_{name}": self.dq[:, i] for i, name in enumerate(names)})
+
+        def held(values: np.ndarray) -> np.ndarray:
+            return np.concatenate([values.astype(float), np.full((1, *values.shape[1:]),
+                                                                 np.nan)])
+        tau, j = held(self.tau), held(self.j)
+        columns.update({f"tau_{i + 1}": tau[:, i] for i in range(tau.shape[1])})
+        columns.update({"alpha": held(self.alpha), "beta": held(self.beta)})
+        columns.update({f"j_{i + 1}": j[:, i] for i in range(j.shape[1])})
+        columns["flags"] = pd.array(np.concatenate([self.flags, [0]]), dtype="Int64")
+        frame = pd.DataFrame(columns)
+        frame.loc[len(frame) - 1, "flags"] = pd.NA
+        return frame
 
     @property
     def error(self) -> np.ndarray:
@@ -176,6 +235,10 @@ class Trajectory:
                    stop_reason=str(data.get("stop_reason", "")) or None,
                    info=json.loads(str(data["info"])), memory=data.get("memory"),
                    static_tension=None if np.isnan(static).all() else static)
+
+
+def _text(value: float | None, missing: str = "–") -> str:
+    return missing if value is None else f"{value:.4g}"
 
 
 def _float(value: Any) -> float | None:

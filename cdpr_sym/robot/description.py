@@ -11,6 +11,7 @@ or goal?) belong to the case that is simulated: :class:`cdpr_sym.closed_loop.Cas
 from __future__ import annotations
 
 import dataclasses
+import html
 from typing import Any
 
 import numpy as np
@@ -110,6 +111,23 @@ class Robot:
         for field in ("start", "goal"):
             self._check_inside_frame(field, getattr(self, field))
             self._check_off_the_anchors(field, getattr(self, field))
+
+    def __repr__(self) -> str:
+        body = {"point": "point mass", "planar": "planar body", "spatial": "spatial body"}
+        return (f"Robot({self.name!r}: {body[self.kind]}, n = {self.n} cables and DOF, "
+                f"m = {self.mass:g} kg, T in [{self.t_min:g}, {self.t_max:g}] N)")
+
+    def _repr_html_(self) -> str:
+        """A notebook's view: the description as a small table."""
+        rows = [("end-effector", self.kind), ("coordinates", ", ".join(
+            f"{n} [{u}]" for n, u in zip(self.coordinate_names, self.coordinate_units,
+                                         strict=True))),
+                ("mass [kg]", f"{self.mass:g}"),
+                ("tension box [N]", f"{self.t_min:g} .. {self.t_max:g}"),
+                ("start", str(self.start.tolist())), ("goal", str(self.goal.tolist()))]
+        cells = "".join(f"<tr><td>{key}</td><td>{html.escape(value)}</td></tr>"
+                        for key, value in rows)
+        return f"<p><b>{html.escape(self.name)}</b></p><table>{cells}</table>"
 
     @property
     def kind(self) -> str:

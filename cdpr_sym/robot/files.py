@@ -67,21 +67,71 @@ def _check_known_fields(data: dict[str, Any], source: str) -> None:
 
 
 def load_robot(path: str | Path) -> Robot:
-    """Load and validate a robot description from a TOML file."""
+    """Load and validate a robot description from a TOML file.
+
+    Parameters
+    ----------
+    path : str or Path
+        A TOML file in the robot-file layout (README, "Robot files").
+
+    Returns
+    -------
+    Robot
+        The validated description.
+
+    Raises
+    ------
+    InvalidRobot
+        The file is missing, unreadable, not UTF-8 TOML, or a field is wrong; the error
+        names the field (``path`` for the file itself).
+
+    Examples
+    --------
+    >>> from importlib import resources
+    >>> robot = load_robot(resources.files("cdpr_sym.robot.presets") / "planar2.toml")
+    >>> robot.name, robot.n
+    ('planar2', 2)
+    """
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise InvalidRobot("path", f"no robot file at {path}") from None
+    except IsADirectoryError:
+        raise InvalidRobot("path", f"{path} is a folder, not a robot file") from None
+    except UnicodeDecodeError:
+        raise InvalidRobot("path", f"{path} is not a UTF-8 text file") from None
+    except OSError as failure:
+        raise InvalidRobot("path", f"cannot read {path}: {failure.strerror}") from None
     except tomllib.TOMLDecodeError as bad:
         raise InvalidRobot("path", f"{path} is not valid TOML: {bad}") from None
     return robot_from_dict(data, source=str(path))
 
 
 def preset(name: str) -> Robot:
-    """A named preset: ``aras3`` (the paper's Section IV robot), ``planar2`` (a planar point
-    mass on two cables), ``planar3`` (a planar rigid body on three cables) or ``spatial6``
-    (a suspended 6-DOF platform on six cables)."""
+    """A bundled robot by name.
+
+    Parameters
+    ----------
+    name : str
+        ``aras3`` (the paper's Section IV robot), ``planar2`` (a planar point mass on two
+        cables), ``planar3`` (a planar rigid body on three cables) or ``spatial6`` (a
+        suspended 6-DOF platform on six cables).
+
+    Returns
+    -------
+    Robot
+
+    Raises
+    ------
+    UnknownName
+        ``name`` is not a preset.
+
+    Examples
+    --------
+    >>> preset("aras3").mass
+    4.0
+    """
     if name not in PRESET_NAMES:
         raise UnknownName(f"unknown preset {name!r}; expected one of {', '.join(PRESET_NAMES)}")
     text = resources.files("cdpr_sym.robot.presets").joinpath(f"{name}.toml").read_text()

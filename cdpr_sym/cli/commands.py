@@ -1,0 +1,199 @@
+"""What each ``cdpr-sym`` command does: check the input, run, hand the result to Output."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+from pathlib import Path
+from typing import Any
+
+from cdpr_sym.cli.output import Output, quantity, yes_no
+from cdpr_sym.cli.parser import STUDY_REPORTS
+from cdpr_sym.closed_loop import Case, Plant, simulate
+from cdpr_sym.codegen import BuildOptions
+from cdpr_sym.control import controller_by_name
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot import PRESET_NAMES, Robot, resolve_robot
+
+
+def checked_robot(name_or_path: str) -> Robot:
+    """The robot, with its own case checked (start and goal regular, goal holdable), so a
+    bad robot file is refused before any long work."""
+    robot = resolve_robot(name_or_path)
+    Case.of(robot)
+    return robot
+
+
+def _progress(args: argparse.Namespace) -> bool:
+    return not (getattr(args, "quiet", False) or getattr(args, "no_progress", False))
+
+
+def simulate_command(args: argparse.Namespace, out: Output) -> int:
+    robot = resolve_robot(args.robot)
+    controller = controller_by_name(args.controller)
+    if args.save is not None and not args.save.parent.is_dir():
+        raise InvalidCase("save", f"no folder {args.save.parent} to write the trajectory in")
+    run = simulate(robot, controller, start=args.start, goal=args.goal, k=args.k,
+                   r_d=args.r_d, duration=args.duration, dt=args.dt,
+                   plant=Plant(mass_scale=args.mass_scale, slack=args.slack,
+                               rate_limit=args.rate_limit),
+                   build_options=BuildOptions(backend=args.backend))
+    m = run.metrics()
+    saved = run.save(args.save) if args.save else None
+    angles = "rad" in robot.coordinate_units
+    length = "m and rad" if angles else "m"
+    lines = [f"{robot.name} / {args.controller}: {run.t[-1]:.3f} s simulated",
+             f"  tension for t > 0    {quantity(m['min_tension'], 'N')} .. "
+             f"{quantity(m['max_tension'], 'N')} (box {robot.t_min:g} .. {robot.t_max:g} N)",
+             f"  tension feasible     {yes_no(m['tension_feasible'])}",
+             f"  settle time          {quantity(m['settle_time'], 's', missing='never')} "
+             f"(1 cm band)",
+             f"  final error          {quantity(m['final_error'], length)}",
+             f"  largest step         {quantity(m['max_tension_step'], 'N')} per control period",
+             f"  min alpha            {quantity(m['min_alpha'])}",
+             f"  stopped              {m['stop_reason'] or 'no'}"]
+    if saved:
+        lines.append(f"  trajectory           {saved}")
+    out.result({**m, "robot": robot.name, "controller": args.controller,
+                "saved": str(saved) if saved else None}, lines)
+    return 0
+
+
+def study_command(args: argparse.Namespace, out: Output) -> int:
+    robot = checked_robot(args.robot or "aras3")
+    default = args.robot is None or (args.robot == "aras3" and args.name != "rigid")
+    stem = Path(args.robot).stem if args.robot else ""
+    if not args.out and args.robot not in PRESET_NAMES and stem in PRESET_NAMES:
+        raise InvalidCase("out", f"the robot file {args.robot} is named like the preset "
+                          f"{stem!r}, whose report folder it would replace; pass --out")
+    folder = args.out or Path("reports") / (args.name if default else f"{args.name}_{stem}")
+    _check_folder("out", folder)
+    progress = _progress(args)
+    robot_spec = args.robot or "aras3"
+    if args.name == "paper":
+        from cdpr_sym.studies.paper import run_paper_study
+
+        claims = run_paper_study(folder, robot=robot)
+        value: Any = [claim.__dict__ for claim in claims]
+        lines = [f"{c.verdict:<13} {c.source:<11} {c.claim}" for c in claims]
+    elif args.name == "compare":
+        from cdpr_sym.studies.compare import run_compare_study
+
+        value = run_compare_study(folder, robot=robot_spec, pairs=args.pairs, seed=args.seed,
+                                  progress=progress)
+        lines = [f"{name:<10} feasible {100 * row['feasible']:5.1f} %  converged "
+                 f"{100 * row['converged']:5.1f} %" for name, row in value["sweep"].items()]
+    elif args.name == "rigid":
+        from cdpr_sym.studies.rigid import ROBOTS, best_design, run_rigid_study
+
+        robots = (args.robot,) if args.robot else ROBOTS
+        value = run_rigid_study(folder, pairs=args.pairs, seed=args.seed, robots=robots,
+                                progress=progress)
+        lines = []
+        for name, summary in value.items():
+            best = best_design(summary["sweep"])
+            lines.append(f"{name:<10} best {best}: meets target on "
+                         f"{100 * summary['sweep'][best]['meets_target']:5.1f} % of pairs")
+    else:
+        from cdpr_sym.studies.designs import run_designs_study
+
+        value = run_designs_study(folder, robot=robot_spec, pairs=args.pairs, seed=args.seed,
+                                  progress=progress)
+        table = value["meets_target"]
+        lines = [f"{name:<10} meets target: nominal {100 * table['1.0'][name]:5.1f} %, "
+                 f"mass +10 % {100 * table['1.1'][name]:5.1f} %, "
+                 f"mass -10 % {100 * table['0.9'][name]:5.1f} %" for name in table["1.0"]]
+    out.result({"study": args.name, "report": str(folder / "report.md"), "result": value},
+               [*lines, f"report: {folder / 'report.md'}"])
+    return 0
+
+
+def workspace_command(args: argparse.Namespace, out: Output) -> int:
+    from cdpr_sym.studies.workspace import run_workspace_study
+
+    robot = checked_robot(args.robot)
+    _check_folder("out", args.out)
+    summary = run_workspace_study(robot, args.out, resolution=args.resolution,
+                                  orientation=args.orientation)
+    lines = [f"{summary['points']} poses in {summary['seconds']:.3f} s "
+             f"({summary['poses_per_s']:.3g} poses/s); feasible "
+             f"{100 * summary['feasible_share']:.1f} %, ball (13) "
+             f"{100 * summary['ball_share']:.1f} %"]
+    for row in summary["by_height"][:: max(1, len(summary["by_height"]) // 10)]:
+        lines.append(f"  z = {row['height_m']:6.3f} m  feasible "
+                     f"{100 * row['feasible_share']:5.1f} %")
+    lines.append(f"report: {args.out / 'workspace.md'}")
+    out.result(summary, lines)
+    return 0
+
+
+def sweep_command(args: argparse.Namespace, out: Output) -> int:
+    from cdpr_sym.sweep import SweepConfig, robot_reference, run_sweep
+
+    checked_robot(args.robot)
+    config = SweepConfig(robot=robot_reference(args.robot)[1], pairs=args.pairs, seed=args.seed,
+                         controllers=tuple(n.strip() for n in args.controllers.split(",") if n),
+                         duration=args.duration, dt=args.dt, mass_scale=args.mass_scale)
+    if args.workers is not None and args.workers <= 0:
+        raise InvalidCase("workers", f"expected a positive number, got {args.workers}")
+    table = run_sweep(config, args.out, workers=args.workers, dask_address=args.dask,
+                      progress=_progress(args))
+    out.result({"results": str(table), "config": config.as_dict()}, [f"results: {table}"])
+    return 0
+
+
+def report_command(args: argparse.Namespace, out: Output) -> int:
+    if args.kind == "sweep":
+        from cdpr_sym.reporting.sweep_report import write_sweep_report
+
+        path = write_sweep_report(args.results, args.out)
+        out.result({"report": str(path)}, [f"report: {path}"])
+        return 0
+    module, function = STUDY_REPORTS[args.kind]
+    study, runs = args.results / "study.json", args.results / "runs" / "index.json"
+    if not study.exists():
+        raise InvalidCase("results", f"{args.results} holds no computed {args.kind} study "
+                          "(no study.json); run 'cdpr-sym study' first")
+    try:
+        kind = json.loads(study.read_text()).get("study")
+    except (json.JSONDecodeError, UnicodeDecodeError, AttributeError):
+        raise InvalidCase("results", f"{study} is damaged; run 'cdpr-sym study "
+                          f"{args.kind}' again") from None
+    if kind != args.kind:
+        raise InvalidCase("results", f"{args.results} holds a {kind} study, not {args.kind}")
+    if not runs.exists():
+        raise InvalidCase("results", f"{args.results} has no stored runs (runs/ is not kept "
+                          f"in git); run 'cdpr-sym study {args.kind}' to compute them")
+    getattr(importlib.import_module(module), function)(args.results)
+    path = args.results / "report.md"
+    out.result({"report": str(path)}, [f"report: {path}"])
+    return 0
+
+
+def bench_command(args: argparse.Namespace, out: Output) -> int:
+    from cdpr_sym.studies.bench import format_table, run_bench
+
+    result = run_bench(checked_robot(args.robot), min_seconds=args.seconds)
+    out.result(result, [format_table(result)])
+    return 0
+
+
+def export_command(args: argparse.Namespace, out: Output) -> int:
+    from cdpr_sym.export import export_c
+
+    result = export_c(checked_robot(args.robot), args.controller, args.out, prefix=args.prefix)
+    out.result({"prefix": result.prefix, "files": [str(path) for path in result.paths]},
+               [str(path) for path in result.paths])
+    return 0
+
+
+def _check_folder(field: str, folder: Path) -> None:
+    """Refuse an output folder that is a file, before any work."""
+    if folder.exists() and not folder.is_dir():
+        raise InvalidCase(field, f"expected a folder, got the existing file {folder}")
+
+
+HANDLERS = {"simulate": simulate_command, "study": study_command, "bench": bench_command,
+            "workspace": workspace_command, "sweep": sweep_command, "report": report_command,
+            "export-c": export_command}

@@ -1,0 +1,136 @@
+"""The ``cdpr-sym`` arguments: every option with its help, defaults shown."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from cdpr_sym.control import CONTROLLERS, DESCRIPTIONS
+from cdpr_sym.version import __version__
+
+#: Studies whose report is rebuilt from their stored files: module and function.
+STUDY_REPORTS = {"paper": ("cdpr_sym.studies.paper", "write_paper_report"),
+                 "compare": ("cdpr_sym.studies.compare", "write_compare_report"),
+                 "designs": ("cdpr_sym.studies.designs", "write_designs_report"),
+                 "rigid": ("cdpr_sym.studies.rigid", "write_rigid_report")}
+
+_CONTROLLER_HELP = "controllers:\n" + "\n".join(
+    f"  {name:<11} {text}" for name, text in DESCRIPTIONS.items())
+_ROBOT_HELP = "preset name (aras3, planar2, planar3, spatial6) or robot TOML file"
+
+
+class _Formatter(argparse.RawDescriptionHelpFormatter):
+    """Defaults in the help (where there is one worth showing); epilogs kept as written."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if action.default not in (None, False, argparse.SUPPRESS) and "%(default)" not in text:
+            text += " (default: %(default)s)"
+        return text
+
+
+def _common(*, progress: bool = False) -> argparse.ArgumentParser:
+    """Options every command takes: --json and -q (and --no-progress where there is one).
+
+    Their defaults are suppressed so that a ``-q`` given before the command is kept."""
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--json", action="store_true", default=argparse.SUPPRESS,
+                        help="print the result as one JSON object")
+    common.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                        help="print nothing but the result (JSON) and errors")
+    if progress:
+        common.add_argument("--no-progress", action="store_true", default=argparse.SUPPRESS,
+                            help="no progress bar (it hides itself when not on a terminal)")
+    return common
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser of ``cdpr-sym``."""
+    parser = argparse.ArgumentParser(
+        prog="cdpr-sym", formatter_class=_Formatter, epilog=_CONTROLLER_HELP,
+        description="Model, simulate and verify tension-feasible control of cable-driven "
+        "parallel robots.")
+    parser.add_argument("--version", action="version", version=f"cdpr-sym {__version__}")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="print nothing but results (JSON) and errors")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def command(name: str, text: str, *, progress: bool = False) -> argparse.ArgumentParser:
+        return commands.add_parser(name, help=text, description=text, formatter_class=_Formatter,
+                                   parents=[_common(progress=progress)], epilog=_CONTROLLER_HELP)
+
+    sim = command("simulate", "simulate one closed-loop run")
+    sim.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
+    sim.add_argument("--controller", default="l2", choices=list(CONTROLLERS),
+                     help="the design (see the list below)")
+    sim.add_argument("--start", nargs="+", type=float, metavar="X",
+                     help="start q: m (and rad for a rigid body's angles); default the case's")
+    sim.add_argument("--goal", nargs="+", type=float, metavar="X",
+                     help="goal q: m (rad); default the case's")
+    sim.add_argument("--k", nargs="+", type=float,
+                     help="stiffness gains K (diagonal), N/m (N m/rad); default the case's")
+    sim.add_argument("--r-d", nargs="+", type=float,
+                     help="damping gains R_d (diagonal), N s/m (N m s/rad); default the case's")
+    sim.add_argument("--duration", type=float, default=10.0, help="simulated time, s")
+    sim.add_argument("--dt", type=float, default=1e-3, help="control period, s")
+    sim.add_argument("--mass-scale", type=float, default=1.0,
+                     help="plant mass / model mass (model error)")
+    sim.add_argument("--slack", action="store_true",
+                     help="the plant applies max(tau, 0): a cable cannot push")
+    sim.add_argument("--rate-limit", type=float, help="actuator tension-rate limit, N/s")
+    sim.add_argument("--backend", default="auto", choices=["auto", "c", "casadi"],
+                     help="generated C, or CasADi's virtual machine (auto: C if a compiler "
+                     "is found)")
+    sim.add_argument("--save", type=Path, help="write the trajectory to an .npz file")
+
+    study = command("study", "run a study and write its report", progress=True)
+    study.add_argument("name", choices=["paper", "compare", "designs", "rigid"],
+                       help="the study")
+    study.add_argument("--robot", help=f"{_ROBOT_HELP} (default aras3; the paper's claims are "
+                       "about aras3, others are judged on their case; rigid: planar3 and "
+                       "spatial6 unless given)")
+    study.add_argument("--out", type=Path, help="output folder (default reports/<name>)")
+    study.add_argument("--pairs", type=int, default=200,
+                       help="start/goal pairs of the sweeps (compare, designs, rigid)")
+    study.add_argument("--seed", type=int, default=0, help="seed of the pair draw")
+
+    workspace = command("workspace", "map the static workspace")
+    workspace.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
+    workspace.add_argument("--resolution", type=int, default=61, help="grid points per axis")
+    workspace.add_argument("--orientation", nargs="+", type=float, metavar="RAD",
+                           help="angles held fixed for a rigid body (default: the goal's)")
+    workspace.add_argument("--out", type=Path, default=Path("reports/workspace"),
+                           help="output folder")
+
+    sweep = command("sweep", "run many start/goal pairs (resumable)", progress=True)
+    sweep.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
+    sweep.add_argument("--controllers", default="l2,linf,pd-sat",
+                       help="comma-separated controller names (see the list below)")
+    sweep.add_argument("--pairs", type=int, required=True, help="start/goal pairs")
+    sweep.add_argument("--seed", type=int, default=0, help="seed of the pair draw")
+    sweep.add_argument("--duration", type=float, default=10.0, help="simulated time, s")
+    sweep.add_argument("--dt", type=float, default=1e-3, help="control period, s")
+    sweep.add_argument("--mass-scale", type=float, default=1.0, help="plant mass / model mass")
+    sweep.add_argument("--out", type=Path, required=True,
+                       help="results table (CSV, appended; re-running resumes)")
+    sweep.add_argument("--workers", type=int, help="local processes (default: all cores)")
+    sweep.add_argument("--dask", metavar="ADDRESS", help="run on an existing Dask scheduler")
+
+    report = command("report", "build a report from stored results")
+    report.add_argument("kind", choices=["sweep", *STUDY_REPORTS],
+                        help="sweep: a sweep table; a study name: a computed study's folder")
+    report.add_argument("results", type=Path, help="sweep table, or the study's folder")
+    report.add_argument("--out", type=Path, default=Path("reports/sweep"),
+                        help="output folder (sweep only; a study's report is rebuilt in place)")
+
+    bench = command("bench", "print speed benchmarks")
+    bench.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
+    bench.add_argument("--seconds", type=float, default=1.0, help="timing budget per row, s")
+
+    export = command("export-c", "write a self-contained C99 package")
+    export.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
+    export.add_argument("--controller", default="l2", choices=list(CONTROLLERS),
+                        help="the design (see the list below)")
+    export.add_argument("--out", type=Path, required=True, help="output folder")
+    export.add_argument("--prefix", help="C prefix of every symbol (default cdpr_ROBOT_CTRL)")
+    return parser

@@ -1,0 +1,142 @@
+"""Everyday use from Python, notebooks and the shell: names for objects, short reprs,
+plots and tables, help with defaults, JSON everywhere, quiet runs."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import matplotlib
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from cdpr_sym import CONTROLLERS, Trajectory, __version__, preset, simulate
+from cdpr_sym.cli import main
+from cdpr_sym.control import DESCRIPTIONS
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def run() -> Trajectory:
+    return simulate("aras3", "smooth", duration=0.5)
+
+
+def test_simulate_takes_preset_and_controller_names(run):
+    by_object = simulate(preset("aras3"), CONTROLLERS["smooth"], duration=0.5)
+    np.testing.assert_array_equal(run.q, by_object.q)
+
+
+def test_trajectory_repr_is_one_short_line(run):
+    text = repr(run)
+    assert len(text) < 120 and "\n" not in text and "aras3 / smooth" in text
+    assert "500 steps" in text
+
+
+def test_notebook_views_are_html_tables(run):
+    assert "<table>" in run._repr_html_() and "tension feasible" in run._repr_html_()
+    robot = preset("spatial6")
+    assert len(repr(robot)) < 120 and "<table>" in robot._repr_html_()
+
+
+def test_plot_returns_a_figure_and_keeps_the_backend(run, tmp_path):
+    before = matplotlib.get_backend()
+    figure = run.plot(alpha=True)
+    assert isinstance(figure, Figure) and len(figure.axes) == 3
+    figure.savefig(tmp_path / "run.png")
+    assert (tmp_path / "run.png").read_bytes()[:8] == PNG
+    assert matplotlib.get_backend() == before
+
+
+def test_to_pandas_has_a_row_per_sample_and_the_held_command(run):
+    frame = run.to_pandas()
+    assert len(frame) == len(run.t)
+    np.testing.assert_array_equal(frame["q_x"], run.q[:, 0])
+    np.testing.assert_array_equal(frame["tau_2"].to_numpy()[:-1], run.tau[:, 1])
+    assert np.isnan(frame["tau_2"].iloc[-1]) and frame["flags"].isna().iloc[-1]
+
+
+def test_version_and_module_entry_point(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0 and __version__ in capsys.readouterr().out
+    printed = subprocess.run([sys.executable, "-m", "cdpr_sym", "--version"], check=True,
+                             capture_output=True, text=True).stdout
+    assert printed.strip() == f"cdpr-sym {__version__}"
+
+
+def test_help_shows_defaults_and_explains_the_controllers(capsys):
+    with pytest.raises(SystemExit):
+        main(["simulate", "--help"])
+    text = capsys.readouterr().out
+    assert "(default: 10.0)" in text and "(default: l2)" in text
+    for name, description in DESCRIPTIONS.items():
+        assert f"{name:<11} {description}" in text
+    assert set(DESCRIPTIONS) == set(CONTROLLERS)
+
+
+def test_plain_simulate_output_has_units_and_the_registered_name(capsys):
+    assert main(["simulate", "--controller", "l2-minnorm", "--duration", "0.3"]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("aras3 / l2-minnorm:") and "None" not in text
+    assert " N .. " in text and "never" in text
+    assert not any(len(word) > 12 and word[0].isdigit() for word in text.split())
+
+
+@pytest.mark.parametrize("argv", [
+    ["simulate", "--duration", "0.2"],
+    ["workspace", "--resolution", "4"],
+    ["export-c", "--controller", "pd"],
+    ["sweep", "--pairs", "1", "--controllers", "pd", "--duration", "0.2", "--workers", "1"],
+])
+def test_every_command_that_reports_prints_one_json_object(argv, capsys, tmp_path):
+    out = tmp_path / ("sweep.csv" if argv[0] == "sweep" else "out")
+    extra = [] if argv[0] == "simulate" else ["--out", str(out)]
+    assert main([*argv, *extra, "--json"]) == 0
+    text = capsys.readouterr().out.strip()
+    assert len(text.splitlines()) == 1 and isinstance(json.loads(text), dict)
+
+
+def test_quiet_prints_nothing_and_shows_no_progress(capsys, tmp_path):
+    assert main(["-q", "sweep", "--pairs", "1", "--controllers", "pd", "--duration", "0.2",
+                 "--workers", "1", "--out", str(tmp_path / "s.csv")]) == 0
+    assert capsys.readouterr() == ("", "")
+    assert main(["simulate", "-q", "--duration", "0.2"]) == 0
+    assert capsys.readouterr() == ("", "")
+
+
+def test_workspace_rerun_leaves_its_files_unchanged(tmp_path, capsys):
+    argv = ["workspace", "--resolution", "5", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    first = {path.name: path.read_bytes() for path in tmp_path.iterdir()}
+    assert main(argv) == 0
+    assert {path.name: path.read_bytes() for path in tmp_path.iterdir()} == first
+    assert "poses/s" in capsys.readouterr().out  # the rate is printed, not stored
+
+
+def test_save_into_a_missing_folder_is_refused_before_the_run(capsys, tmp_path):
+    assert main(["simulate", "--save", str(tmp_path / "no" / "run.npz")]) == 2
+    assert "save" in capsys.readouterr().err
+
+
+def test_the_package_imports_without_fcntl():
+    """The compiled path locks builds with fcntl (POSIX); the package itself must import
+    where there is none (Windows), with the casadi backend still usable."""
+    code = ("import sys; sys.modules['fcntl'] = None\n"
+            "import cdpr_sym\n"
+            "run = cdpr_sym.simulate('planar2', 'pd', duration=0.05,\n"
+            "    build_options=cdpr_sym.BuildOptions(backend='casadi'))\n"
+            "print(len(run.t))")
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                         text=True).stdout
+    assert out.strip() == "51"
+
+
+def test_the_package_ships_its_licence_and_type_marker():
+    from importlib import resources
+    from pathlib import Path
+
+    assert resources.files("cdpr_sym").joinpath("py.typed").is_file()
+    assert "MIT License" in (Path(__file__).parents[1] / "LICENSE").read_text()
