@@ -91,7 +91,7 @@ def test_simulate_save_without_json_names_the_file(capsys, tmp_path):
     status, out, _ = _run(capsys, "simulate", "--controller", "pd-sat", "--duration", "0.2",
                           "--save", str(tmp_path / "run.npz"))
     assert status == 0 and str(tmp_path / "run.npz") in out
-    assert "final_error" in out and (tmp_path / "run.npz").exists()
+    assert "final error" in out and (tmp_path / "run.npz").exists()
 
 
 @pytest.mark.parametrize(("argv", "field"), [

@@ -140,3 +140,14 @@ def test_the_package_ships_its_licence_and_type_marker():
 
     assert resources.files("cdpr_sym").joinpath("py.typed").is_file()
     assert "MIT License" in (Path(__file__).parents[1] / "LICENSE").read_text()
+
+
+def test_sweep_progress_hides_itself_off_a_terminal(tmp_path):
+    """Run as a program with stderr to a file: no progress frames land in the log."""
+    log = tmp_path / "log.txt"
+    with log.open("w") as handle:
+        subprocess.run([sys.executable, "-m", "cdpr_sym", "sweep", "--pairs", "2",
+                        "--controllers", "pd", "--duration", "0.2", "--workers", "1",
+                        "--out", str(tmp_path / "s.csv")], check=True, stderr=handle,
+                       stdout=subprocess.DEVNULL)
+    assert "\r" not in log.read_text() and "run" not in log.read_text()

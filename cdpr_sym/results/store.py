@@ -3,7 +3,10 @@
 * arrays with metadata (a trajectory): ``.npz`` with the metadata as a JSON string under
   ``meta``, readable by ``numpy.load`` alone;
 * tables (a sweep): CSV, one row per run, with a JSON *sidecar* ``<file>.json`` holding the
-  configuration; rows are appended as runs finish;
+  configuration; rows are appended as runs finish. Or a Parquet dataset: a folder of typed
+  parts ``part-<unique>.parquet``, one per finished chunk of rows, each written under a
+  temporary dot-name and renamed atomically (readers skip dot-names), with the same sidecar
+  ``<folder>.json`` beside the folder;
 * summaries: JSON, numpy scalars written as numbers.
 """
 
@@ -12,6 +15,9 @@ from __future__ import annotations
 import csv
 import json
 import os
+import time
+import uuid
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -76,11 +82,20 @@ def read_rows(table: Path) -> list[dict[str, str]]:
 
 
 def load_table(table: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
-    """Rows (numbers, booleans and empty cells parsed) and the sidecar of a stored table."""
+    """Rows (numbers, booleans and empty cells parsed) and the sidecar of a stored table.
+
+    ``table`` is a CSV file or a Parquet dataset folder; a Parquet row is given the values
+    its CSV row would parse to (numbers as floats, empty text and nulls as None), so both
+    formats read the same.
+    """
+    table = Path(table)
     if not table.exists():
         raise InvalidCase("results", f"no sweep results at {table}")
-    with open(table, newline="") as handle:
-        rows = [parse_row(row) for row in csv.DictReader(handle)]
+    if table.is_dir():
+        rows = [_parse_typed(row) for row in read_parquet_rows(table)]
+    else:
+        with open(table, newline="") as handle:
+            rows = [parse_row(row) for row in csv.DictReader(handle)]
     sidecar = sidecar_path(table)
     meta = json.loads(sidecar.read_text()) if sidecar.exists() else {}
     return rows, meta
@@ -99,6 +114,108 @@ def parse_row(row: dict[str, str]) -> dict[str, Any]:
                 out[key] = float(text)
             except ValueError:
                 out[key] = text
+    return out
+
+
+def _pyarrow() -> tuple[Any, Any]:
+    """``pyarrow`` and ``pyarrow.parquet``, or InvalidCase naming the extra to install."""
+    try:
+        import pyarrow
+        import pyarrow.parquet
+    except ImportError:
+        raise InvalidCase("format", "Parquet needs pyarrow, which is not installed; "
+                          "pip install 'cdpr_sym[parquet]'") from None
+    return pyarrow, pyarrow.parquet
+
+
+def require_parquet() -> None:
+    """Raise InvalidCase (field ``format``) unless Parquet can be written and read."""
+    _pyarrow()
+
+
+#: Complete parts of a Parquet dataset; a part being written has a dot-name (see above).
+PARQUET_PART = "part-*.parquet"
+_PARQUET_TEMPORARY = ".part-*.parquet.tmp"
+
+
+def parquet_parts(folder: Path) -> list[Path]:
+    """The complete parts of a Parquet dataset folder, in the order they were written."""
+    return sorted(Path(folder).glob(PARQUET_PART))
+
+
+def append_parquet_part(folder: Path, rows: Sequence[Mapping[str, Any]],
+                        columns: Mapping[str, str]) -> Path:
+    """Write ``rows`` as a new part of the Parquet dataset ``folder``; returns the part.
+
+    ``columns`` maps each column, in order, to its type (``int64``, ``float64``, ``bool``
+    or ``string``); a missing value or None is stored as null and other keys of a row are
+    left out. The part is written to a temporary dot-name, synced and renamed, so a reader
+    (or a resumed sweep) sees it whole or not at all.
+    """
+    pa, pq = _pyarrow()
+    schema = pa.schema([(name, _ARROW_TYPES[kind](pa)) for name, kind in columns.items()])
+    table = pa.table({name: pa.array([row.get(name) for row in rows], type=schema.field(name).type)
+                      for name in columns}, schema=schema)
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    unique = f"{time.time_ns():020d}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    part = folder / f"part-{unique}.parquet"
+    temporary = folder / f".{part.name}.tmp"
+    try:
+        with open(temporary, "wb") as handle:
+            pq.write_table(table, handle)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(temporary, part)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise
+    return part
+
+
+def read_parquet_rows(folder: Path, columns: Sequence[str] | None = None
+                      ) -> list[dict[str, Any]]:
+    """Rows of the complete parts of a Parquet dataset, typed (int, float, bool, str, None),
+    in the order the parts were written; ``columns`` limits the columns read."""
+    _, pq = _pyarrow()
+    rows: list[dict[str, Any]] = []
+    for part in parquet_parts(folder):
+        try:
+            table = pq.read_table(part, columns=list(columns) if columns else None)
+        except (OSError, ValueError) as failure:  # pyarrow's errors subclass these
+            raise InvalidCase("results", f"cannot read the Parquet part {part}: {failure}"
+                              ) from None
+        rows.extend(table.to_pylist())
+    return rows
+
+
+def remove_parquet_dataset(folder: Path) -> None:
+    """Delete the parts (complete or temporary) of a Parquet dataset, then the folder if
+    nothing else is in it."""
+    folder = Path(folder)
+    for pattern in (PARQUET_PART, _PARQUET_TEMPORARY):
+        for part in folder.glob(pattern):
+            part.unlink(missing_ok=True)
+    try:
+        folder.rmdir()
+    except OSError:
+        pass  # something else is in it: left alone
+
+
+_ARROW_TYPES = {"int64": lambda pa: pa.int64(), "float64": lambda pa: pa.float64(),
+                "bool": lambda pa: pa.bool_(), "string": lambda pa: pa.string()}
+
+
+def _parse_typed(row: Mapping[str, Any]) -> dict[str, Any]:
+    """A typed (Parquet) row with the values :func:`parse_row` gives its CSV row."""
+    out: dict[str, Any] = {}
+    for key, value in row.items():
+        if isinstance(value, bool) or value is None:
+            out[key] = value
+        elif isinstance(value, (int, float)):
+            out[key] = float(value)
+        else:
+            out[key] = parse_row({key: str(value)})[key]
     return out
 
 

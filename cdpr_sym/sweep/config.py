@@ -96,3 +96,18 @@ def columns(n: int) -> list[str]:
     axes = [f"{i}" for i in range(n)]
     return ["pair", "controller", *[f"start_{a}" for a in axes], *[f"goal_{a}" for a in axes],
             "status", "error", *SCALAR_METRICS]
+
+
+#: How a sweep stores its rows: one CSV file, or a folder of Parquet parts (a dataset).
+FORMATS = ("csv", "parquet")
+
+#: Typed columns of a Parquet sweep that are not float64 (every other metric is a float).
+_TYPED_METRICS = {"tension_feasible": "bool", "converged": "bool", "fallback_steps": "int64",
+                  "infeasible_steps": "int64", "stop_reason": "string"}
+
+
+def column_types(n: int) -> dict[str, str]:
+    """The columns of :func:`columns` with their Parquet types (``int64``, ``float64``,
+    ``bool`` or ``string``), in table order."""
+    fixed = {"pair": "int64", "controller": "string", "status": "string", "error": "string"}
+    return {name: fixed.get(name, _TYPED_METRICS.get(name, "float64")) for name in columns(n)}

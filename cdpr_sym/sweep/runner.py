@@ -3,9 +3,10 @@
 A sweep draws ``pairs`` start/goal pairs from the static workspace (seeded), runs every
 listed controller from each start to its goal, and appends one CSV row per (pair,
 controller) with the metrics of ``cdpr-sym simulate --json`` plus start, goal, run status
-and stop reason. A JSON sidecar records the configuration, package versions and seed so any
-row can be re-run exactly. Work is spread over local processes by default, or over an
-existing Dask cluster; an interrupted sweep resumes from the rows already written.
+and stop reason (or, with ``format="parquet"``, one typed Parquet part per finished chunk
+of rows in a dataset folder). A JSON sidecar records the configuration, package versions
+and seed so any row can be re-run exactly. Work is spread over local processes by default,
+or over an existing Dask cluster; an interrupted sweep resumes from the rows already written.
 """
 
 from __future__ import annotations
@@ -23,13 +24,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.control import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, InvalidCase
-from cdpr_sym.results.store import read_rows, sidecar_path, write_json
+from cdpr_sym.results.store import (
+    append_parquet_part,
+    read_parquet_rows,
+    read_rows,
+    remove_parquet_dataset,
+    require_parquet,
+    sidecar_path,
+    write_json,
+)
 from cdpr_sym.robot import Robot, resolve_robot
-from cdpr_sym.sweep.config import SweepConfig, columns, draw_pairs
+from cdpr_sym.sweep.config import FORMATS, SweepConfig, column_types, columns, draw_pairs
 
 
 def run_one(robot: Robot, controller_name: str, start: np.ndarray, goal: np.ndarray, *,
@@ -80,8 +90,12 @@ def _identity(config: SweepConfig, robot: Robot) -> dict[str, Any]:
                                    for name in config.controllers}}
 
 
-def _prepare_output(config: SweepConfig, robot: Robot, out: Path) -> set[tuple[int, str]]:
+def _prepare_output(config: SweepConfig, robot: Robot, out: Path, format: str = "csv"
+                    ) -> set[tuple[int, str]]:
     """Check or create the sidecar; return the (pair, controller) rows already written.
+
+    With ``format="parquet"``, ``out`` is a dataset folder (an empty folder may exist
+    before the sidecar) and the rows written are those of its complete parts.
 
     Rows with status ``error`` count as written: runs are deterministic, so a retry would
     fail the same way.
@@ -99,37 +113,47 @@ def _prepare_output(config: SweepConfig, robot: Robot, out: Path) -> set[tuple[i
         if stored.get("identity") != identity:
             raise InvalidCase("out", f"{out} was written by another robot description, "
                               "controller options or package versions; start a new --out")
-    elif out.exists():
+    elif out.exists() and not (format == "parquet" and out.is_dir() and not any(out.iterdir())):
         raise InvalidCase("out", f"{out} exists without its sidecar {sidecar.name}; refusing "
                           "to append to an unknown file")
     else:
         out.parent.mkdir(parents=True, exist_ok=True)
         write_json(sidecar, {"config": config.as_dict(), "identity": identity,
                              "versions": identity["versions"], "created": time.time()})
-    return {(int(row["pair"]), row["controller"]) for row in read_rows(out)}
+    if format == "parquet":
+        if out.exists() and not out.is_dir():
+            raise InvalidCase("out", f"{out} is a file, not a Parquet dataset folder; "
+                              "choose another --out or the format it was written in")
+        out.mkdir(exist_ok=True)
+        rows = read_parquet_rows(out, columns=("pair", "controller"))
+    elif out.is_dir():
+        raise InvalidCase("out", f"{out} is a folder (a Parquet sweep?), not a CSV file; "
+                          "choose another --out or the format it was written in")
+    else:
+        rows = read_rows(out)
+    return {(int(row["pair"]), row["controller"]) for row in rows}
 
 
-class Progress:
-    """A one-line progress bar on stderr: runs done, rate and time left."""
+def _check_format(format: str) -> None:
+    if format not in FORMATS:
+        raise InvalidCase("format", f"expected one of {', '.join(FORMATS)}, got {format!r}")
+    if format == "parquet":
+        require_parquet()
 
-    def __init__(self, total: int, *, enabled: bool) -> None:
-        self.total, self.enabled, self.done = total, enabled, 0
-        self.start = time.perf_counter()
 
-    def advance(self, count: int) -> None:
-        self.done += count
-        if not self.enabled:
-            return
-        elapsed = time.perf_counter() - self.start
-        rate = self.done / elapsed if elapsed > 0 else 0.0
-        left = (self.total - self.done) / rate if rate > 0 else float("nan")
-        width = 30
-        filled = int(width * self.done / max(self.total, 1))
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total}"
-                         f" runs  {rate:7.0f} runs/s  {left:5.1f} s left ")
-        if self.done >= self.total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
+def _remove_results(out: Path) -> None:
+    """Delete stale results: the CSV file, or the parts of a Parquet dataset folder."""
+    if out.is_dir():
+        remove_parquet_dataset(out)
+    else:
+        out.unlink(missing_ok=True)
+
+
+def progress_bar(total: int, *, enabled: bool) -> tqdm:
+    """A progress bar of runs on stderr (tqdm); it hides itself when stderr is not a terminal
+    (log files get no carriage-return frames) and when ``enabled`` is False."""
+    return tqdm(total=total, unit="run", desc="sweep", disable=None if enabled else True,
+                file=sys.stderr, dynamic_ncols=True)
 
 
 def _chunks(items: list, size: int) -> list[list]:
@@ -163,22 +187,32 @@ def _dask_map(address: str, function: Callable, config_dict: dict, chunks: list[
 
 def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
               dask_address: str | None = None, progress: bool = True,
-              chunk_size: int | None = None, restart_if_stale: bool = False) -> Path:
-    """Run (or resume) a sweep, appending rows to the CSV file ``out``; returns ``out``.
+              chunk_size: int | None = None, restart_if_stale: bool = False,
+              format: str = "csv") -> Path:
+    """Run (or resume) a sweep, appending rows to ``out``; returns ``out``.
+
+    With ``format="csv"`` (the default) ``out`` is one CSV file. With ``format="parquet"``
+    (needs ``pip install 'cdpr_sym[parquet]'``) ``out`` is a folder, a Parquet dataset:
+    each finished chunk of rows becomes its own typed part ``part-<unique>.parquet``,
+    written under a temporary dot-name and renamed, so an interrupted sweep leaves only
+    whole parts. Either way the sidecar is ``<out>.json`` and a resume skips the
+    (pair, controller) rows already stored.
 
     Results written under another configuration or identity are refused, unless
     ``restart_if_stale`` (used by the studies, which own their files): then they are
     deleted and the sweep starts again.
     """
+    _check_format(format)
+    out = Path(out)
     robot = resolve_robot(config.robot)
     try:
-        done = _prepare_output(config, robot, out)
+        done = _prepare_output(config, robot, out, format)
     except InvalidCase:
         if not restart_if_stale:
             raise
-        out.unlink(missing_ok=True)
+        _remove_results(out)
         sidecar_path(out).unlink(missing_ok=True)
-        done = _prepare_output(config, robot, out)
+        done = _prepare_output(config, robot, out, format)
     starts, goals = draw_pairs(robot, config)
     items = [(pair, name, starts[pair].tolist(), goals[pair].tolist())
              for pair in range(config.pairs) for name in config.controllers
@@ -189,17 +223,24 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
     if items and dask_address is None:
         _warm_cache(robot, config.controllers)
     header = columns(robot.n)
-    bar = Progress(len(items), enabled=progress)
     results = (_dask_map(dask_address, run_items, config.as_dict(), chunks) if dask_address
                else _local_map(run_items, config.as_dict(), chunks, workers))
-    with open(out, "a", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=header, extrasaction="ignore")
-        if handle.tell() == 0:
-            writer.writeheader()
-        for rows in results:
-            writer.writerows(rows)
-            handle.flush()
-            bar.advance(len(rows))
+    with progress_bar(len(items), enabled=progress) as bar:
+        if format == "parquet":
+            types = column_types(robot.n)
+            for rows in results:  # written here, by the collecting process, never by workers
+                if rows:
+                    append_parquet_part(out, rows, types)
+                bar.update(len(rows))
+            return out
+        with open(out, "a", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=header, extrasaction="ignore")
+            if handle.tell() == 0:
+                writer.writeheader()
+            for rows in results:
+                writer.writerows(rows)
+                handle.flush()
+                bar.update(len(rows))
     return out
 
 
