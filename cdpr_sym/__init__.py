@@ -30,7 +30,7 @@ from cdpr_sym.errors import (
     UnknownName,
 )
 from cdpr_sym.model import SymbolicModel
-from cdpr_sym.results import Trajectory
+from cdpr_sym.results import SweepResults, Trajectory, load_sweep
 from cdpr_sym.robot import Robot, load_robot, preset, resolve_robot
 from cdpr_sym.version import __version__
 
@@ -38,7 +38,8 @@ __all__ = [
     "CONTROLLERS", "PD", "BoxDesign", "BuildOptions", "Case", "CdprError",
     "CompilationFailed", "CompilerNotFound", "Controller", "InvalidCase", "InvalidRobot",
     "L2Design", "LinfDesign", "Plant", "Robot", "SaturatedPD", "Simulator",
-    "SmoothReference", "SymbolicModel", "Trajectory", "UnknownName",
+    "SmoothReference", "SweepResults", "SymbolicModel", "Trajectory", "UnknownName",
     "VirtualReferenceIdaPbc", "__version__", "controller_by_name", "get_simulator",
-    "load_robot", "preset", "resolve_robot", "simulate", "simulate_adaptive", "tension",
+    "load_robot", "load_sweep", "preset", "resolve_robot", "simulate", "simulate_adaptive",
+    "tension",
 ]

@@ -151,3 +151,36 @@ def test_sweep_progress_hides_itself_off_a_terminal(tmp_path):
                         "--out", str(tmp_path / "s.csv")], check=True, stderr=handle,
                        stdout=subprocess.DEVNULL)
     assert "\r" not in log.read_text() and "run" not in log.read_text()
+
+
+def _public_functions():
+    import inspect
+
+    import cdpr_sym
+
+    return [(name, getattr(cdpr_sym, name)) for name in cdpr_sym.__all__
+            if inspect.isfunction(getattr(cdpr_sym, name))]
+
+
+@pytest.mark.parametrize(("name", "function"), _public_functions(), ids=lambda v: str(v))
+def test_public_function_has_numpydoc_sections_naming_every_argument(name, function):
+    import inspect
+
+    doc = inspect.getdoc(function) or ""
+    assert "Parameters\n----------" in doc and "Returns\n-------" in doc, name
+    for argument in inspect.signature(function).parameters:
+        assert argument in doc, f"{name}: {argument} undocumented"
+
+
+def test_sweep_results_have_a_short_repr_a_table_view_and_a_frame(tmp_path):
+    from cdpr_sym import load_sweep
+    from cdpr_sym.sweep import SweepConfig, run_sweep
+
+    config = SweepConfig(robot="aras3", controllers=("pd-sat", "smooth"), pairs=2,
+                         duration=0.3)
+    results = load_sweep(run_sweep(config, tmp_path / "s.csv", workers=1, progress=False))
+    assert len(results.rows) == 4 and "designs pd-sat, smooth" in repr(results)
+    assert len(repr(results)) < 120
+    assert results._repr_html_().count("<tr>") == 3  # header and one row per design
+    frame = results.to_pandas()
+    assert len(frame) == 4 and set(frame["controller"]) == {"pd-sat", "smooth"}

@@ -49,6 +49,24 @@ def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=
     at those states. If CVODES fails, the trajectory ends at the last reported time with
     ``stop_reason="integrator_failed"``.
 
+    Parameters
+    ----------
+    robot : Robot
+    controller : Controller
+        A stateless design.
+    start, goal, k, r_d : array_like, optional
+        The case, as for :func:`cdpr_sym.simulate`.
+    duration, dt : float
+        Simulated time and reporting period, s.
+    plant : Plant
+        Mass factor and slack cables (no rate limit).
+    rtol, atol : float
+        CVODES tolerances.
+
+    Returns
+    -------
+    Trajectory
+
     Raises
     ------
     InvalidCase

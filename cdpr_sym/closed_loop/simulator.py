@@ -206,7 +206,24 @@ _SIMULATORS: dict[tuple, Simulator] = {}
 def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
                   build_options: BuildOptions = BuildOptions(),
                   rate_limited: bool = False) -> Simulator:
-    """A :class:`Simulator`, reused within the process for equal robots and options."""
+    """A :class:`Simulator`, reused within the process for equal robots and options.
+
+    Parameters
+    ----------
+    robot : Robot
+    controller : Controller
+    chunk : int
+        Steps per call of CasADi's virtual machine (``backend="casadi"`` only).
+    build_options : BuildOptions
+        Backend, cache folder and compiler.
+    rate_limited : bool
+        The step of a plant with a tension-rate limit.
+
+    Returns
+    -------
+    Simulator
+        Built (and compiled) on first use, then shared.
+    """
     key = (json.dumps(robot.as_dict(), sort_keys=True), controller, chunk, build_options,
            build_options.resolved_backend(), rate_limited)
     if key not in _SIMULATORS:

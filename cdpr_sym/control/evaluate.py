@@ -52,9 +52,24 @@ def tension(model: SymbolicModel, controller: Controller, q, dq, q_goal=None, *,
             k=None, r_d=None, memory=None, dt: float = 1e-3) -> ControlOutput:
     """Evaluate one control step on numbers (a convenience; not for hot loops).
 
-    Goal and gains default to the robot's case. ``memory`` defaults to the controller's
-    initial memory for a move from ``q`` to the goal, so for a stateful design this is the
-    first command of such a move. Returns a :class:`ControlOutput` (tau in N).
+    Parameters
+    ----------
+    model : SymbolicModel
+    controller : Controller
+    q, dq : array_like, shape (n,)
+        State, m and m/s (rad, rad/s for angles).
+    q_goal, k, r_d : array_like, shape (n,), optional
+        Goal and gains; default the robot's case.
+    memory : array_like, optional
+        The controller's internal state; default its initial memory for a move from ``q``
+        to the goal, so for a stateful design this is the first command of such a move.
+    dt : float
+        Control period, s (advances a stateful design's memory).
+
+    Returns
+    -------
+    ControlOutput
+        tau (N), alpha, beta (N), j and flags.
     """
     robot = model.robot
     q_goal = robot.goal if q_goal is None else q_goal

@@ -40,6 +40,17 @@ DESCRIPTIONS = {
 def controller_by_name(name: str) -> Controller:
     """A registered controller by its command-line name.
 
+    Parameters
+    ----------
+    name : str
+        One of :data:`CONTROLLERS` (``"pd"``, ``"pd-sat"``, ``"l2"``, ``"l2-minnorm"``,
+        ``"linf"``, ``"box"``, ``"smooth"``, ``"ida-ref"``).
+
+    Returns
+    -------
+    Controller
+        The design with its default options.
+
     Raises
     ------
     UnknownName

@@ -5,6 +5,7 @@ file formats (trajectories as ``.npz``, sweep tables as CSV with a JSON sidecar,
 summaries as JSON); :mod:`~cdpr_sym.results.judging` turns rows into outcomes and shares.
 """
 
+from cdpr_sym.results.sweep_results import SweepResults, load_sweep
 from cdpr_sym.results.trajectory import SCALAR_METRICS, SETTLE_TOLERANCE, Trajectory
 
-__all__ = ["SCALAR_METRICS", "SETTLE_TOLERANCE", "Trajectory"]
+__all__ = ["SCALAR_METRICS", "SETTLE_TOLERANCE", "SweepResults", "Trajectory", "load_sweep"]

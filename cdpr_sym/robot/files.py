@@ -139,7 +139,24 @@ def preset(name: str) -> Robot:
 
 
 def resolve_robot(name_or_path: str | Path) -> Robot:
-    """A preset by name, or else a TOML file by path."""
+    """A preset by name, or else a TOML file by path.
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A preset name (:data:`PRESET_NAMES`) or a robot TOML file.
+
+    Returns
+    -------
+    Robot
+
+    Raises
+    ------
+    UnknownName
+        Neither a preset nor a path to a ``.toml`` file.
+    InvalidRobot
+        The file is missing or malformed.
+    """
     if str(name_or_path) in PRESET_NAMES:
         return preset(str(name_or_path))
     if Path(name_or_path).suffix == ".toml" or Path(name_or_path).exists():

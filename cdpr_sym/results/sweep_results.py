@@ -1,0 +1,82 @@
+"""A stored sweep as one object: its rows, configuration, per-design summary and views."""
+
+from __future__ import annotations
+
+import dataclasses
+import html
+from pathlib import Path
+from typing import Any
+
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.results.judging import summarise
+from cdpr_sym.results.store import load_table
+
+
+@dataclasses.dataclass(frozen=True, repr=False)
+class SweepResults:
+    """The rows of a sweep (CSV file or Parquet folder) and its sidecar.
+
+    Attributes
+    ----------
+    path : Path
+        Where the results are stored.
+    rows : list of dict
+        One row per (pair, controller), values parsed (see ``cdpr_sym.results.store``).
+    meta : dict
+        The sidecar: configuration, identity and versions.
+    """
+
+    path: Path
+    rows: list[dict[str, Any]]
+    meta: dict[str, Any]
+
+    def summary(self) -> dict[str, dict[str, Any]]:
+        """Per design: shares feasible, converged, meeting the target, and medians."""
+        return summarise(self.rows)
+
+    def to_pandas(self) -> Any:
+        """The rows as a ``pandas.DataFrame`` (``pip install 'cdpr_sym[pandas]'``)."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise InvalidCase("pandas", "to_pandas needs pandas; pip install "
+                              "'cdpr_sym[pandas]'") from None
+        return pd.DataFrame(self.rows)
+
+    def __repr__(self) -> str:
+        config = self.meta.get("config", {})
+        designs = ", ".join(dict.fromkeys(row["controller"] for row in self.rows))
+        return (f"<SweepResults {self.path.name}: {len(self.rows)} runs of "
+                f"{config.get('robot', '?')}, designs {designs or '-'}>")
+
+    def _repr_html_(self) -> str:
+        """A notebook's view: the per-design shares as a table."""
+        header = ("<tr><th>design</th><th>runs</th><th>feasible</th><th>converged</th>"
+                  "<th>meets target</th></tr>")
+        cells = "".join(
+            f"<tr><td>{html.escape(name)}</td><td>{s['runs']}</td>"
+            f"<td>{100 * s['feasible']:.1f} %</td><td>{100 * s['converged']:.1f} %</td>"
+            f"<td>{100 * s['meets_target']:.1f} %</td></tr>"
+            for name, s in self.summary().items())
+        return f"<p><code>{html.escape(repr(self))}</code></p><table>{header}{cells}</table>"
+
+
+def load_sweep(path: str | Path) -> SweepResults:
+    """The stored results of a sweep.
+
+    Parameters
+    ----------
+    path : str or Path
+        The results table (CSV) or dataset folder (Parquet) given to ``run_sweep``.
+
+    Returns
+    -------
+    SweepResults
+
+    Raises
+    ------
+    InvalidCase
+        No results at ``path``.
+    """
+    rows, meta = load_table(Path(path))
+    return SweepResults(Path(path), rows, meta)
