@@ -238,6 +238,7 @@ def test_bench_runs_on_a_rigid_robot_file(capsys, robot_file):
     assert all(row["sims_per_s"] > 0 for row in value["controllers"].values())
 
 
+@pytest.mark.slow
 def test_rigid_study_writes_its_report_for_both_rigid_presets(capsys, tmp_path):
     status, out, _ = _run(capsys, "study", "rigid", "--pairs", "2", "--out",
                           str(tmp_path / "rigid"))

@@ -223,6 +223,64 @@ def test_package_builds_with_cmake_and_example_prints_the_same(package, tmp_path
     assert _run([tmp_path / "example"]) == _run([built.result.out_dir / "example"])
 
 
+def test_cmake_install_gives_a_package_for_find_package(package, tmp_path):
+    """A consumer project finds the installed package and links <prefix>::<prefix>."""
+    built, cmake = package("aras3", "l2"), _tool("cmake")
+    prefix, installed = built.result.prefix, tmp_path / "installed"
+    _run([cmake, "-S", built.result.out_dir, "-B", tmp_path / "build",
+          "-DCMAKE_C_COMPILER=gcc"])
+    _run([cmake, "--build", tmp_path / "build"])
+    _run([cmake, "--install", tmp_path / "build", "--prefix", installed])
+    files = {path.relative_to(installed).as_posix() for path in installed.rglob("*")
+             if path.is_file()}
+    assert {f"lib/lib{prefix}.a", f"include/{prefix}.h", f"lib/cmake/{prefix}/{prefix}Config.cmake",
+            f"lib/cmake/{prefix}/{prefix}ConfigVersion.cmake",
+            f"lib/cmake/{prefix}/{prefix}Targets.cmake"} <= files
+    assert not any(name.endswith(".inc") for name in files)  # the header needs no .inc
+    app = tmp_path / "app"
+    app.mkdir()
+    (app / "CMakeLists.txt").write_text(f"""cmake_minimum_required(VERSION 3.11)
+project(app C)
+find_package({prefix} CONFIG REQUIRED)
+add_executable(app app.c)
+target_link_libraries(app PRIVATE {prefix}::{prefix})
+""")
+    (app / "app.c").write_text(f"""#include <stdio.h>
+#include "{prefix}.h"
+int main(void) {{
+  static {prefix}_work work;
+  double dq[{prefix.upper()}_N] = {{0}}, tau[{prefix.upper()}_N];
+  int ret = {prefix}_control({prefix}_case_start, dq, {prefix}_case_goal, 0, 0, tau, 0, 0, 0,
+                             0, &work);
+  printf("%d\\n", ret);
+  return ret;
+}}
+""")
+    _run([cmake, "-S", app, "-B", app / "build", "-DCMAKE_C_COMPILER=gcc",
+          f"-DCMAKE_PREFIX_PATH={installed}"])
+    _run([cmake, "--build", app / "build"])
+    assert _run([app / "build" / "app"]).strip() == "0"
+
+
+def test_cmake_and_make_optimise_by_default_and_keep_the_planner_at_o0(tmp_path):
+    result = export_c("planar2", "smooth", tmp_path / "pkg")
+    cmake, build = _tool("cmake"), tmp_path / "build"
+    _run([cmake, "-S", result.out_dir, "-B", build, "-DCMAKE_C_COMPILER=gcc"])
+    cache = (build / "CMakeCache.txt").read_text()
+    assert "CMAKE_BUILD_TYPE:STRING=Release\n" in cache
+    log = _run([cmake, "--build", build, "--verbose"]).splitlines()
+    compiles = {name: next(line for line in log if f"{name} -c " in line or
+                           line.rstrip().endswith(f"-c {result.out_dir / name}"))
+                for name in (result.source.name, result.plan_source.name)}
+    assert re.findall(r"-O\d", compiles[result.source.name])[-1] in ("-O2", "-O3")
+    assert re.findall(r"-O\d", compiles[result.plan_source.name])[-1] == "-O0"
+    commands = _run([_tool("make"), "-n"], cwd=result.out_dir).splitlines()
+    assert re.findall(r"-O\d", next(c for c in commands if f"-c {result.source.name}" in c)) \
+        == ["-O2"]
+    assert re.findall(r"-O\d", next(c for c in commands
+                                     if f"-c {result.plan_source.name}" in c)) == ["-O2", "-O0"]
+
+
 def test_exported_law_matches_python_law_on_random_and_resting_states(
         package, aras3, rng, random_states, tmp_path):
     built = package("aras3", "l2")
@@ -262,6 +320,32 @@ def test_example_closed_loop_matches_python_simulation(package, aras3):
     np.testing.assert_allclose(printed["tension_max_N"], run.tau.max(), rtol=1e-9)
     np.testing.assert_allclose(printed["final_error"], np.linalg.norm(run.q[-1] - aras3.goal),
                                rtol=1e-6)
+
+
+@pytest.mark.parametrize("controller", ["l2", "pd-sat"])
+def test_readme_states_the_measured_agreement_with_python(package, aras3, controller):
+    """Built at -O2 without fast-math, the example equals the CasADi virtual machine bit for
+    bit; the default compiled simulator re-associates and differs as the README says."""
+    built = package("aras3", controller)
+    readme = " ".join(built.result.readme.read_text().split())
+    assert ('equal bit for bit those of `cdpr_sym.simulate(..., '
+            'build_options=BuildOptions(backend="casadi"))`') in readme
+    assert "differs by 3e-5 m on aras3/l2" in readme and "0 on aras3/pd-sat" in readme
+    assert "bit for bit" not in readme.replace('bit for bit those of `cdpr_sym.simulate(..., '
+                                               'build_options=BuildOptions(backend="casadi"))',
+                                               "")
+    printed = _example_output(_run([built.result.out_dir / "example"]))
+    exact = _reference_run(aras3, controller)
+    np.testing.assert_array_equal(printed["final_q"], exact.q[-1])
+    np.testing.assert_array_equal(printed["final_dq"], exact.dq[-1])
+    np.testing.assert_array_equal(printed["tension_min_N"], exact.tau.min())
+    np.testing.assert_array_equal(printed["tension_max_N"], exact.tau.max())
+    compiled = simulate(aras3, controller_by_name(controller), duration=10.0)
+    difference = np.abs(printed["final_q"] - compiled.q[-1]).max()
+    if controller == "l2":  # measured 3.1e-5 m
+        assert 1e-5 <= difference <= 1e-4
+    else:
+        assert difference == 0.0
 
 
 def test_harness_is_clean_under_valgrind(package, aras3, rng, random_states, tmp_path):
@@ -412,6 +496,42 @@ def test_existing_file_as_out_dir_raises_invalid_case(tmp_path):
     assert existing.read_text() == "keep me"
 
 
+def test_non_empty_foreign_folder_is_refused_unless_overwrite(tmp_path):
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("keep me")
+    with pytest.raises(InvalidCase, match=r"out_dir: the folder .* is not empty") as raised:
+        export_c("planar2", "pd", folder)
+    assert raised.value.field == "out_dir"
+    assert sorted(path.name for path in folder.iterdir()) == ["notes.txt"]
+    (folder / "manifest.json").write_text('{"name": "something else"}')
+    with pytest.raises(InvalidCase, match="out_dir"):  # another tool's manifest
+        export_c("planar2", "pd", folder)
+    result = export_c("planar2", "pd", folder, overwrite=True)
+    assert result.header.exists() and (folder / "notes.txt").read_text() == "keep me"
+    # an earlier export (its manifest), build products included, is re-exported; so is an
+    # empty folder
+    (tmp_path / "pkg").mkdir()
+    export_c("planar2", "pd", tmp_path / "pkg")
+    (tmp_path / "pkg" / "example").write_text("a build product")
+    again = export_c("planar2", "pd-sat", tmp_path / "pkg")
+    assert again.header.exists() and '"pd-sat"' in again.manifest.read_text()
+
+
+def test_cli_export_c_refuses_a_foreign_folder_in_one_line_unless_force(tmp_path, capsys):
+    (tmp_path / "notes.txt").write_text("keep me")
+    argv = ["export-c", "--robot", "planar2", "--controller", "pd", "--out", str(tmp_path)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("cdpr-sym: error: out_dir") and len(err.strip().splitlines()) == 1
+    assert "--force" in err and not (tmp_path / "cdpr_planar2_pd.h").exists()
+    assert main([*argv, "--force"]) == 0
+    assert (tmp_path / "cdpr_planar2_pd.h").exists()
+    assert (tmp_path / "notes.txt").read_text() == "keep me"
+    capsys.readouterr()
+    assert main(argv) == 0  # now an earlier export: re-exported without --force
+
+
 def test_prefix_must_be_a_c_identifier(tmp_path):
     with pytest.raises(InvalidCase, match="prefix"):
         export_c("aras3", "l2", tmp_path, prefix="9-lives")
@@ -423,9 +543,11 @@ def test_cli_export_c_writes_package_and_reports_bad_input(tmp_path, capsys):
     assert (tmp_path / "pkg" / "cdpr_planar2_pd.h").exists()
     assert "cdpr_planar2_pd.h" in capsys.readouterr().out
     (tmp_path / "file").write_text("")
-    for argv in (["--controller", "nope"], ["--robot", "nowhere"]):
-        assert main(["export-c", *argv, "--out", str(tmp_path / "x")]) == 2
-        assert capsys.readouterr().err.startswith("cdpr-sym: error: unknown")
+    with pytest.raises(SystemExit) as done:  # --controller lists its choices
+        main(["export-c", "--controller", "nope", "--out", str(tmp_path / "x")])
+    assert done.value.code == 2 and "invalid choice: 'nope'" in capsys.readouterr().err
+    assert main(["export-c", "--robot", "nowhere", "--out", str(tmp_path / "x")]) == 2
+    assert capsys.readouterr().err.startswith("cdpr-sym: error: unknown")
     assert main(["export-c", "--out", str(tmp_path / "file")]) == 2
     assert "cdpr-sym: error: out_dir" in capsys.readouterr().err
 

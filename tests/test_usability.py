@@ -184,3 +184,12 @@ def test_sweep_results_have_a_short_repr_a_table_view_and_a_frame(tmp_path):
     assert results._repr_html_().count("<tr>") == 3  # header and one row per design
     frame = results.to_pandas()
     assert len(frame) == 4 and set(frame["controller"]) == {"pd-sat", "smooth"}
+
+
+def test_sweep_command_writes_parquet_that_report_reads(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    assert main(["-q", "sweep", "--pairs", "2", "--controllers", "pd", "--duration", "0.2",
+                 "--workers", "1", "--format", "parquet", "--out", str(out)]) == 0
+    assert out.is_dir() and list(out.glob("part-*.parquet"))
+    assert main(["report", "sweep", str(out), "--out", str(tmp_path / "r")]) == 0
+    assert (tmp_path / "r" / "report.md").exists()

@@ -138,7 +138,7 @@ def sweep_command(args: argparse.Namespace, out: Output) -> int:
     if args.workers is not None and args.workers <= 0:
         raise InvalidCase("workers", f"expected a positive number, got {args.workers}")
     table = run_sweep(config, args.out, workers=args.workers, dask_address=args.dask,
-                      progress=_progress(args))
+                      progress=_progress(args), format=args.format)
     out.result({"results": str(table), "config": config.as_dict()}, [f"results: {table}"])
     return 0
 
@@ -182,7 +182,8 @@ def bench_command(args: argparse.Namespace, out: Output) -> int:
 def export_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.export import export_c
 
-    result = export_c(checked_robot(args.robot), args.controller, args.out, prefix=args.prefix)
+    result = export_c(checked_robot(args.robot), args.controller, args.out, prefix=args.prefix,
+                      overwrite=args.force)
     out.result({"prefix": result.prefix, "files": [str(path) for path in result.paths]},
                [str(path) for path in result.paths])
     return 0

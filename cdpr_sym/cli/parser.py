@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from cdpr_sym.control import CONTROLLERS, DESCRIPTIONS
+from cdpr_sym.sweep.config import FORMATS
 from cdpr_sym.version import __version__
 
 #: Studies whose report is rebuilt from their stored files: module and function.
@@ -112,14 +113,19 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--dt", type=float, default=1e-3, help="control period, s")
     sweep.add_argument("--mass-scale", type=float, default=1.0, help="plant mass / model mass")
     sweep.add_argument("--out", type=Path, required=True,
-                       help="results table (CSV, appended; re-running resumes)")
+                       help="results: a CSV file, or a folder for Parquet (appended; "
+                       "re-running resumes)")
+    sweep.add_argument("--format", choices=FORMATS, default="csv",
+                       help="csv, or parquet: a typed dataset of parts (pip install "
+                       "'cdpr_sym[parquet]')")
     sweep.add_argument("--workers", type=int, help="local processes (default: all cores)")
     sweep.add_argument("--dask", metavar="ADDRESS", help="run on an existing Dask scheduler")
 
     report = command("report", "build a report from stored results")
     report.add_argument("kind", choices=["sweep", *STUDY_REPORTS],
                         help="sweep: a sweep table; a study name: a computed study's folder")
-    report.add_argument("results", type=Path, help="sweep table, or the study's folder")
+    report.add_argument("results", type=Path,
+                        help="sweep results (CSV file or Parquet folder), or a study's folder")
     report.add_argument("--out", type=Path, default=Path("reports/sweep"),
                         help="output folder (sweep only; a study's report is rebuilt in place)")
 
@@ -131,6 +137,9 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
     export.add_argument("--controller", default="l2", choices=list(CONTROLLERS),
                         help="the design (see the list below)")
-    export.add_argument("--out", type=Path, required=True, help="output folder")
+    export.add_argument("--out", type=Path, required=True,
+                        help="output folder: new, empty or an earlier export (re-export)")
+    export.add_argument("--force", action="store_true",
+                        help="write into --out even if it holds other files")
     export.add_argument("--prefix", help="C prefix of every symbol (default cdpr_ROBOT_CTRL)")
     return parser

@@ -14,7 +14,9 @@ controller and a hash of every file. One package is one folder:
   internal state: ``<prefix>_initial_memory``, run once per move (built without
   optimisation: it is large, and optimising it takes the compiler tens of seconds);
 * ``main.c``: the example, the closed loop from the case's start to its goal;
-* ``Makefile`` and ``CMakeLists.txt``: a static library ``lib<prefix>.a`` and ``example``;
+* ``Makefile`` and ``CMakeLists.txt``: a static library ``lib<prefix>.a`` and ``example``
+  (CMake: Release by default, and ``cmake --install`` writes the library, the header and a
+  package for ``find_package(<prefix> CONFIG)`` with the target ``<prefix>::<prefix>``);
 * ``README.md`` and ``manifest.json``.
 
 ``<prefix>`` defaults to ``cdpr_<robot>_<controller>``, so packages of two robots (or two
@@ -27,6 +29,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import re
 import tempfile
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -54,6 +57,10 @@ from cdpr_sym.control import (
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot, resolve_robot
+from cdpr_sym.version import __version__
+
+#: The ``generator`` entry of an export's manifest.json, by which a re-export recognises it.
+_GENERATOR = "cdpr_sym"
 
 #: The model terms that always get a wrapper (every ``SymbolicModel.functions`` entry does).
 REQUIRED_MODEL_TERMS = ("cable_lengths", "structure_matrix", "mass_matrix", "potential",
@@ -244,7 +251,8 @@ class ExportResult:
 
 
 def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: str | Path,
-             *, prefix: str | None = None, avoid_stack: bool = True) -> ExportResult:
+             *, prefix: str | None = None, avoid_stack: bool = True,
+             overwrite: bool = False) -> ExportResult:
     """Write a self-contained C99 package of ``controller`` on ``robot`` to ``out_dir``.
 
     Parameters
@@ -255,13 +263,17 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
         A controller or its name in :data:`cdpr_sym.control.CONTROLLERS` (a name also
         names the default prefix).
     out_dir : str or Path
-        The package folder; created if missing, files of an earlier export overwritten.
+        The package folder; created if missing. An existing folder must be empty or hold an
+        earlier export of this toolkit (its ``manifest.json``), whose files are overwritten.
     prefix : str, optional
         C identifier prefixed to every public symbol; default ``cdpr_<robot>_<controller>``.
     avoid_stack : bool
         True (default): the generated code keeps every intermediate in the caller's work
         memory, so a call uses a few hundred bytes of stack at most. False: intermediates are
         local variables (at most ``SZ_W`` doubles of stack), about 15 % faster.
+    overwrite : bool
+        True: write into ``out_dir`` even if it holds other files (same-named ones are
+        replaced, the rest kept).
 
     Returns
     -------
@@ -275,8 +287,8 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     InvalidRobot
         The robot file is missing or malformed.
     InvalidCase
-        ``out_dir`` is an existing file (or cannot be created), or ``prefix`` is not a C
-        identifier.
+        ``out_dir`` is an existing file (or cannot be created), a folder that is neither empty
+        nor an earlier export (without ``overwrite``), or ``prefix`` is not a C identifier.
 
     Notes
     -----
@@ -300,7 +312,7 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     prefix = prefix if prefix is not None else c_identifier(f"cdpr_{robot.name}_{label}")
     if not is_c_identifier(prefix):
         raise InvalidCase("prefix", f"expected a C identifier, got {prefix!r}")
-    out = _make_folder(Path(out_dir))
+    out = _make_folder(Path(out_dir), overwrite)
     model = SymbolicModel(robot)
     layout = step_layout(model, controller)
     entries = _entries(model, controller, prefix)
@@ -320,7 +332,8 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
                   for name, template in templates.items()})
     for name, text in texts.items():
         (out / name).write_text(text)
-    manifest = {"prefix": prefix, "robot": robot.as_dict(),
+    manifest = {"generator": _GENERATOR, "version": __version__, "prefix": prefix,
+                "robot": robot.as_dict(),
                 "controller": {"name": controller.name, "options": controller.options()},
                 "casadi_version": ca.__version__, "avoid_stack": avoid_stack,
                 "functions": {e.name: {"operations": e.function.n_instructions(),
@@ -444,6 +457,7 @@ def _description(robot: Robot, controller: Controller, prefix: str, entries: lis
     generated = [entry.function for entry in entries]
     return {
         "prefix": prefix, "upper": upper, "n": n, "avoid_stack": avoid_stack,
+        "version": _numeric_version(__version__),
         **_names(robot, controller),
         "operations": max(entry.function.n_instructions() for entry in entries
                           if entry.name != "initial_memory"),
@@ -515,12 +529,36 @@ def _names(robot: Robot, controller: Controller) -> dict[str, str]:
             "options": options}
 
 
-def _make_folder(out: Path) -> Path:
+def _make_folder(out: Path, overwrite: bool) -> Path:
+    """``out``, created if missing; refused if it holds files that are not an export's."""
     if out.exists() and not out.is_dir():
         raise InvalidCase("out_dir", f"expected a folder for the C package, got the existing "
                           f"file {out}")
+    if out.is_dir() and not overwrite and any(out.iterdir()) and not _is_export(out):
+        raise InvalidCase("out_dir", f"the folder {out} is not empty and holds no earlier "
+                          f"export (no cdpr_sym manifest.json); choose an empty or new folder, "
+                          f"or overwrite (--force)")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as failure:
         raise InvalidCase("out_dir", f"cannot create the folder {out}: {failure}") from None
     return out
+
+
+def _is_export(folder: Path) -> bool:
+    """Whether ``folder`` holds a package written by :func:`export_c` (its manifest)."""
+    try:
+        manifest = json.loads((folder / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return False
+    if not isinstance(manifest, dict):
+        return False
+    # exports before the "generator" entry are known by their other entries
+    return (manifest.get("generator") == _GENERATOR
+            or {"prefix", "robot", "controller", "casadi_version", "sha256"} <= manifest.keys())
+
+
+def _numeric_version(version: str) -> str:
+    """The leading ``major.minor.patch`` numbers of ``version``, as CMake's project() wants."""
+    numbers = re.match(r"\d+(\.\d+){0,3}", version)
+    return numbers.group(0) if numbers else "0"
