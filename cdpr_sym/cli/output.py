@@ -7,7 +7,7 @@ import math
 from collections.abc import Iterable
 from typing import Any
 
-import numpy as np
+from cdpr_sym.results.store import json_default
 
 
 class Output:
@@ -20,7 +20,7 @@ class Output:
     def result(self, value: Any, lines: Iterable[str]) -> None:
         """The command's result: ``value`` as JSON, or ``lines`` as text."""
         if self.as_json:
-            print(json.dumps(value, default=_plain))
+            print(json.dumps(value, default=json_default))
         elif not self.quiet:
             for line in lines:
                 print(line)
@@ -35,11 +35,3 @@ def quantity(value: float | None, unit: str = "", *, missing: str = "–") -> st
 
 def yes_no(value: bool) -> str:
     return "yes" if value else "no"
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    return str(value)

@@ -8,14 +8,27 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-if TYPE_CHECKING:
-    from cdpr_sym.results.trajectory import Trajectory
+
+class Trajectory(Protocol):
+    """What a figure reads of a run (a :class:`cdpr_sym.results.Trajectory` has it all)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    q_goal: np.ndarray
+    tau: np.ndarray
+    alpha: np.ndarray
+    t_min: float
+    t_max: float
+    info: dict[str, Any]
+
+    @property
+    def error(self) -> np.ndarray: ...
 
 _AXES = {2: ("x", "z"), 3: ("x", "y", "z")}
 

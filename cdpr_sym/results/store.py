@@ -33,7 +33,7 @@ def save_arrays(path: str | Path, arrays: dict[str, Any]) -> Path:
     nothing but ``numpy.load`` (without pickle) to read. Returns the path written.
     """
     path = Path(path)
-    stored = {key: np.array(json.dumps(value, default=_plain)) if isinstance(value, dict)
+    stored = {key: np.array(json.dumps(value, default=json_default)) if isinstance(value, dict)
               else np.asarray(value) for key, value in arrays.items()}
     np.savez_compressed(path, **stored)
     return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
@@ -52,7 +52,7 @@ def load_arrays(path: str | Path) -> dict[str, np.ndarray]:
 
 def write_json(path: Path, value: Any) -> Path:
     """``value`` as indented JSON (numpy scalars and arrays as numbers and lists)."""
-    path.write_text(json.dumps(value, indent=2, default=_plain) + "\n")
+    path.write_text(json.dumps(value, indent=2, default=json_default) + "\n")
     return path
 
 
@@ -219,7 +219,8 @@ def _parse_typed(row: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _plain(value: Any) -> Any:
+def json_default(value: Any) -> Any:
+    """``default=`` of ``json.dumps`` for results: numpy values as numbers and lists."""
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, np.ndarray):
