@@ -12,6 +12,7 @@ so the layout is written down once::
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Mapping
 
 import casadi as ca
@@ -24,23 +25,26 @@ class Fields:
 
     fields: tuple[tuple[str, int], ...]
 
-    @property
+    @functools.cached_property
     def size(self) -> int:
         """Total length of the vector."""
         return sum(size for _, size in self.fields)
 
-    @property
+    @functools.cached_property
     def names(self) -> tuple[str, ...]:
         return tuple(name for name, _ in self.fields)
 
+    @functools.cached_property
+    def _slices(self) -> dict[str, slice]:
+        slices, start = {}, 0
+        for name, size in self.fields:
+            slices[name] = slice(start, start + size)
+            start += size
+        return slices
+
     def offset(self, name: str) -> int:
         """Index of the first entry of field ``name``."""
-        start = 0
-        for field, size in self.fields:
-            if field == name:
-                return start
-            start += size
-        raise KeyError(f"no field {name!r} in {self.names}")
+        return self.slice(name).start
 
     def width(self, name: str) -> int:
         """Number of entries of field ``name``."""
@@ -48,18 +52,20 @@ class Fields:
 
     def slice(self, name: str) -> slice:
         """The entries of field ``name``."""
-        start = self.offset(name)
-        return slice(start, start + self.width(name))
+        try:
+            return self._slices[name]
+        except KeyError:
+            raise KeyError(f"no field {name!r} in {self.names}") from None
 
     def offsets(self) -> dict[str, int]:
         """Every field's offset, in order."""
-        return {name: self.offset(name) for name in self.names}
+        return {name: part.start for name, part in self._slices.items()}
 
     def split(self, vector: ca.SX | np.ndarray) -> dict[str, ca.SX | np.ndarray]:
         """The fields of a symbolic or numeric vector (numeric: along its last axis)."""
         if isinstance(vector, np.ndarray):
-            return {name: vector[..., self.slice(name)] for name in self.names}
-        return {name: vector[self.slice(name)] for name in self.names}
+            return {name: vector[..., part] for name, part in self._slices.items()}
+        return {name: vector[part] for name, part in self._slices.items()}
 
     def pack(self, values: Mapping[str, object]) -> np.ndarray:
         """A numeric vector from one value (scalar or array) per field."""
@@ -92,26 +98,26 @@ class StepLayout:
     n_memory: int = 0
     rate_limited: bool = False
 
-    @property
+    @functools.cached_property
     def x(self) -> Fields:
         """The state: q (m, rad), dq, the controller's memory, applied tension (N), status."""
         return Fields((("q", self.n), ("dq", self.n), ("memory", self.n_memory),
                        ("applied", self.n if self.rate_limited else 0), ("status", 1)))
 
-    @property
+    @functools.cached_property
     def p(self) -> Fields:
         """The parameters: goal, gains, dt (s), plant mass factor, slack switch, rate limit."""
         return Fields((("q_goal", self.n), ("k", self.n), ("r_d", self.n), ("dt", 1),
                        ("mass_scale", 1), ("slack", 1),
                        ("rate_limit", 1 if self.rate_limited else 0)))
 
-    @property
+    @functools.cached_property
     def log(self) -> Fields:
         """Per step: tau (N), alpha, beta (N), j, flags."""
         return Fields((("tau", self.n), ("alpha", 1), ("beta", 1), ("j", self.n_j),
                        ("flags", 1)))
 
-    @property
+    @functools.cached_property
     def status_index(self) -> int:
         """Offset of the stop status in x."""
         return self.x.offset("status")
