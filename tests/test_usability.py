@@ -193,3 +193,14 @@ def test_sweep_command_writes_parquet_that_report_reads(tmp_path, capsys):
     assert out.is_dir() and list(out.glob("part-*.parquet"))
     assert main(["report", "sweep", str(out), "--out", str(tmp_path / "r")]) == 0
     assert (tmp_path / "r" / "report.md").exists()
+
+
+def test_a_damaged_sweep_sidecar_is_one_line_not_a_traceback(tmp_path, capsys):
+    argv = ["-q", "sweep", "--pairs", "1", "--controllers", "pd", "--duration", "0.2",
+            "--workers", "1", "--out", str(tmp_path / "s.csv")]
+    assert main(argv) == 0
+    (tmp_path / "s.csv.json").write_bytes(b"\x00\xff{")
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "is damaged" in err and len(err.strip().splitlines()) == 1
+    assert main(["report", "sweep", str(tmp_path / "s.csv"), "--out", str(tmp_path / "r")]) == 2

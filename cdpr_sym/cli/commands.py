@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +13,7 @@ from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.results.store import read_json
 from cdpr_sym.robot import PRESET_NAMES, Robot, resolve_robot
 
 
@@ -155,11 +155,8 @@ def report_command(args: argparse.Namespace, out: Output) -> int:
     if not study.exists():
         raise InvalidCase("results", f"{args.results} holds no computed {args.kind} study "
                           "(no study.json); run 'cdpr-sym study' first")
-    try:
-        kind = json.loads(study.read_text()).get("study")
-    except (json.JSONDecodeError, UnicodeDecodeError, AttributeError):
-        raise InvalidCase("results", f"{study} is damaged; run 'cdpr-sym study "
-                          f"{args.kind}' again") from None
+    data = read_json(study)
+    kind = data.get("study") if isinstance(data, dict) else None
     if kind != args.kind:
         raise InvalidCase("results", f"{args.results} holds a {kind} study, not {args.kind}")
     if not runs.exists():

@@ -57,11 +57,14 @@ def write_json(path: Path, value: Any) -> Path:
 
 
 def read_json(path: Path) -> Any:
-    """A JSON file written by :func:`write_json`."""
+    """A JSON file written by :func:`write_json`; a missing or damaged file is an
+    :class:`InvalidCase` naming it, never a traceback."""
     try:
-        return json.loads(Path(path).read_text())
+        return json.loads(Path(path).read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise InvalidCase("path", f"no stored summary at {path}") from None
+        raise InvalidCase("path", f"no stored file at {path}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise InvalidCase("path", f"{path} is damaged (not JSON); compute it again") from None
 
 
 def sidecar_path(table: Path) -> Path:
@@ -97,7 +100,7 @@ def load_table(table: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
         with open(table, newline="") as handle:
             rows = [parse_row(row) for row in csv.DictReader(handle)]
     sidecar = sidecar_path(table)
-    meta = json.loads(sidecar.read_text()) if sidecar.exists() else {}
+    meta = read_json(sidecar) if sidecar.exists() else {}
     return rows, meta
 
 

@@ -31,6 +31,7 @@ from cdpr_sym.control import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, InvalidCase
 from cdpr_sym.results.store import (
     append_parquet_part,
+    read_json,
     read_parquet_rows,
     read_rows,
     remove_parquet_dataset,
@@ -106,7 +107,7 @@ def _prepare_output(config: SweepConfig, robot: Robot, out: Path, format: str = 
     sidecar = sidecar_path(out)
     identity = json.loads(json.dumps(_identity(config, robot)))
     if sidecar.exists():
-        stored = json.loads(sidecar.read_text())
+        stored = read_json(sidecar)
         if stored["config"] != config.as_dict():
             raise InvalidCase("out", f"{out} holds a sweep with another configuration "
                               f"({stored['config']}); choose another --out or the same options")
