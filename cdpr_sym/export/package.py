@@ -376,15 +376,13 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
     model = SymbolicModel(robot)
     memory = np.array(initial_memory_function(model, controller)(
         robot.start, robot.goal, robot.k, robot.r_d)).ravel()
-    law = law_function(model, controller)
-    unused = set() if memory.size else _STATEFUL_ARGUMENTS
+    control = _control(law_function(model, controller), step_layout(model, controller))
     with tempfile.TemporaryDirectory(prefix="cdpr_bench_") as folder:
         result = export_c(robot, controller, folder, prefix="cdpr_bench")
         bench = Path(folder) / "bench.c"
         bench.write_text(render(
             "cdpr_sym.export", "bench.c.j2", seconds=float(min_seconds),
-            arguments=[name for name in (*law.name_in(), *law.name_out())
-                       if name not in unused],
+            arguments=[argument.name for argument in control.arguments if argument.used],
             states=states.tolist(), memory=memory.tolist() if memory.size else [0.0]))
         program = Path(folder) / "bench"
         run_command([cc, "-std=c99", "-O2", "-I", folder, str(bench), str(result.source),
