@@ -40,3 +40,15 @@ class UnknownName(CdprError, KeyError):
 
     def __str__(self) -> str:  # KeyError quotes its argument; keep the message readable
         return str(self.args[0]) if self.args else ""
+
+
+class Interrupted(CdprError):
+    """Long work stopped by Ctrl-C or SIGTERM; finished results are kept.
+
+    The message says what was kept and how to resume; the command line exits with
+    ``exit_status`` (130 after Ctrl-C, 143 after SIGTERM, as shells report them).
+    """
+
+    def __init__(self, message: str, *, exit_status: int = 130) -> None:
+        self.exit_status = exit_status
+        super().__init__(message)
