@@ -51,8 +51,17 @@ def load_arrays(path: str | Path) -> dict[str, np.ndarray]:
 
 
 def write_json(path: Path, value: Any) -> Path:
-    """``value`` as indented JSON (numpy scalars and arrays as numbers and lists)."""
-    path.write_text(json.dumps(value, indent=2, default=json_default) + "\n")
+    """``value`` as indented JSON (numpy scalars and arrays as numbers and lists), written
+    to a temporary file beside ``path`` and renamed over it, so a reader never meets half a
+    file."""
+    text = json.dumps(value, indent=2, default=json_default) + "\n"
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        temporary.write_text(text)
+        os.replace(temporary, path)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise
     return path
 
 
@@ -72,16 +81,65 @@ def sidecar_path(table: Path) -> Path:
     return table.with_name(table.name + ".json")
 
 
-def read_rows(table: Path) -> list[dict[str, str]]:
-    """Complete rows of a table, as text; a torn last line (an interrupted write) is cut off
-    the file, so that appending continues on a row boundary."""
+def read_csv_records(table: Path) -> tuple[list[list[str]], bytes]:
+    """The complete lines of a CSV table as records (lists of text cells), and the torn
+    tail after the last newline (an interrupted write; empty when there is none).
+
+    Nothing is changed on disk. A file that is not UTF-8 text is an :class:`InvalidCase`
+    (field ``results``) naming it.
+    """
     if not table.exists():
-        return []
+        return [], b""
     data = table.read_bytes()
-    if data and not data.endswith(b"\n"):
-        os.truncate(table, data.rfind(b"\n") + 1)  # drops the torn tail only
-        data = data[: data.rfind(b"\n") + 1]
-    return list(csv.DictReader(data.decode().splitlines()))
+    cut = data.rfind(b"\n") + 1
+    complete, torn = data[:cut], data[cut:]
+    try:
+        text = complete.decode("utf-8")
+    except UnicodeDecodeError:
+        raise InvalidCase("results", f"{table} is not a CSV text file (not UTF-8)") from None
+    if "\0" in text:
+        raise InvalidCase("results", f"{table} is not a CSV text file (binary data)")
+    return list(csv.reader(text.splitlines())), torn
+
+
+def write_csv_atomically(table: Path, header: Sequence[str],
+                         records: Sequence[Sequence[str]]) -> None:
+    """Replace ``table`` by ``header`` and ``records`` in one step: written to a temporary
+    file beside it, synced, then renamed over it, so a crash leaves the old file or the
+    new one, never a mixture or an empty file."""
+    temporary = table.with_name(f".{table.name}.{os.getpid()}.tmp")
+    try:
+        with open(temporary, "w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(header)
+            writer.writerows(records)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(temporary, table)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise
+
+
+def checked_csv_rows(table: Path) -> list[dict[str, str]]:
+    """The rows of a stored CSV table, as text, refusing a damaged table in one line.
+
+    Raises :class:`InvalidCase` (field ``results``) for an empty or binary file, and for a
+    row whose cell count differs from the header's (a torn or interleaved write); a sweep
+    table is repaired by running the same sweep command again.
+    """
+    records, torn = read_csv_records(table)
+    if not records:
+        raise InvalidCase("results", f"{table} is empty: no header and no rows")
+    header, *rows = records
+    repair = "run the same sweep command again to repair it"
+    if torn:
+        raise InvalidCase("results", f"{table} ends in a torn row; {repair}")
+    for line, row in enumerate(rows, start=2):
+        if len(row) != len(header) or row == header:
+            raise InvalidCase("results", f"line {line} of {table} is damaged ({len(row)} "
+                              f"cells, the header has {len(header)}); {repair}")
+    return [dict(zip(header, row, strict=True)) for row in rows]
 
 
 def load_table(table: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
@@ -97,8 +155,7 @@ def load_table(table: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     if table.is_dir():
         rows = [_parse_typed(row) for row in read_parquet_rows(table)]
     else:
-        with open(table, newline="") as handle:
-            rows = [parse_row(row) for row in csv.DictReader(handle)]
+        rows = [parse_row(row) for row in checked_csv_rows(table)]
     sidecar = sidecar_path(table)
     meta = read_json(sidecar) if sidecar.exists() else {}
     return rows, meta

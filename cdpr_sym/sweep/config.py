@@ -55,6 +55,10 @@ class SweepConfig:
             raise InvalidCase("controllers", "expected at least one controller")
         for name in self.controllers:
             controller_by_name(name)
+        repeated = sorted({name for name in self.controllers if self.controllers.count(name) > 1})
+        if repeated:
+            raise InvalidCase("controllers", f"{', '.join(repeated)} listed more than once; "
+                              "each controller gives one row per pair")
         if not (math.isfinite(self.duration) and self.duration > 0):
             raise InvalidCase("duration", f"expected a positive duration, got {self.duration}")
         if not (math.isfinite(self.dt) and 0 < self.dt <= self.duration):

@@ -7,19 +7,20 @@ and stop reason (or, with ``format="parquet"``, one typed Parquet part per finis
 of rows in a dataset folder). A JSON sidecar records the configuration, package versions
 and seed so any row can be re-run exactly. Work is spread over local processes by default,
 or over an existing Dask cluster; an interrupted sweep resumes from the rows already written.
+Only one sweep writes an output at a time, and Ctrl-C or SIGTERM stops it within about a
+second, keeping every finished row.
 """
 
 from __future__ import annotations
 
-import concurrent.futures
+import contextlib
 import csv
-import json
 import math
 import os
 import platform
+import shutil
 import sys
-import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,19 +29,24 @@ from tqdm import tqdm
 
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.control import CONTROLLERS, controller_by_name
-from cdpr_sym.errors import CdprError, InvalidCase
+from cdpr_sym.errors import CdprError, Interrupted, InvalidCase
 from cdpr_sym.results.store import (
     append_parquet_part,
-    read_json,
-    read_parquet_rows,
-    read_rows,
     remove_parquet_dataset,
     require_parquet,
     sidecar_path,
-    write_json,
 )
 from cdpr_sym.robot import Robot, resolve_robot
 from cdpr_sym.sweep.config import FORMATS, SweepConfig, column_types, columns, draw_pairs
+from cdpr_sym.sweep.output import check_identity, done_rows, exclusive_output
+from cdpr_sym.sweep.workers import (
+    DASK_TIMEOUT,
+    Terminated,
+    dask_client,
+    dask_map,
+    local_map,
+    sigterm_interrupts,
+)
 
 
 def run_one(robot: Robot, controller_name: str, start: np.ndarray, goal: np.ndarray, *,
@@ -91,50 +97,6 @@ def _identity(config: SweepConfig, robot: Robot) -> dict[str, Any]:
                                    for name in config.controllers}}
 
 
-def _prepare_output(config: SweepConfig, robot: Robot, out: Path, format: str = "csv"
-                    ) -> set[tuple[int, str]]:
-    """Check or create the sidecar; return the (pair, controller) rows already written.
-
-    With ``format="parquet"``, ``out`` is a dataset folder (an empty folder may exist
-    before the sidecar) and the rows written are those of its complete parts.
-
-    Rows with status ``error`` count as written: runs are deterministic, so a retry would
-    fail the same way.
-
-    Rows are reused only when the configuration, the robot description, the controllers'
-    options and the package versions are all unchanged.
-    """
-    sidecar = sidecar_path(out)
-    identity = json.loads(json.dumps(_identity(config, robot)))
-    if sidecar.exists():
-        stored = read_json(sidecar)
-        if stored["config"] != config.as_dict():
-            raise InvalidCase("out", f"{out} holds a sweep with another configuration "
-                              f"({stored['config']}); choose another --out or the same options")
-        if stored.get("identity") != identity:
-            raise InvalidCase("out", f"{out} was written by another robot description, "
-                              "controller options or package versions; start a new --out")
-    elif out.exists() and not (format == "parquet" and out.is_dir() and not any(out.iterdir())):
-        raise InvalidCase("out", f"{out} exists without its sidecar {sidecar.name}; refusing "
-                          "to append to an unknown file")
-    else:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        write_json(sidecar, {"config": config.as_dict(), "identity": identity,
-                             "versions": identity["versions"], "created": time.time()})
-    if format == "parquet":
-        if out.exists() and not out.is_dir():
-            raise InvalidCase("out", f"{out} is a file, not a Parquet dataset folder; "
-                              "choose another --out or the format it was written in")
-        out.mkdir(exist_ok=True)
-        rows = read_parquet_rows(out, columns=("pair", "controller"))
-    elif out.is_dir():
-        raise InvalidCase("out", f"{out} is a folder (a Parquet sweep?), not a CSV file; "
-                          "choose another --out or the format it was written in")
-    else:
-        rows = read_rows(out)
-    return {(int(row["pair"]), row["controller"]) for row in rows}
-
-
 def _check_format(format: str) -> None:
     if format not in FORMATS:
         raise InvalidCase("format", f"expected one of {', '.join(FORMATS)}, got {format!r}")
@@ -161,35 +123,10 @@ def _chunks(items: list, size: int) -> list[list]:
     return [items[i: i + size] for i in range(0, len(items), size)]
 
 
-def _local_map(function: Callable, config_dict: dict, chunks: list[list], workers: int
-               ) -> Iterable[list[dict[str, Any]]]:
-    if workers <= 1:
-        for chunk in chunks:
-            yield function(config_dict, chunk)
-        return
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = [pool.submit(function, config_dict, chunk) for chunk in chunks]
-        for future in concurrent.futures.as_completed(futures):
-            yield future.result()
-
-
-def _dask_map(address: str, function: Callable, config_dict: dict, chunks: list[list]
-              ) -> Iterable[list[dict[str, Any]]]:
-    try:
-        from dask.distributed import Client, as_completed
-    except ImportError:
-        raise InvalidCase("dask", "dask.distributed is not installed; "
-                          "pip install 'cdpr_sym[dask]'") from None
-    with Client(address) as client:
-        futures = client.map(function, [config_dict] * len(chunks), chunks, pure=False)
-        for future in as_completed(futures):
-            yield future.result()
-
-
 def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
               dask_address: str | None = None, progress: bool = True,
               chunk_size: int | None = None, restart_if_stale: bool = False,
-              format: str = "csv") -> Path:
+              format: str = "csv", dask_timeout: float = DASK_TIMEOUT) -> Path:
     """Run (or resume) a sweep, appending rows to ``out``; returns ``out``.
 
     With ``format="csv"`` (the default) ``out`` is one CSV file. With ``format="parquet"``
@@ -197,52 +134,118 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
     each finished chunk of rows becomes its own typed part ``part-<unique>.parquet``,
     written under a temporary dot-name and renamed, so an interrupted sweep leaves only
     whole parts. Either way the sidecar is ``<out>.json`` and a resume skips the
-    (pair, controller) rows already stored.
+    (pair, controller) rows already stored (see :mod:`cdpr_sym.sweep.output` for the lock,
+    the checks and the repair of a damaged table).
 
     Results written under another configuration or identity are refused, unless
     ``restart_if_stale`` (used by the studies, which own their files): then they are
     deleted and the sweep starts again.
+
+    Raises
+    ------
+    InvalidCase
+        Bad options, another sweep writing ``out``, an output of another sweep, too
+        little disk space, or no Dask scheduler at ``dask_address`` — all before any run.
+    Interrupted
+        Ctrl-C or SIGTERM: the workers are stopped at once; every row received is kept
+        and the message says how to resume.
     """
     _check_format(format)
     out = Path(out)
     robot = resolve_robot(config.robot)
+    with exclusive_output(out):
+        _check_output(config, robot, out, format, restart_if_stale)
+        starts, goals = draw_pairs(robot, config)
+        done = done_rows(config, out, format, starts, goals)
+        items = [(pair, name, starts[pair].tolist(), goals[pair].tolist())
+                 for pair in range(config.pairs) for name in config.controllers
+                 if (pair, name) not in done]
+        _check_disk_space(out, len(items), robot.n)
+        client = dask_client(dask_address, dask_timeout) if dask_address and items else None
+        try:
+            if items and client is None:
+                _warm_cache(robot, config.controllers)
+            workers = workers or os.cpu_count() or 1
+            size = chunk_size or max(1, min(100, math.ceil(len(items) / (8 * workers))))
+            chunks = _chunks(items, size)
+            results = (dask_map(client, run_items, config.as_dict(), chunks) if client
+                       else local_map(run_items, config.as_dict(), chunks, workers))
+            _collect(results, out, format, robot.n, len(items), progress)
+        finally:
+            if client is not None:
+                client.close()
+    return out
+
+
+def _check_output(config: SweepConfig, robot: Robot, out: Path, format: str,
+                  restart_if_stale: bool) -> None:
+    """The sidecar check, or a fresh start when the studies own a stale output."""
     try:
-        done = _prepare_output(config, robot, out, format)
+        check_identity(config, _identity(config, robot), out, format)
     except InvalidCase:
         if not restart_if_stale:
             raise
         _remove_results(out)
         sidecar_path(out).unlink(missing_ok=True)
-        done = _prepare_output(config, robot, out, format)
-    starts, goals = draw_pairs(robot, config)
-    items = [(pair, name, starts[pair].tolist(), goals[pair].tolist())
-             for pair in range(config.pairs) for name in config.controllers
-             if (pair, name) not in done]
-    workers = workers or os.cpu_count() or 1
-    size = chunk_size or max(1, min(400, math.ceil(len(items) / (8 * workers))))
-    chunks = _chunks(items, size)
-    if items and dask_address is None:
-        _warm_cache(robot, config.controllers)
-    header = columns(robot.n)
-    results = (_dask_map(dask_address, run_items, config.as_dict(), chunks) if dask_address
-               else _local_map(run_items, config.as_dict(), chunks, workers))
-    with progress_bar(len(items), enabled=progress) as bar:
-        if format == "parquet":
-            types = column_types(robot.n)
-            for rows in results:  # written here, by the collecting process, never by workers
-                if rows:
-                    append_parquet_part(out, rows, types)
-                bar.update(len(rows))
-            return out
-        with open(out, "a", newline="") as handle:
-            writer = csv.DictWriter(handle, fieldnames=header, extrasaction="ignore")
-            if handle.tell() == 0:
-                writer.writeheader()
+        check_identity(config, _identity(config, robot), out, format)
+
+
+#: Bytes of one CSV row, generously (a 6-DOF row is about 450 bytes).
+_ROW_BYTES = 1024
+
+
+def _check_disk_space(out: Path, rows: int, n: int) -> None:
+    """Refuse to start when the output's disk cannot hold the rows still to run."""
+    needed = rows * (_ROW_BYTES + 48 * n)
+    free = shutil.disk_usage(out.parent).free
+    if needed > free:
+        raise InvalidCase("out", f"{out.parent} has {free / 1e6:.1f} MB free and the "
+                          f"{rows} rows still to run need about {needed / 1e6:.1f} MB")
+
+
+def _collect(results: Iterable[list[dict[str, Any]]], out: Path, format: str, n: int,
+             total: int, progress: bool) -> None:
+    """Write rows as they arrive (only this process writes); turn an interruption into
+    :class:`Interrupted` saying what was kept."""
+    written = 0
+    try:
+        with progress_bar(total, enabled=progress) as bar, sigterm_interrupts(), \
+                _row_sink(out, format, n) as sink:
             for rows in results:
-                writer.writerows(rows)
-                handle.flush()
+                sink(rows)
+                written += len(rows)
                 bar.update(len(rows))
-    return out
+    except KeyboardInterrupt as stop:
+        raise Interrupted(
+            f"{written} of {total} runs finished and stored in {out}; run the same command "
+            "again to resume", exit_status=143 if isinstance(stop, Terminated) else 130
+        ) from None
+
+
+@contextlib.contextmanager
+def _row_sink(out: Path, format: str, n: int) -> Iterator[Callable[[list], None]]:
+    """A function that stores a list of rows durably: a Parquet part, or CSV lines
+    appended and flushed."""
+    if format == "parquet":
+        types = column_types(n)
+
+        def store_part(rows: list) -> None:
+            if rows:
+                append_parquet_part(out, rows, types)
+
+        yield store_part
+        return
+    with open(out, "a", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=columns(n), extrasaction="ignore")
+        if handle.tell() == 0:
+            writer.writeheader()
+            handle.flush()
+
+        def append_rows(rows: list) -> None:
+            writer.writerows(rows)
+            handle.flush()
+
+        yield append_rows
 
 
 def _warm_cache(robot: Robot, names: Sequence[str]) -> None:

@@ -1,0 +1,286 @@
+"""Sweeps never lose or duplicate a row: one writer, atomic repairs, prompt interruption.
+
+The process tests run the real command line in a subprocess (its own process group, as a
+terminal would), interrupt it while it writes, and check what is on disk and how it ends.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cdpr_sym.cli.main import main
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.results.store import sidecar_path
+from cdpr_sym.sweep import SweepConfig, run_sweep
+from cdpr_sym.sweep.output import exclusive_output, rejected_path
+
+#: A short sweep whose rows are compared exactly after damage and repair.
+SMALL = SweepConfig(robot="planar2", controllers=("pd-sat", "pd"), pairs=4, seed=3,
+                    duration=0.3)
+#: A sweep long enough to be interrupted while it writes (about 10 s on 2 cores).
+LONG_ARGS = ["sweep", "--robot", "aras3", "--controllers", "pd-sat", "--pairs", "3000",
+             "--duration", "10", "--workers", "2", "--no-progress"]
+
+
+def _rows(path: Path) -> list[list[str]]:
+    with open(path, newline="") as handle:
+        return list(csv.reader(handle))
+
+
+def _keyed(path: Path) -> dict[tuple[str, str], list[str]]:
+    _header, *rows = _rows(path)
+    keyed = {(row[0], row[1]): row for row in rows}
+    assert len(keyed) == len(rows), "a (pair, controller) row appears twice"
+    return keyed
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("reference") / "rows.csv"
+    return run_sweep(SMALL, out, workers=1, progress=False)
+
+
+def _copy(reference: Path, to: Path, text: str) -> Path:
+    shutil.copy(sidecar_path(reference), sidecar_path(to))
+    to.write_text(text)
+    return to
+
+
+# --- one writer ------------------------------------------------------------------------
+
+
+def test_a_second_sweep_on_a_locked_output_is_refused_before_any_run(reference, tmp_path):
+    out = _copy(reference, tmp_path / "rows.csv", "")
+    with exclusive_output(out), pytest.raises(InvalidCase, match="another sweep") as error:
+        run_sweep(SMALL, out, workers=1, progress=False)
+    assert error.value.field == "out"
+    assert out.read_text() == ""  # nothing written by the refused sweep
+    run_sweep(SMALL, out, workers=1, progress=False)  # the lock went with its holder
+    assert _keyed(out) == _keyed(reference)
+    assert not out.with_name("rows.csv.lock").exists()
+
+
+def test_repeated_controller_names_are_refused(tmp_path, capsys):
+    with pytest.raises(InvalidCase, match="pd-sat listed more than once"):
+        SweepConfig(robot="planar2", controllers=("pd-sat", "pd", "pd-sat"), pairs=2)
+    status = main(["sweep", "--robot", "planar2", "--controllers", "pd-sat,pd-sat",
+                   "--pairs", "2", "--out", str(tmp_path / "r.csv"), "--no-progress"])
+    assert status == 2
+    assert capsys.readouterr().err.strip().count("\n") == 0
+    assert not (tmp_path / "r.csv").exists()
+
+
+# --- validation and atomic repair on resume ------------------------------------------
+
+
+def test_interleaved_duplicated_and_cut_rows_are_repaired_to_each_row_once(reference,
+                                                                          tmp_path):
+    header, *lines = reference.read_text().splitlines(keepends=True)
+    damaged = (header + lines[0] + header + lines[0] + lines[1][:25] + "\n" + lines[2]
+               + lines[3] + lines[2] + "9,pd,1,2,3,4,ok\n" + lines[4][:-9])
+    out = _copy(reference, tmp_path / "rows.csv", damaged)
+    run_sweep(SMALL, out, workers=1, progress=False)
+    assert _keyed(out) == _keyed(reference)
+    assert out.read_text().count(header) == 1
+    rejected = rejected_path(out).read_text()
+    assert lines[1][:25] in rejected and "9,pd,1,2,3,4,ok" in rejected
+    assert lines[4][:-9] in rejected  # the torn tail is kept for inspection
+
+
+def test_a_row_of_another_draw_is_rejected_and_run_again(reference, tmp_path):
+    header, *lines = reference.read_text().splitlines(keepends=True)
+    cells = next(csv.reader([lines[0]]))
+    cells[2] = repr(float(cells[2]) + 1e-3)  # a start this seed never drew for the pair
+    forged = ",".join(cells) + "\n"
+    out = _copy(reference, tmp_path / "rows.csv", header + forged + "".join(lines[1:]))
+    run_sweep(SMALL, out, workers=1, progress=False)
+    assert _keyed(out) == _keyed(reference)
+
+
+def test_a_crash_during_the_repair_leaves_the_old_file_whole(reference, tmp_path,
+                                                             monkeypatch):
+    header, *lines = reference.read_text().splitlines(keepends=True)
+    damaged = header + "".join(lines[:3]) + header + "".join(lines[3:])
+    out = _copy(reference, tmp_path / "rows.csv", damaged)
+
+    def crash(*args: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "replace", crash)  # the crash comes just before the rename
+    with pytest.raises(OSError):
+        run_sweep(SMALL, out, workers=1, progress=False)
+    monkeypatch.undo()
+    assert out.read_text() == damaged  # every finished row still there
+    assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []
+    run_sweep(SMALL, out, workers=1, progress=False)
+    assert _keyed(out) == _keyed(reference)
+
+
+@st.composite
+def damage(draw: st.DrawFn, lines: list[str]) -> str:
+    """A table after random interleaving, duplication, cutting and noise."""
+    header, *rows = lines
+    kept = draw(st.lists(st.sampled_from(rows), max_size=2 * len(rows)))
+    pieces = [header]
+    for row in kept:
+        kind = draw(st.sampled_from(["whole", "whole", "cut", "header", "noise"]))
+        if kind == "cut":
+            row = row[: draw(st.integers(0, len(row) - 1))] + "\n"
+        elif kind == "header":
+            pieces.append(header)
+        elif kind == "noise":
+            row = draw(st.text(st.characters(codec="utf-8", exclude_characters="\r"),
+                               max_size=60)).replace("\n", "") + "\n"
+        pieces.append(row)
+    text = "".join(pieces)
+    return text[: draw(st.integers(0, len(text)))] if draw(st.booleans()) else text
+
+
+@settings(max_examples=15, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_any_damaged_table_resumes_to_exactly_the_reference_rows(reference, tmp_path_factory,
+                                                                 data):
+    lines = reference.read_text().splitlines(keepends=True)
+    out = _copy(reference, tmp_path_factory.mktemp("damaged") / "rows.csv",
+                data.draw(damage(lines)))
+    run_sweep(SMALL, out, workers=1, progress=False)
+    assert _keyed(out) == _keyed(reference)
+    assert out.read_text().splitlines()[0] == lines[0].rstrip("\n")
+
+
+# --- report on damaged tables ----------------------------------------------------------
+
+
+@pytest.mark.parametrize("content", [b"", b"\x00\x01\xff\xfe" * 40, b"pair,controller\n1\n"])
+def test_report_on_an_empty_binary_or_damaged_table_is_one_line(content, tmp_path, capsys):
+    table = tmp_path / "rows.csv"
+    table.write_bytes(content)
+    status = main(["report", "sweep", str(table), "--out", str(tmp_path / "report")])
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert err.startswith("cdpr-sym: error: results:") and err.count("\n") == 1
+
+
+# --- checked before the work -----------------------------------------------------------
+
+
+def test_too_little_disk_space_is_refused_before_any_run(reference, tmp_path, monkeypatch):
+    import cdpr_sym.sweep.runner as runner
+
+    out = tmp_path / "rows.csv"
+    monkeypatch.setattr(runner.shutil, "disk_usage",
+                        lambda path: shutil._ntuple_diskusage(10**9, 10**9 - 2000, 2000))
+    monkeypatch.setattr(runner, "_warm_cache", lambda *args: pytest.fail("work started"))
+    with pytest.raises(InvalidCase, match="MB free") as error:
+        run_sweep(SMALL, out, workers=1, progress=False)
+    assert error.value.field == "out"
+
+
+def test_an_unreachable_dask_scheduler_is_one_line_before_any_run(tmp_path, monkeypatch):
+    pytest.importorskip("dask.distributed")
+    import socket
+
+    import cdpr_sym.sweep.runner as runner
+
+    with socket.socket() as probe:  # a port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    monkeypatch.setattr(runner, "_warm_cache", lambda *args: pytest.fail("work started"))
+    begun = time.monotonic()
+    with pytest.raises(InvalidCase, match="no Dask scheduler answered") as error:
+        run_sweep(SMALL, tmp_path / "rows.csv", dask_address=f"tcp://127.0.0.1:{port}",
+                  dask_timeout=1.0, progress=False)
+    assert error.value.field == "dask"
+    assert time.monotonic() - begun < 15
+
+
+# --- processes that stop ---------------------------------------------------------------
+
+
+def _start_sweep(out: Path) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "cdpr_sym", *LONG_ARGS, "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+
+
+def _wait_for_rows(out: Path, process: subprocess.Popen, rows: int = 50) -> None:
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        if out.exists() and out.read_text().count("\n") > rows:
+            return
+        if process.poll() is not None:
+            pytest.fail(f"the sweep ended before writing rows: {process.stderr.read()}")
+        time.sleep(0.05)
+    pytest.fail("no rows within 120 s")
+
+
+def _children(pid: int) -> list[int]:
+    path = Path(f"/proc/{pid}/task/{pid}/children")
+    return [int(child) for child in path.read_text().split()] if path.exists() else []
+
+
+def _alive(pid: int) -> bool:
+    status = Path(f"/proc/{pid}/status")
+    try:
+        state = next(line for line in status.read_text().splitlines()
+                     if line.startswith("State:"))
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+    return "zombie" not in state
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="needs Linux /proc")
+@pytest.mark.parametrize(("signum", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_an_interrupted_sweep_stops_within_a_second_keeps_its_rows_and_resumes(
+        signum, status, tmp_path):
+    out = tmp_path / "rows.csv"
+    process = _start_sweep(out)
+    _wait_for_rows(out, process)
+    with pytest.raises(InvalidCase, match="another sweep"):  # a second writer meets the lock
+        run_sweep(SweepConfig(robot="aras3", controllers=("pd-sat",), pairs=3000,
+                              duration=10.0), out, workers=1, progress=False)
+    workers = _children(process.pid)
+    assert len(workers) == 2
+    sent = time.monotonic()
+    os.killpg(process.pid, signum)  # as a terminal's Ctrl-C: the whole process group
+    _, err = process.communicate(timeout=30)
+    assert time.monotonic() - sent < 1.5
+    assert process.returncode == status, err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert "stored in" in err and "run the same command again to resume" in err
+    kept = _keyed(out)
+    assert 0 < len(kept) < 3000
+    assert not any(_alive(pid) for pid in workers)
+    resumed = subprocess.run([sys.executable, "-m", "cdpr_sym", *LONG_ARGS, "--out", str(out)],
+                             capture_output=True, text=True, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    final = _keyed(out)
+    assert len(final) == 3000
+    assert all(final[key] == row for key, row in kept.items())
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="needs Linux /proc")
+def test_workers_exit_when_their_parent_is_killed(tmp_path):
+    out = tmp_path / "rows.csv"
+    process = _start_sweep(out)
+    _wait_for_rows(out, process)
+    workers = _children(process.pid)
+    assert len(workers) == 2
+    os.kill(process.pid, signal.SIGKILL)
+    process.communicate(timeout=30)
+    deadline = time.monotonic() + 3
+    while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(_alive(pid) for pid in workers)
