@@ -290,9 +290,68 @@ def test_cvxpy_model_matches_fast_path_when_the_largest_alpha_is_just_below_one(
     assert cases == 5
 
 
-def test_comparison_covers_at_least_1000_states_across_box_and_linf():
-    per_design = sum(count + 60 + 40 for count in RANDOM_COUNT.values())
-    assert len(DESIGNS) * per_design >= 1000
+def _alpha_interval_at_rest(robot, tau_1, tau_2) -> tuple[float, float]:
+    """[low, high]: the alphas in [0, 1] with T_min <= tau_1 + alpha tau_2 <= T_max, one
+    cable at a time (empty when low > high)."""
+    low, high = 0.0, 1.0
+    for t1, t2 in zip(tau_1, tau_2, strict=True):
+        if t2 == 0.0:
+            if not robot.t_min <= t1 <= robot.t_max:
+                return 1.0, 0.0
+            continue
+        ends = sorted(((robot.t_min - t1) / t2, (robot.t_max - t1) / t2))
+        low, high = max(low, ends[0]), min(high, ends[1])
+    return low, high
+
+
+@pytest.mark.parametrize("name", sorted(DESIGNS))
+def test_exact_design_at_rest_takes_the_largest_alpha_keeping_pd_in_the_box(
+        robot_and_model, name, rng, random_states):
+    """At rest A = 0: no interconnection tension, so the command is tau_1 + alpha tau_2 with
+    alpha the largest value in [0, 1] keeping it in the box (less the relative margin), and
+    where no alpha in (0, 1] does, the infeasible fallback (clipped PD + gravity)."""
+    robot, model = robot_and_model
+    design = DESIGNS[name]
+    q_all, _ = random_states(robot, rng, 240)
+    goals, _ = random_states(robot, rng, 240)
+    poses = [(q_all[i], goals[i] if i % 2 else q_all[i] + 10 ** rng.uniform(-3, -1)
+              * rng.normal(size=robot.n)) for i in range(len(q_all))]
+    for _ in range(60):  # static tension out of the box: mostly infeasible
+        q, _, _ = _out_of_workspace_pose(robot, rng)
+        poses.append((q, q + 0.3 * rng.normal(size=robot.n)))
+    counts = {"alpha = 1": 0, "alpha < 1": 0, "infeasible": 0}
+    for q, goal in poses:
+        dq = np.zeros(robot.n)
+        gains = rng.uniform(0.2, 3.0)
+        k, r_d = robot.k * gains, robot.r_d * gains
+        W = ref.structure_matrix(q, robot.anchors)
+        tau_1 = np.linalg.solve(W, ref.grad_potential(robot.mass, robot.gravity, robot.n))
+        tau_2 = -np.linalg.solve(W, k * (q - goal))
+        low, high = _alpha_interval_at_rest(robot, tau_1, tau_2)
+        if abs(high - low) < 1e-9 or abs(high) < 1e-9:
+            continue  # on the edge of feasibility: round-off decides
+        out = tension(model, design, q, dq, goal, k=k, r_d=r_d)
+        assert out.flags & FLAG_LOW_SPEED
+        np.testing.assert_array_equal(out.j, 0.0)
+        if low > high or high <= 0:
+            counts["infeasible"] += 1
+            assert out.flags & FLAG_INFEASIBLE, (q, goal, low, high, out)
+            np.testing.assert_allclose(out.tau, np.clip(tau_1 + tau_2, robot.t_min, robot.t_max),
+                                       rtol=0, atol=1e-9)
+            continue
+        assert not out.flags & FLAG_INFEASIBLE, (q, goal, low, high, out)
+        if high == 1.0:
+            counts["alpha = 1"] += 1
+            assert out.alpha == 1.0
+        else:
+            counts["alpha < 1"] += 1
+            assert high * (1 - 2 * design.alpha_margin) <= out.alpha <= high, (high, out)
+        assert low - 1e-12 <= out.alpha
+        expected = tau_1 + out.alpha * tau_2
+        np.testing.assert_allclose(out.tau, expected, rtol=0,
+                                   atol=1e-9 * max(1.0, np.abs(tau_2).max()))
+        assert np.all(out.tau >= robot.t_min - 1e-9) and np.all(out.tau <= robot.t_max + 1e-9)
+    assert min(counts.values()) >= 10, counts
 
 
 @pytest.mark.parametrize("name", sorted(DESIGNS))

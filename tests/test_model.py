@@ -164,6 +164,16 @@ def test_a_matrix_has_rank_n_minus_one_for_nonzero_dq(robot, rng, random_states)
         assert np.linalg.matrix_rank(A) == robot.n - 1
 
 
-def test_a_matrix_is_zero_at_rest(robot):
-    A = np.array(SymbolicModel(robot).functions["a_matrix"](robot.start, np.zeros(robot.n)).full())
-    np.testing.assert_array_equal(A, 0.0)
+def test_a_matrix_is_linear_in_dq_from_rest_to_fast_against_the_oracle(robot, rng,
+                                                                       random_states):
+    """A = W^{-1} P(dq) is linear in dq: at s dq it is s A(dq) for every speed scale s, from
+    rest (A = 0: J_d produces no tension, Remark 2) through creeping to fast motion."""
+    a_matrix = SymbolicModel(robot).functions["a_matrix"]
+    q_all, dq_all = random_states(robot, rng, 20)
+    for q, dq in zip(q_all, dq_all, strict=True):
+        direction = dq / np.linalg.norm(dq)
+        unit = ref.a_matrix(q, direction, robot.anchors)
+        for scale in (0.0, 1e-12, 1e-7, 1e-3, 1.0, 30.0):
+            A = np.array(a_matrix(q, scale * direction).full())
+            np.testing.assert_allclose(A, scale * unit, rtol=1e-12,
+                                       atol=1e-12 * scale * np.abs(unit).max())

@@ -12,10 +12,10 @@ import dataclasses
 import casadi as ca
 import numpy as np
 import pytest
+import reference as ref
 import rigid_reference as nref
 
 from cdpr_sym import Robot, SymbolicModel, simulate
-from cdpr_sym.closed_loop import rk4
 from cdpr_sym.control import PD
 
 ROBOTS = ["planar3", "spatial6", "spatial6_skew"]
@@ -123,31 +123,50 @@ def test_coriolis_force_equals_christoffel_matrix_times_dq(robot, model, rng, ra
                                    atol=1e-12 * max(1.0, np.abs(expected).max()))
 
 
+def _oracle_structure_matrix(reference: nref.RigidGeometry, q: np.ndarray) -> np.ndarray:
+    """W from the reference alone: W[a, b] = dq^T W tau at dq = e_a, tau = e_b, the power of
+    a unit tension in cable b at a unit rate of coordinate a (Newton-Euler kinematics)."""
+    basis = np.eye(len(q))
+    return np.array([[nref.cable_power(reference, q, e_a, e_b) for e_b in basis]
+                     for e_a in basis])
+
+
 def _energy_defect(model: SymbolicModel, robot: Robot, dt: float, duration: float) -> float:
-    """|H(T) - H(0) - int dq^T W tau dt| along the simulator's RK4 with prescribed tensions."""
+    """|E(T) - E(0) - int P dt| along RK4 of the model's acceleration with prescribed
+    tensions, where the energy E = T + V and the cable power P are the Newton-Euler
+    reference's (so W, M, C and V of the model are all checked against it)."""
+    reference = nref.geometry_of(robot)
     n = robot.n
-    z = ca.SX.sym("z", 2 * n + 2)  # [q, dq, work, t]
-    t = z[2 * n + 1]
-    tau_0 = model.static_tension(ca.DM(robot.start))
-    tau = tau_0 * (1 + 0.3 * ca.sin(3 * t + ca.DM(np.arange(n))))
+    grad_v = np.array([nref.potential_energy(reference, robot.start + 1e-6 * e)
+                       - nref.potential_energy(reference, robot.start - 1e-6 * e)
+                       for e in np.eye(n)]) / 2e-6
+    tau_0 = np.linalg.solve(_oracle_structure_matrix(reference, robot.start), grad_v)
+    acceleration = model.functions["acceleration"]
 
-    def rhs(state: ca.SX) -> ca.SX:
-        qs, dqs, ts = state[:n], state[n: 2 * n], state[2 * n + 1]
-        tau_s = ca.substitute(tau, t, ts)
-        return ca.vertcat(dqs, model.acceleration(qs, dqs, tau_s),
-                          ca.dot(dqs, model.structure_matrix(qs) @ tau_s), 1.0)
+    def rhs(state: np.ndarray, t: float) -> np.ndarray:
+        q, dq = state[:n], state[n: 2 * n]
+        tau = tau_0 * (1 + 0.3 * np.sin(3 * t + np.arange(n)))
+        return np.concatenate([dq, np.array(acceleration(q, dq, tau)).ravel(),
+                               [nref.cable_power(reference, q, dq, tau)]])
 
-    step = ca.Function("step", [z], [rk4(rhs, z, dt)])
-    steps = round(duration / dt)
-    state = np.concatenate([robot.start, np.zeros(n), [0.0, 0.0]])
-    start_energy = float(model.functions["hamiltonian"](state[:n], state[n: 2 * n]))
-    final = np.array(step.mapaccum(steps)(state)[:, -1].full()).ravel()
-    end_energy = float(model.functions["hamiltonian"](final[:n], final[n: 2 * n]))
-    assert np.abs(final[: 2 * n] - state[: 2 * n]).max() > 0.05  # it really moved
-    return abs(end_energy - start_energy - final[2 * n])
+    def energy(state: np.ndarray) -> float:
+        q, dq = state[:n], state[n: 2 * n]
+        return nref.kinetic_energy(reference, q, dq) + nref.potential_energy(reference, q)
+
+    state = np.concatenate([robot.start, np.zeros(n), [0.0]])  # [q, dq, work]
+    start = state.copy()
+    for i in range(round(duration / dt)):
+        t = i * dt
+        k1 = rhs(state, t)
+        k2 = rhs(state + 0.5 * dt * k1, t + 0.5 * dt)
+        k3 = rhs(state + 0.5 * dt * k2, t + 0.5 * dt)
+        k4 = rhs(state + dt * k3, t + dt)
+        state = state + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    assert np.abs(state[: 2 * n] - start[: 2 * n]).max() > 0.05  # it really moved
+    return abs(energy(state) - energy(start) - state[2 * n])
 
 
-def test_energy_change_equals_cable_work_to_rk4_order(robot, model):
+def test_energy_change_equals_the_references_cable_work_to_rk4_order(robot, model):
     coarse = _energy_defect(model, robot, 4e-3, 0.8)
     fine = _energy_defect(model, robot, 2e-3, 0.8)
     assert fine < 1e-6
@@ -181,8 +200,9 @@ def test_pd_with_gravity_compensation_converges_from_a_nearby_start(name, reques
 
 
 def test_interconnection_identities_hold_for_n_6(spatial6, rng, random_states):
-    """J_d (15 entries) dq = P j, P^T dq = 0 (eq. 12), rank A = n - 1, A = 0 at rest."""
+    """J_d (15 entries) dq = P j, P^T dq = 0 (eq. 12), rank A = n - 1, A = W^{-1} P."""
     functions = SymbolicModel(spatial6).functions
+    reference = nref.geometry_of(spatial6)
     q_all, dq_all = random_states(spatial6, rng, 30)
     for q, dq in zip(q_all, dq_all, strict=True):
         j = rng.normal(size=15)
@@ -194,6 +214,10 @@ def test_interconnection_identities_hold_for_n_6(spatial6, rng, random_states):
         np.testing.assert_allclose(P.T @ dq, 0.0, atol=1e-15 * max(1.0, dq @ dq))
         A = _value(functions["a_matrix"], q, dq)
         assert np.linalg.matrix_rank(A) == 5
-        np.testing.assert_allclose(A, np.linalg.solve(_value(functions["structure_matrix"], q),
-                                                      P), rtol=1e-9, atol=1e-12)
-    np.testing.assert_array_equal(_value(functions["a_matrix"], q_all[0], np.zeros(6)), 0.0)
+        # A = W^{-1} P with W from the Newton-Euler reference and P from its definition, and
+        # linear in dq: s A at s dq, down to rest (A = 0: J_d produces no tension)
+        expected = np.linalg.solve(_oracle_structure_matrix(reference, q), ref.p_matrix(dq))
+        for scale in (0.0, 1e-9, 1.0, 10.0):
+            np.testing.assert_allclose(_value(functions["a_matrix"], q, scale * dq),
+                                       scale * expected, rtol=1e-9,
+                                       atol=1e-12 * scale * np.abs(expected).max())

@@ -7,7 +7,7 @@ import pytest
 import reference as ref
 
 from cdpr_sym import Plant, SymbolicModel, preset, simulate
-from cdpr_sym.control import FLAG_INFEASIBLE, FLAG_SATURATED
+from cdpr_sym.control import FLAG_INFEASIBLE, FLAG_SATURATED, initial_memory_function
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.sweep import SweepConfig, draw_pairs
@@ -68,6 +68,62 @@ def test_smooth_planned_feed_forward_respects_margin_and_rate(pairs):
         assert tau.max() <= robot.t_max - margin + 0.5
         rate = np.abs(np.diff(tau, axis=0)).max() / (duration * (u[1] - u[0]))
         assert rate <= 1.1 * design.max_rate
+
+
+def _planned_feed_forward(robot, start, goal, duration, samples):
+    """The plan's feed-forward tension m ddq_r + grad V through W^{-1} at ``samples`` points
+    of the minimum-jerk path, from the oracle, and its largest rate of change, N/s."""
+    u = np.linspace(0, 1, samples)
+    s = 10 * u**3 - 15 * u**4 + 6 * u**5
+    dds = 60 * u - 180 * u**2 + 120 * u**3
+    tau = np.array([np.linalg.solve(
+        ref.structure_matrix(start + (goal - start) * si, robot.anchors),
+        robot.mass * (goal - start) * ddi / duration**2
+        + ref.grad_potential(robot.mass, robot.gravity, robot.n))
+        for si, ddi in zip(s, dds, strict=True)])
+    return tau, float(np.abs(np.diff(tau, axis=0)).max() / (duration * (u[1] - u[0])))
+
+
+#: A tension-rate limit that binds on every pair (the unlimited plans change by 51-255 N/s).
+SLOW_RATE = 40.0
+
+
+def test_smooth_rate_limit_lengthens_the_plan_and_bounds_the_tension_rate(pairs):
+    """With max_rate = 40 N/s the planned feed-forward tension (re-derived in numpy from the
+    chosen duration) changes by at most 40 N/s at the checked points, and the run's own
+    command stays near it; the same pairs planned without a binding limit would exceed it."""
+    robot, starts, goals = pairs
+    limited = SmoothReference(max_rate=SLOW_RATE)
+    # the plan without a binding limit (CasADi's virtual machine: no second compile)
+    unlimited = initial_memory_function(SymbolicModel(robot), SmoothReference(max_rate=1e9))
+    lengthened = 0
+    for start, goal in zip(starts, goals, strict=True):
+        slow = simulate(robot, limited, start=start, goal=goal, duration=4.0)
+        T, margin = slow.memory[0, robot.n + 1], slow.memory[0, robot.n + 2]
+        T_fast = float(unlimited(start, goal, robot.k, robot.r_d)[robot.n + 1])
+        assert margin >= 0 and T in limited.durations, (T, margin)
+        # the guarantee, at the planner's points, and between them on a 20x finer grid
+        _, rate = _planned_feed_forward(robot, start, goal, T, limited.samples)
+        assert rate <= SLOW_RATE, (start, goal, T, rate)
+        _, fine_rate = _planned_feed_forward(robot, start, goal, T, 20 * limited.samples)
+        assert fine_rate <= 1.1 * SLOW_RATE
+        # the shortest such duration: one step shorter would break the limit (or the box)
+        shorter = [d for d in limited.durations if d < T]
+        if shorter:
+            tau, rate = _planned_feed_forward(robot, start, goal, max(shorter),
+                                              limited.samples)
+            assert rate > SLOW_RATE or tau.min() < robot.t_min + margin \
+                or tau.max() > robot.t_max - margin
+        # the command actually sent (feed-forward + feedback) changes about as slowly
+        assert slow.stop_reason is None
+        assert np.abs(np.diff(slow.tau, axis=0)).max() / 1e-3 <= 1.15 * SLOW_RATE
+        # without the limit the same pair is planned faster, with a faster tension change
+        _, unlimited_rate = _planned_feed_forward(robot, start, goal, T_fast, limited.samples)
+        assert T_fast <= T
+        if T_fast < T:
+            lengthened += 1
+            assert unlimited_rate > SLOW_RATE
+    assert lengthened == len(starts), "the limit must bind on every pair of this test"
 
 
 def test_smooth_refuses_bad_options():

@@ -33,10 +33,14 @@ def first_stop(model: SymbolicModel, q: np.ndarray) -> tuple[int, str] | None:
     det, measure = np.array(model.functions["singularity"].map(len(q))(safe.T))
     singular = finite & ((measure < SINGULAR_DET) | (det * det[0] <= 0))
     outside = finite & np.any((q < robot.frame_lower) | (q > robot.frame_upper), axis=1)
-    candidates = [(int(np.flatnonzero(hit)[0]), reason) for reason, hit in
-                  (("non_finite", ~finite), ("singular", singular), ("left_frame", outside))
-                  if hit.any()]
-    return min(candidates) if candidates else None
+    # at one sample the step's order decides: non-finite, then singular, then the frame
+    candidates = [(int(np.flatnonzero(hit)[0]), order, reason) for order, (reason, hit) in
+                  enumerate((("non_finite", ~finite), ("singular", singular),
+                             ("left_frame", outside))) if hit.any()]
+    if not candidates:
+        return None
+    index, _, reason = min(candidates)
+    return index, reason
 
 
 def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=None, k=None,
