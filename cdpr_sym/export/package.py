@@ -19,9 +19,16 @@ controller and a hash of every file. One package is one folder:
   package for ``find_package(<prefix> CONFIG)`` with the target ``<prefix>::<prefix>``);
 * ``README.md`` and ``manifest.json``.
 
+``<prefix>_control`` never returns a command computed from, or yielding, NaN or infinity: it
+checks that its inputs and the law's outputs are finite, and otherwise writes a documented
+safe command (T_MIN on every cable, the memory unchanged) with a nonzero status and a flag
+bit of its own (:data:`C_FLAGS`, :data:`CONTROL_STATUSES`). The Python laws are unchanged.
+
 ``<prefix>`` defaults to ``cdpr_<robot>_<controller>``, so packages of two robots (or two
 controllers) link into one program without a clash. Every call is CasADi SX code: straight
-line, no loops, no heap, no printing; the caller provides the work memory.
+line, no loops (but ``_control``'s fixed-length finiteness checks), no heap, no printing; the
+caller provides the work memory. A prefix that would clash with the package's files, its
+build targets or the C library is refused (:func:`prefix_problem`).
 """
 
 from __future__ import annotations
@@ -47,6 +54,7 @@ from cdpr_sym.codegen import (
     require_compiler,
     run_command,
 )
+from cdpr_sym.codegen.names import MAX_IDENTIFIER
 from cdpr_sym.control import (
     FLAG_NAMES,
     Controller,
@@ -61,6 +69,9 @@ from cdpr_sym.version import __version__
 
 #: The ``generator`` entry of an export's manifest.json, by which a re-export recognises it.
 _GENERATOR = "cdpr_sym"
+
+#: The prefix of the package that :func:`bench_export` times (``bench.c.j2`` names it).
+_BENCH_PREFIX = "cdpr_bench"
 
 #: The model terms that always get a wrapper (every ``SymbolicModel.functions`` entry does).
 REQUIRED_MODEL_TERMS = ("cable_lengths", "structure_matrix", "mass_matrix", "potential",
@@ -110,6 +121,35 @@ _FLAG_DOCS = {
     "singular": "|det W| / prod |w_i| below 1e-6: singular; the step stops the loop",
     "infeasible": "no admissible command or plan reaches the tension box",
 }
+#: Flag bits only the exported ``<prefix>_control`` sets (never the Python law, nor the step's
+#: log), by name: the two bits just above the highest bit of :data:`FLAG_NAMES`, so that they
+#: never collide with it.
+C_FLAGS = {name: 1 << (max(FLAG_NAMES).bit_length() + index)
+           for index, name in enumerate(("invalid_input", "invalid_output"))}
+_C_FLAG_DOCS = {
+    "invalid_input": "_control only: an input is NaN or infinite; safe command, no law",
+    "invalid_output": "_control only: the law gave NaN or infinity; safe command instead",
+}
+#: Return values of ``<prefix>_control`` by name (``<PREFIX>_CONTROL_<NAME>``), with their doc.
+CONTROL_STATUSES = {
+    "ok": (0, "the law's command was written"),
+    "null_argument": (-1, "a required pointer is NULL; nothing was written"),
+    "invalid_input": (1, "an input is NaN or infinite; the safe command was written"),
+    "invalid_output": (2, "the law gave NaN or infinity; the safe command was written"),
+}
+#: C standard library headers (C99 and C11): ``<prefix>.h`` must not take one's name, since
+#: the package folder is on the include path of every user (CMake's target says so).
+_C_HEADERS = frozenset((
+    "assert complex ctype errno fenv float inttypes iso646 limits locale math setjmp signal "
+    "stdalign stdarg stdatomic stdbool stddef stdint stdio stdlib stdnoreturn string tgmath "
+    "threads time uchar wchar wctype").split())
+#: Target names CMake reserves (policy CMP0037; test, package and their kin once testing or
+#: CPack is on, as in a project that adds the package with add_subdirectory).
+_CMAKE_RESERVED = frozenset((
+    "all ALL_BUILD help install INSTALL preinstall clean edit_cache rebuild_cache ZERO_CHECK "
+    "test RUN_TESTS package PACKAGE package_source").split())
+
+
 class _Spec(NamedTuple):
     """How one argument of ``<prefix>_control`` is declared (see :class:`_CArgument`)."""
 
@@ -119,6 +159,7 @@ class _Spec(NamedTuple):
     optional: bool = False
     case_default: bool = False
     by_value: bool = False
+    safe: str = "0.0"  # an output's element i in the safe command ({upper}: the C macro prefix)
 
 
 #: Arguments of ``<prefix>_control`` by the law's input / output names.
@@ -135,7 +176,8 @@ _CONTROL_ARGUMENTS = {
                     "move, then the previous call's memory_next"),
     "dt": _Spec("double", None, "time since the previous call (control period), s",
                 by_value=True),
-    "tau": _Spec("double", "n", "commanded cable tensions, N (> 0 pulls)"),
+    "tau": _Spec("double", "n", "commanded cable tensions, N (> 0 pulls)",
+                 safe="{upper}_T_MIN"),
     "alpha": _Spec("double", None, "scale on the PD part, eq. (24), 0 < alpha <= 1",
                    optional=True),
     "beta": _Spec("double", None, "margin of eq. (20), N: (T_MAX - T_MIN)/2 - |tau_1 - (T_MIN "
@@ -143,7 +185,7 @@ _CONTROL_ARGUMENTS = {
     "j": _Spec("double", "nj", "free entries of J_d, N s/m", optional=True),
     "flags": _Spec("int", None, "bit set of the FLAG_* macros above", optional=True),
     "memory_next": _Spec("double", "nmem", "internal state for the next call (must not "
-                         "overlap memory)"),
+                         "overlap memory)", safe="memory[i]"),
 }
 #: Arguments of a stateless law (empty memory) left out of its C signature.
 _STATEFUL_ARGUMENTS = frozenset({"memory", "dt", "memory_next"})
@@ -165,6 +207,7 @@ class _CArgument:
     case_default: bool = False  # NULL stands for the robot's case value
     by_value: bool = False
     used: bool = True  # False: not in the C signature; CasADi gets NULL
+    safe: str = "0.0"  # an output's element i in _control's safe command (a C expression)
 
     @property
     def required(self) -> bool:
@@ -288,7 +331,8 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
         The robot file is missing or malformed.
     InvalidCase
         ``out_dir`` is an existing file (or cannot be created), a folder that is neither empty
-        nor an earlier export (without ``overwrite``), or ``prefix`` is not a C identifier.
+        nor an earlier export (without ``overwrite``), or ``prefix`` is unusable (see
+        :func:`prefix_problem`).
 
     Notes
     -----
@@ -310,8 +354,9 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     label = controller if isinstance(controller, str) else controller.name
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
     prefix = prefix if prefix is not None else c_identifier(f"cdpr_{robot.name}_{label}")
-    if not is_c_identifier(prefix):
-        raise InvalidCase("prefix", f"expected a C identifier, got {prefix!r}")
+    problem = prefix_problem(prefix)
+    if problem:
+        raise InvalidCase("prefix", problem)
     out = _make_folder(Path(out_dir), overwrite)
     model = SymbolicModel(robot)
     layout = step_layout(model, controller)
@@ -350,6 +395,40 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
         plan_generated=out / f"{prefix}_plan_generated.inc" if plan else None)
 
 
+def prefix_problem(prefix: str) -> str | None:
+    """Why ``prefix`` cannot name a package that builds (one line), or None if it can.
+
+    A prefix must be a C identifier as :func:`cdpr_sym.codegen.is_c_identifier` accepts it,
+    and must not be ``main`` (``main.c`` is the example's file), the name of a C standard
+    header (``<prefix>.h`` would shadow it on the include path) or a target name CMake
+    reserves. The file names are compared without case, as some file systems do.
+
+    Examples
+    --------
+    >>> prefix_problem("robot_1") is None
+    True
+    >>> prefix_problem("all")
+    "'all' is a target name CMake reserves (policy CMP0037)"
+    """
+    if not is_c_identifier(prefix):
+        shown = (repr(prefix) if len(prefix) <= 60
+                 else f"{prefix[:40]!r}... ({len(prefix)} characters)")
+        return (f"expected a C identifier (a letter, then letters, digits and single "
+                f"underscores, not ending with '_', at most {MAX_IDENTIFIER} characters), "
+                f"got {shown}")
+    folded = "" if prefix == prefix.lower() else " (where file names ignore case)"
+    if prefix.lower() == "main":
+        return (f"{prefix!r} would name the wrapper source {prefix}.c, the example program's "
+                f"file main.c{folded}")
+    if prefix.lower() in _C_HEADERS:
+        return (f"{prefix!r} would name the header {prefix}.h, which shadows the C library's "
+                f"<{prefix.lower()}.h> for every file built with the package on its include "
+                f"path{folded}")
+    if prefix in _CMAKE_RESERVED:
+        return f"{prefix!r} is a target name CMake reserves (policy CMP0037)"
+    return None
+
+
 def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
                  min_seconds: float = 0.5, compiler: str | None = None) -> float:
     """Calls per second of the exported ``<prefix>_control``, timed by a C loop.
@@ -376,9 +455,10 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
     model = SymbolicModel(robot)
     memory = np.array(initial_memory_function(model, controller)(
         robot.start, robot.goal, robot.k, robot.r_d)).ravel()
-    control = _control(law_function(model, controller), step_layout(model, controller))
+    control = _control(law_function(model, controller), step_layout(model, controller),
+                       _BENCH_PREFIX.upper())
     with tempfile.TemporaryDirectory(prefix="cdpr_bench_") as folder:
-        result = export_c(robot, controller, folder, prefix="cdpr_bench")
+        result = export_c(robot, controller, folder, prefix=_BENCH_PREFIX)
         bench = Path(folder) / "bench.c"
         bench.write_text(render(
             "cdpr_sym.export", "bench.c.j2", seconds=float(min_seconds),
@@ -471,6 +551,12 @@ def _description(robot: Robot, controller: Controller, prefix: str, entries: lis
                    *_offsets("LOG", layout.log, keep=layout.log.names)],
         "flags": [_Macro(name.upper(), bit, _FLAG_DOCS.get(name, name))
                   for bit, name in sorted(FLAG_NAMES.items())],
+        "c_flags": [_Macro(name.upper(), bit, _C_FLAG_DOCS[name])
+                    for name, bit in C_FLAGS.items()],
+        "control_statuses": [_Macro(name.upper(), f"({code})" if code < 0 else code, doc)
+                             for name, (code, doc) in CONTROL_STATUSES.items()],
+        "codes": {**{f"flag_{name}": bit for name, bit in C_FLAGS.items()},
+                  **{f"status_{name}": code for name, (code, _) in CONTROL_STATUSES.items()}},
         "statuses": [_Macro(name.upper(), code) for code, name in sorted(STOP_REASONS.items())],
         "work_sizes": [  # the work struct serves every function
             _Macro("SZ_ARG", max(max(f.sz_arg(), f.n_in()) for f in generated)),
@@ -479,7 +565,7 @@ def _description(robot: Robot, controller: Controller, prefix: str, entries: lis
             _Macro("SZ_W", max(1, *(f.sz_w() for f in generated)))],
         "case": {field: np.asarray(getattr(robot, field), dtype=float).tolist()
                  for field in ("start", "goal", "k", "r_d")},
-        "control": _control(entries[0].function, layout),
+        "control": _control(entries[0].function, layout, upper),
         "parameters": [
             *(_CArgument(name, "in", n, "", optional=True, case_default=True)
               for name in ("q_goal", "k", "r_d")),
@@ -492,8 +578,11 @@ def _description(robot: Robot, controller: Controller, prefix: str, entries: lis
     }
 
 
-def _control(law: ca.Function, layout: StepLayout) -> _Control:
-    """The arguments of ``<prefix>_control`` from the law's inputs and outputs."""
+def _control(law: ca.Function, layout: StepLayout, upper: str) -> _Control:
+    """The arguments of ``<prefix>_control`` from the law's inputs and outputs.
+
+    ``upper`` is the prefix of the package's macros, which an output's safe value may name.
+    """
     names = (*law.name_in(), *law.name_out())
     unknown = [name for name in names if name not in _CONTROL_ARGUMENTS]
     if unknown:
@@ -506,7 +595,8 @@ def _control(law: ca.Function, layout: StepLayout) -> _Control:
         spec = _CONTROL_ARGUMENTS[name]
         return _CArgument(name, direction, lengths[spec.length], spec.doc, c_type=spec.c_type,
                           optional=spec.optional, case_default=spec.case_default,
-                          by_value=spec.by_value, used=name not in unused)
+                          by_value=spec.by_value, used=name not in unused,
+                          safe=spec.safe.format(upper=upper))
     return _Control(law.name(), (*(argument(name, "in") for name in law.name_in()),
                                  *(argument(name, "out") for name in law.name_out())))
 
