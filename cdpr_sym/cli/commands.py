@@ -1,20 +1,34 @@
-"""What each ``cdpr-sym`` command does: check the input, run, hand the result to Output."""
+"""What each ``cdpr-sym`` command does: check the input, run, hand the result to Output.
+
+Each command first checks every option (``check_*_args``: numbers finite and in range,
+sizes within their caps, output paths writable) and only then starts long work, so bad
+input is one line naming the option (as its Python name, e.g. ``mass_scale``) before
+anything is compiled, run or written.
+"""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cdpr_sym.cli.output import Output, quantity, yes_no
-from cdpr_sym.cli.parser import STUDY_REPORTS
+from cdpr_sym.cli.parser import MAX_PAIRS, MAX_WORKERS, STUDY_REPORTS
 from cdpr_sym.closed_loop import Case, Plant, simulate
+from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
 from cdpr_sym.codegen import BuildOptions
-from cdpr_sym.control import controller_by_name
+from cdpr_sym.control import Controller, controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results.store import read_json
+from cdpr_sym.results.trajectory import save_path
 from cdpr_sym.robot import PRESET_NAMES, Robot, resolve_robot
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from cdpr_sym.sweep import SweepConfig
 
 
 def checked_robot(name_or_path: str) -> Robot:
@@ -29,18 +43,55 @@ def _progress(args: argparse.Namespace) -> bool:
     return not (getattr(args, "quiet", False) or getattr(args, "no_progress", False))
 
 
-def simulate_command(args: argparse.Namespace, out: Output) -> int:
+def check_count(field: str, value: int, most: int) -> int:
+    """A whole number in 1..``most`` (pairs, workers), or InvalidCase naming ``field``."""
+    if not 0 < value <= most:
+        raise InvalidCase(field, f"expected a positive number up to {most:,}, got {value}")
+    return value
+
+
+def check_seed(seed: int) -> int:
+    """A seed of the pair draw: a whole number >= 0 (numpy refuses negative seeds)."""
+    if seed < 0:
+        raise InvalidCase("seed", f"expected a whole number >= 0, got {seed}")
+    return seed
+
+
+@dataclasses.dataclass(frozen=True)
+class SimulateInput:
+    """The checked options of ``simulate``: what the run needs, nothing left to refuse."""
+
+    robot: Robot
+    controller: Controller
+    case: Case
+    plant: Plant
+    save: Path | None
+
+
+def check_simulate_args(args: argparse.Namespace) -> SimulateInput:
+    """Every option of ``simulate`` checked, before anything is compiled or run.
+
+    Timing within the trajectory budget (``duration``, ``dt``), the plant (``mass_scale``,
+    ``rate_limit``), the case (``start``, ``goal``, ``k``, ``r_d``) and the file to save
+    (``save``: its real name, ending ``.npz``, in a folder that can be written).
+    """
     robot = resolve_robot(args.robot)
     controller = controller_by_name(args.controller)
-    if args.save is not None and not args.save.parent.is_dir():
-        raise InvalidCase("save", f"no folder {args.save.parent} to write the trajectory in")
-    run = simulate(robot, controller, start=args.start, goal=args.goal, k=args.k,
-                   r_d=args.r_d, duration=args.duration, dt=args.dt,
-                   plant=Plant(mass_scale=args.mass_scale, slack=args.slack,
-                               rate_limit=args.rate_limit),
-                   build_options=BuildOptions(backend=args.backend))
+    check_timing(args.duration, args.dt, values_per_step=minimal_values_per_step(robot))
+    plant = Plant(mass_scale=args.mass_scale, slack=args.slack, rate_limit=args.rate_limit)
+    case = Case.of(robot, start=args.start, goal=args.goal, k=args.k, r_d=args.r_d)
+    save = save_path(args.save, field="save") if args.save is not None else None
+    return SimulateInput(robot, controller, case, plant, save)
+
+
+def simulate_command(args: argparse.Namespace, out: Output) -> int:
+    checked = check_simulate_args(args)
+    robot = checked.robot
+    run = simulate(robot, checked.controller, start=checked.case.start, goal=checked.case.goal,
+                   k=checked.case.k, r_d=checked.case.r_d, duration=args.duration, dt=args.dt,
+                   plant=checked.plant, build_options=BuildOptions(backend=args.backend))
     m = run.metrics()
-    saved = run.save(args.save) if args.save else None
+    saved = run.save(checked.save) if checked.save else None
     angles = "rad" in robot.coordinate_units
     length = "m and rad" if angles else "m"
     lines = [f"{robot.name} / {args.controller}: {run.t[-1]:.3f} s simulated",
@@ -60,7 +111,14 @@ def simulate_command(args: argparse.Namespace, out: Output) -> int:
     return 0
 
 
+def check_pairs_and_seed(args: argparse.Namespace) -> None:
+    """``pairs`` in 1..:data:`MAX_PAIRS` and ``seed`` >= 0 (study and sweep)."""
+    check_count("pairs", args.pairs, MAX_PAIRS)
+    check_seed(args.seed)
+
+
 def study_command(args: argparse.Namespace, out: Output) -> int:
+    check_pairs_and_seed(args)
     robot = checked_robot(args.robot or "aras3")
     default = args.robot is None or (args.robot == "aras3" and args.name != "rigid")
     stem = Path(args.robot).stem if args.robot else ""
@@ -109,13 +167,24 @@ def study_command(args: argparse.Namespace, out: Output) -> int:
     return 0
 
 
+def check_workspace_args(args: argparse.Namespace) -> tuple[Robot, np.ndarray | None]:
+    """The robot and held orientation (rad) of ``workspace``, checked before any work:
+    ``resolution`` (at least 2, at most the grid cap), ``orientation`` (finite, one angle
+    per rotational coordinate) and ``out`` (not a file)."""
+    from cdpr_sym.studies.workspace import check_grid
+
+    robot = checked_robot(args.robot)
+    orientation = check_grid(robot, args.resolution, args.orientation)
+    _check_folder("out", args.out)
+    return robot, orientation
+
+
 def workspace_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.studies.workspace import run_workspace_study
 
-    robot = checked_robot(args.robot)
-    _check_folder("out", args.out)
+    robot, orientation = check_workspace_args(args)
     summary = run_workspace_study(robot, args.out, resolution=args.resolution,
-                                  orientation=args.orientation)
+                                  orientation=orientation)
     lines = [f"{summary['points']} poses in {summary['seconds']:.3f} s "
              f"({summary['poses_per_s']:.3g} poses/s); feasible "
              f"{100 * summary['feasible_share']:.1f} %, ball (13) "
@@ -128,15 +197,27 @@ def workspace_command(args: argparse.Namespace, out: Output) -> int:
     return 0
 
 
-def sweep_command(args: argparse.Namespace, out: Output) -> int:
-    from cdpr_sym.sweep import SweepConfig, robot_reference, run_sweep
+def check_sweep_args(args: argparse.Namespace) -> SweepConfig:
+    """The :class:`~cdpr_sym.sweep.SweepConfig` of ``sweep``, every option checked first:
+    ``pairs``, ``seed``, ``workers`` (1..:data:`MAX_WORKERS`), timing within the
+    trajectory budget of one run, ``mass_scale`` and the robot's own case."""
+    from cdpr_sym.sweep import SweepConfig, robot_reference
 
-    checked_robot(args.robot)
-    config = SweepConfig(robot=robot_reference(args.robot)[1], pairs=args.pairs, seed=args.seed,
-                         controllers=tuple(n.strip() for n in args.controllers.split(",") if n),
-                         duration=args.duration, dt=args.dt, mass_scale=args.mass_scale)
-    if args.workers is not None and args.workers <= 0:
-        raise InvalidCase("workers", f"expected a positive number, got {args.workers}")
+    check_pairs_and_seed(args)
+    if args.workers is not None:
+        check_count("workers", args.workers, MAX_WORKERS)
+    robot = checked_robot(args.robot)
+    check_timing(args.duration, args.dt, values_per_step=minimal_values_per_step(robot))
+    Plant(mass_scale=args.mass_scale)
+    return SweepConfig(robot=robot_reference(args.robot)[1], pairs=args.pairs, seed=args.seed,
+                       controllers=tuple(n.strip() for n in args.controllers.split(",") if n),
+                       duration=args.duration, dt=args.dt, mass_scale=args.mass_scale)
+
+
+def sweep_command(args: argparse.Namespace, out: Output) -> int:
+    from cdpr_sym.sweep import run_sweep
+
+    config = check_sweep_args(args)
     table = run_sweep(config, args.out, workers=args.workers, dask_address=args.dask,
                       progress=_progress(args), format=args.format)
     out.result({"results": str(table), "config": config.as_dict()}, [f"results: {table}"])
@@ -169,9 +250,10 @@ def report_command(args: argparse.Namespace, out: Output) -> int:
 
 
 def bench_command(args: argparse.Namespace, out: Output) -> int:
-    from cdpr_sym.studies.bench import format_table, run_bench
+    from cdpr_sym.studies.bench import check_seconds, format_table, run_bench
 
-    result = run_bench(checked_robot(args.robot), min_seconds=args.seconds)
+    seconds = check_seconds(args.seconds)
+    result = run_bench(checked_robot(args.robot), min_seconds=seconds)
     out.result(result, [format_table(result)])
     return 0
 

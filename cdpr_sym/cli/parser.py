@@ -5,15 +5,21 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from cdpr_sym.closed_loop.case import TRAJECTORY_BUDGET_BYTES
 from cdpr_sym.control import CONTROLLERS, DESCRIPTIONS
-from cdpr_sym.sweep.config import FORMATS
+from cdpr_sym.studies.bench import MAX_SECONDS
+from cdpr_sym.sweep.config import FORMATS, MAX_PAIRS
 from cdpr_sym.version import __version__
+from cdpr_sym.workspace import MAX_GRID_POSES
 
 #: Studies whose report is rebuilt from their stored files: module and function.
 STUDY_REPORTS = {"paper": ("cdpr_sym.studies.paper", "write_paper_report"),
                  "compare": ("cdpr_sym.studies.compare", "write_compare_report"),
                  "designs": ("cdpr_sym.studies.designs", "write_designs_report"),
                  "rigid": ("cdpr_sym.studies.rigid", "write_rigid_report")}
+
+#: Most local worker processes of a sweep.
+MAX_WORKERS = 256
 
 _CONTROLLER_HELP = "controllers:\n" + "\n".join(
     f"  {name:<11} {text}" for name, text in DESCRIPTIONS.items())
@@ -72,7 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="stiffness gains K (diagonal), N/m (N m/rad); default the case's")
     sim.add_argument("--r-d", nargs="+", type=float,
                      help="damping gains R_d (diagonal), N s/m (N m s/rad); default the case's")
-    sim.add_argument("--duration", type=float, default=10.0, help="simulated time, s")
+    sim.add_argument("--duration", type=float, default=10.0,
+                     help=f"simulated time, s (the stored run may take at most "
+                     f"{TRAJECTORY_BUDGET_BYTES >> 30} GiB)")
     sim.add_argument("--dt", type=float, default=1e-3, help="control period, s")
     sim.add_argument("--mass-scale", type=float, default=1.0,
                      help="plant mass / model mass (model error)")
@@ -82,7 +90,8 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--backend", default="auto", choices=["auto", "c", "casadi"],
                      help="generated C, or CasADi's virtual machine (auto: C if a compiler "
                      "is found)")
-    sim.add_argument("--save", type=Path, help="write the trajectory to an .npz file")
+    sim.add_argument("--save", type=Path, help="write the trajectory to an .npz file (.npz is "
+                     "appended to a name without it)")
 
     study = command("study", "run a study and write its report", progress=True)
     study.add_argument("name", choices=["paper", "compare", "designs", "rigid"],
@@ -92,12 +101,15 @@ def build_parser() -> argparse.ArgumentParser:
                        "spatial6 unless given)")
     study.add_argument("--out", type=Path, help="output folder (default reports/<name>)")
     study.add_argument("--pairs", type=int, default=200,
-                       help="start/goal pairs of the sweeps (compare, designs, rigid)")
-    study.add_argument("--seed", type=int, default=0, help="seed of the pair draw")
+                       help=f"start/goal pairs of the sweeps (compare, designs, rigid; at most "
+                       f"{MAX_PAIRS:,})")
+    study.add_argument("--seed", type=int, default=0, help="seed of the pair draw (>= 0)")
 
     workspace = command("workspace", "map the static workspace")
     workspace.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
-    workspace.add_argument("--resolution", type=int, default=61, help="grid points per axis")
+    workspace.add_argument("--resolution", type=int, default=61,
+                           help=f"grid points per axis (>= 2; at most {MAX_GRID_POSES:,} "
+                           "poses in all)")
     workspace.add_argument("--orientation", nargs="+", type=float, metavar="RAD",
                            help="angles held fixed for a rigid body (default: the goal's)")
     workspace.add_argument("--out", type=Path, default=Path("reports/workspace"),
@@ -107,8 +119,9 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
     sweep.add_argument("--controllers", default="l2,linf,pd-sat",
                        help="comma-separated controller names (see the list below)")
-    sweep.add_argument("--pairs", type=int, required=True, help="start/goal pairs")
-    sweep.add_argument("--seed", type=int, default=0, help="seed of the pair draw")
+    sweep.add_argument("--pairs", type=int, required=True,
+                       help=f"start/goal pairs (at most {MAX_PAIRS:,})")
+    sweep.add_argument("--seed", type=int, default=0, help="seed of the pair draw (>= 0)")
     sweep.add_argument("--duration", type=float, default=10.0, help="simulated time, s")
     sweep.add_argument("--dt", type=float, default=1e-3, help="control period, s")
     sweep.add_argument("--mass-scale", type=float, default=1.0, help="plant mass / model mass")
@@ -118,7 +131,8 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--format", choices=FORMATS, default="csv",
                        help="csv, or parquet: a typed dataset of parts (pip install "
                        "'cdpr_sym[parquet]')")
-    sweep.add_argument("--workers", type=int, help="local processes (default: all cores)")
+    sweep.add_argument("--workers", type=int,
+                       help=f"local processes (default: all cores; at most {MAX_WORKERS})")
     sweep.add_argument("--dask", metavar="ADDRESS", help="run on an existing Dask scheduler")
 
     report = command("report", "build a report from stored results")
@@ -131,7 +145,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench = command("bench", "print speed benchmarks")
     bench.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
-    bench.add_argument("--seconds", type=float, default=1.0, help="timing budget per row, s")
+    bench.add_argument("--seconds", type=float, default=1.0,
+                       help=f"timing budget per row, s (at most {MAX_SECONDS:g})")
 
     export = command("export-c", "write a self-contained C99 package")
     export.add_argument("--robot", default="aras3", help=_ROBOT_HELP)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 
 import numpy as np
 
@@ -54,7 +55,7 @@ class Case:
             raise InvalidCase(
                 "goal", f"expected a goal in the static workspace (gravity-holding tension "
                 f"within [{robot.t_min}, {robot.t_max}] N), got {checked.goal.tolist()} "
-                f"needing {np.round(tau_1, 3).tolist()} N")
+                f"needing {[round(float(value), 3) for value in tau_1]} N")
         return cls(checked.start, checked.goal, checked.k, checked.r_d)
 
 
@@ -67,10 +68,72 @@ def _check_regular(model: SymbolicModel, field: str, q: np.ndarray) -> None:
                           f"{SINGULAR_DET:.0e})")
 
 
-def check_timing(duration: float, dt: float) -> int:
-    """Validate a run's length and control period (s); the number of steps."""
+#: Most bytes a run's stored trajectory may take: 2 GiB, or half the physical memory when
+#: that is less (see :func:`trajectory_budget`).
+TRAJECTORY_BUDGET_BYTES = 2 << 30
+#: A control period below this (s, i.e. faster than 1 MHz) is the likelier cause of a run
+#: too long to store, and is named in the refusal instead of the duration.
+_SHORTEST_USUAL_DT = 1e-6
+
+
+def trajectory_budget() -> int:
+    """Most bytes a run's stored trajectory may take: :data:`TRAJECTORY_BUDGET_BYTES`, or
+    half the physical memory if that is less (where the system reports it)."""
+    try:
+        physical = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):  # not reported on this system
+        physical = 0
+    if physical <= 0:
+        return TRAJECTORY_BUDGET_BYTES
+    return min(TRAJECTORY_BUDGET_BYTES, physical // 2)
+
+
+def minimal_values_per_step(robot: Robot) -> int:
+    """The fewest float64 values a run of ``robot`` stores per control step, whatever the
+    controller: the state (q, dq, status) and the log (tau, alpha, beta, J_d, flags).
+
+    A controller with internal state or a rate-limited plant stores more; this lower bound
+    lets :func:`check_timing` refuse an absurd run before any code is generated."""
+    return (2 * robot.n + 1) + (robot.n + 3 + robot.n_j)
+
+
+def check_timing(duration: float, dt: float, *, values_per_step: int = 1) -> int:
+    """Validate a run's length and control period (s); the number of steps.
+
+    Parameters
+    ----------
+    duration, dt : float
+        Simulated time and control period, s; the run has round(duration / dt) steps.
+    values_per_step : int
+        float64 values stored per step (state and log rows); with it the run is refused
+        when its trajectory would take more than :func:`trajectory_budget` bytes
+        (steps x values_per_step x 8), before anything is allocated.
+
+    Raises
+    ------
+    InvalidCase
+        ``duration`` or ``dt`` not finite and positive, dt > duration, or a run too long
+        to store (named ``dt`` when dt < 1 us, else ``duration``).
+    """
     if not (math.isfinite(duration) and duration > 0):
         raise InvalidCase("duration", f"expected a positive duration in s, got {duration}")
     if not (math.isfinite(dt) and 0 < dt <= duration):
         raise InvalidCase("dt", f"expected 0 < dt <= duration (s), got dt={dt}")
-    return max(1, round(duration / dt))
+    steps = duration / dt  # may overflow to inf for a tiny dt
+    budget = trajectory_budget()
+    most = budget // (8 * max(1, values_per_step))
+    if not steps < most + 0.5:
+        field = "dt" if dt < _SHORTEST_USUAL_DT else "duration"
+        size = steps * values_per_step * 8
+        raise InvalidCase(field, f"{duration:g} s at dt = {dt:g} s is {steps:.3g} steps, "
+                          f"{_bytes(size)} of trajectory ({values_per_step} values per step); "
+                          f"the limit is {_bytes(budget)} ({most:,} steps): shorten the "
+                          f"duration or lengthen dt")
+    return max(1, round(steps))
+
+
+def _bytes(size: float) -> str:
+    """A size in bytes as text in GiB / MiB."""
+    if size >= 1 << 30:
+        return f"{size / (1 << 30):.3g} GiB"
+    return f"{size / (1 << 20):.3g} MiB"

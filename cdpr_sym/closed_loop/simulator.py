@@ -20,7 +20,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.closed_loop.case import Case, check_timing
+from cdpr_sym.closed_loop.case import Case, check_timing, minimal_values_per_step
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.step import STOP_REASONS, chunk_function, step_function, step_layout
@@ -105,6 +105,11 @@ class Simulator:
         else:
             self._chunk_function = chunk_function(self.step, chunk)
 
+    @property
+    def values_per_step(self) -> int:
+        """float64 values a run stores per control step: a state row and a log row."""
+        return self.layout.x.size + self.layout.log.size
+
     def compiled_function(self, name: str) -> ca.Function:
         """A model term, ``law_*`` or ``step`` loaded from the compiled library."""
         if self.library is None:
@@ -143,11 +148,15 @@ class Simulator:
     def run(self, start: np.ndarray, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, *,
             duration: float, dt: float, plant: Plant, dq0: np.ndarray | None = None
             ) -> Trajectory:
-        """Simulate from rest (or ``dq0``) at ``start`` towards ``goal`` for ``duration`` s."""
+        """Simulate from rest (or ``dq0``) at ``start`` towards ``goal`` for ``duration`` s.
+
+        Raises :class:`InvalidCase` (``duration`` or ``dt``) before allocating anything when
+        the run's states and logs would exceed
+        :func:`~cdpr_sym.closed_loop.case.trajectory_budget` bytes."""
         if self.layout.rate_limited != plant.rate_limited:
             raise InvalidCase("plant", "a rate-limited plant needs a simulator built with "
                               "rate_limited=True (simulate() chooses it)")
-        n_steps = max(1, round(duration / dt))
+        n_steps = check_timing(duration, dt, values_per_step=self.values_per_step)
         p = self.layout.parameters(goal, k, r_d, dt, mass_scale=plant.mass_scale,
                                    slack=plant.slack, rate_limit=plant.rate_limit)
         states, logs = self.rollout(self.initial_state(start, goal, k, r_d, dq0=dq0), p,
@@ -268,7 +277,10 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=N
     ------
     InvalidCase
         A bad case (start or goal outside the frame or singular, a goal outside the static
-        workspace), timing or plant option; the error names the field.
+        workspace), timing or plant option; the error names the field. A run whose stored
+        trajectory would exceed :func:`~cdpr_sym.closed_loop.case.trajectory_budget` bytes
+        (2 GiB at most) is refused as ``duration`` (or ``dt``), before any code is
+        generated.
     UnknownName
         An unknown preset or controller name.
     InvalidRobot
@@ -283,7 +295,7 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=N
     """
     robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
-    check_timing(duration, dt)
+    check_timing(duration, dt, values_per_step=minimal_values_per_step(robot))
     simulator = get_simulator(robot, controller, build_options=build_options,
                               rate_limited=plant.rate_limited)
     case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d, model=simulator.model)

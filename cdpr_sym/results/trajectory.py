@@ -5,6 +5,8 @@ from __future__ import annotations
 import dataclasses
 import html
 import json
+import os
+import stat
 from pathlib import Path
 from typing import Any
 
@@ -206,15 +208,37 @@ class Trajectory:
 
     def save(self, path: str | Path) -> Path:
         """Write the run to an ``.npz`` file that ``numpy.load`` reads directly (``.npz`` is
-        appended to a path without it); :meth:`load` reads it back. Returns the path."""
+        appended to a path without it, see :func:`save_path`); :meth:`load` reads it back.
+        Returns the path written.
+
+        Raises
+        ------
+        InvalidCase
+            Field ``path``: the target is refused by :func:`save_path` (nothing written).
+        OSError
+            The write failed (a full disk); its ``filename`` is the path, and a partly
+            written regular file is removed.
+        """
+        target = save_path(path)
+        try:
+            return save_arrays(target, self._stored())
+        except OSError as failure:
+            _remove_partial(target)
+            if failure.filename is None:
+                raise OSError(failure.errno, failure.strerror or str(failure), str(target)
+                              ) from None
+            raise
+
+    def _stored(self) -> dict[str, Any]:
+        """The arrays and metadata :meth:`save` writes."""
         n = self.q.shape[1]
-        return save_arrays(path, {
+        return {
             **{name: getattr(self, name) for name in _ARRAYS},
             "memory": self.memory if self.memory is not None else np.zeros((len(self.t), 0)),
             "static_tension": (self.static_tension if self.static_tension is not None
                                else np.full(n, np.nan)),
             "t_min": self.t_min, "t_max": self.t_max,
-            "stop_reason": self.stop_reason or "", "info": self.info})
+            "stop_reason": self.stop_reason or "", "info": self.info}
 
     @classmethod
     def load(cls, path: str | Path) -> Trajectory:
@@ -235,6 +259,48 @@ class Trajectory:
                    stop_reason=str(data.get("stop_reason", "")) or None,
                    info=json.loads(str(data["info"])), memory=data.get("memory"),
                    static_tension=None if np.isnan(static).all() else static)
+
+
+def save_path(path: str | Path, *, field: str = "path") -> Path:
+    """The file :meth:`Trajectory.save` writes for ``path``, checked before any work.
+
+    The name gets ``.npz`` unless it ends so already (``run`` -> ``run.npz``). Refused,
+    naming ``field``: an empty name, a folder, an existing device or FIFO given without
+    ``.npz`` (the run would land beside it), a folder that does not exist or cannot be
+    written in, and an existing file that cannot be written.
+
+    Raises
+    ------
+    InvalidCase
+        Named ``field``; nothing is written.
+    """
+    given = Path(path)
+    if not given.name or given.is_dir():
+        raise InvalidCase(field, f"expected a file name ending .npz, got the folder {given}")
+    target = given if given.suffix == ".npz" else given.with_name(given.name + ".npz")
+    if target != given and given.exists() and not given.is_file():
+        raise InvalidCase(field, f"{given} is not a regular file (a device or FIFO); a "
+                          f"trajectory is an .npz file and would go to {target}: give a "
+                          "file name ending .npz")
+    if target.is_dir():
+        raise InvalidCase(field, f"expected a file, got the folder {target}")
+    folder = target.parent
+    if not folder.is_dir():
+        raise InvalidCase(field, f"no folder {folder} to write the trajectory in")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InvalidCase(field, f"no permission to write in the folder {folder}")
+    if target.exists() and not os.access(target, os.W_OK):
+        raise InvalidCase(field, f"no permission to overwrite {target}")
+    return target
+
+
+def _remove_partial(target: Path) -> None:
+    """Delete a regular file left torn by a failed write (never a device or a link)."""
+    try:
+        if stat.S_ISREG(os.lstat(target).st_mode):
+            target.unlink()
+    except OSError:
+        pass
 
 
 def _text(value: float | None, missing: str = "–") -> str:

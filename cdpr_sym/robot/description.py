@@ -30,6 +30,9 @@ COORDINATES = {
 #: Fields that only a rigid body has.
 _BODY_FIELDS = ("attachments", "inertia", "center_of_mass")
 
+#: Longest robot name, characters (it heads reports and names generated code).
+MAX_NAME_LENGTH = 100
+
 #: Roll-pitch-yaw is singular at pitch = +-pi/2; frames must keep this far from it, rad.
 PITCH_LIMIT = 1.5
 
@@ -41,7 +44,8 @@ class Robot:
     Parameters
     ----------
     name : str
-        Identifier used in reports and cache keys.
+        Identifier used in reports and cache keys: 1 to :data:`MAX_NAME_LENGTH` printable
+        characters (any script; no line breaks or control characters).
     anchors : ndarray, shape (n, d)
         Row i is the frame anchor a_i of cable i in the world (d = 2 or 3), m.
     mass : float
@@ -90,6 +94,7 @@ class Robot:
     center_of_mass: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        _check_name(self.name)
         anchors = _float_array("anchors", self.anchors, ndim=2)
         _set(self, "anchors", anchors)
         if self.attachments is None:
@@ -251,7 +256,11 @@ class Robot:
                 f"{self.frame_lower.tolist()} and {self.frame_upper.tolist()}")
 
     def _check_off_the_anchors(self, field: str, q: np.ndarray) -> None:
-        if self.kind == "point" and np.any(np.linalg.norm(self.anchors - q, axis=1) < 1e-9):
+        if self.kind != "point":
+            return
+        with np.errstate(over="ignore"):  # far apart (inf) is fine
+            distances = np.linalg.norm(self.anchors - q, axis=1)
+        if np.any(distances < 1e-9):
             raise InvalidRobot(field, f"the point {q.tolist()} coincides with an anchor")
 
     def _check_inside_frame(self, field: str, q: np.ndarray) -> None:
@@ -261,14 +270,33 @@ class Robot:
                 f"{self.frame_lower.tolist()}..{self.frame_upper.tolist()}, got {q.tolist()}")
 
 
+def _check_name(name: Any) -> None:
+    """Refuse a name that is not one short line of printable text."""
+    if not isinstance(name, str):
+        raise InvalidRobot("name", f"expected text, got {_shown(name)}")
+    if not name.strip():
+        raise InvalidRobot("name", f"expected a non-empty name, got {name!r}")
+    if len(name) > MAX_NAME_LENGTH:
+        raise InvalidRobot("name", f"expected at most {MAX_NAME_LENGTH} characters, got "
+                           f"{len(name)}")
+    if not name.isprintable():
+        raise InvalidRobot("name", f"expected printable characters on one line, got "
+                           f"{_shown(name)}")
+
+
+def _shown(value: Any, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for a one-line message."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
 
 def _float_array(field: str, value: Any, *, ndim: int) -> np.ndarray:
     if _holds_bool(value):
-        raise InvalidRobot(field, f"expected numbers, got {value!r}")
+        raise InvalidRobot(field, f"expected numbers, got {_shown(value)}")
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
-        raise InvalidRobot(field, f"expected finite numbers, got {value!r}") from None
+        raise InvalidRobot(field, f"expected finite numbers, got {_shown(value)}") from None
     if array.ndim != ndim:
         raise InvalidRobot(field, f"expected a {ndim}-D array, got shape {array.shape}")
     if not np.all(np.isfinite(array)):
@@ -283,11 +311,11 @@ def _inertia_tensor(value: Any, d: int) -> np.ndarray:
     if value is None:
         raise InvalidRobot(field, "required for a rigid body")
     if _holds_bool(value):  # numpy would read true as 1.0
-        raise InvalidRobot(field, f"expected numbers, got {value!r}")
+        raise InvalidRobot(field, f"expected numbers, got {_shown(value)}")
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
-        raise InvalidRobot(field, f"expected finite numbers, got {value!r}") from None
+        raise InvalidRobot(field, f"expected finite numbers, got {_shown(value)}") from None
     if d == 2:
         if array.size != 1:
             raise InvalidRobot(field, f"expected one moment of inertia (kg m^2) for a planar "
@@ -321,7 +349,7 @@ def _holds_bool(value: Any) -> bool:
 
 def _float_scalar(field: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise InvalidRobot(field, f"expected a number, got {value!r}")
+        raise InvalidRobot(field, f"expected a number, got {_shown(value)}")
     try:
         number = float(value)
     except OverflowError:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import stat
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -11,6 +13,10 @@ from cdpr_sym.errors import InvalidRobot, UnknownName
 from cdpr_sym.robot.description import Robot
 
 PRESET_NAMES = ("aras3", "planar2", "planar3", "spatial6")
+
+#: Largest robot file read, bytes (1 MiB; the presets are under 2 KiB). A larger file, or
+#: anything that is not a regular file (a device, a FIFO), is refused before it is read.
+MAX_ROBOT_FILE_BYTES = 1 << 20
 
 
 def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
@@ -36,7 +42,7 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
         return node
 
     return Robot(
-        name=str(data.get("name", Path(source).stem)),
+        name=data.get("name", Path(source).stem),
         anchors=get("anchors"), mass=get("mass"), gravity=get("gravity", 9.81),
         t_min=get("tension.min"), t_max=get("tension.max"),
         frame_lower=get("frame.lower"), frame_upper=get("frame.upper"),
@@ -61,9 +67,58 @@ def _check_known_fields(data: dict[str, Any], source: str) -> None:
             raise InvalidRobot(table, f"expected a table in {source}, got {node!r}")
         unknown = sorted(set(node) - known)
         if unknown:
-            raise InvalidRobot(f"{table}.{unknown[0]}" if table else unknown[0],
+            key = _key_text(unknown[0])
+            raise InvalidRobot(f"{table}.{key}" if table else key,
                                f"unknown field in {source}; expected one of "
                                f"{', '.join(sorted(known))}")
+
+
+def _key_text(key: str) -> str:
+    """A key of a robot file as it can be named in a one-line message (quoted unless bare)."""
+    shown = key if key.isidentifier() and key.isascii() else repr(key)
+    return shown if len(shown) <= 60 else shown[:57] + "..."
+
+
+def read_robot_text(path: Path) -> str:
+    """The text of a robot file: a regular file of at most :data:`MAX_ROBOT_FILE_BYTES`.
+
+    The file is opened without blocking (a FIFO would otherwise wait for a writer) and
+    checked to be a regular file before anything is read; at most the cap plus one byte is
+    ever read, so a device that never ends (``/dev/zero``) cannot fill the memory.
+
+    Raises
+    ------
+    InvalidRobot
+        Field ``path``: missing, a folder, not a regular file, too large, unreadable or not
+        UTF-8.
+    """
+    try:
+        descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except FileNotFoundError:
+        raise InvalidRobot("path", f"no robot file at {path}") from None
+    except IsADirectoryError:
+        raise InvalidRobot("path", f"{path} is a folder, not a robot file") from None
+    except OSError as failure:
+        raise InvalidRobot("path", f"cannot read {path}: {failure.strerror}") from None
+    with os.fdopen(descriptor, "rb") as handle:
+        mode = os.fstat(descriptor).st_mode
+        if stat.S_ISDIR(mode):
+            raise InvalidRobot("path", f"{path} is a folder, not a robot file")
+        if not stat.S_ISREG(mode):
+            raise InvalidRobot("path", f"{path} is not a regular file (a device, FIFO or "
+                               "socket); expected a robot TOML file")
+        try:
+            data = handle.read(MAX_ROBOT_FILE_BYTES + 1)
+        except OSError as failure:
+            raise InvalidRobot("path", f"cannot read {path}: {failure.strerror}") from None
+    if len(data) > MAX_ROBOT_FILE_BYTES:
+        raise InvalidRobot("path", f"{path} is larger than "
+                           f"{MAX_ROBOT_FILE_BYTES / (1 << 20):g} MiB, the most a robot file "
+                           "may hold")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise InvalidRobot("path", f"{path} is not a UTF-8 text file") from None
 
 
 def load_robot(path: str | Path) -> Robot:
@@ -82,8 +137,9 @@ def load_robot(path: str | Path) -> Robot:
     Raises
     ------
     InvalidRobot
-        The file is missing, unreadable, not UTF-8 TOML, or a field is wrong; the error
-        names the field (``path`` for the file itself).
+        The file is missing, unreadable, not a regular file, larger than
+        :data:`MAX_ROBOT_FILE_BYTES`, not UTF-8 TOML, nested too deeply, or a field is
+        wrong; the error names the field (``path`` for the file itself).
 
     Examples
     --------
@@ -93,19 +149,15 @@ def load_robot(path: str | Path) -> Robot:
     ('planar2', 2)
     """
     path = Path(path)
+    text = read_robot_text(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InvalidRobot("path", f"no robot file at {path}") from None
-    except IsADirectoryError:
-        raise InvalidRobot("path", f"{path} is a folder, not a robot file") from None
-    except UnicodeDecodeError:
-        raise InvalidRobot("path", f"{path} is not a UTF-8 text file") from None
-    except OSError as failure:
-        raise InvalidRobot("path", f"cannot read {path}: {failure.strerror}") from None
+        data = tomllib.loads(text)
+        return robot_from_dict(data, source=str(path))
     except tomllib.TOMLDecodeError as bad:
         raise InvalidRobot("path", f"{path} is not valid TOML: {bad}") from None
-    return robot_from_dict(data, source=str(path))
+    except RecursionError:
+        raise InvalidRobot("path", f"{path} nests arrays or tables too deeply to be a robot "
+                           "file") from None
 
 
 def preset(name: str) -> Robot:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 import time
 from collections.abc import Callable
 from typing import Any
@@ -11,7 +13,27 @@ import numpy as np
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import CONTROLLERS
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
+
+#: Longest timing budget per benchmark row, s (a whole bench takes about 10 of them).
+MAX_SECONDS = 3600.0
+
+
+def check_seconds(seconds: float, field: str = "seconds") -> float:
+    """Validate a timing budget per row, s: finite, positive and at most :data:`MAX_SECONDS`.
+
+    Raises
+    ------
+    InvalidCase
+        Named ``field`` (``seconds`` by default).
+    """
+    if isinstance(seconds, bool) or not isinstance(seconds, numbers.Real):
+        raise InvalidCase(field, f"expected a time in s, got {seconds!r}")
+    if not (math.isfinite(seconds) and 0 < seconds <= MAX_SECONDS):
+        raise InvalidCase(field, f"expected a timing budget in (0, {MAX_SECONDS:g}] s, "
+                          f"got {seconds}")
+    return float(seconds)
 
 
 def _rate(call: Callable[[], Any], *, min_seconds: float, min_repeats: int = 3) -> float:
@@ -93,7 +115,9 @@ def bench_exported(robot: Robot, names: tuple[str, ...] = ("pd", "l2", "box")
 
 def run_bench(robot: Robot, *, min_seconds: float = 1.0,
               build_options: BuildOptions = BuildOptions()) -> dict[str, Any]:
-    """All benchmarks as one JSON-ready dictionary."""
+    """All benchmarks as one JSON-ready dictionary; ``min_seconds`` (s) per row is checked
+    by :func:`check_seconds` before anything is built (field ``seconds``)."""
+    min_seconds = check_seconds(min_seconds)
     return {"robot": robot.name, "duration_s": 5.0, "dt_s": 1e-3,
             "controllers": bench_controllers(robot, min_seconds=min_seconds,
                                              build_options=build_options),

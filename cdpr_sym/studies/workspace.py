@@ -6,6 +6,8 @@ angles held at the robot's goal orientation (or a given one).
 
 from __future__ import annotations
 
+import math
+import numbers
 import time
 from pathlib import Path
 from typing import Any
@@ -16,7 +18,51 @@ from matplotlib.figure import Figure
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results.store import write_json
 from cdpr_sym.robot import Robot
-from cdpr_sym.workspace import WorkspaceEvaluator
+from cdpr_sym.workspace import MAX_GRID_POSES, WorkspaceEvaluator
+
+
+def check_grid(robot: Robot, resolution: int, orientation: Any = None) -> np.ndarray | None:
+    """Validate a grid's points per axis and the held orientation; the orientation (rad).
+
+    Runs before anything is compiled or allocated: ``resolution`` must be an integer of at
+    least 2 with ``resolution ** robot.dimension <= MAX_GRID_POSES``; ``orientation``
+    (rigid bodies; None: the goal's) must hold ``robot.n - robot.dimension`` finite angles
+    strictly inside the frame's angle bounds.
+
+    Raises
+    ------
+    InvalidCase
+        Field ``resolution`` or ``orientation``.
+    """
+    if isinstance(resolution, bool) or not isinstance(resolution, numbers.Integral):
+        raise InvalidCase("resolution", f"expected a whole number of points per axis, got "
+                          f"{resolution!r}")
+    if resolution < 2:
+        raise InvalidCase("resolution", f"expected at least 2 points per axis, got {resolution}")
+    d = robot.dimension
+    largest = math.floor(MAX_GRID_POSES ** (1 / d) + 1e-9)
+    if resolution > largest:
+        raise InvalidCase("resolution", f"{resolution} points per axis in {d}-D are "
+                          f"{resolution:,}^{d} poses; the limit is {MAX_GRID_POSES:,} poses "
+                          f"(at most {largest} points per axis)")
+    if orientation is None:
+        return None
+    try:
+        angles = np.asarray(orientation, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidCase("orientation", f"expected angles in rad, got "
+                          f"{repr(orientation)[:80]}") from None
+    if angles.shape != (robot.n - d,):
+        raise InvalidCase("orientation", f"expected {robot.n - d} angle(s) (rad) for "
+                          f"{robot.name} ({robot.kind}), got {angles.ravel().tolist()}")
+    if not np.all(np.isfinite(angles)):
+        raise InvalidCase("orientation", f"expected finite angles (rad), got "
+                          f"{angles.tolist()}")
+    lower, upper = robot.frame_lower[d:], robot.frame_upper[d:]
+    if np.any(angles <= lower) or np.any(angles >= upper):
+        raise InvalidCase("orientation", f"expected angles strictly inside the frame "
+                          f"{lower.tolist()}..{upper.tolist()} rad, got {angles.tolist()}")
+    return angles
 
 
 def grid_points(robot: Robot, resolution: int, orientation: np.ndarray | None = None
@@ -39,9 +85,12 @@ def grid_points(robot: Robot, resolution: int, orientation: np.ndarray | None = 
 
 def run_workspace_study(robot: Robot, out_dir: Path, *, resolution: int = 61,
                         orientation: np.ndarray | None = None) -> dict[str, Any]:
-    """Classify a grid, write ``workspace.md``, ``workspace.json`` and slice figures."""
-    if resolution < 2:
-        raise InvalidCase("resolution", f"expected at least 2 points per axis, got {resolution}")
+    """Classify a grid, write ``workspace.md``, ``workspace.json`` and slice figures.
+
+    ``resolution`` points per axis (at least 2, at most :data:`MAX_GRID_POSES` poses in
+    all) and ``orientation`` (rad) are checked by :func:`check_grid` first.
+    """
+    orientation = check_grid(robot, resolution, orientation)
     out_dir.mkdir(parents=True, exist_ok=True)
     evaluator = WorkspaceEvaluator(robot)
     axes, points = grid_points(robot, resolution, orientation)

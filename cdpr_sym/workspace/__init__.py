@@ -2,6 +2,8 @@
 
 from cdpr_sym.workspace.classify import (
     BLOCK,
+    MAX_GRID_POSES,
+    MAX_SAMPLE_POSES,
     Classification,
     WorkspaceEvaluator,
     classification_function,
@@ -10,5 +12,6 @@ from cdpr_sym.workspace.classify import (
     sample_static_workspace,
 )
 
-__all__ = ["BLOCK", "Classification", "WorkspaceEvaluator", "classification_function",
-           "frame_shares", "interior_box", "sample_static_workspace"]
+__all__ = ["BLOCK", "MAX_GRID_POSES", "MAX_SAMPLE_POSES", "Classification",
+           "WorkspaceEvaluator", "classification_function", "frame_shares", "interior_box",
+           "sample_static_workspace"]

@@ -18,6 +18,12 @@ from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
 
 BLOCK = 4096
+#: Most grid poses a workspace map classifies (125 points per axis in 3-D, 1414 in 2-D);
+#: the poses and their results take about 10 x 8 x n bytes each.
+MAX_GRID_POSES = 2_000_000
+#: Most poses :func:`sample_static_workspace` draws in one call; its batches take about
+#: 4 x count x n x 8 bytes.
+MAX_SAMPLE_POSES = 1_000_000
 
 
 def classification_function(model: SymbolicModel) -> ca.Function:
@@ -99,10 +105,12 @@ def sample_static_workspace(robot: Robot, count: int, rng: np.random.Generator, 
     """``count`` poses drawn uniformly from the statically feasible part of the frame.
 
     Rejection sampling inside the frame shrunk by ``margin``; raises :class:`InvalidCase` if
-    the feasible part is too small to sample.
+    the feasible part is too small to sample, or (field ``count``) unless
+    0 < count <= :data:`MAX_SAMPLE_POSES`.
     """
-    if count <= 0:
-        raise InvalidCase("count", f"expected a positive number of poses, got {count}")
+    if not 0 < count <= MAX_SAMPLE_POSES:
+        raise InvalidCase("count", f"expected a positive number of poses up to "
+                          f"{MAX_SAMPLE_POSES:,}, got {count}")
     evaluator = evaluator or WorkspaceEvaluator(robot)
     low, high = interior_box(robot, margin)
     found: list[np.ndarray] = []
