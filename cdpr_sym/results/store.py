@@ -142,6 +142,10 @@ def checked_csv_rows(table: Path) -> list[dict[str, str]]:
     return [dict(zip(header, row, strict=True)) for row in rows]
 
 
+#: Columns every stored sweep table has.
+TABLE_KEYS = ("pair", "controller", "status")
+
+
 def load_table(table: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Rows (numbers, booleans and empty cells parsed) and the sidecar of a stored table.
 
@@ -153,9 +157,16 @@ def load_table(table: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     if not table.exists():
         raise InvalidCase("results", f"no sweep results at {table}")
     if table.is_dir():
+        if not parquet_parts(table):
+            raise InvalidCase("results", f"{table} is a folder without Parquet parts "
+                              "(part-*.parquet): no sweep results")
         rows = [_parse_typed(row) for row in read_parquet_rows(table)]
     else:
         rows = [parse_row(row) for row in checked_csv_rows(table)]
+    missing = [name for name in TABLE_KEYS if rows and name not in rows[0]]
+    if missing:
+        raise InvalidCase("results", f"{table} is not a sweep table (no column "
+                          f"{', '.join(missing)})")
     sidecar = sidecar_path(table)
     meta = read_json(sidecar) if sidecar.exists() else {}
     return rows, meta

@@ -3,18 +3,21 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from cdpr_sym.closed_loop import Plant
+from cdpr_sym.closed_loop.case import check_timing
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results import SCALAR_METRICS
 from cdpr_sym.robot import PRESET_NAMES, Robot, preset, resolve_robot
 from cdpr_sym.workspace import WorkspaceEvaluator, sample_static_workspace
+
+#: Most start/goal pairs of a sweep (its pairs and items are held in memory).
+MAX_PAIRS = 100_000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,8 +52,12 @@ class SweepConfig:
     margin: float = 0.05
 
     def __post_init__(self) -> None:
-        if isinstance(self.pairs, bool) or not isinstance(self.pairs, int) or self.pairs <= 0:
-            raise InvalidCase("pairs", f"expected a positive number of pairs, got {self.pairs}")
+        if (isinstance(self.pairs, bool) or not isinstance(self.pairs, int)
+                or not 0 < self.pairs <= MAX_PAIRS):
+            raise InvalidCase("pairs", f"expected a positive number of pairs up to "
+                              f"{MAX_PAIRS:,}, got {self.pairs}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise InvalidCase("seed", f"expected a whole number >= 0, got {self.seed}")
         if not self.controllers:
             raise InvalidCase("controllers", "expected at least one controller")
         for name in self.controllers:
@@ -59,10 +66,7 @@ class SweepConfig:
         if repeated:
             raise InvalidCase("controllers", f"{', '.join(repeated)} listed more than once; "
                               "each controller gives one row per pair")
-        if not (math.isfinite(self.duration) and self.duration > 0):
-            raise InvalidCase("duration", f"expected a positive duration, got {self.duration}")
-        if not (math.isfinite(self.dt) and 0 < self.dt <= self.duration):
-            raise InvalidCase("dt", f"expected 0 < dt <= duration, got {self.dt}")
+        check_timing(self.duration, self.dt)  # each run's size, before any is started
         Plant(mass_scale=self.mass_scale)
 
     def as_dict(self) -> dict[str, Any]:
