@@ -163,10 +163,14 @@ def test_any_damaged_table_resumes_to_exactly_the_reference_rows(reference, tmp_
 # --- report on damaged tables ----------------------------------------------------------
 
 
-@pytest.mark.parametrize("content", [b"", b"\x00\x01\xff\xfe" * 40, b"pair,controller\n1\n"])
+@pytest.mark.parametrize("content", [b"", b"\x00\x01\xff\xfe" * 40, b"pair,controller\n1\n",
+                                     b"a,b\n1,2\n", None])
 def test_report_on_an_empty_binary_or_damaged_table_is_one_line(content, tmp_path, capsys):
     table = tmp_path / "rows.csv"
-    table.write_bytes(content)
+    if content is None:
+        table.mkdir()  # a folder without Parquet parts
+    else:
+        table.write_bytes(content)
     status = main(["report", "sweep", str(table), "--out", str(tmp_path / "report")])
     err = capsys.readouterr().err
     assert status == 2, err

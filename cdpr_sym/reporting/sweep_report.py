@@ -7,7 +7,7 @@ from typing import Any
 
 from matplotlib.figure import Figure
 
-from cdpr_sym.errors import CdprError
+from cdpr_sym.errors import CdprError, InvalidCase
 from cdpr_sym.reporting.format import number, share
 from cdpr_sym.results.judging import OUTCOMES, outcome, summarise
 from cdpr_sym.results.store import load_table, write_json
@@ -83,9 +83,17 @@ def _map_planes(meta: dict[str, Any]) -> tuple[tuple[str, ...], list[tuple[int, 
     return robot.coordinate_names, [(0, 1)] + ([(0, d - 1)] if d >= 3 else [])
 
 
+#: Columns every sweep table has.
+SWEEP_KEYS = ("pair", "controller", "status")
+
+
 def write_sweep_report(results: Path, out_dir: Path) -> Path:
     """``cdpr-sym report sweep``: report.md, summary.json and maps from stored results."""
     rows, meta = load_table(results)
+    missing = [name for name in SWEEP_KEYS if rows and name not in rows[0]]
+    if missing:
+        raise InvalidCase("results", f"{results} is not a sweep table (no column "
+                          f"{', '.join(missing)})")
     out_dir.mkdir(parents=True, exist_ok=True)
     summary = summarise(rows)
     names, planes = _map_planes(meta)

@@ -142,10 +142,6 @@ def checked_csv_rows(table: Path) -> list[dict[str, str]]:
     return [dict(zip(header, row, strict=True)) for row in rows]
 
 
-#: Columns every stored sweep table has.
-TABLE_KEYS = ("pair", "controller", "status")
-
-
 def load_table(table: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Rows (numbers, booleans and empty cells parsed) and the sidecar of a stored table.
 
@@ -163,10 +159,7 @@ def load_table(table: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
         rows = [_parse_typed(row) for row in read_parquet_rows(table)]
     else:
         rows = [parse_row(row) for row in checked_csv_rows(table)]
-    missing = [name for name in TABLE_KEYS if rows and name not in rows[0]]
-    if missing:
-        raise InvalidCase("results", f"{table} is not a sweep table (no column "
-                          f"{', '.join(missing)})")
+
     sidecar = sidecar_path(table)
     meta = read_json(sidecar) if sidecar.exists() else {}
     return rows, meta
