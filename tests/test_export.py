@@ -10,14 +10,14 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
-import shutil
-import subprocess
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import pytest
+from tools import run as _run
+from tools import tool as _tool
 
 from cdpr_sym import (
     BuildOptions,
@@ -40,24 +40,6 @@ LIBM = {"sqrt", "fabs", "fmin", "fmax", "floor", "fmod", "ceil", "pow", "exp", "
         "cos", "tan", "atan2", "tanh", "sinh", "cosh", "asin", "acos", "atan", "round",
         "erf", "log1p", "expm1", "copysign", "trunc", "hypot"}
 TOLERANCE = 1e-10
-
-
-def _tool(name: str) -> str:
-    path = shutil.which(name)
-    if path is None:
-        pytest.skip(f"{name} is not installed")
-    return path
-
-
-def _run(command: list[str], cwd: Path | None = None) -> str:
-    """Run ``command``; on failure, fail the test with its output."""
-    try:
-        done = subprocess.run([str(part) for part in command], cwd=cwd, check=True,
-                              capture_output=True, text=True)
-    except subprocess.CalledProcessError as failure:
-        pytest.fail(f"{' '.join(map(str, command))} failed ({failure.returncode}):\n"
-                    f"{failure.stdout[-3000:]}\n{failure.stderr[-3000:]}")
-    return done.stdout + done.stderr
 
 
 @dataclasses.dataclass(frozen=True)

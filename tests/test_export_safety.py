@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import dataclasses
 import re
-import shutil
 import subprocess
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
+from tools import run as _run
+from tools import tool as _tool
 
 from cdpr_sym import SymbolicModel, controller_by_name, preset
 from cdpr_sym.cli import main
@@ -33,24 +34,6 @@ ROBOT = "aras3"
 #: One stateless law that clips, the paper's design and one with internal state.
 CONTROLLERS = ("pd-sat", "l2", "smooth")
 TOLERANCE = 1e-10
-
-
-def _tool(name: str) -> str:
-    path = shutil.which(name)
-    if path is None:
-        pytest.skip(f"{name} is not installed")
-    return path
-
-
-def _run(command: list[object], cwd: Path | None = None) -> str:
-    """Run ``command``; on failure, fail the test with its output."""
-    try:
-        done = subprocess.run([str(part) for part in command], cwd=cwd, check=True,
-                              capture_output=True, text=True)
-    except subprocess.CalledProcessError as failure:
-        pytest.fail(f"{' '.join(map(str, command))} failed ({failure.returncode}):\n"
-                    f"{failure.stdout[-3000:]}\n{failure.stderr[-3000:]}")
-    return done.stdout + done.stderr
 
 
 @dataclasses.dataclass(frozen=True)

@@ -12,18 +12,38 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
 import time
 import uuid
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
 from cdpr_sym.errors import InvalidCase
+
+
+@contextlib.contextmanager
+def _replaced_atomically(path: Path, mode: str = "w", *, sync: bool = True
+                         ) -> Iterator[IO[Any]]:
+    """A handle on a temporary dot-file beside ``path``; on leaving the block it is synced
+    (``sync``) and renamed over ``path``, so readers see the old file or the whole new one.
+    On any exception the temporary file is removed and ``path`` left as it was."""
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(temporary, mode, **({"newline": ""} if "b" not in mode else {})) as handle:
+            yield handle
+            handle.flush()
+            if sync:
+                os.fsync(handle.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise
 
 
 def save_arrays(path: str | Path, arrays: dict[str, Any]) -> Path:
@@ -54,14 +74,8 @@ def write_json(path: Path, value: Any) -> Path:
     """``value`` as indented JSON (numpy scalars and arrays as numbers and lists), written
     to a temporary file beside ``path`` and renamed over it, so a reader never meets half a
     file."""
-    text = json.dumps(value, indent=2, default=json_default) + "\n"
-    temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        temporary.write_text(text)
-        os.replace(temporary, path)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
+    with _replaced_atomically(path, sync=False) as handle:
+        handle.write(json.dumps(value, indent=2, default=json_default) + "\n")
     return path
 
 
@@ -107,18 +121,10 @@ def write_csv_atomically(table: Path, header: Sequence[str],
     """Replace ``table`` by ``header`` and ``records`` in one step: written to a temporary
     file beside it, synced, then renamed over it, so a crash leaves the old file or the
     new one, never a mixture or an empty file."""
-    temporary = table.with_name(f".{table.name}.{os.getpid()}.tmp")
-    try:
-        with open(temporary, "w", newline="") as handle:
-            writer = csv.writer(handle)
-            writer.writerow(header)
-            writer.writerows(records)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(temporary, table)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
+    with _replaced_atomically(table) as handle:
+        writer = csv.writer(handle)
+        writer.writerow(header)
+        writer.writerows(records)
 
 
 def checked_csv_rows(table: Path) -> list[dict[str, str]]:
@@ -199,7 +205,7 @@ def require_parquet() -> None:
 
 #: Complete parts of a Parquet dataset; a part being written has a dot-name (see above).
 PARQUET_PART = "part-*.parquet"
-_PARQUET_TEMPORARY = ".part-*.parquet.tmp"
+_PARQUET_TEMPORARY = ".part-*.parquet*.tmp"
 
 
 def parquet_parts(folder: Path) -> list[Path]:
@@ -224,16 +230,8 @@ def append_parquet_part(folder: Path, rows: Sequence[Mapping[str, Any]],
     folder.mkdir(parents=True, exist_ok=True)
     unique = f"{time.time_ns():020d}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     part = folder / f"part-{unique}.parquet"
-    temporary = folder / f".{part.name}.tmp"
-    try:
-        with open(temporary, "wb") as handle:
-            pq.write_table(table, handle)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(temporary, part)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
+    with _replaced_atomically(part, "wb") as handle:
+        pq.write_table(table, handle)
     return part
 
 

@@ -1,0 +1,28 @@
+"""Helpers for tests that run real programs (a compiler, make, cmake)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+
+def tool(name: str) -> str:
+    """The path of the program ``name``; the test is skipped when it is not installed."""
+    path = shutil.which(name)
+    if path is None:
+        pytest.skip(f"{name} is not installed")
+    return path
+
+
+def run(command: list[object], cwd: Path | None = None) -> str:
+    """Run ``command``; its output, or the test fails with the output of the failure."""
+    try:
+        done = subprocess.run([str(part) for part in command], cwd=cwd, check=True,
+                              capture_output=True, text=True)
+    except subprocess.CalledProcessError as failure:
+        pytest.fail(f"{' '.join(map(str, command))} failed ({failure.returncode}):\n"
+                    f"{failure.stdout[-3000:]}\n{failure.stderr[-3000:]}")
+    return done.stdout + done.stderr
