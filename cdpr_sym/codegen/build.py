@@ -41,6 +41,7 @@ import shutil
 import signal
 import subprocess
 import tempfile
+import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -112,7 +113,7 @@ def run_command(command: Sequence[str], *, timeout: float | None = None) -> str:
         raise CompilationFailed(f"cannot run {command[0]}: {error.strerror or error}") from None
     with process:
         try:
-            stdout, stderr = process.communicate(timeout=timeout)
+            stdout, stderr = _communicate_in_slices(process, timeout)
         except subprocess.TimeoutExpired:
             _kill_group(process)
             raise CompilationFailed(
@@ -128,6 +129,26 @@ def run_command(command: Sequence[str], *, timeout: float | None = None) -> str:
             f"{' '.join(command)} failed with exit code {process.returncode}:\n"
             f"{stderr[-4000:]}")
     return stdout
+
+
+#: Longest wait inside one call while a program runs, s: a Ctrl-C that the kernel delivered
+#: to another thread of this process is acted on within this time.
+_WAIT_SLICE = 0.1
+
+
+def _communicate_in_slices(process: subprocess.Popen, timeout: float | None
+                           ) -> tuple[str, str]:
+    """``process.communicate(timeout)``, waiting in short slices so that an interruption is
+    raised promptly; raises ``TimeoutExpired`` after ``timeout`` s (None: no limit)."""
+    deadline = None if timeout is None else time.monotonic() + timeout
+    while True:
+        left = _WAIT_SLICE if deadline is None else min(_WAIT_SLICE,
+                                                        deadline - time.monotonic())
+        try:
+            return process.communicate(timeout=max(left, 0.0))
+        except subprocess.TimeoutExpired:
+            if deadline is not None and time.monotonic() >= deadline:
+                raise
 
 
 def _own_process_group() -> dict[str, int]:
