@@ -98,6 +98,16 @@ def test_interleaved_duplicated_and_cut_rows_are_repaired_to_each_row_once(refer
     assert lines[4][:-9] in rejected  # the torn tail is kept for inspection
 
 
+@pytest.mark.parametrize("cut", [1, 2, 3])
+def test_a_row_cut_inside_its_last_cell_is_rejected(reference, tmp_path, cut):
+    header, *lines = reference.read_text().splitlines(keepends=True)
+    shortened = lines[1].rstrip("\n")[:-cut] + "\n"  # all cells there, the last one cut
+    out = _copy(reference, tmp_path / "rows.csv", header + lines[0] + shortened)
+    run_sweep(SMALL, out, workers=1, progress=False)
+    assert _keyed(out) == _keyed(reference)
+    assert shortened in rejected_path(out).read_text().replace("\r\n", "\n")
+
+
 def test_a_row_of_another_draw_is_rejected_and_run_again(reference, tmp_path):
     header, *lines = reference.read_text().splitlines(keepends=True)
     cells = next(csv.reader([lines[0]]))
@@ -147,7 +157,7 @@ def damage(draw: st.DrawFn, lines: list[str]) -> str:
     return text[: draw(st.integers(0, len(text)))] if draw(st.booleans()) else text
 
 
-@settings(max_examples=15, deadline=None,
+@settings(max_examples=25, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_any_damaged_table_resumes_to_exactly_the_reference_rows(reference, tmp_path_factory,

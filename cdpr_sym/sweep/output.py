@@ -22,6 +22,7 @@ import contextlib
 import csv
 import json
 import logging
+import math
 import os
 import time
 from collections.abc import Iterator, Sequence
@@ -211,7 +212,29 @@ def row_key(record: Sequence[str], header: Sequence[str], config: SweepConfig,
         return None
     if not all(_is_metric(row[name]) for name in SCALAR_METRICS):
         return None
+    if not _complete(row, config):
+        return None
     return pair, row["controller"]
+
+
+#: Metrics every finished run (status ok or stopped) has.
+_ALWAYS_SET = ("min_tension", "max_tension", "final_error", "tension_feasible", "converged",
+               "duration")
+
+
+def _complete(row: dict[str, str], config: SweepConfig) -> bool:
+    """A row that was not cut short: an error row names its error; a finished run has its
+    metrics, and its last cell, the simulated duration, is the whole run (status ok) or a
+    positive part of it (stopped). A row cut inside the last digits of a stopped run's
+    duration is the one cut this cannot see."""
+    if row["status"] == "error":
+        return bool(row["error"])
+    if not all(row[name] for name in _ALWAYS_SET):
+        return False
+    duration = float(row["duration"])
+    if row["status"] == "ok":
+        return math.isclose(duration, config.duration, rel_tol=1e-9)
+    return 0 < duration <= config.duration * (1 + 1e-9)
 
 
 def _same_pose(row: dict[str, str], prefix: str, pose: np.ndarray, n: int) -> bool:
