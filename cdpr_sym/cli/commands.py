@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cdpr_sym.cli.output import Output, quantity, yes_no
-from cdpr_sym.cli.parser import MAX_PAIRS, MAX_WORKERS, STUDY_REPORTS
+from cdpr_sym.cli.parser import MAX_WORKERS, STUDY_REPORTS
 from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
 from cdpr_sym.codegen import BuildOptions
@@ -24,6 +24,7 @@ from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results.store import read_json
 from cdpr_sym.results.trajectory import save_path
 from cdpr_sym.robot import PRESET_NAMES, Robot, resolve_robot
+from cdpr_sym.sweep.config import check_pairs, check_seed
 
 if TYPE_CHECKING:
     import numpy as np
@@ -44,17 +45,10 @@ def _progress(args: argparse.Namespace) -> bool:
 
 
 def check_count(field: str, value: int, most: int) -> int:
-    """A whole number in 1..``most`` (pairs, workers), or InvalidCase naming ``field``."""
+    """A whole number in 1..``most`` (workers), or InvalidCase naming ``field``."""
     if not 0 < value <= most:
         raise InvalidCase(field, f"expected a positive number up to {most:,}, got {value}")
     return value
-
-
-def check_seed(seed: int) -> int:
-    """A seed of the pair draw: a whole number >= 0 (numpy refuses negative seeds)."""
-    if seed < 0:
-        raise InvalidCase("seed", f"expected a whole number >= 0, got {seed}")
-    return seed
 
 
 @dataclasses.dataclass(frozen=True)
@@ -112,8 +106,8 @@ def simulate_command(args: argparse.Namespace, out: Output) -> int:
 
 
 def check_pairs_and_seed(args: argparse.Namespace) -> None:
-    """``pairs`` in 1..:data:`MAX_PAIRS` and ``seed`` >= 0 (study and sweep)."""
-    check_count("pairs", args.pairs, MAX_PAIRS)
+    """``pairs`` and ``seed`` as a sweep takes them (study and sweep), before long work."""
+    check_pairs(args.pairs)
     check_seed(args.seed)
 
 
@@ -203,13 +197,14 @@ def check_sweep_args(args: argparse.Namespace) -> SweepConfig:
     trajectory budget of one run, ``mass_scale`` and the robot's own case."""
     from cdpr_sym.sweep import SweepConfig, robot_reference
 
-    check_pairs_and_seed(args)
     if args.workers is not None:
         check_count("workers", args.workers, MAX_WORKERS)
-    robot = checked_robot(args.robot)
+    robot, source = robot_reference(args.robot)
+    Case.of(robot)  # the robot's own case, as checked_robot does
+    # this robot's layout gives a tighter budget than the config's own check (pairs, seed,
+    # controllers, timing and mass_scale are checked by SweepConfig)
     check_timing(args.duration, args.dt, values_per_step=minimal_values_per_step(robot))
-    Plant(mass_scale=args.mass_scale)
-    return SweepConfig(robot=robot_reference(args.robot)[1], pairs=args.pairs, seed=args.seed,
+    return SweepConfig(robot=source, pairs=args.pairs, seed=args.seed,
                        controllers=tuple(n.strip() for n in args.controllers.split(",") if n),
                        duration=args.duration, dt=args.dt, mass_scale=args.mass_scale)
 

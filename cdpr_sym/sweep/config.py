@@ -20,6 +20,25 @@ from cdpr_sym.workspace import WorkspaceEvaluator, sample_static_workspace
 MAX_PAIRS = 100_000
 
 
+def _is_whole(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def check_pairs(pairs: int) -> int:
+    """A number of start/goal pairs: a whole number in 1..:data:`MAX_PAIRS`."""
+    if not (_is_whole(pairs) and 0 < pairs <= MAX_PAIRS):
+        raise InvalidCase("pairs", f"expected a positive number of pairs up to "
+                          f"{MAX_PAIRS:,}, got {pairs}")
+    return pairs
+
+
+def check_seed(seed: int) -> int:
+    """A seed of the pair draw: a whole number >= 0 (numpy refuses negative seeds)."""
+    if not (_is_whole(seed) and seed >= 0):
+        raise InvalidCase("seed", f"expected a whole number >= 0, got {seed}")
+    return seed
+
+
 @dataclasses.dataclass(frozen=True)
 class SweepConfig:
     """Everything that determines a sweep's rows.
@@ -52,12 +71,8 @@ class SweepConfig:
     margin: float = 0.05
 
     def __post_init__(self) -> None:
-        if (isinstance(self.pairs, bool) or not isinstance(self.pairs, int)
-                or not 0 < self.pairs <= MAX_PAIRS):
-            raise InvalidCase("pairs", f"expected a positive number of pairs up to "
-                              f"{MAX_PAIRS:,}, got {self.pairs}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise InvalidCase("seed", f"expected a whole number >= 0, got {self.seed}")
+        check_pairs(self.pairs)
+        check_seed(self.seed)
         if not self.controllers:
             raise InvalidCase("controllers", "expected at least one controller")
         for name in self.controllers:
