@@ -16,6 +16,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
+from tools import HARNESS, STRICT
 from tools import run as _run
 from tools import tool as _tool
 
@@ -33,8 +34,6 @@ from cdpr_sym.control import CONTROLLERS, FLAG_NAMES, initial_memory_function, l
 from cdpr_sym.export import REQUIRED_MODEL_TERMS, ExportResult, bench_export, export_c
 from cdpr_sym.robot import PRESET_NAMES
 
-STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-O2")
-HARNESS = Path(__file__).parent / "export_harness" / "harness.c"
 #: Functions the exported object file may call: libm only (no heap, no I/O).
 LIBM = {"sqrt", "fabs", "fmin", "fmax", "floor", "fmod", "ceil", "pow", "exp", "log", "sin",
         "cos", "tan", "atan2", "tanh", "sinh", "cosh", "asin", "acos", "atan", "round",

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tools import HARNESS, STRICT
 from tools import run as _run
 from tools import tool as _tool
 
@@ -28,8 +29,6 @@ from cdpr_sym.control import FLAG_NAMES, initial_memory_function, law_function
 from cdpr_sym.export import export_c
 from cdpr_sym.robot import Robot
 
-STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-O2")
-HARNESS = Path(__file__).parent / "export_harness" / "harness.c"
 ROBOT = "aras3"
 #: One stateless law that clips, the paper's design and one with internal state.
 CONTROLLERS = ("pd-sat", "l2", "smooth")

@@ -55,18 +55,10 @@ def test_smooth_planned_feed_forward_respects_margin_and_rate(pairs):
         run = simulate(robot, design, start=start, goal=goal, duration=0.01)
         duration, margin = run.memory[0, robot.n + 1], run.memory[0, robot.n + 2]
         assert margin >= 0, "a plan exists for pairs drawn from the static workspace"
-        u = np.linspace(0, 1, 20 * design.samples)
-        s = 10 * u**3 - 15 * u**4 + 6 * u**5
-        dds = 60 * u - 180 * u**2 + 120 * u**3
-        tau = np.array([np.linalg.solve(
-            ref.structure_matrix(start + (goal - start) * si, robot.anchors),
-            robot.mass * (goal - start) * ddi / duration**2
-            + ref.grad_potential(robot.mass, robot.gravity, robot.n))
-            for si, ddi in zip(s, dds, strict=True)])
+        tau, rate = _planned_feed_forward(robot, start, goal, duration, 20 * design.samples)
         # the plan checks 33 points; between them the tension may bend by a fraction of 1 N
         assert tau.min() >= robot.t_min + margin - 0.5
         assert tau.max() <= robot.t_max - margin + 0.5
-        rate = np.abs(np.diff(tau, axis=0)).max() / (duration * (u[1] - u[0]))
         assert rate <= 1.1 * design.max_rate
 
 

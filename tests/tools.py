@@ -8,6 +8,11 @@ from pathlib import Path
 
 import pytest
 
+#: Flags every exported C file must compile cleanly under.
+STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-O2")
+#: The test harness program built against an exported package (see its header comment).
+HARNESS = Path(__file__).parent / "export_harness" / "harness.c"
+
 
 def tool(name: str) -> str:
     """The path of the program ``name``; the test is skipped when it is not installed."""
