@@ -190,6 +190,7 @@ def test_a_hanging_compiler_is_killed_after_the_timeout(tmp_path):
 _OUTPUT_OF_ARGS = 'while [ $# -gt 0 ]; do [ "$1" = -o ] && out="$2"; shift; done\n'
 
 
+@pytest.mark.slow  # a real SIGINT to this process: flaky once in the full quick suite
 def test_ctrl_c_during_a_compile_kills_the_compiler_and_removes_its_output(tmp_path):
     pid_file = tmp_path / "sleep.pid"
     interrupting = _script(tmp_path, "interrupting-cc", _OUTPUT_OF_ARGS + (
