@@ -42,6 +42,7 @@ from cdpr_sym.sweep.output import check_identity, done_rows, exclusive_output
 from cdpr_sym.sweep.workers import (
     DASK_TIMEOUT,
     Terminated,
+    WorkerLost,
     dask_client,
     dask_map,
     local_map,
@@ -215,6 +216,10 @@ def _collect(results: Iterable[list[dict[str, Any]]], out: Path, format: str, n:
                 sink(rows)
                 written += len(rows)
                 bar.update(len(rows))
+    except WorkerLost as lost:
+        raise Interrupted(
+            f"{lost}; {written} of {total} runs finished and stored in {out}; run the same "
+            "command again to resume", exit_status=1) from None
     except KeyboardInterrupt as stop:
         raise Interrupted(
             f"{written} of {total} runs finished and stored in {out}; run the same command "

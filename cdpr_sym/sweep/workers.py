@@ -3,9 +3,12 @@
 Local workers ignore Ctrl-C (the terminal sends it to the whole process group; the
 parent alone decides) and watch their parent: when it dies, even by ``kill -9``, they
 exit within :data:`PARENT_POLL` seconds instead of waiting forever for work. The parent
-turns SIGTERM into the same interruption as Ctrl-C while a sweep runs, and terminates its
+turns SIGTERM into the same interruption as Ctrl-C while a sweep runs, and kills its
 workers at once, so a sweep stops within about a second and keeps every row it has
-received.
+received. Each worker talks to the parent over a pipe of its own: no lock is shared, so
+no worker can die holding one (``multiprocessing.Pool`` shares a queue lock that an
+idle worker holds while it waits; a SIGTERM to the process group then left the parent
+waiting on it for ever).
 """
 
 from __future__ import annotations
@@ -14,10 +17,12 @@ import contextlib
 import functools
 import multiprocessing
 import os
+import pickle
 import signal
 import threading
 import time
 from collections.abc import Callable, Iterator
+from multiprocessing.connection import Connection, wait
 from typing import Any
 
 from cdpr_sym.errors import InvalidCase
@@ -59,6 +64,10 @@ def _exit_with_parent(parent: int) -> None:
     os._exit(1)
 
 
+class WorkerLost(RuntimeError):
+    """A local worker process ended before returning its chunk (killed, out of memory)."""
+
+
 def _worker_setup(parent: int) -> None:
     """In each worker: leave Ctrl-C to the parent, die by SIGTERM, follow the parent."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -66,24 +75,102 @@ def _worker_setup(parent: int) -> None:
     threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
 
 
+def _serve(connection: Connection, inherited: list[Connection], work: Work,
+           config: dict[str, Any], parent: int) -> None:
+    """A worker's life: run each chunk received, send back its rows or its error, and
+    stop at ``None`` or when the parent's end closes."""
+    for other in inherited:  # the parent's ends of the other workers' pipes
+        other.close()
+    _worker_setup(parent)
+    while True:
+        try:
+            chunk = connection.recv()
+        except EOFError:
+            return
+        if chunk is None:
+            return
+        try:
+            reply: tuple[str, Any] = ("rows", work(config, chunk))
+        except Exception as error:  # noqa: BLE001 - handed to the parent, which raises it
+            reply = ("error", error)
+        try:
+            connection.send(reply)
+        except (TypeError, AttributeError, pickle.PicklingError) as error:
+            connection.send(("error", RuntimeError(f"{reply[0]} not picklable: {error}")))
+
+
+def _ended(process: multiprocessing.process.BaseProcess) -> str:
+    process.join(1.0)
+    code = process.exitcode
+    if code is not None and code < 0:
+        return f"worker process {process.pid} was killed by signal {-code}"
+    return f"worker process {process.pid} ended with status {code}"
+
+
 def local_map(work: Work, config: dict[str, Any], chunks: list[list], workers: int
               ) -> Iterator[Rows]:
     """Rows of each chunk as they finish, from ``workers`` local processes (in this
     process when ``workers <= 1``). Leaving the iteration early (an error, an interrupt)
-    terminates the workers at once."""
+    kills the workers at once.
+
+    Each worker has a pipe of its own and no lock is shared, so a worker killed at any
+    moment (a SIGTERM to the whole process group, the out-of-memory killer) cannot leave
+    the parent waiting on a lock it held; the parent raises :class:`WorkerLost` instead.
+    """
     if workers <= 1:
         for chunk in chunks:
             yield work(config, chunk)
         return
-    pool = multiprocessing.get_context("fork").Pool(
-        min(workers, max(1, len(chunks))), initializer=_worker_setup,
-        initargs=(os.getpid(),))
+    context = multiprocessing.get_context("fork")
+    processes: dict[Connection, multiprocessing.process.BaseProcess] = {}
     try:
-        yield from pool.imap_unordered(functools.partial(work, config), chunks)
-        pool.close()
+        for _ in range(min(workers, max(1, len(chunks)))):
+            ours, theirs = context.Pipe()
+            process = context.Process(target=_serve, daemon=True, args=(
+                theirs, list(processes), work, config, os.getpid()))
+            process.start()
+            theirs.close()
+            processes[ours] = process
+        yield from _dispatch(processes, iter(chunks))
     finally:
-        pool.terminate()
-        pool.join()
+        for connection, process in processes.items():
+            if process.is_alive():
+                process.kill()
+            process.join()
+            connection.close()
+
+
+def _dispatch(processes: dict[Connection, multiprocessing.process.BaseProcess],
+              chunks: Iterator[list]) -> Iterator[Rows]:
+    """Keep every worker busy with the next chunk; yield rows as they come back."""
+    busy: dict[Connection, multiprocessing.process.BaseProcess] = {}
+
+    def hand_out(connection: Connection) -> None:
+        chunk = next(chunks, None)
+        connection.send(chunk)
+        if chunk is not None:
+            busy[connection] = processes[connection]
+
+    for connection in processes:
+        hand_out(connection)
+    while busy:
+        sentinels = {process.sentinel: process for process in busy.values()}
+        ready = wait([*busy, *sentinels])
+        for connection in [item for item in ready if item in busy]:
+            process = busy.pop(connection)
+            try:
+                kind, payload = connection.recv()
+            except EOFError:
+                raise WorkerLost(_ended(process)) from None
+            if kind == "error":
+                raise payload
+            yield payload
+            hand_out(connection)
+        for item in ready:
+            process = sentinels.get(item)
+            owner = next((c for c, p in busy.items() if p is process), None)
+            if owner is not None and not owner.poll():
+                raise WorkerLost(_ended(process))
 
 
 def dask_client(address: str, timeout: float = DASK_TIMEOUT) -> Any:

@@ -1,0 +1,88 @@
+"""Local worker processes: every chunk once, errors raised in the parent, and no hang
+when a worker dies at any moment (killed while idle, killed while working)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+from cdpr_sym.sweep.workers import WorkerLost, local_map
+
+
+def _square(config: dict, chunk: list) -> list:
+    return [{"x": x, "square": x * x + config["offset"]} for x in chunk]
+
+
+def test_every_chunk_comes_back_once_from_two_workers():
+    chunks = [[x, x + 100] for x in range(37)]
+    rows = [row for part in local_map(_square, {"offset": 1}, chunks, 2) for row in part]
+    expected = [row for chunk in chunks for row in _square({"offset": 1}, chunk)]
+    assert sorted(rows, key=lambda row: row["x"]) == sorted(expected, key=lambda row: row["x"])
+
+
+def _fails_on_seven(config: dict, chunk: list) -> list:
+    if 7 in chunk:
+        raise ValueError("seven is bad")
+    return [{"x": x} for x in chunk]
+
+
+def test_an_error_in_a_worker_is_raised_in_the_parent():
+    with pytest.raises(ValueError, match="seven is bad"):
+        list(local_map(_fails_on_seven, {}, [[x] for x in range(20)], 2))
+
+
+def _dies_on_three(config: dict, chunk: list) -> list:
+    if chunk == [3]:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return [{"x": x} for x in chunk]
+
+
+def test_a_killed_worker_is_reported_not_waited_for():
+    begun = time.monotonic()
+    with pytest.raises(WorkerLost, match="killed by signal 9"):
+        list(local_map(_dies_on_three, {}, [[x] for x in range(10)], 2))
+    assert time.monotonic() - begun < 10
+
+
+_IDLE_WORKER = textwrap.dedent("""
+    import time
+    from cdpr_sym.sweep.workers import local_map, sigterm_interrupts
+
+    def work(config, chunk):
+        time.sleep(chunk[0])
+        return [chunk[0]]
+
+    if __name__ == "__main__":
+        try:
+            with sigterm_interrupts():
+                for rows in local_map(work, {}, [[0.01], [60]], 2):
+                    print(rows, flush=True)
+        except KeyboardInterrupt as stop:
+            print(type(stop).__name__, flush=True)
+""")
+
+
+def test_sigterm_to_the_group_while_a_worker_idles_stops_at_once(tmp_path):
+    """One worker sleeps on a long chunk, the other waits for work that never comes.
+    A SIGTERM to the whole group kills the idle one wherever it is; the parent must
+    still stop (a shared queue lock held by the dead worker once hung it for ever)."""
+    script = tmp_path / "idle.py"
+    script.write_text(_IDLE_WORKER)
+    process = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE,
+                               text=True, start_new_session=True)
+    try:
+        assert process.stdout.readline().strip() == "[0.01]"
+        time.sleep(0.5)  # the idle worker is now blocked waiting for a chunk
+        os.killpg(process.pid, signal.SIGTERM)
+        out, _ = process.communicate(timeout=15)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    assert out.strip() == "Terminated"
+    assert process.returncode == 0
