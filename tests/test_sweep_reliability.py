@@ -255,8 +255,10 @@ def _alive(pid: int) -> bool:
     return "zombie" not in state
 
 
-# real signals to real process groups: run in the slow suite, where nothing else competes
-# (in the full quick suite they failed once in four runs, cause not yet found)
+# real signals to real process groups, in the slow suite (about 15 s). They once failed
+# under load: multiprocessing.Pool's idle workers held a shared queue lock that a SIGTERM
+# to the group could leave locked for ever; the workers now have a pipe each
+# (tests/test_workers.py reproduces that hang deterministically).
 @pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="needs Linux /proc")
 @pytest.mark.parametrize(("signum", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
