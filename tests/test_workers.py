@@ -86,3 +86,15 @@ def test_sigterm_to_the_group_while_a_worker_idles_stops_at_once(tmp_path):
             os.killpg(process.pid, signal.SIGKILL)
     assert out.strip() == "Terminated"
     assert process.returncode == 0
+
+
+def _exits_on_three(config: dict, chunk: list) -> list:
+    if chunk == [3]:
+        os._exit(config["status"])
+    return [{"x": x} for x in chunk]
+
+
+@pytest.mark.parametrize("status", [0, 3])
+def test_a_worker_that_exits_mid_chunk_is_reported_with_its_status(status):
+    with pytest.raises(WorkerLost, match=f"ended with status {status}$"):
+        list(local_map(_exits_on_three, {"status": status}, [[x] for x in range(10)], 2))

@@ -14,7 +14,6 @@ waiting on it for ever).
 from __future__ import annotations
 
 import contextlib
-import functools
 import multiprocessing
 import os
 import pickle
@@ -91,7 +90,7 @@ def _serve(connection: Connection, inherited: list[Connection], work: Work,
             return
         try:
             reply: tuple[str, Any] = ("rows", work(config, chunk))
-        except Exception as error:  # noqa: BLE001 - handed to the parent, which raises it
+        except Exception as error:
             reply = ("error", error)
         try:
             connection.send(reply)
