@@ -325,8 +325,11 @@ def _unusable_cache(root: Path, folder: Path, error: OSError) -> InvalidCase:
 def _file_in_the_way(folder: Path) -> Path | None:
     """The nearest of ``folder`` and its parents that exists but is not a folder, if any."""
     for path in (folder, *folder.parents):
-        if path.exists() or path.is_symlink():
-            return None if path.is_dir() else path
+        try:
+            if path.exists() or path.is_symlink():
+                return None if path.is_dir() else path
+        except OSError:  # a name the system refuses (too long): not a file in the way
+            continue
     return None
 
 

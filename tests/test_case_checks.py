@@ -1,0 +1,64 @@
+"""The sizes in the refusal of a run too long to store: GiB from exactly 1 GiB, else MiB.
+
+``check_timing`` refuses a run whose trajectory (steps x values per step x 8 bytes) exceeds
+the budget, and tells the user both sizes. The budget is fixed here (monkeypatched) so the
+expected texts can be worked out by hand: 1 GiB = 2**30 bytes, 1 MiB = 2**20 bytes.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import pytest
+
+from cdpr_sym.errors import InvalidCase
+
+case_module = importlib.import_module("cdpr_sym.closed_loop.case")
+
+#: dt = 2**-10 s and duration = 2**18 s: exactly 2**28 steps (no rounding anywhere).
+DT = 2.0 ** -10
+DURATION = 2.0 ** 18
+
+
+def _refusal(monkeypatch, budget: int, duration: float = DURATION, dt: float = DT,
+             values_per_step: int = 1) -> InvalidCase:
+    monkeypatch.setattr(case_module, "trajectory_budget", lambda: budget)
+    with pytest.raises(InvalidCase) as refused:
+        case_module.check_timing(duration, dt, values_per_step=values_per_step)
+    return refused.value
+
+
+def test_a_budget_of_exactly_one_gib_is_shown_as_1_gib(monkeypatch):
+    # 2**28 steps x 1 value x 8 bytes = 2**31 bytes = 2 GiB; the limit 2**30 bytes is 1 GiB,
+    # i.e. 2**30 / 8 = 134,217,728 steps
+    error = _refusal(monkeypatch, 1 << 30)
+    assert error.field == "duration"  # dt is far above 1 us
+    message = str(error)
+    assert "2.68e+08 steps, 2 GiB of trajectory (1 values per step)" in message
+    assert "the limit is 1 GiB (134,217,728 steps)" in message
+    assert "MiB" not in message
+
+
+def test_sizes_between_one_and_two_gib_are_in_gib(monkeypatch):
+    # budget 1.5 GiB = 3 * 2**29 bytes (201,326,592 steps of 8 bytes); the run, 2**28 steps
+    # of 6 values, is 6 * 2**31 bytes = 12 GiB
+    error = _refusal(monkeypatch, 3 << 29, values_per_step=6)
+    message = str(error)
+    assert "12 GiB of trajectory (6 values per step)" in message
+    # 3 * 2**29 // 48 = 33,554,432 steps
+    assert "the limit is 1.5 GiB (33,554,432 steps)" in message
+
+
+def test_a_trajectory_of_one_and_a_half_gib_is_shown_in_gib(monkeypatch):
+    # 2**28 steps x 6 values would be 12 GiB; with 2**26 steps (duration 2**16 s) x 3 values
+    # it is 3 * 2**29 bytes = 1.5 GiB against a 1 GiB budget
+    error = _refusal(monkeypatch, 1 << 30, duration=2.0 ** 16, values_per_step=3)
+    message = str(error)
+    assert "6.71e+07 steps, 1.5 GiB of trajectory (3 values per step)" in message
+    assert "the limit is 1 GiB (44,739,242 steps)" in message  # 2**30 // 24
+
+
+def test_sizes_below_one_gib_are_in_mib(monkeypatch):
+    # budget 512 MiB = 2**29 bytes; one byte short of a GiB is 1023.99... MiB
+    assert "the limit is 512 MiB" in str(_refusal(monkeypatch, 1 << 29))
+    assert "the limit is 1.02e+03 MiB" in str(_refusal(monkeypatch, (1 << 30) - 8))
