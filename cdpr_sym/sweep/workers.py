@@ -142,34 +142,27 @@ def local_map(work: Work, config: dict[str, Any], chunks: list[list], workers: i
 def _dispatch(processes: dict[Connection, multiprocessing.process.BaseProcess],
               chunks: Iterator[list]) -> Iterator[Rows]:
     """Keep every worker busy with the next chunk; yield rows as they come back."""
-    busy: dict[Connection, multiprocessing.process.BaseProcess] = {}
+    busy: set[Connection] = set()
 
     def hand_out(connection: Connection) -> None:
         chunk = next(chunks, None)
         connection.send(chunk)
         if chunk is not None:
-            busy[connection] = processes[connection]
+            busy.add(connection)
 
     for connection in processes:
         hand_out(connection)
     while busy:
-        sentinels = {process.sentinel: process for process in busy.values()}
-        ready = wait([*busy, *sentinels])
-        for connection in [item for item in ready if item in busy]:
-            process = busy.pop(connection)
+        for connection in wait(list(busy)):
+            busy.remove(connection)
             try:
                 kind, payload = connection.recv()
-            except EOFError:
-                raise WorkerLost(_ended(process)) from None
+            except EOFError:  # only the worker held the other end: it has died
+                raise WorkerLost(_ended(processes[connection])) from None
             if kind == "error":
                 raise payload
             yield payload
             hand_out(connection)
-        for item in ready:
-            process = sentinels.get(item)
-            owner = next((c for c, p in busy.items() if p is process), None)
-            if owner is not None and not owner.poll():
-                raise WorkerLost(_ended(process))
 
 
 def dask_client(address: str, timeout: float = DASK_TIMEOUT) -> Any:
