@@ -98,3 +98,24 @@ def _exits_on_three(config: dict, chunk: list) -> list:
 def test_a_worker_that_exits_mid_chunk_is_reported_with_its_status(status):
     with pytest.raises(WorkerLost, match=f"ended with status {status}$"):
         list(local_map(_exits_on_three, {"status": status}, [[x] for x in range(10)], 2))
+
+
+def test_a_lost_worker_ends_the_sweep_with_status_1_keeping_its_rows(tmp_path, monkeypatch):
+    import cdpr_sym.sweep.runner as runner
+    from cdpr_sym.errors import Interrupted
+    from cdpr_sym.sweep import SweepConfig, run_sweep
+
+    def first_chunk_then_lost(work, config, chunks, workers):
+        yield work(config, chunks[0])
+        raise WorkerLost("worker process 4242 was killed by signal 9")
+
+    monkeypatch.setattr(runner, "local_map", first_chunk_then_lost)
+    out = tmp_path / "rows.csv"
+    config = SweepConfig(robot="planar2", controllers=("pd-sat",), pairs=4, duration=0.2)
+    with pytest.raises(Interrupted) as stop:
+        run_sweep(config, out, workers=2, chunk_size=2, progress=False)
+    assert stop.value.exit_status == 1
+    assert str(stop.value) == ("worker process 4242 was killed by signal 9; 2 of 4 runs "
+                               f"finished and stored in {out}; run the same command again "
+                               "to resume")
+    assert out.read_text().count("\n") == 3  # the header and the first chunk's two rows

@@ -216,15 +216,13 @@ def _collect(results: Iterable[list[dict[str, Any]]], out: Path, format: str, n:
                 sink(rows)
                 written += len(rows)
                 bar.update(len(rows))
-    except WorkerLost as lost:
-        raise Interrupted(
-            f"{lost}; {written} of {total} runs finished and stored in {out}; run the same "
-            "command again to resume", exit_status=1) from None
-    except KeyboardInterrupt as stop:
-        raise Interrupted(
-            f"{written} of {total} runs finished and stored in {out}; run the same command "
-            "again to resume", exit_status=143 if isinstance(stop, Terminated) else 130
-        ) from None
+    except (WorkerLost, KeyboardInterrupt) as stop:
+        kept = (f"{written} of {total} runs finished and stored in {out}; run the same "
+                "command again to resume")
+        if isinstance(stop, WorkerLost):
+            raise Interrupted(f"{stop}; {kept}", exit_status=1) from None
+        raise Interrupted(kept, exit_status=143 if isinstance(stop, Terminated) else 130
+                          ) from None
 
 
 @contextlib.contextmanager
