@@ -54,11 +54,16 @@ def test_a_full_disk_names_the_file_it_failed_on(tmp_path, monkeypatch):
         + ADVICE)
 
 
-def test_an_error_without_a_file_name_names_the_key_folder(tmp_path, monkeypatch):
+@pytest.mark.parametrize(("error", "reason"), [
+    (OSError(errno.EIO, os.strerror(errno.EIO)), "Input/output error"),  # no file name
+    (OSError("the disk went away"), "the disk went away"),  # no errno, strerror or file
+])
+def test_an_error_without_a_file_name_names_the_key_folder(tmp_path, monkeypatch, error,
+                                                            reason):
     cache = tmp_path / "cache"
 
     def failing(*args, **kwargs):
-        raise OSError(errno.EIO, os.strerror(errno.EIO))  # no filename
+        raise error
 
     monkeypatch.setattr(build_module, "_compile", failing)
     with pytest.raises(InvalidCase) as raised:
@@ -66,22 +71,7 @@ def test_an_error_without_a_file_name_names_the_key_folder(tmp_path, monkeypatch
     message = str(raised.value).split(": ", 1)[1]
     (folder,) = [p for p in cache.iterdir() if p.name.startswith("rules-")]
     assert message == (f"cannot keep compiled libraries in {cache} "
-                       f"(Input/output error at {folder})" + ADVICE)
-
-
-def test_an_error_without_a_system_reason_shows_the_error_itself(tmp_path, monkeypatch):
-    cache = tmp_path / "cache"
-
-    def failing(*args, **kwargs):
-        raise OSError("the disk went away")  # neither errno nor strerror nor filename
-
-    monkeypatch.setattr(build_module, "_compile", failing)
-    with pytest.raises(InvalidCase) as raised:
-        _build(cache)
-    message = str(raised.value).split(": ", 1)[1]
-    (folder,) = [p for p in cache.iterdir() if p.name.startswith("rules-")]
-    assert message == (f"cannot keep compiled libraries in {cache} "
-                       f"(the disk went away at {folder})" + ADVICE)
+                       f"({reason} at {folder})" + ADVICE)
 
 
 def test_a_file_in_the_way_is_named_with_the_same_advice(tmp_path):
