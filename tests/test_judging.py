@@ -102,3 +102,15 @@ def test_summarise_of_only_failed_runs_has_no_medians():
     assert s["feasible"] == s["converged"] == s["meets_target"] == 0.0
     assert s["median_settle_s"] is None and s["median_total_variation"] is None
     assert s["median_max_step"] is None and s["median_min_alpha"] is None
+
+
+@pytest.mark.parametrize("start_jump", [None, "missing"])
+def test_a_row_without_a_start_jump_meets_a_tight_step_limit(start_jump):
+    """No start jump measured counts as none, whatever the limit (not as a 1 N jump)."""
+    row = _row(max_tension_step=0.05)
+    if start_jump == "missing":
+        del row["start_jump"]
+    else:
+        row["start_jump"] = start_jump
+    assert meets_target(row, step_limit=0.1)
+    assert not meets_target({**row, "start_jump": 0.2}, step_limit=0.1)

@@ -133,3 +133,23 @@ def test_plant_too_heavy_for_soft_gains_falls_out_through_the_floor(aras3, build
     assert run.t[-1] == pytest.approx((first_out - 1) * DT, abs=1e-12)
     np.testing.assert_allclose(run.q[-1], x_ref[first_out - 1, : aras3.n], rtol=0, atol=1e-8)
     assert 0.0 <= run.q[-1, 2] < 0.1
+
+
+def test_the_virtual_machine_stops_computing_at_the_chunk_where_the_run_stops(planar2):
+    """After a stop the state is frozen: later chunks would only repeat it, so the CasADi
+    path runs chunks up to the one holding the stop and no further."""
+    from cdpr_sym.closed_loop.simulator import Simulator
+
+    robot = _below_the_anchors(planar2)
+    start, dq0 = _exit_case(robot, 0, "lower")
+    gains = np.full(robot.n, SOFT)
+    simulator = Simulator(robot, PD(), chunk=5, build_options=BuildOptions(backend="casadi"))
+    calls = []
+    chunk = simulator._chunk_function
+    simulator._chunk_function = lambda *args: calls.append(1) or chunk(*args)
+    run = simulator.run(start, robot.goal, gains, gains, duration=0.2, dt=DT, plant=Plant(),
+                        dq0=dq0)
+    assert run.stop_reason == "left_frame"
+    stop_step = len(run.t)  # the step whose next state left the frame (1-based)
+    assert 3 <= stop_step < 150
+    assert len(calls) == -(-stop_step // 5)

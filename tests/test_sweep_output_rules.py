@@ -73,6 +73,59 @@ def test_a_row_with_an_unknown_status_is_rejected(status):
     assert row_key(_row(0, "pd", status), HEADER, CONFIG, STARTS, GOALS) is None
 
 
+def _with(record: list[str], **cells: str) -> list[str]:
+    """The record with some cells (by column name) replaced."""
+    changed = list(record)
+    for name, value in cells.items():
+        changed[HEADER.index(name)] = value
+    return changed
+
+
+def _key(record: list[str]) -> tuple[int, str] | None:
+    return row_key(record, HEADER, CONFIG, STARTS, GOALS)
+
+
+def _error_row(pair: int, message: str) -> list[str]:
+    """A run that failed: its poses, status error, the message and no metric at all."""
+    record = _row(pair, "pd")
+    blank = {name: "" for name in HEADER[HEADER.index("min_tension"):]}
+    return _with(record, status="error", error=message, **blank)
+
+
+def test_an_error_row_is_kept_when_it_names_its_error_and_rejected_when_blank():
+    assert _key(_error_row(1, "InvalidCase: start: outside the frame")) == (1, "pd")
+    assert _key(_error_row(1, "")) is None
+
+
+@pytest.mark.parametrize(("duration", "kept"), [
+    ("1.0", True), ("1.0000000000001", True), ("0.9999999999999", True),
+    ("0.5", False), ("1.5", False), ("0.0", False)])
+def test_an_ok_row_must_have_run_the_whole_duration(duration, kept):
+    assert (_key(_with(_row(0, "pd"), duration=duration)) is not None) == kept
+
+
+@pytest.mark.parametrize(("duration", "kept"), [
+    ("0.001", True), ("1.0", True), ("1.0000000005", True),
+    ("0.0", False), ("-0.25", False), ("1.00001", False), ("1.5", False), ("2.0", False)])
+def test_a_stopped_row_ran_a_positive_part_of_the_duration(duration, kept):
+    record = _with(_row(0, "pd", "stopped"), stop_reason="left_frame", duration=duration)
+    assert (_key(record) is not None) == kept
+
+
+@pytest.mark.parametrize("column", ["start_0", "goal_1"])
+def test_a_row_whose_pose_is_not_a_number_is_rejected(column):
+    assert _key(_with(_row(0, "pd"), **{column: "0.25x"})) is None
+
+
+@pytest.mark.parametrize(("column", "value", "kept"), [
+    ("tension_feasible", "False", True), ("converged", "False", True),
+    ("stop_reason", "singular", True), ("min_alpha", "", True), ("min_tension", "-3e-2", True),
+    ("tension_feasible", "false", False), ("min_tension", "1.5.2", False),
+    ("final_error", "nan?", False), ("stop_reason", "crashed", False)])
+def test_metric_cells_hold_numbers_booleans_or_stop_reasons(column, value, kept):
+    assert (_key(_with(_row(0, "pd"), **{column: value})) is not None) == kept
+
+
 @pytest.mark.parametrize(("cell", "value"), [(0, "2"), (0, "-1"), (1, "lqr")])
 def test_a_row_of_another_pair_or_controller_is_rejected(cell, value):
     record = _row(0, "pd")

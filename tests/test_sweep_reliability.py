@@ -190,6 +190,20 @@ def test_report_on_an_empty_binary_or_damaged_table_is_one_line(content, tmp_pat
 # --- checked before the work -----------------------------------------------------------
 
 
+@pytest.mark.parametrize("table_left", [True, False])
+def test_restart_if_stale_starts_over_from_a_stale_sidecar_with_or_without_its_table(
+        reference, tmp_path, table_left):
+    """The studies own their files: a sidecar of another configuration is replaced, and so
+    is its table when it is still there (a table already deleted is no error)."""
+    out = tmp_path / "rows.csv"
+    other = SweepConfig(robot="planar2", controllers=("pd",), pairs=2, seed=3, duration=0.3)
+    run_sweep(other, out, workers=1, progress=False)
+    if not table_left:
+        out.unlink()
+    run_sweep(SMALL, out, workers=1, progress=False, restart_if_stale=True)
+    assert _keyed(out) == _keyed(reference)
+
+
 def test_too_little_disk_space_is_refused_before_any_run(reference, tmp_path, monkeypatch):
     import cdpr_sym.sweep.runner as runner
 

@@ -65,8 +65,8 @@ def fast_path_agreement(model: SymbolicModel, design: _ExactBoxDesign, q: np.nda
     """The fast path's tensions ``tau`` (N, n) against cvxpy + Clarabel on the same states.
 
     Returns the number of states, the largest tension gap (N), the median cvxpy solve time
-    per step (ms) and the number of states where a solver reported another status than
-    optimal.
+    per step (ms) and the number of states where a solver reported a status other than
+    optimal or optimal_inaccurate.
     """
     from cdpr_sym.control.cvx_reference import cvx_design  # cvxpy loads in ~1 s: on demand
 
