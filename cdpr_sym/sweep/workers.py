@@ -123,7 +123,7 @@ def local_map(work: Work, config: dict[str, Any], chunks: list[list], workers: i
     context = multiprocessing.get_context("fork")
     processes: dict[Connection, multiprocessing.process.BaseProcess] = {}
     try:
-        for _ in range(min(workers, max(1, len(chunks)))):
+        for _ in range(min(workers, len(chunks))):  # no chunk, no process
             ours, theirs = context.Pipe()
             process = context.Process(target=_serve, daemon=True, args=(
                 theirs, list(processes), work, config, os.getpid()))
