@@ -40,11 +40,18 @@ def exit_codes() -> dict[str, dict[str, int | None]]:
 
 def excused() -> tuple[dict[str, str], dict[str, str]]:
     """Equivalent mutants (name -> why) and unmeasured functions (name prefix -> why)."""
-    if not EQUIVALENT.exists():
-        return {}, {}
-    table = tomllib.loads(EQUIVALENT.read_text())
+    table = _table()
     return ({name: entry["why"] for name, entry in table.get("mutant", {}).items()},
             {name: entry["why"] for name, entry in table.get("unmeasured", {}).items()})
+
+
+def explained_survivors() -> dict[str, str]:
+    """Survivors that count against the score but are left alive on purpose, with why."""
+    return {name: entry["why"] for name, entry in _table().get("survivor", {}).items()}
+
+
+def _table() -> dict:
+    return tomllib.loads(EQUIVALENT.read_text()) if EQUIVALENT.exists() else {}
 
 
 def _unmeasured_by(name: str, unmeasured: dict[str, str]) -> str | None:
@@ -141,8 +148,11 @@ def render(rows, survivors, totals, equivalent, unmeasured, codes) -> str:
     lines += ["", "## Surviving mutants", ""]
     if not survivors:
         lines.append("None.")
+    reasons = explained_survivors()
     for module, name, status in survivors:
-        lines.append(f"- `{name.split('.')[-1]}` ({module}, {status}): {change(name, module)}")
+        why = f" — left alive: {reasons[name]}" if name in reasons else ""
+        lines.append(f"- `{name.split('.')[-1]}` ({module}, {status}): "
+                     f"{change(name, module)}{why}")
     lines += ["", "## Equivalent mutants (left out of the score)", ""]
     listed = [(name, why) for name, why in equivalent.items()
               if any(name in by_name for by_name in codes.values())]
