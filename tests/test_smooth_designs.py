@@ -200,3 +200,13 @@ def test_smooth_plan_through_det_w_zero_is_flagged_infeasible(spatial6, build_op
                    build_options=build_options)
     assert run.flags[0] & FLAG_INFEASIBLE
     assert run.memory[0, spatial6.n + 2] == -1.0  # no admissible margin
+
+
+def test_smooth_commands_carry_alpha_one_and_no_interconnection(aras3, aras3_model):
+    """smooth tracks its plan with a PD law: no alpha scaling, no J_d."""
+    from cdpr_sym.control import tension
+
+    design = SmoothReference()
+    out = tension(aras3_model, design, aras3.start + 0.02, np.full(3, 0.1), aras3.goal)
+    assert out.alpha == 1.0
+    np.testing.assert_array_equal(out.j, np.zeros(aras3.n_j))

@@ -114,3 +114,18 @@ def test_save_writes_an_npz_that_numpy_reads_back(tmp_path, name):
         assert float(data["t_min"]) == T_MIN and float(data["t_max"]) == T_MAX
         assert str(data["stop_reason"]) == "singular"
         assert json.loads(str(data["info"])) == {"robot": "hand-made"}
+
+
+def test_infeasible_steps_count_the_steps_flagged_infeasible():
+    from cdpr_sym.control import FLAG_INFEASIBLE
+
+    flags = [FLAG_INFEASIBLE, 0, FLAG_INFEASIBLE | FLAG_SATURATED, FLAG_ALPHA]
+    assert make_run([0.4, 0.3, 0.2, 0.1, 0.0], flags=flags).metrics()["infeasible_steps"] == 2
+
+
+def test_non_finite_tensions_and_alphas_are_reported_as_missing():
+    run = make_run([0.4, 0.3, 0.2], tau=[[10.0, 20.0], [np.nan, 21.0]])
+    run.alpha[:] = [np.nan, 0.5]
+    metrics = run.metrics()
+    assert metrics["min_tension"] is None and metrics["max_tension"] is None
+    assert metrics["min_alpha"] is None

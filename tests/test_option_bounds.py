@@ -1,4 +1,4 @@
-"""Where the planned designs' options turn from accepted to refused.
+"""Where the options of the planned designs and of the plant turn from accepted to refused.
 
 Each boundary is probed on both sides; a refusal names the field and says what it got.
 """
@@ -62,4 +62,17 @@ def test_smooth_refuses_values_outside_naming_field_and_value(field, value, show
         SmoothReference(**{field: value})
     assert raised.value.field == field
     assert str(raised.value).startswith(f"{field}: expected ")
+    assert str(raised.value).endswith(f"got {shown}")
+
+
+@pytest.mark.parametrize(("field", "value", "shown"), [
+    ("mass_scale", 0.0, "0.0"), ("mass_scale", math.nan, "nan"),
+    ("rate_limit", -5.0, "-5.0"), ("rate_limit", math.inf, "inf")])
+def test_plant_refuses_values_outside_naming_field_and_value(field, value, shown):
+    from cdpr_sym import Plant
+
+    with pytest.raises(InvalidCase) as raised:
+        Plant(**{field: value})
+    assert raised.value.field == field
+    assert str(raised.value).startswith(f"{field}: expected a positive ")
     assert str(raised.value).endswith(f"got {shown}")
