@@ -9,6 +9,7 @@ import math
 
 import pytest
 
+from cdpr_sym import Plant
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.errors import InvalidCase
 
@@ -52,27 +53,19 @@ def test_smooth_accepts_values_at_and_inside_its_bounds(field, value):
     assert getattr(SmoothReference(**{field: value}), field) == value
 
 
-@pytest.mark.parametrize(("field", "value", "shown"), [
-    ("durations", (), "()"), ("durations", (1.0, -1.0), "(1.0, -1.0)"),
-    ("margins", (), "()"), ("margins", (-1.0,), "(-1.0,)"),
-    ("max_rate", 0.0, "0.0"), ("max_rate", math.inf, "inf"),
-    ("samples", 2, "2"), ("samples", True, "True"), ("samples", 3.0, "3.0")])
-def test_smooth_refuses_values_outside_naming_field_and_value(field, value, shown):
+@pytest.mark.parametrize(("cls", "field", "value", "shown"), [
+    (SmoothReference, "durations", (), "()"),
+    (SmoothReference, "durations", (1.0, -1.0), "(1.0, -1.0)"),
+    (SmoothReference, "margins", (), "()"), (SmoothReference, "margins", (-1.0,), "(-1.0,)"),
+    (SmoothReference, "max_rate", 0.0, "0.0"), (SmoothReference, "max_rate", math.inf, "inf"),
+    (SmoothReference, "samples", 2, "2"), (SmoothReference, "samples", True, "True"),
+    (SmoothReference, "samples", 3.0, "3.0"),
+    (Plant, "mass_scale", 0.0, "0.0"), (Plant, "mass_scale", math.nan, "nan"),
+    (Plant, "rate_limit", -5.0, "-5.0"), (Plant, "rate_limit", math.inf, "inf")])
+def test_smooth_and_plant_refuse_values_outside_naming_field_and_value(cls, field, value,
+                                                                        shown):
     with pytest.raises(InvalidCase) as raised:
-        SmoothReference(**{field: value})
+        cls(**{field: value})
     assert raised.value.field == field
     assert str(raised.value).startswith(f"{field}: expected ")
-    assert str(raised.value).endswith(f"got {shown}")
-
-
-@pytest.mark.parametrize(("field", "value", "shown"), [
-    ("mass_scale", 0.0, "0.0"), ("mass_scale", math.nan, "nan"),
-    ("rate_limit", -5.0, "-5.0"), ("rate_limit", math.inf, "inf")])
-def test_plant_refuses_values_outside_naming_field_and_value(field, value, shown):
-    from cdpr_sym import Plant
-
-    with pytest.raises(InvalidCase) as raised:
-        Plant(**{field: value})
-    assert raised.value.field == field
-    assert str(raised.value).startswith(f"{field}: expected a positive ")
     assert str(raised.value).endswith(f"got {shown}")
