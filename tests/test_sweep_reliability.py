@@ -318,3 +318,14 @@ def test_workers_exit_when_their_parent_is_killed(tmp_path):
     while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not any(_alive(pid) for pid in workers)
+
+
+@pytest.mark.parametrize("tail", ["\0\n", "\0" * 300, "1,pd-sat,\0\0\0\n"])
+def test_zero_bytes_left_by_a_crash_are_repaired_as_damaged_rows(reference, tmp_path, tail):
+    """A crash can leave a run of zero bytes where a write was cut (found by the damage
+    property): those lines are damaged rows, moved aside and run again."""
+    lines = reference.read_text().splitlines(keepends=True)
+    out = _copy(reference, tmp_path / "rows.csv", "".join(lines[:3]) + tail)
+    run_sweep(SMALL, out, workers=1, progress=False)
+    assert _keyed(out) == _keyed(reference)
+    assert "\0" in rejected_path(out).read_text()

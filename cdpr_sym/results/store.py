@@ -100,7 +100,9 @@ def read_csv_records(table: Path) -> tuple[list[list[str]], bytes]:
     tail after the last newline (an interrupted write; empty when there is none).
 
     Nothing is changed on disk. A file that is not UTF-8 text is an :class:`InvalidCase`
-    (field ``results``) naming it.
+    (field ``results``) naming it. NUL characters are kept in their cells: a file system
+    can leave a run of zero bytes where a crash cut a write, and the sweep's repair must
+    see those lines as damaged rows, not refuse the table.
     """
     if not table.exists():
         return [], b""
@@ -111,8 +113,6 @@ def read_csv_records(table: Path) -> tuple[list[list[str]], bytes]:
         text = complete.decode("utf-8")
     except UnicodeDecodeError:
         raise InvalidCase("results", f"{table} is not a CSV text file (not UTF-8)") from None
-    if "\0" in text:
-        raise InvalidCase("results", f"{table} is not a CSV text file (binary data)")
     return list(csv.reader(text.splitlines())), torn
 
 
@@ -137,6 +137,8 @@ def checked_csv_rows(table: Path) -> list[dict[str, str]]:
     records, torn = read_csv_records(table)
     if not records:
         raise InvalidCase("results", f"{table} is empty: no header and no rows")
+    if any("\0" in cell for record in records for cell in record):
+        raise InvalidCase("results", f"{table} is not a CSV text file (binary data)")
     header, *rows = records
     repair = "run the same sweep command again to repair it"
     if torn:
