@@ -3,7 +3,7 @@
 #
 #   bash dev/mutation.sh                       # every core module (hours on 2 cores)
 #   bash dev/mutation.sh 'cdpr_sym.sweep.*'    # the mutants of some modules only
-#   MUTATION_SAMPLE=5 bash dev/mutation.sh     # a random one in 5 of each module (about an hour)
+#   MUTATION_SAMPLE=5 bash dev/mutation.sh     # a random one in 5 of each module (hours too)
 #
 # Run it before a release and whenever a core module changes much; results accumulate in
 # mutants/ (only changed functions are tested again) and the report is rewritten at the end:

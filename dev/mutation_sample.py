@@ -9,6 +9,7 @@ contains the smaller one:
 
     python dev/mutation_sample.py 5     # one mutant in 5 of each module, at least 40
 
+Run with the mutation environment's Python (it imports mutation_report, which needs mutmut).
 Prints the mutant names, one per line, leaving out those already checked and those
 excused in ``dev/mutation_equivalent.toml``.
 """
@@ -19,12 +20,9 @@ import hashlib
 import json
 import math
 import sys
-import tomllib
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-MUTANTS = ROOT / "mutants"
-EQUIVALENT = ROOT / "dev" / "mutation_equivalent.toml"
+from mutation_report import MUTANTS, _unmeasured_by, excused
+
 SMALLEST_SAMPLE = 40
 
 
@@ -39,27 +37,18 @@ def sampled(names: list[str], one_in: int) -> list[str]:
     return sorted(names, key=rank)[:size]
 
 
-def excused_names(names: list[str]) -> set[str]:
-    """Names listed as equivalent, or in a function listed as unmeasured."""
-    if not EQUIVALENT.exists():
-        return set()
-    table = tomllib.loads(EQUIVALENT.read_text())
-    prefixes = tuple(prefix + "__mutmut_" for prefix in table.get("unmeasured", {}))
-    return {name for name in names
-            if name in table.get("mutant", {}) or name.startswith(prefixes)}
-
-
 def main(argv: list[str]) -> int:
     if len(argv) != 1 or not argv[0].isdigit() or int(argv[0]) < 1:
         print("usage: python dev/mutation_sample.py ONE_IN (a whole number >= 1)",
               file=sys.stderr)
         return 2
     one_in = int(argv[0])
+    equivalent, unmeasured = excused()
     for meta in sorted(MUTANTS.glob("cdpr_sym/**/*.py.meta")):
         codes = json.loads(meta.read_text())["exit_code_by_key"]
-        names = sorted(codes)
-        kept = set(names) - excused_names(names)
-        for name in sampled(sorted(kept), one_in):
+        kept = [name for name in sorted(codes)
+                if name not in equivalent and not _unmeasured_by(name, unmeasured)]
+        for name in sampled(kept, one_in):
             if codes[name] is None:
                 print(name)
     return 0
