@@ -282,6 +282,18 @@ def a_matrix(q: npt.ArrayLike, dq: npt.ArrayLike, anchors: npt.ArrayLike) -> Flo
 # ---------------------------------------------------------------------------
 
 
+def static_tension(q: npt.ArrayLike, anchors: npt.ArrayLike, m: float, g: float) -> FloatArray:
+    """``tau_1 = W^{-1} grad V``: the tensions holding the point at rest at ``q`` (N)."""
+    q = _vec(q)
+    return np.linalg.solve(structure_matrix(q, anchors), grad_potential(m, g, q.size))
+
+
+def beta_margin(tau_1: npt.ArrayLike, t_min: npt.ArrayLike, t_max: npt.ArrayLike) -> float:
+    """beta of eq. (20): ``min (T_M - T_m)/2 - ||tau_1 - (T_m + T_M)/2||_2`` (N)."""
+    t_lo, t_hi = np.asarray(t_min, dtype=np.float64), np.asarray(t_max, dtype=np.float64)
+    return float(np.min(0.5 * (t_hi - t_lo)) - np.linalg.norm(_vec(tau_1) - 0.5 * (t_lo + t_hi)))
+
+
 def tension_pd(
     q: npt.ArrayLike,
     dq: npt.ArrayLike,
@@ -468,9 +480,7 @@ def tension_l2_from_parts(
 
     tau1 = np.linalg.solve(w, _vec(grad_v))
     tau2u = -np.linalg.solve(w, _vec(k) * e + _vec(r_d) * dq)
-    mid = 0.5 * (t_lo + t_hi)
-    half = 0.5 * (t_hi - t_lo)
-    beta = float(np.min(half) - np.linalg.norm(tau1 - mid))
+    beta = beta_margin(tau1, t_lo, t_hi)
 
     if np.linalg.norm(dq) < low_speed or beta <= 0.0:
         return {

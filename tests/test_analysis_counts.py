@@ -1,5 +1,5 @@
-"""Counting in the analysis helpers, on stand-in solvers and classifiers whose answers the
-test chooses (the real ones are compared with numpy and cvxpy in test_analysis.py)."""
+"""Counting in fast_path_agreement, on a stand-in solver whose answers the test chooses
+(the real one is compared with numpy and cvxpy in test_analysis.py)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ import pytest
 
 import cdpr_sym.control.cvx_reference as cvx_reference
 from cdpr_sym.control.analysis import fast_path_agreement
-from cdpr_sym.workspace import frame_shares
 
 
 class _ScriptedReference:
@@ -50,28 +49,3 @@ def test_no_failure_is_counted_when_every_solve_is_optimal(monkeypatch):
     assert result["cvxpy_failures"] == 0
     assert result["max_tau_gap_N"] == 1.0
     assert result["cvxpy_ms_per_step"] == pytest.approx(3.0)
-
-
-class _SpyEvaluator:
-    """Classifies every pose as the test says; remembers the poses it was given."""
-
-    def __init__(self, feasible, ball):
-        self.feasible, self.ball, self.poses = feasible, ball, None
-
-    def classify(self, poses):
-        self.poses = poses
-        count = len(poses)
-        return SimpleNamespace(feasible=self.feasible(count), ball=self.ball(count))
-
-
-def test_frame_shares_draws_twenty_thousand_poses_by_default(aras3):
-    spy = _SpyEvaluator(lambda n: np.arange(n) % 4 == 0, lambda n: np.arange(n) % 8 == 0)
-    shares = frame_shares(aras3, np.random.default_rng(0), evaluator=spy)
-    assert spy.poses.shape == (20000, aras3.n)
-    assert shares == {"feasible": 0.25, "ball_given_feasible": 0.5}
-
-
-def test_frame_shares_of_a_frame_without_feasible_pose_are_zero(aras3):
-    spy = _SpyEvaluator(lambda n: np.zeros(n, bool), lambda n: np.ones(n, bool))
-    shares = frame_shares(aras3, np.random.default_rng(0), count=50, evaluator=spy)
-    assert shares == {"feasible": 0.0, "ball_given_feasible": 0.0}

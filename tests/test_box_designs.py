@@ -35,7 +35,7 @@ def robot_and_model(request):
 def _parts(robot, q, dq, goal):
     """W, tau_1 = W^{-1} grad V and tau_2 (the PD part at alpha = 1), from the oracle."""
     W = ref.structure_matrix(q, robot.anchors)
-    tau_1 = np.linalg.solve(W, ref.grad_potential(robot.mass, robot.gravity, robot.n))
+    tau_1 = ref.static_tension(q, robot.anchors, robot.mass, robot.gravity)
     tau_pd = ref.tension_pd(q, dq, goal, robot.anchors, robot.mass, robot.gravity,
                             robot.k, robot.r_d)
     return W, tau_1, tau_pd - tau_1

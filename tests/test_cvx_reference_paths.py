@@ -34,11 +34,10 @@ def test_a_projection_left_unsolved_falls_back_to_the_clipped_pd_flagged(aras3, 
     monkeypatch.setattr(cvx.project_problem, "solve", lambda *args, **options: None)
     q, dq = _moving_state(aras3)
     solved = cvx.solve(q, dq, aras3.goal, aras3.k, aras3.r_d)
-    W = ref.structure_matrix(q, aras3.anchors)
-    grad_v = ref.grad_potential(aras3.mass, aras3.gravity, aras3.n)
-    pd = np.linalg.solve(W, grad_v - aras3.k * (q - aras3.goal) - aras3.r_d * dq)
+    clipped_pd = ref.tension_pd_sat(q, dq, aras3.goal, aras3.anchors, aras3.mass,
+                                    aras3.gravity, aras3.k, aras3.r_d, aras3.t_min, aras3.t_max)
     out = solved.output
-    np.testing.assert_allclose(out.tau, np.clip(pd, aras3.t_min, aras3.t_max), atol=1e-9)
+    np.testing.assert_allclose(out.tau, clipped_pd, atol=1e-9)
     assert out.alpha == 1.0 and np.isnan(out.beta) and out.flags == FLAG_INFEASIBLE
     np.testing.assert_array_equal(out.j, np.zeros(aras3.n_j))
     assert solved.statuses == ("optimal", None)

@@ -15,11 +15,10 @@ from cdpr_sym.errors import InvalidCase
 
 
 def _oracle_pieces(robot, q, dq, goal):
-    W = ref.structure_matrix(q, robot.anchors)
-    tau_1 = np.linalg.solve(W, ref.grad_potential(robot.mass, robot.gravity, robot.n))
-    tau_2 = -np.linalg.solve(W, robot.k * (q - goal) + robot.r_d * dq)
-    middle, half = (robot.t_min + robot.t_max) / 2, (robot.t_max - robot.t_min) / 2
-    return tau_1, tau_2, half - np.linalg.norm(tau_1 - middle)
+    tau_1 = ref.static_tension(q, robot.anchors, robot.mass, robot.gravity)
+    tau_pd = ref.tension_pd(q, dq, goal, robot.anchors, robot.mass, robot.gravity, robot.k,
+                            robot.r_d)
+    return tau_1, tau_pd - tau_1, ref.beta_margin(tau_1, robot.t_min, robot.t_max)
 
 
 def _rest_states(robot, rng, count):

@@ -1,6 +1,7 @@
-"""Rejection sampling of the static workspace, driven by stand-in classifiers whose verdicts
-the test chooses: which poses come back, how many batches are drawn and when it gives up.
-(The real classifier is checked against numpy in test_workspace.py.)"""
+"""Rejection sampling of the static workspace and the frame's shares, driven by stand-in
+classifiers whose verdicts the test chooses: which poses come back, how many are drawn,
+when sampling gives up. (The real classifier is checked against numpy in test_workspace.py
+and test_analysis.py.)"""
 
 from __future__ import annotations
 
@@ -10,18 +11,21 @@ import numpy as np
 import pytest
 
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.workspace import interior_box, sample_static_workspace
+from cdpr_sym.workspace import frame_shares, interior_box, sample_static_workspace
 
 
 class _Classifier:
-    """Calls ``rule(batch) -> feasible mask``; remembers the batch sizes it saw."""
+    """Calls ``rule(batch)`` (and ``ball(batch)``) for the masks of feasible poses (and of
+    poses meeting the ball condition); remembers the batch sizes and pose width it saw."""
 
-    def __init__(self, rule):
-        self.rule, self.batches = rule, []
+    def __init__(self, rule, ball=None):
+        self.rule, self.ball, self.batches = rule, ball, []
 
     def classify(self, batch):
         self.batches.append(len(batch))
-        return SimpleNamespace(feasible=self.rule(batch))
+        self.width = batch.shape[1]
+        ball = None if self.ball is None else self.ball(batch)
+        return SimpleNamespace(feasible=self.rule(batch), ball=ball)
 
 
 def _first(k):
@@ -73,3 +77,18 @@ def test_an_empty_workspace_gives_up_after_a_million_draws_naming_the_robot(aras
 def test_without_a_classifier_the_robot_s_own_is_built(aras3):
     poses = sample_static_workspace(aras3, 5, np.random.default_rng(1))
     assert poses.shape == (5, 3)
+
+
+def test_frame_shares_draws_twenty_thousand_poses_by_default(aras3):
+    spy = _Classifier(lambda batch: np.arange(len(batch)) % 4 == 0,
+                      lambda batch: np.arange(len(batch)) % 8 == 0)
+    shares = frame_shares(aras3, np.random.default_rng(0), evaluator=spy)
+    assert spy.batches == [20000] and spy.width == aras3.n
+    assert shares == {"feasible": 0.25, "ball_given_feasible": 0.5}
+
+
+def test_frame_shares_of_a_frame_without_feasible_pose_are_zero(aras3):
+    spy = _Classifier(lambda batch: np.zeros(len(batch), bool),
+                      lambda batch: np.ones(len(batch), bool))
+    shares = frame_shares(aras3, np.random.default_rng(0), count=50, evaluator=spy)
+    assert shares == {"feasible": 0.0, "ball_given_feasible": 0.0}
