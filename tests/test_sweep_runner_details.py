@@ -69,14 +69,17 @@ def test_the_progress_bar_counts_runs_and_hides_when_disabled_or_off_a_terminal(
 
 
 def test_a_sweep_shows_progress_unless_told_not_to(tmp_path, monkeypatch):
-    enabled = []
+    asked = []  # the ``enabled`` of each progress bar the sweep makes
     real = runner.progress_bar
-    monkeypatch.setattr(runner, "progress_bar",
-                        lambda total, *, enabled_=None, **kw: enabled.append(kw["enabled"])
-                        or real(total, enabled=False))
+
+    def recorded(total, *, enabled: bool):
+        asked.append(enabled)
+        return real(total, enabled=False)
+
+    monkeypatch.setattr(runner, "progress_bar", recorded)
     run_sweep(SMALL, tmp_path / "a.csv", workers=1)
     run_sweep(SMALL, tmp_path / "b.csv", workers=1, progress=False)
-    assert enabled == [True, False]
+    assert asked == [True, False]
 
 
 def test_too_little_disk_space_says_what_is_free_and_needed_in_mb(tmp_path, monkeypatch):
