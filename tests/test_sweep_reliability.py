@@ -187,6 +187,18 @@ def test_report_on_an_empty_binary_or_damaged_table_is_one_line(content, tmp_pat
     assert err.startswith("cdpr-sym: error: results:") and err.count("\n") == 1
 
 
+def test_report_refuses_a_table_with_zero_bytes_in_a_cell(reference, tmp_path, capsys):
+    """A resumed sweep repairs such a table; the report must not read a damaged cell."""
+    header, first, *rest = reference.read_text().splitlines(keepends=True)
+    cells = first.split(",")
+    cells[9] = "\0" + cells[9]
+    table = _copy(reference, tmp_path / "rows.csv", "".join([header, ",".join(cells), *rest]))
+    status = main(["report", "sweep", str(table), "--out", str(tmp_path / "report")])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert err == f"cdpr-sym: error: results: {table} is not a CSV text file (binary data)\n"
+
+
 # --- checked before the work -----------------------------------------------------------
 
 
