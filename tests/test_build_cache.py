@@ -15,6 +15,7 @@ import importlib
 import math
 import os
 import shutil
+import subprocess
 import threading
 import time
 from pathlib import Path
@@ -178,8 +179,11 @@ def test_a_hanging_compiler_is_killed_after_the_timeout(tmp_path):
     with pytest.raises(CompilationFailed) as raised:
         _build(cache, compiler=str(hanging), timeout=0.5)
     assert time.monotonic() - started < 5.0
-    first_line = str(raised.value).splitlines()[0]
+    first_line, command_line, advice = str(raised.value).splitlines()
     assert "timed out after 0.5 s" in first_line and str(hanging) in first_line
+    assert command_line.startswith(f"command: {hanging} ")  # the command as typed, spaced
+    assert advice == ("a slow but working compiler needs a larger BuildOptions(timeout=...) "
+                      "(seconds)")
     assert _dies_soon(int(pid_file.read_text())), "the compiler's own child survived"
     assert _leftovers(cache) == [] and list(cache.rglob("*.so")) == []
     assert _build(cache).compiled_now is True  # the real compiler, into the same cache
@@ -316,9 +320,33 @@ def test_a_cache_dir_without_write_permission_is_a_one_line_error(tmp_path):
     _assert_cache_dir_error(raised.value, cache)
 
 
+def test_the_timeout_holds_when_it_is_shorter_than_one_wait_slice(monkeypatch):
+    monkeypatch.setattr(build_module, "_WAIT_SLICE", 20.0)
+    with subprocess.Popen(["sleep", "30"]) as sleeper:
+        started = time.monotonic()
+        with pytest.raises(subprocess.TimeoutExpired):
+            build_module._communicate_in_slices(sleeper, 0.2)
+        waited = time.monotonic() - started
+        sleeper.kill()
+    assert waited < 10.0  # the deadline, not one whole 20 s slice
+
+
 def test_a_program_that_cannot_be_run_is_a_compilation_failure(tmp_path):
-    with pytest.raises(CompilationFailed, match="cannot run"):
-        run_command([str(tmp_path / "no-such-compiler"), "--version"])
+    missing = tmp_path / "no-such-compiler"
+    with pytest.raises(CompilationFailed) as raised:
+        run_command([str(missing), "--version"])
+    # the operating system's reason in words, not Python's "[Errno 2] ..." form
+    assert str(raised.value) == f"cannot run {missing}: No such file or directory"
+
+
+def test_the_default_cache_is_under_the_home_folder_without_xdg_cache_home(
+        tmp_path, monkeypatch):
+    from cdpr_sym.codegen import default_cache_dir
+    monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path))
+    assert default_cache_dir() == tmp_path / ".cache" / "cdpr_sym"
+    monkeypatch.setenv("XDG_CACHE_HOME", "")  # set but empty counts as unset (XDG spec)
+    assert default_cache_dir() == tmp_path / ".cache" / "cdpr_sym"
 
 
 # -- 5. compiler flags are part of the cache key --------------------------------------------

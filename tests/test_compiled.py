@@ -15,12 +15,14 @@ from cdpr_sym import (
     PD,
     BuildOptions,
     CompilerNotFound,
+    InvalidCase,
     Simulator,
     controller_by_name,
     get_simulator,
     preset,
     simulate,
 )
+from cdpr_sym.closed_loop.simulator import controller_identifier
 
 CONTROLLER_NAMES = ["pd", "pd-sat", "l2", "l2-minnorm"]
 
@@ -227,3 +229,34 @@ def test_the_suite_builds_into_its_private_cache(cache_dir, private_cache_home):
 
     assert default_cache_dir() == cache_dir
     assert private_cache_home in default_cache_dir().parents
+
+
+def test_a_virtual_machine_simulator_has_no_compiled_function_to_give(planar2):
+    simulator = Simulator(planar2, PD(), build_options=BuildOptions(backend="casadi"))
+    with pytest.raises(InvalidCase) as raised:
+        simulator.compiled_function("step")
+    assert raised.value.field == "backend"
+    assert str(raised.value).endswith("this simulator runs CasADi's virtual machine; "
+                                      "there is no compiled library")
+
+
+class _Named:
+    """A stand-in with a controller's name and options, for the library naming."""
+
+    def __init__(self, name: str, options: dict) -> None:
+        self.name, self._options = name, options
+
+    def options(self) -> dict:
+        return self._options
+
+
+def test_library_names_say_the_controller_and_tell_its_options_apart():
+    assert controller_identifier(controller_by_name("pd")) == "pd"
+    assert controller_identifier(controller_by_name("pd-sat")) == "pd_sat"
+    paper, min_norm = (controller_identifier(controller_by_name(name))
+                       for name in ("l2", "l2-minnorm"))
+    assert paper.startswith("l2_") and min_norm.startswith("l2_") and paper != min_norm
+    # the options' content names the library, not the order they were listed in
+    assert (controller_identifier(_Named("x", {"a": 1, "b": 2}))
+            == controller_identifier(_Named("x", {"b": 2, "a": 1}))
+            != controller_identifier(_Named("x", {"a": 1, "b": 3})))

@@ -42,3 +42,73 @@ def test_the_initial_memory_says_what_it_holds_and_where_it_goes(header):
 def test_the_control_call_says_what_it_commands(header):
     assert _comment_above(header, "int cdpr_planar2_smooth_control(").startswith(
         "One control step: the tension commanded at the state (q, dq) for the goal q_goal.")
+
+
+def _defines(header: str) -> dict[str, tuple[str, str]]:
+    """Each ``#define CDPR_PLANAR2_SMOOTH_<NAME> <value>`` as NAME -> (value, comment), where
+    the comment is the one on the same line or, failing that, a one-line comment above."""
+    found, above = {}, ""
+    for line in header.splitlines():
+        define = re.match(r"#define CDPR_PLANAR2_SMOOTH_(\w+) (\S+)(?:\s+/\* (.*) \*/)?$", line)
+        if define:
+            name, value, comment = define.groups()
+            found[name] = (value, comment or above)
+        above = line[3:-3] if line.startswith("/* ") and line.endswith(" */") else ""
+    return found
+
+
+def test_the_sizes_and_offsets_are_those_worked_out_by_hand(header):
+    defines = _defines(header)
+    values = {name: value for name, (value, _) in defines.items()}
+    assert {"N": "2", "NJ": "1", "NMEM": "5", "NX": "10", "NP": "9", "NLOG": "6",
+            "T_MIN": "1.0", "T_MAX": "30.0"}.items() <= values.items()
+    assert {"X_Q": "0", "X_DQ": "2", "X_MEMORY": "4", "X_STATUS": "9",
+            "P_GOAL": "0", "P_K": "2", "P_R_D": "4", "P_DT": "6", "P_MASS_SCALE": "7",
+            "P_SLACK": "8",
+            "LOG_TAU": "0", "LOG_ALPHA": "2", "LOG_BETA": "3", "LOG_J": "4",
+            "LOG_FLAGS": "5"}.items() <= values.items()
+    assert {"STATUS_SINGULAR": "1", "STATUS_NON_FINITE": "2",
+            "STATUS_LEFT_FRAME": "3"}.items() <= values.items()
+    assert {"CONTROL_OK": "0", "CONTROL_NULL_ARGUMENT": "(-1)", "CONTROL_INVALID_INPUT": "1",
+            "CONTROL_INVALID_OUTPUT": "2"}.items() <= values.items()
+
+
+def test_every_size_and_flag_says_what_it_holds(header):
+    defines = _defines(header)
+    comments = {name: comment for name, (_, comment) in defines.items()}
+    assert comments["NX"] == "step state x = [q, dq, memory, status]"
+    assert comments["NP"] == "step parameters p, see CDPR_PLANAR2_SMOOTH_P_*"
+    assert comments["NLOG"] == "step log = [tau, alpha, beta, j, flags]"
+    assert comments["NJ"] == "free entries of J_d, n(n-1)/2"
+    assert comments["T_MIN"] == "tension bounds, N"
+    flags = {name: value for name, (value, _) in defines.items() if name.startswith("FLAG_")}
+    assert sorted(int(value) for value in flags.values()) == [1 << bit for bit in range(8)]
+    for name in flags:
+        assert comments[name] and comments[name] != name.lower(), name
+    assert "an input is NaN or infinite" in comments["FLAG_INVALID_INPUT"]
+    assert "the law gave NaN or infinity" in comments["FLAG_INVALID_OUTPUT"]
+
+
+def test_the_parameters_function_is_declared_as_documented(header):
+    declaration = header[header.index("void cdpr_planar2_smooth_parameters("):]
+    declaration = re.sub(r"\s+", " ", declaration[: declaration.index(";")])
+    assert declaration == ("void cdpr_planar2_smooth_parameters(const double q_goal[2], "
+                           "const double k[2], const double r_d[2], double dt, "
+                           "double mass_scale, int slack, double p[9])")
+
+
+def test_the_control_call_refuses_exactly_its_required_null_pointers(header):
+    comment = _comment_above(header, "int cdpr_planar2_smooth_control(")
+    assert ("CDPR_PLANAR2_SMOOTH_CONTROL_NULL_ARGUMENT (-1) if q, dq, q_goal, memory, tau, "
+            "memory_next or work is NULL") in comment
+    assert "k[2] stiffness gains K (diagonal), N/m, N m/rad; NULL: the robot's case gains" \
+        in comment
+
+
+def test_every_argument_of_a_model_function_has_its_own_words(header):
+    # an argument without its own entry would repeat the function's one-line summary
+    for function in re.finditer(r"/\* (.+?)\.\n \* \d+ straight-line operations(.*?)\*/",
+                                header, re.S):
+        summary, arguments = function.group(1), function.group(2)
+        for line in re.findall(r" \* in  (\w+)\[\d+\]: (.*)", arguments):
+            assert not line[1].startswith(summary), (summary, line[0])

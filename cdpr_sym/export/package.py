@@ -84,6 +84,7 @@ _ARGUMENT_DOCS = {
     "r_d": "damping gains R_d (diagonal), N s/m (N m s/rad)",
     "tau": "cable tensions, N (> 0 pulls)",
     "j": "free entries of J_d (row-major strict upper triangle), N s/m (N m s/rad)",
+    "alpha": "scale on the PD part, eq. (24), 0 < alpha <= 1",
     "q0": "start position of the move, m (rad)",
     "memory": "the controller's internal state at the start of the move (NMEM doubles)",
     "x": "state [q (m, rad), dq (m/s, rad/s), memory, status] (X_* offsets; status 0 "
