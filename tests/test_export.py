@@ -545,3 +545,49 @@ def test_default_prefix_names_the_registered_controller(tmp_path):
     first = export_c("planar2", "l2", tmp_path / "a")
     second = export_c("planar2", "l2-minnorm", tmp_path / "b")
     assert first.prefix == "cdpr_planar2_l2" and second.prefix == "cdpr_planar2_l2_minnorm"
+
+
+def test_an_export_goes_into_a_new_folder_below_new_folders(tmp_path):
+    nested = tmp_path / "a" / "b" / "pkg"
+    result = export_c("planar2", "pd", nested)
+    assert result.header.parent == nested and result.header.exists()
+
+
+def test_the_manifest_records_the_robot_exported(tmp_path):
+    import json
+
+    result = export_c("planar2", "pd", tmp_path / "pkg")
+    manifest = json.loads(result.manifest.read_text())
+    assert manifest["robot"] == preset("planar2").as_dict()
+    assert manifest["controller"] == {"name": "pd", "options": {}}
+    assert manifest["prefix"] == "cdpr_planar2_pd"
+
+
+def test_an_export_from_before_the_generator_entry_is_known_by_its_other_entries(tmp_path):
+    import json
+
+    older = {"prefix": "p", "robot": {}, "controller": "pd", "casadi_version": "3.6",
+             "sha256": {}}
+    folder = tmp_path / "older"
+    folder.mkdir()
+    (folder / "p.h").write_text("/* an older package */")
+    (folder / "manifest.json").write_text(json.dumps(older))
+    assert export_c("planar2", "pd", folder).header.exists()  # re-exported without force
+    for missing in older:
+        folder = tmp_path / f"without_{missing}"
+        folder.mkdir()
+        (folder / "p.h").write_text("/* not known as a package */")
+        (folder / "manifest.json").write_text(
+            json.dumps({key: value for key, value in older.items() if key != missing}))
+        with pytest.raises(InvalidCase, match="out_dir"):
+            export_c("planar2", "pd", folder)
+
+
+def test_a_refused_prefix_is_shown_whole_unless_it_is_long():
+    from cdpr_sym.export.package import prefix_problem
+
+    assert prefix_problem("a__b").endswith("got 'a__b'")
+    assert prefix_problem("p" * 300).endswith(f"got {'p' * 40!r}... (300 characters)")
+    assert prefix_problem("main").endswith("the example program's file main.c")
+    assert prefix_problem("Main").endswith("file main.c (where file names ignore case)")
+    assert prefix_problem("Stdio").endswith("on its include path (where file names ignore case)")

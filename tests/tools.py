@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 #: Flags every exported C file must compile cleanly under.
-STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-O2")
+STRICT = ("-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-O2")
 #: The test harness program built against an exported package (see its header comment).
 HARNESS = Path(__file__).parent / "export_harness" / "harness.c"
 
