@@ -106,7 +106,7 @@ def test_classification_of_any_count_matches_one_by_one(robot, evaluator, rng, c
 
 
 def test_casadi_backend_classifies_like_the_generated_c(robot, evaluator, rng, cache_dir):
-    points = _uniform_in_frame(robot, rng, 3000)
+    points = _uniform_in_frame(robot, rng, 2 * BLOCK + 5)  # three blocks, the last one short
     virtual = WorkspaceEvaluator(robot, build_options=BuildOptions(backend="casadi",
                                                                    cache_dir=cache_dir))
     native, vm = evaluator.classify(points), virtual.classify(points)
@@ -120,6 +120,20 @@ def test_classify_refuses_points_of_the_wrong_shape(evaluator, shape):
     with pytest.raises(InvalidCase) as raised:
         evaluator.classify(np.zeros(shape))
     assert raised.value.field == "points"
+    assert str(raised.value).endswith(f"expected shape (N, {evaluator.robot.n}), got {shape}")
+
+
+def test_the_interior_box_is_the_frame_shrunk_by_the_margin_on_every_side(planar2):
+    size = planar2.frame_upper - planar2.frame_lower
+    low, high = interior_box(planar2, 0.1)
+    np.testing.assert_allclose(high - low, 0.8 * size, rtol=1e-12)
+    np.testing.assert_allclose(low - planar2.frame_lower, 0.1 * size, rtol=1e-12)
+    np.testing.assert_allclose(planar2.frame_upper - high, 0.1 * size, rtol=1e-12)
+
+
+def test_the_classifier_is_built_with_the_options_given(planar2, tmp_path):
+    WorkspaceEvaluator(planar2, build_options=BuildOptions(backend="c", cache_dir=tmp_path))
+    assert list(tmp_path.rglob("*workspace_planar2*.so")), "built somewhere else"
 
 
 def test_sampled_poses_are_feasible_and_inside_the_margin(robot, evaluator, rng):
