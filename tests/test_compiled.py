@@ -16,6 +16,7 @@ from cdpr_sym import (
     BuildOptions,
     CompilerNotFound,
     InvalidCase,
+    Plant,
     Simulator,
     controller_by_name,
     get_simulator,
@@ -260,3 +261,21 @@ def test_library_names_say_the_controller_and_tell_its_options_apart():
     assert (controller_identifier(_Named("x", {"a": 1, "b": 2}))
             == controller_identifier(_Named("x", {"b": 2, "a": 1}))
             != controller_identifier(_Named("x", {"a": 1, "b": 3})))
+
+
+def test_a_simulator_without_a_rate_limit_refuses_a_rate_limited_plant(planar2, build_options):
+    simulator = get_simulator(planar2, PD(), build_options=build_options)
+    with pytest.raises(InvalidCase) as raised:
+        simulator.run(planar2.start, planar2.goal, planar2.k, planar2.r_d, duration=0.01,
+                      dt=1e-3, plant=Plant(rate_limit=600.0))
+    assert raised.value.field == "plant"
+    assert str(raised.value).endswith("a rate-limited plant needs a simulator built with "
+                                      "rate_limited=True (simulate() chooses it)")
+
+
+def test_a_compiled_library_is_named_after_robot_and_controller(planar2, build_options):
+    simulator = get_simulator(planar2, PD(), build_options=build_options)
+    assert simulator.library.path.name.startswith("cdpr_planar2_pd")
+    run = simulator.run(planar2.start, planar2.goal, planar2.k, planar2.r_d, duration=0.01,
+                        dt=1e-3, plant=Plant())
+    assert run.info["integrator"] == "rk4-sampled" and run.info["backend"] == "c"

@@ -8,6 +8,7 @@ the control law of :func:`cdpr_sym.control.law_function`, the model terms of
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import os
 import re
 from concurrent.futures import ThreadPoolExecutor
@@ -560,7 +561,12 @@ def test_the_manifest_records_the_robot_exported(tmp_path):
     manifest = json.loads(result.manifest.read_text())
     assert manifest["robot"] == preset("planar2").as_dict()
     assert manifest["controller"] == {"name": "pd", "options": {}}
-    assert manifest["prefix"] == "cdpr_planar2_pd"
+    assert manifest["prefix"] == "cdpr_planar2_pd" and manifest["casadi_version"] == ca.__version__
+    # every file written but the manifest, with the hash of what is on disk
+    written = sorted(path.name for path in result.out_dir.iterdir() if path.name != "manifest.json")
+    assert sorted(manifest["sha256"]) == written
+    for name, digest in manifest["sha256"].items():
+        assert hashlib.sha256((result.out_dir / name).read_bytes()).hexdigest() == digest, name
 
 
 def test_an_export_from_before_the_generator_entry_is_known_by_its_other_entries(tmp_path):
