@@ -31,6 +31,7 @@ from cdpr_sym import (
     simulate,
 )
 from cdpr_sym.cli import main
+from cdpr_sym.codegen import run_command
 from cdpr_sym.control import CONTROLLERS, FLAG_NAMES, initial_memory_function, law_function
 from cdpr_sym.export import REQUIRED_MODEL_TERMS, ExportResult, bench_export, export_c
 from cdpr_sym.robot import PRESET_NAMES
@@ -457,6 +458,24 @@ def test_export_is_deterministic(tmp_path):
 
 def test_bench_export_measures_calls_per_second():
     assert bench_export("planar2", "pd", min_seconds=0.03) > 1e4
+
+
+def test_the_bench_of_a_planning_controller_times_code_built_with_o2(monkeypatch):
+    from cdpr_sym.export import package
+
+    commands = []
+
+    def recording(command, **options):
+        commands.append([str(part) for part in command])
+        return run_command(command, **options)
+
+    monkeypatch.setattr(package, "run_command", recording)
+    assert bench_export("planar2", "smooth", min_seconds=0.03) > 1e3
+    *compiles, timing = commands
+    assert len(timing) == 1 and timing[0].endswith("bench")  # the program, run once
+    timed = next(c for c in compiles if any(part.endswith("bench.c") for part in c))
+    assert [part for part in timed if part.startswith("-O")] == ["-O2"]
+    assert any(part.endswith("cdpr_bench.c") for part in timed)  # the control step's source
 
 
 # -- bad input -------------------------------------------------------------------------------
