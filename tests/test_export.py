@@ -279,16 +279,19 @@ def test_exported_law_matches_python_law_on_random_and_resting_states(
     assert len(np.unique(python["flags"])) >= 3  # several branches of the law were exercised
 
 
+@pytest.mark.parametrize("robot_name", ["aras3", "planar2"])  # 3 x 3 and 2 x 2 matrices
 def test_exported_model_terms_match_symbolic_model_row_major(
-        package, aras3, rng, random_states, tmp_path):
-    built = package("aras3", "l2")
-    states = _states(aras3, "l2", rng, random_states, 200)
-    c_out = _split(_run_harness(built, states, tmp_path), aras3.n, aras3.n_j)
+        package, robot_name, request, rng, random_states, tmp_path):
+    robot = request.getfixturevalue(robot_name)
+    n = robot.n
+    built = package(robot_name, "l2")
+    states = _states(robot, "l2", rng, random_states, 200)
+    c_out = _split(_run_harness(built, states, tmp_path), n, robot.n_j)
     for name in REQUIRED_MODEL_TERMS:
-        python = _python_model_term(aras3, name, states)
+        python = _python_model_term(robot, name, states)
         assert _relative_error(c_out[name], python) <= TOLERANCE, name
-    W = c_out["structure_matrix"].reshape(-1, 3, 3)  # row-major: column i points to anchor i
-    towards = (aras3.anchors[0] - states[:, :3])
+    W = c_out["structure_matrix"].reshape(-1, n, n)  # row-major: column i points to anchor i
+    towards = (robot.anchors[0] - states[:, :n])
     np.testing.assert_allclose(W[:, :, 0] * np.linalg.norm(towards, axis=1)[:, None], towards,
                                rtol=1e-12, atol=1e-12)
 
