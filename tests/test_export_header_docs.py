@@ -112,3 +112,13 @@ def test_every_argument_of_a_model_function_has_its_own_words(header):
         summary, arguments = function.group(1), function.group(2)
         for line in re.findall(r" \* in  (\w+)\[\d+\]: (.*)", arguments):
             assert not line[1].startswith(summary), (summary, line[0])
+
+
+def test_matrices_and_only_matrices_are_documented_as_row_major(header):
+    comment = _comment_above(header, "int cdpr_planar2_smooth_structure_matrix(")
+    assert comment.endswith("out W[4]: structure matrix W = -(dl/dq)^T (point mass: unit "
+                            "vectors), - (2 x 2, row-major)")
+    for vector_function in ("cable_lengths", "grad_potential", "static_tension", "p_matrix",
+                            "a_matrix"):
+        comment = _comment_above(header, f"int cdpr_planar2_smooth_{vector_function}(")
+        assert "row-major" not in comment and " x " not in comment, vector_function
