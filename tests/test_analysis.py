@@ -58,3 +58,22 @@ def test_fast_path_agrees_with_cvxpy_on_a_few_states(aras3, aras3_model, rng, ra
     shifted = fast_path_agreement(aras3_model, design, q, dq, aras3.goal, aras3.k,
                                   aras3.r_d, tau + 0.5)
     assert shifted["max_tau_gap_N"] > 0.4  # it measures the given tensions
+
+
+def test_construction_gap_is_the_largest_tension_difference_state_by_state(spatial6, rng,
+                                                                           random_states):
+    """On the 6-cable platform the paper's normal equations lose digits (its docstring):
+    the gap is visible, and must be that of the two laws evaluated one state at a time."""
+    from cdpr_sym.control import L2Design
+    from cdpr_sym.model import SymbolicModel
+
+    model = SymbolicModel(spatial6)
+    q, dq = random_states(spatial6, rng, 40)
+    goal = [float(value) for value in spatial6.goal]  # a list: any array-like goal
+    gap = construction_gap(model, q, dq, goal, spatial6.k, spatial6.r_d)
+    laws = [law_function(model, L2Design(construction=c)) for c in ("paper", "min_norm")]
+    one_by_one = [np.abs(np.array(laws[0](q[i], dq[i], goal, spatial6.k, spatial6.r_d, [], 0.0)[0])
+                         - np.array(laws[1](q[i], dq[i], goal, spatial6.k, spatial6.r_d, [],
+                                            0.0)[0])).max() for i in range(len(q))]
+    np.testing.assert_allclose(gap.gaps, one_by_one, rtol=0, atol=1e-12)
+    assert gap.gaps.max() > 1e-6  # the comparison is not between zeros

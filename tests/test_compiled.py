@@ -279,3 +279,22 @@ def test_a_compiled_library_is_named_after_robot_and_controller(planar2, build_o
     run = simulator.run(planar2.start, planar2.goal, planar2.k, planar2.r_d, duration=0.01,
                         dt=1e-3, plant=Plant())
     assert run.info["integrator"] == "rk4-sampled" and run.info["backend"] == "c"
+
+
+def test_a_compiled_rollout_allocates_exactly_the_steps_asked_for(planar2, build_options):
+    simulator = get_simulator(planar2, PD(), build_options=build_options)
+    x0 = simulator.initial_state(planar2.start, planar2.goal, planar2.k, planar2.r_d)
+    p = simulator.layout.parameters(planar2.goal, planar2.k, planar2.r_d, 1e-3)
+    states, logs = simulator.rollout(x0, p, 7)
+    assert states.shape == (8, simulator.layout.x.size)
+    assert logs.shape == (7, simulator.layout.log.size)
+
+
+def test_a_run_records_the_gains_time_step_and_units_it_was_given(planar2, build_options):
+    simulator = get_simulator(planar2, PD(), build_options=build_options)
+    k, r_d = 1.5 * np.asarray(planar2.k), 0.5 * np.asarray(planar2.r_d)
+    run = simulator.run(planar2.start, planar2.goal, k, r_d, duration=0.01, dt=2e-3,
+                        plant=Plant())
+    assert run.info["k"] == k.tolist() and run.info["r_d"] == r_d.tolist()
+    assert run.info["dt"] == 2e-3
+    assert run.info["units"] == list(planar2.coordinate_units)

@@ -106,7 +106,9 @@ def test_simulator_run_counts_its_own_layout_against_the_budget(monkeypatch, ara
     from cdpr_sym.closed_loop.case import minimal_values_per_step
 
     simulator = get_simulator(aras3, controller_by_name("l2"), build_options=build_options)
-    assert simulator.values_per_step >= minimal_values_per_step(aras3)
+    # a stateless law on aras3: x = q, dq, status (7) and log = tau, alpha, beta, j, flags
+    # (3 + 1 + 1 + 3 + 1): 16 values, the fewest any controller stores
+    assert simulator.values_per_step == minimal_values_per_step(aras3) == 16
     # 100 s at 1 kHz is 100,000 steps: over a 1 MiB budget, refused before allocating
     monkeypatch.setattr(case_module, "TRAJECTORY_BUDGET_BYTES", 1 << 20)
     with pytest.raises(InvalidCase, match="limit is 1 MiB") as refused:

@@ -133,7 +133,9 @@ class Simulator:
                 ) -> tuple[np.ndarray, np.ndarray]:
         """States (n_steps + 1, x size) and logs (n_steps, log size) from ``x0`` with ``p``.
 
-        Rows after a stop repeat the frozen state (compiled backend: left as zeros).
+        Rows after a stop repeat the frozen state (compiled backend: left as zeros). The
+        virtual machine runs whole chunks, so its arrays are padded to a multiple of
+        ``chunk`` steps; read the first n_steps (+ 1) rows.
         """
         padded = n_steps if self.backend == "c" else -(-n_steps // self.chunk) * self.chunk
         states = np.zeros((padded + 1, self.layout.x.size))
