@@ -239,8 +239,17 @@ def test_fast_path_matches_cvxpy_clarabel_model(robot_and_model, name, rng, rand
             np.testing.assert_allclose(fast.tau, expected, rtol=0, atol=1e-9)
             np.testing.assert_allclose(reference.tau, expected, rtol=0, atol=1e-9)
             assert fast.alpha == reference.alpha == 1.0
+            assert np.isnan(reference.beta) and not reference.j.any()
             continue
         assert fast.alpha == pytest.approx(reference.alpha, rel=0, abs=1e-9), (kind, q, dq)
+        # the reference's J_d entries give the tension change it commands: A j = tau_3
+        _, tau_1, tau_2 = _parts(robot, q, dq, goal)
+        tau_3 = reference.tau - tau_1 - reference.alpha * tau_2
+        if kind in ("rest", "creeping"):
+            assert not reference.j.any() and np.max(np.abs(tau_3)) < 1e-9
+        else:
+            A = _unit_a(robot, q, dq) * np.linalg.norm(dq)
+            np.testing.assert_allclose(A @ reference.j, tau_3, rtol=0, atol=1e-7)
         gap = float(np.max(np.abs(fast.tau - reference.tau)))
         allowance = abs(fast.alpha - reference.alpha) * _alpha_sensitivity(robot, q, dq, goal)
         if gap > 1e-6 + allowance:

@@ -210,3 +210,10 @@ def test_smooth_commands_carry_alpha_one_and_no_interconnection(aras3, aras3_mod
     out = tension(aras3_model, design, aras3.start + 0.02, np.full(3, 0.1), aras3.goal)
     assert out.alpha == 1.0
     np.testing.assert_array_equal(out.j, np.zeros(aras3.n_j))
+
+
+@pytest.mark.parametrize("design", [SmoothReference(), VirtualReferenceIdaPbc()])
+def test_the_planned_designs_never_scale_a_pd_part(aras3, design):
+    """alpha is the l2 design's scale on tau_2; a planned design has none, and logs 1."""
+    run = simulate(aras3, design, duration=0.3, dt=1e-3)
+    assert len(run.alpha) == 300 and np.all(run.alpha == 1.0)  # one per control step
