@@ -122,3 +122,16 @@ def test_matrices_and_only_matrices_are_documented_as_row_major(header):
                             "a_matrix"):
         comment = _comment_above(header, f"int cdpr_planar2_smooth_{vector_function}(")
         assert "row-major" not in comment and " x " not in comment, vector_function
+
+
+def test_the_header_bounds_the_real_time_functions_by_their_own_operation_counts(tmp_path):
+    import json
+
+    result = export_c("planar2", "smooth", tmp_path / "pkg")
+    functions = json.loads(result.manifest.read_text())["functions"]
+    bound = max(functions["control"]["operations"], functions["step"]["operations"])
+    assert functions["initial_memory"]["operations"] > bound  # the planner is not bounded
+    text = re.sub(r"\s*\n \*\s*", " ", result.header.read_text())
+    assert f"(control and step: at most {bound} operations;" in text
+    # the package's symbols take the visibility its user builds with, not CasADi's export
+    assert "CASADI_SYMBOL_EXPORT" not in result.generated.read_text()
