@@ -288,6 +288,9 @@ def test_a_compiled_rollout_allocates_exactly_the_steps_asked_for(planar2, build
     states, logs = simulator.rollout(x0, p, 7)
     assert states.shape == (8, simulator.layout.x.size)
     assert logs.shape == (7, simulator.layout.log.size)
+    states, logs = simulator.rollout(x0, p, 0)  # no step: the start alone, no error
+    np.testing.assert_array_equal(states, x0[None])
+    assert logs.shape == (0, simulator.layout.log.size)
 
 
 def test_a_run_records_the_gains_time_step_and_units_it_was_given(planar2, build_options):

@@ -374,3 +374,21 @@ def test_the_documented_robot_file_cap():
 def test_presets_still_load():
     for name in ("aras3", "planar2", "planar3", "spatial6"):
         assert preset(name).name == name
+
+
+def test_the_trajectory_budget_is_half_the_memory_of_a_small_machine(monkeypatch):
+    from cdpr_sym.closed_loop.case import trajectory_budget
+
+    reported = {"SC_PAGE_SIZE": 4096, "SC_PHYS_PAGES": 1000}
+
+    def sysconf(name):
+        if name not in reported:
+            raise ValueError(f"unknown sysconf name {name}")
+        return reported[name]
+
+    monkeypatch.setattr(case_module.os, "sysconf", sysconf)
+    assert trajectory_budget() == 4096 * 1000 // 2
+    reported["SC_PHYS_PAGES"] = 1 << 40  # a large machine: the fixed budget
+    assert trajectory_budget() == case_module.TRAJECTORY_BUDGET_BYTES
+    reported.clear()  # not reported at all
+    assert trajectory_budget() == case_module.TRAJECTORY_BUDGET_BYTES
