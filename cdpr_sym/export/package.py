@@ -558,7 +558,7 @@ def _description(robot: Robot, controller: Controller, prefix: str, entries: lis
             _Macro("T_MIN", robot.t_min, "tension bounds, N"), _Macro("T_MAX", robot.t_max)],
         "layout": [*_offsets("X", layout.x, keep=("memory",)), *_offsets("P", layout.p),
                    *_offsets("LOG", layout.log, keep=layout.log.names)],
-        "flags": [_Macro(name.upper(), bit, _FLAG_DOCS[name])
+        "flags": [_Macro(name.upper(), bit, _FLAG_DOCS.get(name, name))
                   for bit, name in sorted(FLAG_NAMES.items())],
         "c_flags": [_Macro(name.upper(), bit, _C_FLAG_DOCS[name])
                     for name, bit in C_FLAGS.items()],
