@@ -69,3 +69,14 @@ def test_an_unknown_backend_is_refused_naming_it():
         BuildOptions(backend="gpu")
     assert raised.value.field == "backend"
     assert str(raised.value).endswith("got 'gpu'")
+
+
+@pytest.mark.parametrize("low_speed", [1e-6, 0.25])  # 0.25 = 2^-2: |dq| is exactly it
+def test_the_fallback_acts_below_the_threshold_not_at_it(aras3, aras3_model, low_speed):
+    design = L2Design(low_speed=low_speed)
+    q = aras3.goal + np.array([0.05, -0.03, 0.02])
+    at = np.array([low_speed, 0.0, 0.0])  # ||dq|| = low_speed exactly
+    assert np.linalg.norm(at) == low_speed
+    assert not tension(aras3_model, design, q, at, aras3.goal).flags & FLAG_LOW_SPEED
+    below = np.array([np.nextafter(low_speed, 0.0), 0.0, 0.0])
+    assert tension(aras3_model, design, q, below, aras3.goal).flags & FLAG_LOW_SPEED
