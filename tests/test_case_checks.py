@@ -62,3 +62,13 @@ def test_sizes_below_one_gib_are_in_mib(monkeypatch):
     # budget 512 MiB = 2**29 bytes; one byte short of a GiB is 1023.99... MiB
     assert "the limit is 512 MiB" in str(_refusal(monkeypatch, 1 << 29))
     assert "the limit is 1.02e+03 MiB" in str(_refusal(monkeypatch, (1 << 30) - 8))
+
+
+def test_a_run_half_a_step_over_the_limit_is_refused(monkeypatch):
+    # a budget of 11 steps (11 x 8 bytes at one value per step); 11.5 steps would round to 12
+    monkeypatch.setattr(case_module, "trajectory_budget", lambda: 11 * 8)
+    assert case_module.check_timing(11.0, 1.0, values_per_step=1) == 11
+    assert case_module.check_timing(11.25, 1.0, values_per_step=1) == 11
+    with pytest.raises(InvalidCase) as refused:
+        case_module.check_timing(11.5, 1.0, values_per_step=1)
+    assert refused.value.field == "duration"
