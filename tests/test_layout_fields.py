@@ -17,6 +17,8 @@ def test_fields_are_packed_in_their_order_as_floats():
     packed = fields.pack({"c": 7, "a": [1, 2], "b": []})
     assert packed.dtype == np.float64
     np.testing.assert_array_equal(packed, [1.0, 2.0, 7.0])
+    # whole numbers alone still give the float64 vector the generated code reads
+    assert Fields((("a", 2),)).pack({"a": [1, 2]}).dtype == np.float64
 
 
 def test_no_fields_pack_to_an_empty_vector():
