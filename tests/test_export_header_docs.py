@@ -110,8 +110,9 @@ def test_every_argument_of_a_model_function_has_its_own_words(header):
     for function in re.finditer(r"/\* (.+?)\.\n \* \d+ straight-line operations(.*?)\*/",
                                 header, re.S):
         summary, arguments = function.group(1), function.group(2)
-        for line in re.findall(r" \* in  (\w+)\[\d+\]: (.*)", arguments):
-            assert not line[1].startswith(summary), (summary, line[0])
+        for name, words in re.findall(r" \* in  (\w+)\[\d+\]: (.*)", arguments):
+            assert not words.startswith(summary), (summary, name)
+            assert words.strip() not in ("", "None"), (summary, name)  # no missing entry
 
 
 def test_matrices_and_only_matrices_are_documented_as_row_major(header):
