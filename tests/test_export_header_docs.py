@@ -107,8 +107,12 @@ def test_the_control_call_refuses_exactly_its_required_null_pointers(header):
 
 def test_every_argument_of_a_model_function_has_its_own_words(header):
     # an argument without its own entry would repeat the function's one-line summary
-    for function in re.finditer(r"/\* (.+?)\.\n \* \d+ straight-line operations(.*?)\*/",
-                                header, re.S):
+    functions = list(re.finditer(r"/\* (.+?)\.\n \* \d+ straight-line operations(.*?)\*/",
+                                 header, re.S))
+    # every generated function but _control states its operation count: step, the planner
+    # and the 17 model terms
+    assert len(functions) == 19
+    for function in functions:
         summary, arguments = function.group(1), function.group(2)
         for name, words in re.findall(r" \* in  (\w+)\[\d+\]: (.*)", arguments):
             assert not words.startswith(summary), (summary, name)
