@@ -5,6 +5,9 @@
 #   bash dev/mutation.sh 'cdpr_sym.sweep.*'    # the mutants of some modules only
 #   MUTATION_SAMPLE=5 bash dev/mutation.sh     # a random one in 5 of each module (hours too)
 #
+# After writing a test for a survivor, re-check it against that test alone (kills only):
+#   .venv-mutation/bin/python dev/mutation_recheck.py --tests "tests/test_x.py -k y" NAME...
+#
 # Run it before a release and whenever a core module changes much; results accumulate in
 # mutants/ (only changed functions are tested again) and the report is rewritten at the end:
 # reports/mutation/report.md. Set MUTATION_JOBS to the number of parallel mutants (default 2).

@@ -129,6 +129,10 @@ def render(rows, survivors, totals, equivalent, unmeasured, codes) -> str:
         "at least 40, drawn by a hash of the name). The interval is the 95 % Wilson interval",
         "of the module's score read as an estimate from its checked mutants.",
         "",
+        "A survivor that got a test of its own may be re-checked against that test alone",
+        "(`dev/mutation_recheck.py`): a kill by some of the tests is a kill by the suite, so",
+        "only kills are recorded that way.",
+        "",
         f"**Overall: {detected} of {checked} checked mutants detected"
         + (f" ({detected / checked:.1%})" if checked else "")
         + f"; {unchecked} mutants not yet checked; {totals['equivalent']} equivalent; "
