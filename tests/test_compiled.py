@@ -301,3 +301,4 @@ def test_a_run_records_the_gains_time_step_and_units_it_was_given(planar2, build
     assert run.info["k"] == k.tolist() and run.info["r_d"] == r_d.tolist()
     assert run.info["dt"] == 2e-3
     assert run.info["units"] == list(planar2.coordinate_units)
+    assert run.info["controller"] == "pd" and run.info["controller_options"] == {}
