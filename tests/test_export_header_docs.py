@@ -114,6 +114,7 @@ def test_every_argument_of_a_model_function_has_its_own_words(header):
     assert len(functions) == 19
     for function in functions:
         summary, arguments = function.group(1), function.group(2)
+        summary = re.sub(r"\s*\n \*\s*", " ", summary)[:40]  # its opening words, one line
         for name, words in re.findall(r" \* in  (\w+)\[\d+\]: (.*)", arguments):
             assert not words.startswith(summary), (summary, name)
             assert words.strip() not in ("", "None"), (summary, name)  # no missing entry
@@ -140,3 +141,11 @@ def test_the_header_bounds_the_real_time_functions_by_their_own_operation_counts
     assert f"(control and step: at most {bound} operations;" in text
     # the package's symbols take the visibility its user builds with, not CasADi's export
     assert "CASADI_SYMBOL_EXPORT" not in result.generated.read_text()
+
+
+def test_the_planner_is_declared_with_the_argument_names_it_documents(header):
+    declaration = header[header.index("int cdpr_planar2_smooth_initial_memory("):]
+    declaration = re.sub(r"\s+", " ", declaration[: declaration.index(";")])
+    assert declaration == ("int cdpr_planar2_smooth_initial_memory(const double q0[2], "
+                           "const double q_goal[2], const double k[2], const double r_d[2], "
+                           "double memory[5], cdpr_planar2_smooth_work *work)")
