@@ -89,9 +89,14 @@ def test_every_size_and_flag_says_what_it_holds(header):
     assert "the law gave NaN or infinity" in comments["FLAG_INVALID_OUTPUT"]
 
 
+def _declaration(header: str, start: str) -> str:
+    """The declaration in ``header`` that begins with ``start``, on one line."""
+    declaration = header[header.index(start):]
+    return re.sub(r"\s+", " ", declaration[: declaration.index(";")])
+
+
 def test_the_parameters_function_is_declared_as_documented(header):
-    declaration = header[header.index("void cdpr_planar2_smooth_parameters("):]
-    declaration = re.sub(r"\s+", " ", declaration[: declaration.index(";")])
+    declaration = _declaration(header, "void cdpr_planar2_smooth_parameters(")
     assert declaration == ("void cdpr_planar2_smooth_parameters(const double q_goal[2], "
                            "const double k[2], const double r_d[2], double dt, "
                            "double mass_scale, int slack, double p[9])")
@@ -144,8 +149,7 @@ def test_the_header_bounds_the_real_time_functions_by_their_own_operation_counts
 
 
 def test_the_planner_is_declared_with_the_argument_names_it_documents(header):
-    declaration = header[header.index("int cdpr_planar2_smooth_initial_memory("):]
-    declaration = re.sub(r"\s+", " ", declaration[: declaration.index(";")])
+    declaration = _declaration(header, "int cdpr_planar2_smooth_initial_memory(")
     assert declaration == ("int cdpr_planar2_smooth_initial_memory(const double q0[2], "
                            "const double q_goal[2], const double k[2], const double r_d[2], "
                            "double memory[5], cdpr_planar2_smooth_work *work)")
