@@ -106,24 +106,29 @@ def run_command(command: Sequence[str], *, timeout: float | None = None) -> str:
     group is killed, so no compiler pass outlives the call.
     """
     command = [str(part) for part in command]
+    process: subprocess.Popen | None = None
+    # one try from the start: an interruption right after the program started (before a
+    # narrower try was entered) would otherwise leave its process group running
     try:
         process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                    text=True, errors="replace", **_own_process_group())
-    except OSError as error:
-        raise CompilationFailed(f"cannot run {command[0]}: {error.strerror or error}") from None
-    with process:
-        try:
-            stdout, stderr = _communicate_in_slices(process, timeout)
-        except subprocess.TimeoutExpired:
-            _kill_group(process)
+        stdout, stderr = _communicate_in_slices(process, timeout)
+    except BaseException as error:
+        if process is None:
+            if isinstance(error, OSError):
+                raise CompilationFailed(
+                    f"cannot run {command[0]}: {error.strerror or error}") from None
+            raise
+        _kill_group(process)
+        for pipe in (process.stdout, process.stderr):
+            pipe.close()
+        if isinstance(error, subprocess.TimeoutExpired):
             raise CompilationFailed(
                 f"{command[0]} timed out after {timeout:g} s and was stopped\n"
                 f"command: {' '.join(command)}\n"
                 "a slow but working compiler needs a larger BuildOptions(timeout=...) "
                 "(seconds)") from None
-        except BaseException:
-            _kill_group(process)
-            raise
+        raise
     if process.returncode != 0:
         raise CompilationFailed(
             f"{' '.join(command)} failed with exit code {process.returncode}:\n"
