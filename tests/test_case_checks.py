@@ -72,3 +72,20 @@ def test_a_run_half_a_step_over_the_limit_is_refused(monkeypatch):
     with pytest.raises(InvalidCase) as refused:
         case_module.check_timing(11.5, 1.0, values_per_step=1)
     assert refused.value.field == "duration"
+
+
+def test_a_goal_outside_the_static_workspace_shows_the_tension_it_needs(aras3):
+    import re
+
+    import numpy as np
+    import reference as ref
+
+    goal = np.array([0.0, 0.0, 0.3])
+    needed = ref.static_tension(goal, aras3.anchors, aras3.mass, aras3.gravity)
+    with pytest.raises(InvalidCase) as raised:
+        case_module.Case.of(aras3, goal=goal)
+    assert raised.value.field == "goal"
+    shown = re.search(r"needing \[(.*)\] N$", str(raised.value)).group(1).split(", ")
+    np.testing.assert_allclose([float(value) for value in shown], needed, atol=5e-4)
+    assert all(len(value.split(".")[1]) <= 3 for value in shown)  # N to three decimals
+    assert any(len(value.split(".")[1]) == 3 for value in shown)

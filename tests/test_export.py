@@ -619,3 +619,13 @@ def test_a_refused_prefix_is_shown_whole_unless_it_is_long():
     assert prefix_problem("main").endswith("the example program's file main.c")
     assert prefix_problem("Main").endswith("file main.c (where file names ignore case)")
     assert prefix_problem("Stdio").endswith("on its include path (where file names ignore case)")
+
+
+def test_the_result_names_every_file_written(tmp_path):
+    planned = export_c("planar2", "smooth", tmp_path / "planned")
+    assert planned.plan_source.name == "cdpr_planar2_smooth_plan.c"
+    assert planned.plan_generated.name == "cdpr_planar2_smooth_plan_generated.inc"
+    assert planned.plan_source.exists() and planned.plan_generated.exists()
+    stateless = export_c("planar2", "pd", tmp_path / "stateless")
+    assert stateless.plan_source is None and stateless.plan_generated is None
+    assert not list(stateless.out_dir.glob("*_plan*"))
