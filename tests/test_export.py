@@ -628,4 +628,4 @@ def test_the_result_names_every_file_written(tmp_path):
     assert planned.plan_source.exists() and planned.plan_generated.exists()
     stateless = export_c("planar2", "pd", tmp_path / "stateless")
     assert stateless.plan_source is None and stateless.plan_generated is None
-    assert not list(stateless.out_dir.glob("*_plan*"))
+    assert not list(stateless.out_dir.glob("cdpr_planar2_pd_plan*"))
