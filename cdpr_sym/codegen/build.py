@@ -113,21 +113,21 @@ def run_command(command: Sequence[str], *, timeout: float | None = None) -> str:
         process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                    text=True, errors="replace", **_own_process_group())
         stdout, stderr = _communicate_in_slices(process, timeout)
-    except BaseException as error:
-        if process is None:
-            if isinstance(error, OSError):
-                raise CompilationFailed(
-                    f"cannot run {command[0]}: {error.strerror or error}") from None
-            raise
+    except subprocess.TimeoutExpired:  # raised by the wait alone: the program runs
         _kill_group(process)
-        for pipe in (process.stdout, process.stderr):
-            pipe.close()
-        if isinstance(error, subprocess.TimeoutExpired):
-            raise CompilationFailed(
-                f"{command[0]} timed out after {timeout:g} s and was stopped\n"
-                f"command: {' '.join(command)}\n"
-                "a slow but working compiler needs a larger BuildOptions(timeout=...) "
-                "(seconds)") from None
+        raise CompilationFailed(
+            f"{command[0]} timed out after {timeout:g} s and was stopped\n"
+            f"command: {' '.join(command)}\n"
+            "a slow but working compiler needs a larger BuildOptions(timeout=...) "
+            "(seconds)") from None
+    except OSError as error:
+        if process is not None:
+            _kill_group(process)
+            raise
+        raise CompilationFailed(f"cannot run {command[0]}: {error.strerror or error}") from None
+    except BaseException:
+        if process is not None:
+            _kill_group(process)
         raise
     if process.returncode != 0:
         raise CompilationFailed(
@@ -162,12 +162,16 @@ def _own_process_group() -> dict[str, int]:
 
 
 def _kill_group(process: subprocess.Popen) -> None:
-    """Kill ``process`` and everything it started (its process group), then reap it."""
+    """Kill ``process`` and everything it started (its process group), reap it and close
+    its pipes."""
     try:
         os.killpg(process.pid, signal.SIGKILL)
     except (AttributeError, ProcessLookupError, PermissionError):
         process.kill()  # no process groups here, or the group is already gone
     process.wait()
+    for pipe in (process.stdout, process.stderr):
+        if pipe is not None:
+            pipe.close()
 
 
 @dataclasses.dataclass(frozen=True)
