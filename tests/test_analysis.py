@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import reference as ref
 
-from cdpr_sym.control import CONTROLLERS, law_function
+from cdpr_sym.control import CONTROLLERS, L2Design, law_function
 from cdpr_sym.control.analysis import construction_gap, fast_path_agreement
+from cdpr_sym.model import SymbolicModel
 from cdpr_sym.workspace import frame_shares, interior_box
 
 
@@ -64,9 +65,6 @@ def test_construction_gap_is_the_largest_tension_difference_state_by_state(spati
                                                                            random_states):
     """On the 6-cable platform the paper's normal equations lose digits (its docstring):
     the gap is visible, and must be that of the two laws evaluated one state at a time."""
-    from cdpr_sym.control import L2Design
-    from cdpr_sym.model import SymbolicModel
-
     model = SymbolicModel(spatial6)
     q, dq = random_states(spatial6, rng, 40)
     goal = [float(value) for value in spatial6.goal]  # a list: any array-like goal

@@ -24,7 +24,7 @@ import casadi as ca
 import pytest
 
 from cdpr_sym import BuildOptions, CompilationFailed, InvalidCase
-from cdpr_sym.codegen import CompiledLibrary, build, run_command
+from cdpr_sym.codegen import CompiledLibrary, build, default_cache_dir, run_command
 
 # ``cdpr_sym.codegen.build`` is the function the package re-exports; this is its module
 build_module = importlib.import_module("cdpr_sym.codegen.build")
@@ -341,7 +341,6 @@ def test_a_program_that_cannot_be_run_is_a_compilation_failure(tmp_path):
 
 def test_the_default_cache_is_under_the_home_folder_without_xdg_cache_home(
         tmp_path, monkeypatch):
-    from cdpr_sym.codegen import default_cache_dir
     monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
     monkeypatch.setenv("HOME", str(tmp_path))
     assert default_cache_dir() == tmp_path / ".cache" / "cdpr_sym"

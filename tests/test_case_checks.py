@@ -8,8 +8,11 @@ expected texts can be worked out by hand: 1 GiB = 2**30 bytes, 1 MiB = 2**20 byt
 from __future__ import annotations
 
 import importlib
+import re
 
+import numpy as np
 import pytest
+import reference as ref
 
 from cdpr_sym.errors import InvalidCase
 
@@ -75,11 +78,6 @@ def test_a_run_half_a_step_over_the_limit_is_refused(monkeypatch):
 
 
 def test_a_goal_outside_the_static_workspace_shows_the_tension_it_needs(aras3):
-    import re
-
-    import numpy as np
-    import reference as ref
-
     goal = np.array([0.0, 0.0, 0.3])
     needed = ref.static_tension(goal, aras3.anchors, aras3.mass, aras3.gravity)
     with pytest.raises(InvalidCase) as raised:

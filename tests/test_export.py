@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import json
 import os
 import re
 from concurrent.futures import ThreadPoolExecutor
@@ -34,6 +35,7 @@ from cdpr_sym.cli import main
 from cdpr_sym.codegen import run_command
 from cdpr_sym.control import CONTROLLERS, FLAG_NAMES, initial_memory_function, law_function
 from cdpr_sym.export import REQUIRED_MODEL_TERMS, ExportResult, bench_export, export_c
+from cdpr_sym.export.package import prefix_problem
 from cdpr_sym.robot import PRESET_NAMES
 
 #: Functions the exported object file may call: libm only (no heap, no I/O).
@@ -577,8 +579,6 @@ def test_an_export_goes_into_a_new_folder_below_new_folders(tmp_path):
 
 
 def test_the_manifest_records_the_robot_exported(tmp_path):
-    import json
-
     result = export_c("planar2", "pd", tmp_path / "pkg")
     manifest = json.loads(result.manifest.read_text())
     assert manifest["robot"] == preset("planar2").as_dict()
@@ -592,8 +592,6 @@ def test_the_manifest_records_the_robot_exported(tmp_path):
 
 
 def test_an_export_from_before_the_generator_entry_is_known_by_its_other_entries(tmp_path):
-    import json
-
     older = {"prefix": "p", "robot": {}, "controller": "pd", "casadi_version": "3.6",
              "sha256": {}}
     folder = tmp_path / "older"
@@ -612,8 +610,6 @@ def test_an_export_from_before_the_generator_entry_is_known_by_its_other_entries
 
 
 def test_a_refused_prefix_is_shown_whole_unless_it_is_long():
-    from cdpr_sym.export.package import prefix_problem
-
     assert prefix_problem("a__b").endswith("got 'a__b'")
     assert prefix_problem("p" * 300).endswith(f"got {'p' * 40!r}... (300 characters)")
     assert prefix_problem("main").endswith("the example program's file main.c")

@@ -5,17 +5,22 @@ log = tau 2 + alpha + beta + j 1 + flags)."""
 
 from __future__ import annotations
 
+import json
 import re
 
 import pytest
 
-from cdpr_sym.export import export_c
+from cdpr_sym.export import ExportResult, export_c
 
 
 @pytest.fixture(scope="module")
-def header(tmp_path_factory) -> str:
-    result = export_c("planar2", "smooth", tmp_path_factory.mktemp("export") / "pkg")
-    return result.header.read_text()
+def exported(tmp_path_factory) -> ExportResult:
+    return export_c("planar2", "smooth", tmp_path_factory.mktemp("export") / "pkg")
+
+
+@pytest.fixture(scope="module")
+def header(exported) -> str:
+    return exported.header.read_text()
 
 
 def _comment_above(header: str, declaration: str) -> str:
@@ -135,17 +140,15 @@ def test_matrices_and_only_matrices_are_documented_as_row_major(header):
         assert "row-major" not in comment and " x " not in comment, vector_function
 
 
-def test_the_header_bounds_the_real_time_functions_by_their_own_operation_counts(tmp_path):
-    import json
-
-    result = export_c("planar2", "smooth", tmp_path / "pkg")
-    functions = json.loads(result.manifest.read_text())["functions"]
+def test_the_header_bounds_the_real_time_functions_by_their_own_operation_counts(exported,
+                                                                                 header):
+    functions = json.loads(exported.manifest.read_text())["functions"]
     bound = max(functions["control"]["operations"], functions["step"]["operations"])
     assert functions["initial_memory"]["operations"] > bound  # the planner is not bounded
-    text = re.sub(r"\s*\n \*\s*", " ", result.header.read_text())
+    text = re.sub(r"\s*\n \*\s*", " ", header)
     assert f"(control and step: at most {bound} operations;" in text
     # the package's symbols take the visibility its user builds with, not CasADi's export
-    assert "CASADI_SYMBOL_EXPORT" not in result.generated.read_text()
+    assert "CASADI_SYMBOL_EXPORT" not in exported.generated.read_text()
 
 
 def test_the_planner_is_declared_with_the_argument_names_it_documents(header):

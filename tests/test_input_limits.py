@@ -377,8 +377,6 @@ def test_presets_still_load():
 
 
 def test_the_trajectory_budget_is_half_the_memory_of_a_small_machine(monkeypatch):
-    from cdpr_sym.closed_loop.case import trajectory_budget
-
     reported = {"SC_PAGE_SIZE": 4096, "SC_PHYS_PAGES": 1000}
 
     def sysconf(name):
@@ -387,8 +385,8 @@ def test_the_trajectory_budget_is_half_the_memory_of_a_small_machine(monkeypatch
         return reported[name]
 
     monkeypatch.setattr(case_module.os, "sysconf", sysconf)
-    assert trajectory_budget() == 4096 * 1000 // 2
+    assert case_module.trajectory_budget() == 4096 * 1000 // 2
     reported["SC_PHYS_PAGES"] = 1 << 40  # a large machine: the fixed budget
-    assert trajectory_budget() == case_module.TRAJECTORY_BUDGET_BYTES
+    assert case_module.trajectory_budget() == case_module.TRAJECTORY_BUDGET_BYTES
     reported.clear()  # not reported at all
-    assert trajectory_budget() == case_module.TRAJECTORY_BUDGET_BYTES
+    assert case_module.trajectory_budget() == case_module.TRAJECTORY_BUDGET_BYTES

@@ -3,6 +3,8 @@ keeps s0 + alpha s1 in [lower, upper] (against a brute-force scan) and the clip 
 
 from __future__ import annotations
 
+import functools
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -11,11 +13,15 @@ from cdpr_sym import UnknownName, controller_by_name
 from cdpr_sym.control.parts import alpha_interval, clip_to_box
 
 
-def _interval(s0, s1, lower, upper, within=(0.0, 1.0)) -> tuple[float, float]:
-    n = len(s0)
+@functools.cache
+def _interval_function(n: int) -> ca.Function:
+    """alpha_interval on vectors of length n, alpha within [0, 1]."""
     syms = [ca.SX.sym(name, n) for name in ("s0", "s1", "lower", "upper")]
-    function = ca.Function("interval", syms, list(alpha_interval(*syms, within=within)))
-    low, high = function(s0, s1, lower, upper)
+    return ca.Function("interval", syms, list(alpha_interval(*syms, within=(0.0, 1.0))))
+
+
+def _interval(s0, s1, lower, upper) -> tuple[float, float]:
+    low, high = _interval_function(len(s0))(s0, s1, lower, upper)
     return float(low), float(high)
 
 
