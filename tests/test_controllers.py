@@ -72,7 +72,7 @@ def test_saturated_pd_tension_matches_reference(robot_and_model, rng, random_sta
     assert n_clipped > 20  # the clipping itself was exercised
 
 
-@pytest.mark.parametrize("construction", ["paper", "min_norm"])
+@pytest.mark.parametrize("construction", ["closed_form", "paper", "min_norm"])
 def test_l2_tension_matches_reference_lstsq(robot_and_model, construction, rng, random_states):
     robot, model = robot_and_model
     controller = L2Design(construction=construction)
@@ -97,6 +97,9 @@ def test_l2_tension_matches_reference_lstsq(robot_and_model, construction, rng, 
             assert out.alpha == pytest.approx(expected["alpha"], rel=tol)
         scale = _scale(expected["tau"])
         np.testing.assert_allclose(out.tau, expected["tau"], rtol=tol, atol=tol * scale)
+        # every construction returns the minimum-norm j (the paper's too, where defined)
+        np.testing.assert_allclose(out.j, expected["j"], rtol=tol,
+                                   atol=tol * _scale(expected["j"]))
     assert designed >= 50 and fallback > 0
     assert skipped <= 0.1 * (designed + skipped)
 
@@ -125,7 +128,7 @@ def test_l2_constructions_agree_with_each_other(robot_and_model, rng, random_sta
     assert compared >= 50 and skipped <= 0.1 * (compared + skipped)
 
 
-@pytest.mark.parametrize("construction", ["paper", "min_norm"])
+@pytest.mark.parametrize("construction", ["closed_form", "paper", "min_norm"])
 def test_theorem_1_l2_tension_in_bounds_where_beta_positive_and_no_fallback(
         robot_and_model, construction, rng, random_states):
     robot, model = robot_and_model

@@ -50,7 +50,7 @@ def construction_gap(model: SymbolicModel, q: np.ndarray, dq: np.ndarray,
     count = len(q)
     goals = np.broadcast_to(np.asarray(q_goal, dtype=float), (count, model.n))
     taus, flags = [], None
-    for design in (L2Design(), L2Design(construction="min_norm")):
+    for design in (L2Design(construction="paper"), L2Design(construction="min_norm")):
         mapped = law_function(model, design).map(count)
         out = mapped(q.T, dq.T, goals.T, k, r_d, np.zeros((0, count)), 0.0)
         taus.append(np.array(out[0]))

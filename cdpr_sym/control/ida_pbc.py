@@ -24,9 +24,11 @@ from cdpr_sym.control.flags import (
 )
 from cdpr_sym.control.interface import ControlLaw, StatelessLaw
 from cdpr_sym.control.parts import (
+    TensionParts,
     beta_margin,
     clip_to_box,
     flag_if,
+    least_squares_closed_form,
     least_squares_min_norm,
     least_squares_paper,
     tension_parts,
@@ -70,7 +72,7 @@ class SaturatedPD(StatelessLaw):
                           ca.SX.zeros(model.n_j), flags)
 
 
-L2_CONSTRUCTIONS = ("paper", "min_norm")
+L2_CONSTRUCTIONS = ("closed_form", "paper", "min_norm")
 #: |v_n| / |v| below which the paper's (21)-(23) is replaced by the minimum-norm solution.
 PAPER_LS_GUARD = 1e-4
 L2_FALLBACKS = ("saturate", "scale")
@@ -82,7 +84,10 @@ class L2Design(StatelessLaw):
 
     Parameters
     ----------
-    construction : {"paper", "min_norm"}
+    construction : {"closed_form", "paper", "min_norm"}
+        ``"closed_form"`` (default): the exact least squares without a solve — tau_2 + tau_3
+        is the projection of tau_2 on v = W^T dq, the left null vector of A, and j the
+        minimum-norm preimage (see :func:`~cdpr_sym.control.parts.least_squares_closed_form`).
         ``"paper"``: j = A^T N j' with N = A A^T less its n-th column and
         j' = (𝔄^T 𝔄)^{-1} 𝔄^T b, 𝔄 = A A^T N (eqs. (21)–(23) as corrected).
         ``"min_norm"``: j = A^+ b, computed exactly from the known left null vector
@@ -94,7 +99,7 @@ class L2Design(StatelessLaw):
         platform, where its tau_3 is off the exact least squares by up to tens of N (in
         60-digit arithmetic the two agree to 1e-50). alpha of (24) is computed from the
         tension actually delivered, so Theorem 1's bound still holds; prefer
-        ``"min_norm"`` (accurate to ~1e-12) for n >= 4.
+        ``"closed_form"`` or ``"min_norm"`` (accurate to ~1e-12) for n >= 4.
     low_speed : float
         Remark 2 threshold on ||dq||, m/s: below it A ~ 0 and the law falls back.
     fallback : {"saturate", "scale"}
@@ -111,7 +116,7 @@ class L2Design(StatelessLaw):
     changes nothing mathematically and keeps (23) well conditioned at low speed.
     """
 
-    construction: str = "paper"
+    construction: str = "closed_form"
     low_speed: float = 1e-6
     fallback: str = "saturate"
     name: ClassVar[str] = "l2"
@@ -137,20 +142,9 @@ class L2Design(StatelessLaw):
         beta = beta_margin(model, parts.tau_1)
         speed = ca.norm_2(dq)
         direction = dq / ca.fmax(speed, self.low_speed)
-        A_unit = parts.W_inv @ model.p_matrix(direction)
-        b = -parts.tau_2_full
-        null_vector = parts.W.T @ direction
-        j_unit = least_squares_min_norm(A_unit, b, null_vector)
-        if self.construction == "paper":
-            # (21) drops the n-th column of A A^T; those columns are dependent where the left
-            # null vector of A has a zero n-th entry, and (23) is then undefined (and
-            # inaccurate near it): use the minimum-norm solution, which (21)-(23) equal
-            # wherever they are defined
-            defined = ca.fabs(null_vector[model.n - 1]) > PAPER_LS_GUARD * ca.norm_2(null_vector)
-            j_unit = ca.if_else(defined, least_squares_paper(A_unit, b), j_unit)
-        residual = ca.norm_2(A_unit @ j_unit - b)
+        tau_23, residual, j_unit = self._least_squares(model, parts, direction)
         alpha_ls = ca.if_else(residual < beta, 1.0, beta / ca.fmax(residual, 1e-300))
-        tau_ls = parts.tau_1 + alpha_ls * (parts.tau_2_full + A_unit @ j_unit)
+        tau_ls = parts.tau_1 + alpha_ls * tau_23
         j_ls = alpha_ls * j_unit / ca.fmax(speed, self.low_speed)
 
         slow = speed < self.low_speed
@@ -173,3 +167,21 @@ class L2Design(StatelessLaw):
                                     ca.if_else(slow, clipped_slow, 0)), FLAG_SATURATED)
                  + flag_if(alpha < 1, FLAG_ALPHA) + flag_if(parts.singular, FLAG_SINGULAR))
         return ControlLaw(tau, alpha, beta, j, flags)
+
+    def _least_squares(self, model: SymbolicModel, parts: TensionParts, direction: ca.SX
+                       ) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """tau_2 + tau_3 (N), the residual |A j - b| (N) and j for the unit ``direction``."""
+        if self.construction == "closed_form":
+            return least_squares_closed_form(model, parts.W, direction, parts.tau_2_full)
+        A_unit = parts.W_inv @ model.p_matrix(direction)
+        b = -parts.tau_2_full
+        null_vector = parts.W.T @ direction
+        j_unit = least_squares_min_norm(A_unit, b, null_vector)
+        if self.construction == "paper":
+            # (21) drops the n-th column of A A^T; those columns are dependent where the left
+            # null vector of A has a zero n-th entry, and (23) is then undefined (and
+            # inaccurate near it): use the minimum-norm solution, which (21)-(23) equal
+            # wherever they are defined
+            defined = ca.fabs(null_vector[model.n - 1]) > PAPER_LS_GUARD * ca.norm_2(null_vector)
+            j_unit = ca.if_else(defined, least_squares_paper(A_unit, b), j_unit)
+        return parts.tau_2_full + A_unit @ j_unit, ca.norm_2(A_unit @ j_unit - b), j_unit

@@ -72,7 +72,7 @@ def write_paper_report(out_dir: Path) -> list[Claim]:
 
 
 def _simulate_all(robot: Robot, duration: float, long_duration: float) -> dict[str, Trajectory]:
-    paper, min_norm = L2Design(), L2Design(construction="min_norm")
+    paper, min_norm = L2Design(construction="paper"), L2Design(construction="min_norm")
     return {
         "l2": simulate(robot, paper, duration=duration),
         "l2-minnorm": simulate(robot, min_norm, duration=duration),
