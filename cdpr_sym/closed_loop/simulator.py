@@ -92,13 +92,15 @@ class Simulator:
         self.initial_memory = initial_memory_function(self.model, controller)
         self.backend = build_options.resolved_backend()
         self.library: CompiledLibrary | None = None
+        suffix = "_rate" if rate_limited else ""
+        #: The base name of this loop's compiled libraries.
+        self.library_name = (f"cdpr_{c_identifier(robot.name)}_"
+                             f"{controller_identifier(controller)}{suffix}")
         if self.backend == "c":
             # initial_memory runs once per run: CasADi's virtual machine is fast enough and
             # keeps a large planning function out of the compiled library
             functions = [*self.model.functions.values(), self.law, self.step]
-            suffix = "_rate" if rate_limited else ""
-            name = f"cdpr_{c_identifier(robot.name)}_{controller_identifier(controller)}{suffix}"
-            self.library = build(functions, name,
+            self.library = build(functions, self.library_name,
                                  extra_source=rollout_source(self.step, self.layout),
                                  options=build_options)
             self._rollout = _Rollout(self.library)
@@ -159,11 +161,16 @@ class Simulator:
             raise InvalidCase("plant", "a rate-limited plant needs a simulator built with "
                               "rate_limited=True (simulate() chooses it)")
         n_steps = check_timing(duration, dt, values_per_step=self.values_per_step)
-        p = self.layout.parameters(goal, k, r_d, dt, mass_scale=plant.mass_scale,
-                                   slack=plant.slack, rate_limit=plant.rate_limit)
-        states, logs = self.rollout(self.initial_state(start, goal, k, r_d, dq0=dq0), p,
-                                    n_steps)
-        return self._trajectory(states, logs, n_steps, dt, goal, k, r_d, plant)
+        states, logs = self.rollout(self.initial_state(start, goal, k, r_d, dq0=dq0),
+                                    self.parameters(goal, k, r_d, dt, plant), n_steps)
+        return self.trajectory(states, logs, n_steps, dt, goal, k, r_d, plant)
+
+    def parameters(self, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, dt: float,
+                   plant: Plant) -> np.ndarray:
+        """The step's parameter vector p for a move to ``goal`` (m) with gains ``k`` (N/m),
+        ``r_d`` (N s/m), period ``dt`` (s) and ``plant``."""
+        return self.layout.parameters(goal, k, r_d, dt, mass_scale=plant.mass_scale,
+                                      slack=plant.slack, rate_limit=plant.rate_limit)
 
     def _run_virtual_machine(self, states: np.ndarray, logs: np.ndarray, p: np.ndarray,
                              n_steps: int) -> None:
@@ -174,7 +181,11 @@ class Simulator:
             if states[first + self.chunk, self.layout.status_index] != 0:
                 break
 
-    def _trajectory(self, states, logs, n_steps, dt, goal, k, r_d, plant) -> Trajectory:
+    def trajectory(self, states: np.ndarray, logs: np.ndarray, n_steps: int, dt: float,
+                   goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, plant: Plant
+                   ) -> Trajectory:
+        """The :class:`Trajectory` of one rollout's ``states`` and ``logs`` rows, ending at
+        its first stop status."""
         status = states[1: n_steps + 1, self.layout.status_index]
         stopped = np.flatnonzero(status != 0)
         last = int(stopped[0]) if stopped.size else n_steps

@@ -49,7 +49,10 @@ def step_function(model: SymbolicModel, controller: Controller, *,
     z_next = rk4(plant_rhs(model, applied, par["mass_scale"]), ca.vertcat(q, dq), dt)
     # singular at the sample, or det W changes sign within the step (the plane was crossed)
     crossed = ca.det(model.structure_matrix(q)) * ca.det(model.structure_matrix(z_next[:n])) <= 0
-    singular = ca.logic_or(ca.fmod(ca.floor(law.flags / FLAG_SINGULAR), 2) > 0.5, crossed)
+    # bit test by floor alone (exact for the small integers flags are): fmod has no vector
+    # form, and one call of it keeps the batched step from using SIMD
+    shifted = ca.floor(law.flags / FLAG_SINGULAR)
+    singular = ca.logic_or(shifted - 2 * ca.floor(0.5 * shifted) > 0.5, crossed)
     # the command too: a slack or rate-limited plant would otherwise turn NaN into a number
     finite = ca.sum1(ca.fabs(ca.vertcat(z_next, law.tau)) <= 1e300) > 3 * n - 0.5
     lower, upper = model.robot.frame_lower, model.robot.frame_upper

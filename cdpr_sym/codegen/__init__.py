@@ -3,7 +3,8 @@
 :mod:`~cdpr_sym.codegen.generate` is the one code-generation driver,
 :mod:`~cdpr_sym.codegen.build` compiles and caches, :mod:`~cdpr_sym.codegen.native` calls
 the result through ctypes, :mod:`~cdpr_sym.codegen.names` makes free text safe for C, and
-:mod:`~cdpr_sym.codegen.templates` renders hand-written C from template files.
+:mod:`~cdpr_sym.codegen.templates` renders hand-written C from template files and
+:mod:`~cdpr_sym.codegen.lanes` writes an SX function for many inputs at once (SIMD).
 """
 
 from cdpr_sym.codegen.build import (
@@ -17,10 +18,12 @@ from cdpr_sym.codegen.build import (
     run_command,
 )
 from cdpr_sym.codegen.generate import generate_c
+from cdpr_sym.codegen.lanes import lanes_preamble, lanes_source, unsupported_operations
 from cdpr_sym.codegen.names import c_identifier, is_c_identifier, plain_text
 from cdpr_sym.codegen.native import NativeFunction, NativeLibrary
 from cdpr_sym.codegen.templates import render
 
 __all__ = ["BACKENDS", "BuildOptions", "CompiledLibrary", "NativeFunction", "NativeLibrary",
            "build", "c_identifier", "default_cache_dir", "find_compiler", "generate_c",
-           "is_c_identifier", "plain_text", "render", "require_compiler", "run_command"]
+           "is_c_identifier", "lanes_preamble", "lanes_source", "plain_text", "render", "require_compiler",
+           "run_command", "unsupported_operations"]

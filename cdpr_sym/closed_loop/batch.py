@@ -1,0 +1,140 @@
+"""Batched closed-loop rollouts: many runs of one simulator advanced by one compiled call.
+
+The step is written for :data:`LANES` runs at once (:mod:`cdpr_sym.codegen.lanes`) and
+compiled with the host's vector instructions; a rollout loop (``templates/
+rollout_lanes.c.j2``) feeds it blocks of runs and stores each run's states and logs in its
+own rows, exactly as single runs do. Sweeps and studies go through :func:`run_many`, which
+falls back to one run at a time where no batch can be built (CasADi's virtual machine, an
+operation without a C form for lanes).
+"""
+
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Sequence
+
+import numpy as np
+
+from cdpr_sym.closed_loop.case import check_timing
+from cdpr_sym.closed_loop.plant import Plant
+from cdpr_sym.closed_loop.simulator import Simulator
+from cdpr_sym.codegen import (
+    BuildOptions,
+    build,
+    lanes_preamble,
+    lanes_source,
+    render,
+    unsupported_operations,
+)
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.results import Trajectory
+
+#: Runs advanced together by one call of the vectorised step (8 doubles = one AVX-512
+#: register, two AVX2 ones).
+LANES = 8
+#: Runs per call of the compiled loop: bounds the states and logs held at once.
+RUNS_PER_CALL = 64
+#: Added to the build flags of the vectorised step: vector instructions of this machine.
+VECTOR_FLAGS = ("-O3", "-march=native")
+
+
+class BatchRollout:
+    """The compiled batched rollout of a :class:`Simulator`'s step."""
+
+    def __init__(self, simulator: Simulator, build_options: BuildOptions = BuildOptions(),
+                 lanes: int = LANES) -> None:
+        layout = simulator.layout
+        self.layout, self.lanes = layout, lanes
+        source = lanes_preamble(lanes) + lanes_source(simulator.step, "step_lanes", lanes) + render(
+            "cdpr_sym.closed_loop", "rollout_lanes.c.j2", step="step_lanes", lanes=lanes,
+            n_x=layout.x.size, n_p=layout.p.size, n_log=layout.log.size,
+            status=layout.status_index)
+        options = BuildOptions(backend="c", cache_dir=build_options.cache_dir,
+                               compiler=build_options.compiler,
+                               flags=(*build_options.flags, *VECTOR_FLAGS),
+                               timeout=build_options.timeout)
+        name = simulator.library_name + "_lanes"
+        self.library = build([simulator.step], name, extra_source=source, options=options)
+        self._native = self.library.native()
+        self._call = self._native.entry("rollout_lanes", None, [ctypes.c_void_p] * 4 + [
+            ctypes.c_longlong] * 2 + [ctypes.c_void_p])
+
+    def __call__(self, x0: np.ndarray, p: np.ndarray, n_steps: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """States (runs, n_steps + 1, x size), logs (runs, n_steps, log size) and steps
+        taken per run, from initial states ``x0`` (runs, x size) and parameters ``p``
+        (runs, p size). Rows after a run's stop are zeros."""
+        x0, p = np.ascontiguousarray(x0, float), np.ascontiguousarray(p, float)
+        runs = len(x0)
+        states = np.zeros((runs, n_steps + 1, self.layout.x.size))
+        logs = np.zeros((runs, n_steps, self.layout.log.size))
+        taken = np.zeros(runs, dtype=np.int64)
+        if runs:
+            self._call(x0.ctypes.data, p.ctypes.data, states.ctypes.data, logs.ctypes.data,
+                       n_steps, runs, taken.ctypes.data)
+        return states, logs, taken
+
+
+_BATCHES: dict[int, BatchRollout | None] = {}
+
+
+def batch_rollout(simulator: Simulator, build_options: BuildOptions = BuildOptions()
+                  ) -> BatchRollout | None:
+    """The batched rollout of ``simulator`` (built once per simulator), or None where its
+    step runs in CasADi's virtual machine or cannot be written for lanes."""
+    key = id(simulator)
+    if key not in _BATCHES:
+        usable = simulator.backend == "c" and not unsupported_operations(simulator.step)
+        _BATCHES[key] = BatchRollout(simulator, build_options) if usable else None
+    return _BATCHES[key]
+
+
+def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndarray,
+             r_d: np.ndarray, *, duration: float, dt: float, plant: Plant = Plant(),
+             build_options: BuildOptions = BuildOptions()) -> list[Trajectory]:
+    """Simulate every (start, goal) pair with the same gains, plant and timing.
+
+    Equal to ``[simulator.run(s, g, k, r_d, ...) for s, g in zip(starts, goals)]`` but
+    advanced :data:`LANES` runs at a time in vectorised compiled code.
+
+    Parameters
+    ----------
+    simulator : Simulator
+    starts, goals : array_like, shape (runs, n)
+        Start (at rest) and goal poses, m (rad for angles).
+    k, r_d : array_like, shape (n,)
+        Gain diagonals, N/m and N s/m.
+    duration, dt : float
+        Simulated time and control period, s.
+    plant : Plant
+    build_options : BuildOptions
+        Cache folder and compiler of the batched library.
+
+    Raises
+    ------
+    InvalidCase
+        ``starts``/``goals`` of different lengths or shapes, bad timing, a plant that
+        does not match the simulator.
+    """
+    starts, goals = np.atleast_2d(starts).astype(float), np.atleast_2d(goals).astype(float)
+    if starts.shape != goals.shape or starts.shape[1:] != (simulator.robot.n,):
+        raise InvalidCase("starts", f"expected starts and goals of shape (runs, "
+                          f"{simulator.robot.n}), got {starts.shape} and {goals.shape}")
+    if simulator.layout.rate_limited != plant.rate_limited:
+        raise InvalidCase("plant", "a rate-limited plant needs a simulator built with "
+                          "rate_limited=True")
+    n_steps = check_timing(duration, dt, values_per_step=simulator.values_per_step)
+    batch = batch_rollout(simulator, build_options)
+    if batch is None:
+        return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=plant)
+                for s, g in zip(starts, goals)]
+    out: list[Trajectory] = []
+    for first in range(0, len(starts), RUNS_PER_CALL):
+        block = slice(first, first + RUNS_PER_CALL)
+        x0 = np.array([simulator.initial_state(s, g, k, r_d)
+                       for s, g in zip(starts[block], goals[block])])
+        p = np.array([simulator.parameters(g, k, r_d, dt, plant) for g in goals[block]])
+        states, logs, _ = batch(x0, p, n_steps)
+        out.extend(simulator.trajectory(states[i], logs[i], n_steps, dt, goal, k, r_d, plant)
+                   for i, goal in enumerate(goals[block]))
+    return out

@@ -1,0 +1,150 @@
+"""A CasADi SX function as C that evaluates many independent inputs at once ("lanes").
+
+CasADi's own C evaluates one input per call. :func:`lanes_source` walks the function's
+instruction list and writes each instruction once, on vectors that hold one value per lane,
+with every input and output stored lane-minor (entry ``e`` of lane ``b`` at
+``e * lanes + b``). SX code has no branch (``if_else`` is already arithmetic), so every
+instruction maps to SIMD instructions: 8 lanes are one AVX-512 register or two AVX2 ones.
+(Writing the body inside a loop over lanes and leaving the vectorisation to the compiler
+failed on the l2 step: GCC 12 gave up on the whole loop and ran it scalar.)
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+
+from cdpr_sym.codegen.names import is_c_identifier
+
+# Each operation on whole vectors of lanes (GCC/Clang vector extensions). A comparison of
+# two vectors gives a mask of -1 or 0 per lane, turned into 1.0 or 0.0 by L_BOOL; a lane
+# value is "true" where it is non-zero, as in CasADi's C.
+_UNARY = {
+    "OP_NEG": "(-{0})", "OP_TWICE": "(2.*{0})", "OP_SQ": "({0}*{0})", "OP_INV": "(1./{0})",
+    "OP_ASSIGN": "{0}", "OP_NOT": "L_BOOL({0}==0.)", "OP_FABS": "L_MAP(fabs,{0})",
+    "OP_SQRT": "L_MAP(sqrt,{0})", "OP_FLOOR": "L_MAP(floor,{0})", "OP_CEIL": "L_MAP(ceil,{0})",
+    "OP_SIN": "L_MAP(sin,{0})", "OP_COS": "L_MAP(cos,{0})", "OP_TAN": "L_MAP(tan,{0})",
+    "OP_ASIN": "L_MAP(asin,{0})", "OP_ACOS": "L_MAP(acos,{0})", "OP_ATAN": "L_MAP(atan,{0})",
+    "OP_EXP": "L_MAP(exp,{0})", "OP_LOG": "L_MAP(log,{0})", "OP_TANH": "L_MAP(tanh,{0})",
+    "OP_SINH": "L_MAP(sinh,{0})", "OP_COSH": "L_MAP(cosh,{0})",
+    "OP_SIGN": "L_PICK({0}<0.,L_SPLAT(-1.),L_PICK({0}>0.,L_SPLAT(1.),{0}))",
+}
+_BINARY = {
+    "OP_ADD": "({0}+{1})", "OP_SUB": "({0}-{1})", "OP_MUL": "({0}*{1})",
+    "OP_DIV": "({0}/{1})", "OP_LT": "L_BOOL({0}<{1})", "OP_LE": "L_BOOL({0}<={1})",
+    "OP_EQ": "L_BOOL({0}=={1})", "OP_NE": "L_BOOL({0}!={1})",
+    "OP_AND": "L_BOOL(({0}!=0.)&({1}!=0.))", "OP_OR": "L_BOOL(({0}!=0.)|({1}!=0.))",
+    "OP_IF_ELSE_ZERO": "L_PICK({0}!=0.,{1},L_SPLAT(0.))",
+    # C99 fmin/fmax, as CasADi's C calls them: a NaN argument is ignored
+    "OP_FMIN": "L_PICK(({0}<{1})|({1}!={1}),{0},{1})",
+    "OP_FMAX": "L_PICK(({0}>{1})|({1}!={1}),{0},{1})",
+    "OP_FMOD": "L_MAP2(fmod,{0},{1})", "OP_ATAN2": "L_MAP2(atan2,{0},{1})",
+    "OP_POW": "L_MAP2(pow,{0},{1})", "OP_CONSTPOW": "L_MAP2(pow,{0},{1})",
+    "OP_COPYSIGN": "L_MAP2(copysign,{0},{1})",
+}
+_NAMES = {getattr(ca, name): name for name in dir(ca) if name.startswith("OP_")}
+_UNARY_IDS = {getattr(ca, name): text for name, text in _UNARY.items() if hasattr(ca, name)}
+_BINARY_IDS = {getattr(ca, name): text for name, text in _BINARY.items() if hasattr(ca, name)}
+
+
+def unsupported_operations(function: ca.Function) -> set[str]:
+    """CasADi operation names in ``function`` that :func:`lanes_source` cannot write
+    (empty when it can; a function that is not SX is reported as ``"not SX"``)."""
+    if not function.is_a("SXFunction"):
+        return {"not SX"}
+    known = {*_UNARY_IDS, *_BINARY_IDS, ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST}
+    return {_NAMES.get(op, str(op)) for op in _operations(function) if op not in known}
+
+
+_PREAMBLE = """\
+#include <math.h>
+#include <string.h>
+/* A vector of {lanes} doubles (one per lane), its mask type, and the lane-wise helpers. */
+typedef double lane_t __attribute__((vector_size({size})));
+typedef long long lane_mask_t __attribute__((vector_size({size})));
+#define L_SPLAT(c) ((lane_t){{0}} + (c))
+#define L_BOOL(m) ((lane_t)((lane_mask_t)(m) & (lane_mask_t)L_SPLAT(1.)))
+#define L_PICK(m, a, b) ((lane_t)(((lane_mask_t)(m) & (lane_mask_t)(a)) \\
+                                  | (~(lane_mask_t)(m) & (lane_mask_t)(b))))
+static inline lane_t lane_map(double (*f)(double), lane_t a) {{
+  lane_t r; int b; for (b = 0; b < {lanes}; ++b) r[b] = f(a[b]); return r;
+}}
+static inline lane_t lane_map2(double (*f)(double, double), lane_t a, lane_t c) {{
+  lane_t r; int b; for (b = 0; b < {lanes}; ++b) r[b] = f(a[b], c[b]); return r;
+}}
+#define L_MAP(f, a) lane_map(f, a)
+#define L_MAP2(f, a, c) lane_map2(f, a, c)
+static inline lane_t lane_load(const double* p) {{ lane_t v; memcpy(&v, p, sizeof v); return v; }}
+static inline void lane_store(double* p, lane_t v) {{ memcpy(p, &v, sizeof v); }}
+"""
+
+
+def lanes_preamble(lanes: int) -> str:
+    """Type and helper definitions that :func:`lanes_source` code needs (once per file)."""
+    return _PREAMBLE.format(lanes=lanes, size=8 * lanes)
+
+
+def lanes_source(function: ca.Function, name: str, lanes: int) -> str:
+    """C of ``static void name(const double* arg0, ..., double* res0, ...)``.
+
+    Evaluates ``function`` for ``lanes`` independent inputs at once: ``argI`` holds input
+    ``I`` (its nonzeros, dense column-major) lane-minor, ``lanes`` values per entry, and
+    ``resI`` receives output ``I`` the same way. Every operation acts on a whole vector of
+    lanes (GCC/Clang vector extensions), so the code is SIMD by construction rather than
+    by the compiler's loop analysis; ``sin``, ``fmod`` and other library calls run lane by
+    lane. Needs :func:`lanes_preamble` earlier in the file.
+
+    Raises
+    ------
+    ValueError
+        ``name`` is not a C identifier, ``lanes`` is not a power of two, or the function
+        holds an operation listed by :func:`unsupported_operations`.
+    """
+    if not is_c_identifier(name):
+        raise ValueError(f"not a C identifier: {name!r}")
+    if lanes < 1 or lanes & (lanes - 1):
+        raise ValueError(f"expected a power of two for lanes, got {lanes}")
+    missing = unsupported_operations(function)
+    if missing:
+        raise ValueError(f"cannot write {function.name()} for lanes: {sorted(missing)}")
+    work = ", ".join(f"w{i}" for i in range(max(function.sz_w(), 1)))
+    body = [_statement(function, k, lanes) for k in range(function.n_instructions())]
+    parameters = [f"const double* restrict arg{i}" for i in range(function.n_in())]
+    parameters += [f"double* restrict res{i}" for i in range(function.n_out())]
+    return "\n".join([
+        f"/* {function.name()} for {lanes} lanes at once; entry e of lane b at "
+        f"[e * {lanes} + b]. */",
+        f"static void {name}({', '.join(parameters)}) {{",
+        f"  lane_t {work};",
+        *(f"  {line}" for line in body),
+        "}",
+        "",
+    ])
+
+
+def _operations(function: ca.Function) -> set[int]:
+    return {function.instruction_id(k) for k in range(function.n_instructions())}
+
+
+def _statement(function: ca.Function, k: int, lanes: int) -> str:
+    """The C statement of instruction ``k`` on vectors of lanes."""
+    op = function.instruction_id(k)
+    inputs, outputs = function.instruction_input(k), function.instruction_output(k)
+    if op == ca.OP_INPUT:
+        return f"w{outputs[0]} = lane_load(arg{inputs[0]} + {inputs[1] * lanes});"
+    if op == ca.OP_OUTPUT:
+        return f"lane_store(res{outputs[0]} + {outputs[1] * lanes}, w{inputs[0]});"
+    if op == ca.OP_CONST:
+        return f"w{outputs[0]} = L_SPLAT({_literal(function.instruction_constant(k))});"
+    text = _UNARY_IDS.get(op) or _BINARY_IDS[op]
+    return f"w{outputs[0]} = {text.format(*(f'w{i}' for i in inputs))};"
+
+
+def _literal(value: float) -> str:
+    """A C double literal that reads back as exactly ``value``."""
+    if math.isnan(value):
+        return "NAN"
+    if math.isinf(value):
+        return "INFINITY" if value > 0 else "(-INFINITY)"
+    return repr(float(value))
