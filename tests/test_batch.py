@@ -40,7 +40,8 @@ def test_batched_runs_equal_single_runs(robot_name, controller, request, rng, bu
     batched = run_many(simulator, starts, goals, robot.k, robot.r_d, **runs,
                        build_options=build_options)
     assert batch_rollout(simulator, build_options) is not None  # the vectorised path ran
-    single = [simulator.run(s, g, robot.k, robot.r_d, **runs) for s, g in zip(starts, goals)]
+    single = [simulator.run(s, g, robot.k, robot.r_d, **runs)
+              for s, g in zip(starts, goals, strict=True)]
     # the planner moves too slowly to leave the frame within the run; the others leave it
     stops = {None} if controller == "smooth" else {None, "left_frame"}
     assert {run.stop_reason for run in single} == stops
@@ -54,7 +55,7 @@ def test_the_virtual_machine_falls_back_to_single_runs(aras3, rng, build_options
     starts, goals = _pairs(aras3, rng, 3)
     batched = run_many(simulator, starts, goals, aras3.k, aras3.r_d, duration=0.05, dt=1e-3)
     single = [simulator.run(s, g, aras3.k, aras3.r_d, duration=0.05, dt=1e-3, plant=Plant())
-              for s, g in zip(starts, goals)]
+              for s, g in zip(starts, goals, strict=True)]
     _assert_same_runs(batched, single)
 
 
@@ -78,11 +79,11 @@ def test_the_compiled_batch_reports_the_steps_each_run_took(aras3, rng, build_op
     batch = batch_rollout(simulator, build_options)
     starts, goals = _pairs(aras3, rng, 5)
     x0 = np.array([simulator.initial_state(s, g, aras3.k, aras3.r_d)
-                   for s, g in zip(starts, goals)])
+                   for s, g in zip(starts, goals, strict=True)])
     p = np.array([simulator.parameters(g, aras3.k, aras3.r_d, 1e-3, Plant()) for g in goals])
     states, logs, taken = batch(x0, p, 400)
     single = [simulator.run(s, g, aras3.k, aras3.r_d, duration=0.4, dt=1e-3, plant=Plant())
-              for s, g in zip(starts, goals)]
+              for s, g in zip(starts, goals, strict=True)]
     assert taken.tolist() == [len(run.t) - 1 + (run.stop_reason is not None)
                               for run in single]
     assert taken[1] < 400  # the run pulled out of the frame stopped

@@ -94,7 +94,7 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
              build_options: BuildOptions = BuildOptions()) -> list[Trajectory]:
     """Simulate every (start, goal) pair with the same gains, plant and timing.
 
-    Equal to ``[simulator.run(s, g, k, r_d, ...) for s, g in zip(starts, goals)]`` but
+    Equal to ``[simulator.run(s, g, k, r_d, ...) for s, g in zip(starts, goals, strict=True)]`` but
     advanced :data:`LANES` runs at a time in vectorised compiled code.
 
     Parameters
@@ -127,12 +127,12 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
     batch = batch_rollout(simulator, build_options)
     if batch is None:
         return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=plant)
-                for s, g in zip(starts, goals)]
+                for s, g in zip(starts, goals, strict=True)]
     out: list[Trajectory] = []
     for first in range(0, len(starts), RUNS_PER_CALL):
         block = slice(first, first + RUNS_PER_CALL)
         x0 = np.array([simulator.initial_state(s, g, k, r_d)
-                       for s, g in zip(starts[block], goals[block])])
+                       for s, g in zip(starts[block], goals[block], strict=True)])
         p = np.array([simulator.parameters(g, k, r_d, dt, plant) for g in goals[block]])
         states, logs, _ = batch(x0, p, n_steps)
         out.extend(simulator.trajectory(states[i], logs[i], n_steps, dt, goal, k, r_d, plant)

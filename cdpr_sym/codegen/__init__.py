@@ -25,5 +25,5 @@ from cdpr_sym.codegen.templates import render
 
 __all__ = ["BACKENDS", "BuildOptions", "CompiledLibrary", "NativeFunction", "NativeLibrary",
            "build", "c_identifier", "default_cache_dir", "find_compiler", "generate_c",
-           "is_c_identifier", "lanes_preamble", "lanes_source", "plain_text", "render", "require_compiler",
-           "run_command", "unsupported_operations"]
+           "is_c_identifier", "lanes_preamble", "lanes_source", "plain_text", "render",
+           "require_compiler", "run_command", "unsupported_operations"]
