@@ -8,6 +8,8 @@ from cdpr_sym.closed_loop.batch import LANES, batch_rollout, run_many
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import CONTROLLERS
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.sweep import SweepConfig
+from cdpr_sym.sweep.runner import run_items, run_one
 
 
 def _pairs(robot, rng, count):
@@ -90,3 +92,19 @@ def test_the_compiled_batch_reports_the_steps_each_run_took(aras3, rng, build_op
     np.testing.assert_array_equal(states[:, 0], x0)
     # nothing is written after a run's stop
     assert not states[1, taken[1] + 1:].any() and not logs[1, taken[1]:].any()
+
+
+def test_sweep_items_are_run_in_groups_and_returned_in_their_order(aras3, rng):
+    starts, goals = _pairs(aras3, rng, 5)
+    names = ["pd", "smooth", "pd", "pd", "smooth"]
+    items = [(pair, name, start.tolist(), goal.tolist())
+             for pair, (name, start, goal) in enumerate(zip(names, starts, goals, strict=True))]
+    config = SweepConfig(robot="aras3", controllers=("pd", "smooth"), pairs=5, duration=0.3)
+    rows = run_items(config.as_dict(), items)
+    for row, (pair, name, start, goal) in zip(rows, items, strict=True):
+        alone = run_one(aras3, name, np.array(start), np.array(goal), duration=0.3,
+                        dt=config.dt, mass_scale=1.0)
+        assert (row["pair"], row["controller"], row["start_0"]) == (pair, name, start[0])
+        assert row["status"] == alone["status"] and row["stop_reason"] == alone["stop_reason"]
+        assert row["final_error"] == pytest.approx(alone["final_error"], rel=1e-9)
+        assert row["max_tension"] == pytest.approx(alone["max_tension"], rel=1e-9)

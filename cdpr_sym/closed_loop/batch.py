@@ -35,7 +35,7 @@ LANES = 8
 #: Runs per call of the compiled loop: bounds the states and logs held at once.
 RUNS_PER_CALL = 64
 #: Added to the build flags of the vectorised step: vector instructions of this machine.
-VECTOR_FLAGS = ("-O3", "-march=native")
+VECTOR_FLAGS = ("-O3", "-march=native", "-ffp-contract=off")
 
 
 class BatchRollout:

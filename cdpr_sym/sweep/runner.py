@@ -4,8 +4,11 @@ A sweep draws ``pairs`` start/goal pairs from the static workspace (seeded), run
 listed controller from each start to its goal, and appends one CSV row per (pair,
 controller) with the metrics of ``cdpr-sym simulate --json`` plus start, goal, run status
 and stop reason (or, with ``format="parquet"``, one typed Parquet part per finished chunk
-of rows in a dataset folder). A JSON sidecar records the configuration, package versions
-and seed so any row can be re-run exactly. Work is spread over local processes by default,
+of rows in a dataset folder). The runs of each controller are advanced together in
+vectorised blocks (:func:`~cdpr_sym.closed_loop.run_many`). A JSON sidecar records the
+configuration, package versions and seed so any row can be re-run exactly (``run_many``
+on its pair alone; a single ``simulate`` run agrees to round-off, which chattering designs
+amplify). Work is spread over local processes by default,
 or over an existing Dask cluster; an interrupted sweep resumes from the rows already written.
 Only one sweep writes an output at a time, and Ctrl-C or SIGTERM stops it within about a
 second, keeping every finished row.
@@ -27,9 +30,10 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.closed_loop import Plant, get_simulator, run_many
 from cdpr_sym.control import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, Interrupted, InvalidCase
+from cdpr_sym.results import Trajectory
 from cdpr_sym.results.store import (
     append_parquet_part,
     remove_parquet_dataset,
@@ -49,36 +53,70 @@ from cdpr_sym.sweep.workers import (
     sigterm_interrupts,
 )
 
+_RUN_FAILURES = (CdprError, RuntimeError, ValueError, FloatingPointError)
+
 
 def run_one(robot: Robot, controller_name: str, start: np.ndarray, goal: np.ndarray, *,
             duration: float, dt: float, mass_scale: float) -> dict[str, Any]:
     """One closed-loop run as a row of metrics (status ``ok``, ``stopped`` or ``error``)."""
-    row: dict[str, Any] = {"status": "ok", "error": ""}
     try:
         simulator = get_simulator(robot, controller_by_name(controller_name))
         run = simulator.run(start, goal, robot.k, robot.r_d, duration=duration, dt=dt,
                             plant=Plant(mass_scale=mass_scale))
-        row.update(run.metrics())
-        if run.stop_reason is not None:
-            row["status"] = "stopped"
-    except (CdprError, RuntimeError, ValueError, FloatingPointError) as failure:
-        row.update(status="error", error=f"{type(failure).__name__}: {failure}")
+    except _RUN_FAILURES as failure:
+        return _error_row(failure)
+    return _row(run)
+
+
+def run_group(robot: Robot, controller_name: str, starts: np.ndarray, goals: np.ndarray, *,
+              duration: float, dt: float, mass_scale: float) -> list[dict[str, Any]]:
+    """Rows of many runs of one controller, advanced together by the batched rollout
+    (:func:`~cdpr_sym.closed_loop.run_many`); equal to :func:`run_one` on each pair. When
+    the group fails as a whole, each pair is run alone so only its own row reports the
+    error."""
+    try:
+        simulator = get_simulator(robot, controller_by_name(controller_name))
+        runs = run_many(simulator, starts, goals, robot.k, robot.r_d, duration=duration,
+                        dt=dt, plant=Plant(mass_scale=mass_scale))
+    except _RUN_FAILURES:
+        return [run_one(robot, controller_name, start, goal, duration=duration, dt=dt,
+                        mass_scale=mass_scale) for start, goal in zip(starts, goals,
+                                                                        strict=True)]
+    return [_row(run) for run in runs]
+
+
+def _row(run: Trajectory) -> dict[str, Any]:
+    row: dict[str, Any] = {"status": "ok" if run.stop_reason is None else "stopped",
+                           "error": ""}
+    row.update(run.metrics())
     return row
+
+
+def _error_row(failure: BaseException) -> dict[str, Any]:
+    return {"status": "error", "error": f"{type(failure).__name__}: {failure}"}
 
 
 def run_items(config_dict: dict[str, Any], items: Sequence[tuple[int, str, list, list]]
               ) -> list[dict[str, Any]]:
-    """Worker entry point: run (pair, controller, start, goal) items, return CSV rows."""
+    """Worker entry point: run (pair, controller, start, goal) items, return CSV rows in
+    the order of ``items`` (the runs of each controller advanced together)."""
     config = SweepConfig(**{**config_dict, "controllers": tuple(config_dict["controllers"])})
     robot = resolve_robot(config.robot)
-    rows = []
-    for pair, name, start, goal in items:
-        row = run_one(robot, name, np.array(start), np.array(goal), duration=config.duration,
-                      dt=config.dt, mass_scale=config.mass_scale)
+    by_controller: dict[str, list[int]] = {}
+    for index, (_, name, _, _) in enumerate(items):
+        by_controller.setdefault(name, []).append(index)
+    rows: list[dict[str, Any]] = [{} for _ in items]
+    for name, indices in by_controller.items():
+        group = run_group(robot, name, np.array([items[i][2] for i in indices], dtype=float),
+                          np.array([items[i][3] for i in indices], dtype=float),
+                          duration=config.duration, dt=config.dt,
+                          mass_scale=config.mass_scale)
+        for index, row in zip(indices, group, strict=True):
+            rows[index] = row
+    for row, (pair, name, start, goal) in zip(rows, items, strict=True):
         row.update(pair=pair, controller=name)
         row.update({f"start_{i}": value for i, value in enumerate(start)})
         row.update({f"goal_{i}": value for i, value in enumerate(goal)})
-        rows.append(row)
     return rows
 
 
