@@ -144,9 +144,11 @@ class Trajectory:
 
     def settle_time(self, tolerance: float = SETTLE_TOLERANCE) -> float | None:
         """First time after which the error stays within ``tolerance`` (m), or None."""
-        outside = np.flatnonzero(self.error > tolerance)
         if self.stop_reason is not None:
             return None
+        # compared squared: one pass over q and no square root per sample
+        offset = self.q - self.q_goal
+        outside = np.flatnonzero(np.einsum("ij,ij->i", offset, offset) > tolerance ** 2)
         if outside.size == 0:
             return float(self.t[0])
         if outside[-1] == len(self.t) - 1:
@@ -186,7 +188,7 @@ class Trajectory:
             "min_tension": _float(after_start.min()) if after_start.size else None,
             "max_tension": _float(after_start.max()) if after_start.size else None,
             "settle_time": settle,
-            "final_error": float(self.error[-1]),
+            "final_error": float(np.linalg.norm(self.q[-1] - self.q_goal)),
             "min_alpha": _float(self.alpha.min()) if self.alpha.size else None,
             "tension_feasible": feasible,
             "converged": settle is not None,
