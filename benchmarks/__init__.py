@@ -1,0 +1,1 @@
+"""Benchmarks beside peers (not part of the package): ``python -m benchmarks.run``."""

@@ -1,0 +1,196 @@
+"""cdpr_sym's closed-loop speed beside its peers, measured in one run on one machine.
+
+Run from the repository root after ``pip install -e '.[bench]'``::
+
+    python -m benchmarks.run [--seconds S]
+
+It times, on one core (CPU 0), the paper case (aras3, 5 s at 1 kHz) for ``pd`` and ``l2``:
+the hand-written C loop (the floor), numba, JAX (single runs and a 1024-pair
+``jit(vmap(scan))`` batch), and cdpr_sym's ``Simulator.run``, ``simulate()`` and batched
+``run_many`` over the same 1024 pairs; then a 2,000-pair ``pd`` sweep through the command
+line on every core, start-up included, and the 6-cable platform. It writes
+``reports/bench/peers.json`` and ``reports/bench/peers.md``; every ratio in them comes from
+this one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from benchmarks.peers import timing  # first: it sets XLA's flags before jax is imported
+from benchmarks.peers.robot import draw_pairs
+from cdpr_sym import preset, simulate
+from cdpr_sym.closed_loop import Plant, get_simulator, run_many
+from cdpr_sym.control import CONTROLLERS
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "reports" / "bench"
+DURATION, DT = timing.DURATION, timing.DT
+CONTROLLER_NAMES = ("pd", "l2")
+BATCH_PAIRS = 1024
+SWEEP_PAIRS = 2000
+
+
+def cdpr_single(robot_name: str, controller: str, seconds: float) -> float:
+    """``Simulator.run`` of the robot's own case per second."""
+    robot = preset(robot_name)
+    simulator = get_simulator(robot, CONTROLLERS[controller])
+    return timing.best_rate(lambda: simulator.run(
+        robot.start, robot.goal, robot.k, robot.r_d, duration=DURATION, dt=DT,
+        plant=Plant()), min_seconds=seconds)
+
+
+def cdpr_simulate(controller: str, seconds: float) -> float:
+    """``simulate("aras3", controller)`` per second (the one-call public path)."""
+    return timing.best_rate(lambda: simulate("aras3", controller, duration=DURATION, dt=DT),
+                            min_seconds=seconds)
+
+
+def cdpr_batch(robot_name: str, controller: str, seconds: float, pairs: Any = None
+               ) -> float:
+    """Runs per second of ``run_many`` (Trajectory objects included) over ``pairs``
+    (default: the robot's own case repeated :data:`BATCH_PAIRS` times)."""
+    robot = preset(robot_name)
+    simulator = get_simulator(robot, CONTROLLERS[controller])
+    starts, goals = pairs if pairs is not None else (
+        [robot.start] * BATCH_PAIRS, [robot.goal] * BATCH_PAIRS)
+    return len(starts) * timing.best_rate(lambda: run_many(
+        simulator, starts, goals, robot.k, robot.r_d, duration=DURATION, dt=DT),
+        min_seconds=seconds, rounds=2)
+
+
+def sweep_rate(pairs: int, workers: int) -> dict[str, float]:
+    """Wall-clock pairs per second of ``cdpr-sym sweep`` (pd, aras3, 5 s runs), start-up of
+    the command included (its compiled libraries already cached)."""
+    command = [sys.executable, "-m", "cdpr_sym", "sweep", "--controllers", "pd", "--duration",
+               str(DURATION), "--quiet", "--no-progress", "--workers", str(workers)]
+    with tempfile.TemporaryDirectory() as folder:
+        subprocess.run([*command, "--pairs", "16", "--out", f"{folder}/warm.csv"],
+                       check=True, capture_output=True)
+        start = time.perf_counter()
+        subprocess.run([*command, "--pairs", str(pairs), "--out", f"{folder}/sweep.csv"],
+                       check=True, capture_output=True)
+        seconds = time.perf_counter() - start
+    return {"pairs": pairs, "workers": workers, "seconds": seconds,
+            "pairs_per_s": pairs / seconds}
+
+
+def measure(seconds: float) -> dict[str, Any]:
+    """Every figure of the report, as one JSON-ready dictionary."""
+    timing.pin_to_one_core(0)
+    starts, goals = draw_pairs(BATCH_PAIRS, seed=0)
+    rows: dict[str, dict[str, float]] = {}
+    for name in CONTROLLER_NAMES:
+        rows[name] = {
+            "floor": timing.single_rate("floor", name, min_seconds=seconds),
+            "cdpr_run": cdpr_single("aras3", name, seconds),
+            "cdpr_simulate": cdpr_simulate(name, seconds),
+            "numba": timing.single_rate("numba", name, min_seconds=seconds),
+            "jax": timing.single_rate("jax", name, min_seconds=seconds),
+            "jax_batch": timing.batch_rate(name, pairs=BATCH_PAIRS,
+                                           min_seconds=seconds)["sims_per_s"],
+            "cdpr_batch": cdpr_batch("aras3", name, seconds, (starts, goals)),
+        }
+    os.sched_setaffinity(0, range(os.cpu_count() or 1))
+    workers = len(os.sched_getaffinity(0))
+    return {
+        "machine": {"cpu": _cpu_name(), "cores": workers, "python": platform.python_version()},
+        "aras3": rows,
+        "sweep": sweep_rate(SWEEP_PAIRS, workers),
+        "spatial6": _platform_rates(seconds),
+    }
+
+
+def _platform_rates(seconds: float) -> dict[str, float]:
+    timing.pin_to_one_core(0)
+    out = {"cdpr_run": cdpr_single("spatial6", "pd", seconds),
+           "cdpr_batch": cdpr_batch("spatial6", "pd", seconds)}
+    os.sched_setaffinity(0, range(os.cpu_count() or 1))
+    return out
+
+
+def _cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def report(figures: dict[str, Any]) -> str:
+    """The Markdown report of :func:`measure`'s figures, ratios included."""
+    aras3, sweep, machine = figures["aras3"], figures["sweep"], figures["machine"]
+    label = {"floor": "hand-written C loop, gcc -O2 (the floor)",
+             "cdpr_run": "cdpr_sym `Simulator.run`", "cdpr_simulate": "cdpr_sym `simulate()`",
+             "numba": "numba `@njit` loop", "jax": "JAX `jit(scan)`, single run",
+             "jax_batch": f"JAX `jit(vmap(scan))`, {BATCH_PAIRS} pairs",
+             "cdpr_batch": f"cdpr_sym `run_many`, {BATCH_PAIRS} pairs (batched, SIMD)"}
+    lines = ["# Speed beside the peers", "",
+             "Generated by `python -m benchmarks.run`; every figure comes from one run on "
+             f"one machine ({machine['cpu']}, {machine['cores']} cores, Python "
+             f"{machine['python']}). Closed-loop runs of 5 s at 1 kHz (5,000 steps) with "
+             "logging and stop checks; single runs and batches on one core.", "",
+             "| implementation | pd sims/s | × floor | l2 sims/s | × floor |",
+             "|---|---|---|---|---|"]
+    for key, text in label.items():
+        cells = []
+        for name in CONTROLLER_NAMES:
+            rate = aras3[name][key]
+            cells += [f"{rate:,.0f}", f"{rate / aras3[name]['floor']:.2f}"]
+        lines.append(f"| {text} | {' | '.join(cells)} |")
+    single_pd = aras3["pd"]["cdpr_run"]
+    share = sweep["pairs_per_s"] / (sweep["workers"] * single_pd)
+    lines += ["", "## Against the targets", "",
+              "| target | measured | met |", "|---|---|---|"]
+    for name in CONTROLLER_NAMES:
+        ratio = aras3[name]["cdpr_run"] / aras3[name]["floor"]
+        lines.append(f"| single run ≥ 0.9 × floor, {name} | {ratio:.2f} | "
+                     f"{_yes(ratio >= 0.9)} |")
+    for name in CONTROLLER_NAMES:
+        ratio = aras3[name]["cdpr_batch"] / aras3[name]["jax_batch"]
+        lines.append(f"| batched ≥ 2 × JAX batch, {name} | {ratio:.2f} | {_yes(ratio >= 2)} |")
+    lines.append(f"| sweep ≥ 0.85 × cores × single-run rate ({sweep['pairs']:,} pd pairs, "
+                 f"{sweep['workers']} workers, start-up included) | {share:.2f} "
+                 f"({sweep['pairs_per_s']:,.0f} pairs/s in {sweep['seconds']:.2f} s) | "
+                 f"{_yes(share >= 0.85)} |")
+    platform_rates = figures["spatial6"]
+    lines.append(f"| 6-cable platform ≥ 2 × 104 sims/s (pd) | run "
+                 f"{platform_rates['cdpr_run']:,.0f}, batched {platform_rates['cdpr_batch']:,.0f}"
+                 f" | {_yes(max(platform_rates.values()) >= 208)} |")
+    lines += ["", "`run_many` includes building each run's `Trajectory`; a sweep also computes "
+              "each row's metrics in Python and writes the rows.", ""]
+    return "\n".join(lines)
+
+
+def _yes(met: bool) -> str:
+    return "yes" if met else "**no**"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=1.0,
+                        help="timing per round, s (default 1)")
+    args = parser.parse_args(argv)
+    if not 0 < args.seconds <= 60:
+        parser.error("--seconds: expected a time in (0, 60] s")
+    figures = measure(args.seconds)
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "peers.json").write_text(json.dumps(figures, indent=2) + "\n")
+    (OUT / "peers.md").write_text(report(figures))
+    print(report(figures))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
