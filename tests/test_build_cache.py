@@ -366,3 +366,14 @@ def test_compiler_flags_are_part_of_the_cache_key(tmp_path):
     assert _evaluate(default) == _evaluate(unoptimised) == 6.0
     assert _build(cache, compiler=str(wrapper), flags=("-O0",)).compiled_now is False
     assert len(log.read_text().splitlines()) == 2
+
+
+def test_a_library_built_for_this_cpu_is_not_shared_with_another(tmp_path, monkeypatch):
+    cache, native = tmp_path / "cache", ("-O2", "-march=native")
+    here = _build(cache, flags=native)
+    portable = _build(cache)
+    monkeypatch.setattr(build_module, "_host_cpu", lambda: "another processor")
+    elsewhere = _build(cache, flags=native)
+    assert elsewhere.compiled_now is True and elsewhere.key != here.key
+    # a portable build does not depend on the processor
+    assert _build(cache).key == portable.key and _build(cache).compiled_now is False

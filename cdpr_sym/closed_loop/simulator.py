@@ -158,13 +158,18 @@ class Simulator:
         Raises :class:`InvalidCase` (``duration`` or ``dt``) before allocating anything when
         the run's states and logs would exceed
         :func:`~cdpr_sym.closed_loop.case.trajectory_budget` bytes."""
-        if self.layout.rate_limited != plant.rate_limited:
-            raise InvalidCase("plant", "a rate-limited plant needs a simulator built with "
-                              "rate_limited=True (simulate() chooses it)")
+        self.check_plant(plant)
         n_steps = check_timing(duration, dt, values_per_step=self.values_per_step)
         states, logs = self.rollout(self.initial_state(start, goal, k, r_d, dq0=dq0),
                                     self.parameters(goal, k, r_d, dt, plant), n_steps)
         return self.trajectory(states, logs, n_steps, dt, goal, k, r_d, plant)
+
+    def check_plant(self, plant: Plant) -> None:
+        """Raise :class:`InvalidCase` (``plant``) when ``plant`` needs another step: a
+        rate-limited plant carries the applied tension as a state."""
+        if self.layout.rate_limited != plant.rate_limited:
+            raise InvalidCase("plant", "a rate-limited plant needs a simulator built with "
+                              "rate_limited=True (simulate() chooses it)")
 
     def parameters(self, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, dt: float,
                    plant: Plant) -> np.ndarray:

@@ -38,6 +38,7 @@ import hashlib
 import math
 import numbers
 import os
+import platform
 import shutil
 import signal
 import subprocess
@@ -303,10 +304,26 @@ def build(functions: Sequence[ca.Function], name: str, *, extra_source: str = ""
 
 def _cache_key(source_text: str, compiler: str, flags: Sequence[str]) -> str:
     digest = hashlib.sha256()
-    for part in (source_text, compiler, " ".join((*flags, *_LINK_FLAGS)), ca.__version__):
+    # a library built for this host's instruction set must not be loaded on another CPU
+    # sharing the cache (illegal instruction)
+    host = _host_cpu() if any(flag.startswith(("-march=native", "-mcpu=native"))
+                              for flag in flags) else ""
+    for part in (source_text, compiler, " ".join((*flags, *_LINK_FLAGS)), ca.__version__,
+                 host):
         digest.update(part.encode())
         digest.update(b"\0")
     return digest.hexdigest()[:20]
+
+
+@functools.lru_cache(maxsize=1)
+def _host_cpu() -> str:
+    """This machine's processor model and feature flags (Linux), else its architecture."""
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        lines = []
+    wanted = [line for line in lines if line.startswith(("model name", "flags", "Features"))]
+    return "\n".join(dict.fromkeys(wanted)) or f"{platform.machine()} {platform.processor()}"
 
 
 @contextmanager
