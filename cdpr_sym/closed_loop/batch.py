@@ -19,6 +19,7 @@ import numpy as np
 from cdpr_sym.closed_loop.case import check_timing
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.simulator import Simulator
+from cdpr_sym.closed_loop.summaries import run_summary, summary_fields, summary_source
 from cdpr_sym.codegen import (
     BuildOptions,
     build,
@@ -28,7 +29,7 @@ from cdpr_sym.codegen import (
     unsupported_operations,
 )
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.results import Trajectory
+from cdpr_sym.results import SETTLE_TOLERANCE, RunSummary, Trajectory
 
 #: Runs advanced together by one call of the vectorised step (8 doubles = one AVX-512
 #: register, two AVX2 ones).
@@ -49,7 +50,7 @@ class BatchRollout:
         source = lanes_preamble(lanes) + lanes_source(simulator.step, "step_lanes", lanes) + render(
             "cdpr_sym.closed_loop", "rollout_lanes.c.j2", step="step_lanes", lanes=lanes,
             n_x=layout.x.size, n_p=layout.p.size, n_log=layout.log.size,
-            status=layout.status_index)
+            status=layout.status_index) + summary_source(layout, "step_lanes", lanes)
         options = BuildOptions(backend="c", cache_dir=build_options.cache_dir,
                                compiler=build_options.compiler,
                                flags=(*build_options.flags, *VECTOR_FLAGS),
@@ -59,6 +60,8 @@ class BatchRollout:
         self._native = self.library.native()
         self._call = self._native.entry("rollout_lanes", None, [ctypes.c_void_p] * 4 + [
             ctypes.c_longlong] * 2 + [ctypes.c_void_p])
+        self._summarise = self._native.entry("summarise_lanes", None, [ctypes.c_void_p] * 3 + [
+            ctypes.c_longlong] * 2 + [ctypes.c_double])
 
     def __call__(self, x0: np.ndarray, p: np.ndarray, n_steps: int
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -74,6 +77,17 @@ class BatchRollout:
             self._call(x0.ctypes.data, p.ctypes.data, states.ctypes.data, logs.ctypes.data,
                        n_steps, runs, taken.ctypes.data)
         return states, logs, taken
+
+    def summaries(self, x0: np.ndarray, p: np.ndarray, n_steps: int, band: float
+                  ) -> np.ndarray:
+        """Summary rows (runs, :func:`summary_fields` size) of the runs from ``x0`` with
+        ``p``, as :meth:`__call__` would run them; ``band`` is the settling band, m."""
+        x0, p = np.ascontiguousarray(x0, float), np.ascontiguousarray(p, float)
+        rows = np.zeros((len(x0), summary_fields(self.layout).size))
+        if len(x0):
+            self._summarise(x0.ctypes.data, p.ctypes.data, rows.ctypes.data, n_steps,
+                            len(x0), band * band)
+        return rows
 
 
 #: Each simulator's batched rollout (None: none can be built), kept while it lives.
@@ -121,12 +135,7 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
         ``starts``/``goals`` of different lengths or shapes, bad timing, a plant that
         does not match the simulator.
     """
-    starts, goals = np.atleast_2d(starts).astype(float), np.atleast_2d(goals).astype(float)
-    if starts.shape != goals.shape or starts.shape[1:] != (simulator.robot.n,):
-        raise InvalidCase("starts", f"expected starts and goals of shape (runs, "
-                          f"{simulator.robot.n}), got {starts.shape} and {goals.shape}")
-    simulator.check_plant(plant)
-    n_steps = check_timing(duration, dt, values_per_step=simulator.values_per_step)
+    starts, goals, n_steps = _checked(simulator, starts, goals, duration, dt, plant)
     batch = batch_rollout(simulator, build_options)
     if batch is None:
         return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=plant)
@@ -141,3 +150,41 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
         out.extend(simulator.trajectory(states[i], logs[i], n_steps, dt, goal, k, r_d, plant)
                    for i, goal in enumerate(goals[block]))
     return out
+
+
+def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndarray,
+                   r_d: np.ndarray, *, duration: float, dt: float, plant: Plant = Plant(),
+                   build_options: BuildOptions = BuildOptions()) -> list[RunSummary]:
+    """``[run.summary() for run in run_many(...)]`` without storing the runs.
+
+    The batched loop keeps each run's running extremes and counts as it advances, so a
+    sweep of any length holds one summary row per run; the metrics equal those of
+    :func:`run_many`'s trajectories (the total variation to round-off: it is summed in step
+    order rather than pairwise). Same parameters and errors as :func:`run_many`.
+    """
+    starts, goals, n_steps = _checked(simulator, starts, goals, duration, dt, plant)
+    batch = batch_rollout(simulator, build_options)
+    if batch is None:
+        return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=plant).summary()
+                for s, g in zip(starts, goals, strict=True)]
+    x0 = np.array([simulator.initial_state(s, g, k, r_d) for s, g in zip(starts, goals,
+                                                                          strict=True)])
+    p = np.array([simulator.parameters(g, k, r_d, dt, plant) for g in goals])
+    rows = batch.summaries(x0, p, n_steps, SETTLE_TOLERANCE)
+    static = simulator.static_tensions(starts)
+    robot = simulator.robot
+    return [run_summary(row, simulator.layout, goal, dt, static_tension=tension,
+                        t_min=robot.t_min, t_max=robot.t_max)
+            for row, goal, tension in zip(rows, goals, static, strict=True)]
+
+
+def _checked(simulator: Simulator, starts: Sequence, goals: Sequence, duration: float,
+             dt: float, plant: Plant) -> tuple[np.ndarray, np.ndarray, int]:
+    """Starts and goals as (runs, n) arrays and the number of steps, checked."""
+    starts, goals = np.atleast_2d(starts).astype(float), np.atleast_2d(goals).astype(float)
+    if starts.shape != goals.shape or starts.shape[1:] != (simulator.robot.n,):
+        raise InvalidCase("starts", f"expected starts and goals of shape (runs, "
+                          f"{simulator.robot.n}), got {starts.shape} and {goals.shape}")
+    simulator.check_plant(plant)
+    n_steps = check_timing(duration, dt, values_per_step=simulator.values_per_step)
+    return starts, goals, n_steps

@@ -210,6 +210,13 @@ class Simulator:
     def _static_tension(self, q: np.ndarray) -> np.ndarray:
         return np.array(self.model.functions["static_tension"](q)).ravel()
 
+    def static_tensions(self, poses: np.ndarray) -> np.ndarray:
+        """W^{-1} grad V at each row of ``poses`` (runs, n), N: one CasADi call for all."""
+        poses = np.atleast_2d(poses)
+        if not len(poses):
+            return np.zeros((0, self.robot.n))
+        return np.array(self.model.functions["static_tension"](poses.T)).T
+
 
 def run_info(robot: Robot, controller: Controller, dt: float, k, r_d, plant: Plant, *,
              integrator: str, **extra: Any) -> dict[str, Any]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import html
 import json
+import math
 import os
 import stat
 from pathlib import Path
@@ -13,21 +14,12 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from cdpr_sym.control.flags import FALLBACK_FLAGS, FLAG_ALPHA, FLAG_INFEASIBLE, FLAG_NAMES
+from cdpr_sym.control.flags import FALLBACK_FLAGS, FLAG_NAMES
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results.figures import run_figure
 from cdpr_sym.results.store import load_arrays, save_arrays
+from cdpr_sym.results.summary import SETTLE_TOLERANCE, RunSummary
 
-#: Settling band on ||q - q_goal||, m.
-SETTLE_TOLERANCE = 0.01
-#: Slack on the tension bounds when judging feasibility, N (round-off only).
-FEASIBILITY_SLACK = 1e-9
-#: The one-number metrics of :meth:`Trajectory.metrics`, in table order (a sweep's columns);
-#: ``start_jump`` is present only when the static tension is known.
-SCALAR_METRICS = ("min_tension", "max_tension", "settle_time", "final_error", "min_alpha",
-                  "tension_feasible", "converged", "share_alpha_below_one", "share_fallback",
-                  "fallback_steps", "infeasible_steps", "tension_total_variation",
-                  "max_tension_step", "start_jump", "stop_reason", "duration")
 _ARRAYS = ("t", "q", "dq", "tau", "alpha", "beta", "j", "flags", "q_goal")
 
 
@@ -175,38 +167,31 @@ class Trajectory:
         ``start_jump`` (N), max_i |tau_0 - tau_static|, uses ``static_tension`` (the
         argument, else the trajectory's own) and is left out when neither is known.
         """
+        return self.summary(static_tension=static_tension).metrics()
+
+    def summary(self, *, static_tension: np.ndarray | None = None) -> RunSummary:
+        """The running extremes and counts :meth:`metrics` is made of (see
+        :class:`~cdpr_sym.results.summary.RunSummary`)."""
         if static_tension is None:
             static_tension = self.static_tension
         after_start = self.tau[1:]
         steps = np.abs(np.diff(self.tau, axis=0))
-        settle = self.settle_time()
-        # feasible only if the run reached its end and every command for t > 0 was judged
-        feasible = bool(self.stop_reason is None and after_start.size > 0
-                        and after_start.min() >= self.t_min - FEASIBILITY_SLACK
-                        and after_start.max() <= self.t_max + FEASIBILITY_SLACK)
-        out: dict[str, Any] = {
-            "min_tension": _float(after_start.min()) if after_start.size else None,
-            "max_tension": _float(after_start.max()) if after_start.size else None,
-            "settle_time": settle,
-            "final_error": float(np.linalg.norm(self.q[-1] - self.q_goal)),
-            "min_alpha": _float(self.alpha.min()) if self.alpha.size else None,
-            "tension_feasible": feasible,
-            "converged": settle is not None,
-            "share_alpha_below_one": self.flag_share(FLAG_ALPHA),
-            "share_fallback": self.flag_share(FALLBACK_FLAGS),
-            "fallback_steps": int(np.count_nonzero(self.flags & FALLBACK_FLAGS)),
-            "infeasible_steps": int(np.count_nonzero(self.flags & FLAG_INFEASIBLE)),
-            "tension_total_variation": float(steps.sum()),
-            "max_tension_step": float(steps.max()) if steps.size else 0.0,
-            "flag_counts": self.flag_counts(),
-            "stop_reason": self.stop_reason,
-            "duration": float(self.t[-1] - self.t[0]),
-        }
-        if static_tension is not None and len(self.tau):
-            out["start_jump"] = float(np.max(np.abs(self.tau[0] - static_tension)))
-        order = (*SCALAR_METRICS, "flag_counts")
-        assert set(out) <= set(order), set(out) - set(order)  # a new metric is declared above
-        return {name: out[name] for name in order if name in out}
+        return RunSummary(
+            commands=len(self.tau),
+            min_tension=float(after_start.min()) if after_start.size else math.nan,
+            max_tension=float(after_start.max()) if after_start.size else math.nan,
+            min_alpha=float(self.alpha.min()) if self.alpha.size else math.nan,
+            settle_time=self.settle_time(),
+            final_error=float(np.linalg.norm(self.q[-1] - self.q_goal)),
+            total_variation=float(steps.sum()),
+            max_step=float(steps.max()) if steps.size else 0.0,
+            flag_counts=self.flag_counts(),
+            fallback_steps=int(np.count_nonzero(self.flags & FALLBACK_FLAGS)),
+            stop_reason=self.stop_reason,
+            duration=float(self.t[-1] - self.t[0]),
+            start_jump=(float(np.max(np.abs(self.tau[0] - static_tension)))
+                        if static_tension is not None and len(self.tau) else None),
+            t_min=self.t_min, t_max=self.t_max)
 
     def save(self, path: str | Path) -> Path:
         """Write the run to an ``.npz`` file that ``numpy.load`` reads directly (``.npz`` is
@@ -308,7 +293,3 @@ def _remove_partial(target: Path) -> None:
 def _text(value: float | None, missing: str = "–") -> str:
     return missing if value is None else f"{value:.4g}"
 
-
-def _float(value: Any) -> float | None:
-    value = float(value)
-    return value if np.isfinite(value) else None

@@ -5,7 +5,8 @@ listed controller from each start to its goal, and appends one CSV row per (pair
 controller) with the metrics of ``cdpr-sym simulate --json`` plus start, goal, run status
 and stop reason (or, with ``format="parquet"``, one typed Parquet part per finished chunk
 of rows in a dataset folder). The runs of each controller are advanced together in
-vectorised blocks (:func:`~cdpr_sym.closed_loop.run_many`). A JSON sidecar records the
+vectorised blocks and reduced to their metrics as they advance
+(:func:`~cdpr_sym.closed_loop.summarise_many`). A JSON sidecar records the
 configuration, package versions and seed so any row can be re-run exactly (``run_many``
 on its pair alone; a single ``simulate`` run agrees to round-off, which chattering designs
 amplify). Work is spread over local processes by default,
@@ -31,10 +32,10 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from cdpr_sym.closed_loop import Plant, get_simulator, run_many
+from cdpr_sym.closed_loop import Plant, get_simulator, summarise_many
 from cdpr_sym.control import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, Interrupted, InvalidCase
-from cdpr_sym.results import Trajectory
+from cdpr_sym.results import RunSummary, Trajectory
 from cdpr_sym.results.store import (
     append_parquet_part,
     remove_parquet_dataset,
@@ -71,22 +72,23 @@ def run_one(robot: Robot, controller_name: str, start: np.ndarray, goal: np.ndar
 
 def run_group(robot: Robot, controller_name: str, starts: np.ndarray, goals: np.ndarray, *,
               duration: float, dt: float, mass_scale: float) -> list[dict[str, Any]]:
-    """Rows of many runs of one controller, advanced together by the batched rollout
-    (:func:`~cdpr_sym.closed_loop.run_many`); equal to :func:`run_one` on each pair. When
+    """Rows of many runs of one controller, advanced together and reduced to their metrics
+    in compiled code (:func:`~cdpr_sym.closed_loop.summarise_many`): the metrics of
+    :func:`~cdpr_sym.closed_loop.run_many` on each pair, without storing the runs. When
     the group fails as a whole, each pair is run alone so only its own row reports the
     error."""
     try:
         simulator = get_simulator(robot, controller_by_name(controller_name))
-        runs = run_many(simulator, starts, goals, robot.k, robot.r_d, duration=duration,
-                        dt=dt, plant=Plant(mass_scale=mass_scale))
+        summaries = summarise_many(simulator, starts, goals, robot.k, robot.r_d,
+                                   duration=duration, dt=dt, plant=Plant(mass_scale=mass_scale))
     except _RUN_FAILURES:
         return [run_one(robot, controller_name, start, goal, duration=duration, dt=dt,
                         mass_scale=mass_scale) for start, goal in zip(starts, goals,
                                                                         strict=True)]
-    return [_row(run) for run in runs]
+    return [_row(summary) for summary in summaries]
 
 
-def _row(run: Trajectory) -> dict[str, Any]:
+def _row(run: Trajectory | RunSummary) -> dict[str, Any]:
     row: dict[str, Any] = {"status": "ok" if run.stop_reason is None else "stopped",
                            "error": ""}
     row.update(run.metrics())

@@ -1,0 +1,74 @@
+"""Runs reduced to summaries in compiled code: what a sweep row needs, without the run.
+
+A sweep keeps one row of metrics per run, not the run. The batched loop of
+``templates/summarise_lanes.c.j2`` advances the runs as the batched rollout does and keeps,
+per run, the running extremes and counts of a
+:class:`~cdpr_sym.results.summary.RunSummary` in one flat row laid out by
+:func:`summary_fields`; :func:`run_summary` reads such a row. The states and logs are never
+stored, which is most of a batched run's memory traffic.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from cdpr_sym.closed_loop.layout import Fields, StepLayout
+from cdpr_sym.closed_loop.step import STOP_REASONS
+from cdpr_sym.codegen import render
+from cdpr_sym.control.flags import FALLBACK_FLAGS, FLAG_NAMES
+from cdpr_sym.results.summary import RunSummary
+
+
+@functools.cache
+def summary_fields(layout: StepLayout) -> Fields:
+    """The flat summary row of one run: steps counted, stop code, last state x, tau_0 (N),
+    tension extremes over t > 0 (N), smallest alpha, total variation and largest step of the
+    command (N), index of the last sample outside the settling band (-1: none), steps per
+    flag (in the order of ``FLAG_NAMES``) and fallback steps."""
+    return Fields((("commands", 1), ("status", 1), ("x_last", layout.x.size),
+                   ("first_tau", layout.n), ("min_tension", 1), ("max_tension", 1),
+                   ("min_alpha", 1), ("variation", 1), ("max_step", 1), ("last_outside", 1),
+                   ("flag_counts", len(FLAG_NAMES)), ("fallback", 1)))
+
+
+def summary_source(layout: StepLayout, step: str, lanes: int) -> str:
+    """C source of ``summarise_lanes`` over the vectorised step ``step``."""
+    fields = summary_fields(layout)
+    return render("cdpr_sym.closed_loop", "summarise_lanes.c.j2", step=step, lanes=lanes,
+                  n=layout.n, n_x=layout.x.size, n_p=layout.p.size, n_log=layout.log.size,
+                  n_s=fields.size, offsets=fields.offsets(), status=layout.status_index,
+                  goal=layout.p.offset("q_goal"), tau=layout.log.offset("tau"),
+                  alpha=layout.log.offset("alpha"), flags=layout.log.offset("flags"),
+                  flag_bits=list(FLAG_NAMES), fallback_mask=FALLBACK_FLAGS)
+
+
+def run_summary(row: np.ndarray, layout: StepLayout, goal: np.ndarray, dt: float, *,
+                static_tension: np.ndarray | None, t_min: float, t_max: float
+                ) -> RunSummary:
+    """The :class:`RunSummary` of one summary row (see :func:`summary_fields`) of a run
+    towards ``goal`` (m) with period ``dt`` (s)."""
+    values = summary_fields(layout).split(row)
+    commands = int(values["commands"][0])
+    status = int(values["status"][0])
+    stop_reason = STOP_REASONS[status] if status else None
+    last_outside = int(values["last_outside"][0])
+    if stop_reason is not None or last_outside == commands:
+        settle_time = None
+    else:
+        settle_time = (last_outside + 1) * dt if last_outside >= 0 else 0.0
+    q_last = layout.x.split(values["x_last"])["q"]
+    counts = values["flag_counts"]
+    return RunSummary(
+        commands=commands, min_tension=float(values["min_tension"][0]),
+        max_tension=float(values["max_tension"][0]), min_alpha=float(values["min_alpha"][0]),
+        settle_time=settle_time, final_error=float(np.linalg.norm(q_last - goal)),
+        total_variation=float(values["variation"][0]), max_step=float(values["max_step"][0]),
+        flag_counts={name: int(count) for name, count in zip(FLAG_NAMES.values(), counts,
+                                                              strict=True)},
+        fallback_steps=int(values["fallback"][0]), stop_reason=stop_reason,
+        duration=commands * dt,
+        start_jump=(float(np.max(np.abs(values["first_tau"] - static_tension)))
+                    if static_tension is not None and commands else None),
+        t_min=t_min, t_max=t_max)

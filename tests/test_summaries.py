@@ -1,0 +1,79 @@
+"""Sweep rows reduced in compiled code against the metrics of the stored runs."""
+
+import numpy as np
+import pytest
+
+from cdpr_sym.closed_loop import Plant, get_simulator, run_many, summarise_many
+from cdpr_sym.closed_loop.batch import batch_rollout
+from cdpr_sym.codegen import BuildOptions
+from cdpr_sym.control import CONTROLLERS
+
+
+def _pairs(robot, rng, count):
+    """Random pairs near the robot's case; one pulled out of the frame (a PD run stops
+    there), one starting at its goal (settled at t = 0)."""
+    span = robot.frame_upper - robot.frame_lower
+    starts = robot.start + rng.uniform(-0.05, 0.05, (count, robot.n)) * span
+    goals = robot.goal + rng.uniform(-0.05, 0.05, (count, robot.n)) * span
+    goals[1] = robot.frame_upper + 0.5 * span
+    goals[2] = starts[2]
+    return starts, goals
+
+
+def _assert_same_metrics(summaries, runs):
+    assert len(summaries) == len(runs)
+    for summary, run in zip(summaries, runs, strict=True):
+        reduced, stored = summary.metrics(), run.metrics()
+        assert list(reduced) == list(stored)
+        # summed step by step in C, pairwise by numpy: equal to round-off
+        assert reduced.pop("tension_total_variation") == pytest.approx(
+            stored.pop("tension_total_variation"), rel=1e-12, abs=0)
+        assert reduced == stored
+
+
+@pytest.mark.parametrize("robot_name,controller,plant", [
+    ("aras3", "pd", Plant()),
+    ("aras3", "l2", Plant(mass_scale=1.1)),       # alpha < 1, fallbacks, stops
+    ("aras3", "smooth", Plant(slack=True)),       # a controller with memory
+    ("aras3", "box", Plant(rate_limit=2000.0)),   # the applied tension in the state
+    ("spatial6", "pd", Plant()),                  # a rigid body
+])
+def test_summaries_equal_the_metrics_of_the_runs(robot_name, controller, plant, request, rng,
+                                                 build_options):
+    robot = request.getfixturevalue(robot_name)
+    simulator = get_simulator(robot, CONTROLLERS[controller], build_options=build_options,
+                              rate_limited=plant.rate_limited)
+    starts, goals = _pairs(robot, rng, 11)  # a full block of lanes and a partial one
+    runs = dict(duration=0.6, dt=1e-3, plant=plant, build_options=build_options)
+    summaries = summarise_many(simulator, starts, goals, robot.k, robot.r_d, **runs)
+    assert batch_rollout(simulator, build_options) is not None
+    stored = run_many(simulator, starts, goals, robot.k, robot.r_d, **runs)
+    _assert_same_metrics(summaries, stored)
+    outcomes = [summary.metrics() for summary in summaries]
+    if plant.mass_scale == 1.0:  # a heavier plant sags out of the band at its goal
+        assert outcomes[2]["settle_time"] == 0.0
+    if controller == "pd":  # the bounded designs need longer to leave the frame
+        assert outcomes[1]["stop_reason"] == "left_frame"
+
+
+def test_summaries_cover_settling_late_and_never(aras3, build_options):
+    simulator = get_simulator(aras3, CONTROLLERS["pd"], build_options=build_options)
+    starts, goals = np.array([aras3.start] * 2), np.array([aras3.goal] * 2)
+    for duration in (0.05, 1.0):  # still moving at the end, then settled within the run
+        summaries = summarise_many(simulator, starts, goals, aras3.k, aras3.r_d,
+                                   duration=duration, dt=1e-3, build_options=build_options)
+        runs = run_many(simulator, starts, goals, aras3.k, aras3.r_d, duration=duration,
+                        dt=1e-3, build_options=build_options)
+        _assert_same_metrics(summaries, runs)
+        assert (summaries[0].settle_time is None) == (duration == 0.05)
+
+
+def test_the_virtual_machine_summarises_single_runs(aras3, rng, build_options):
+    options = BuildOptions(backend="casadi", cache_dir=build_options.cache_dir)
+    simulator = get_simulator(aras3, CONTROLLERS["pd"], build_options=options)
+    starts, goals = _pairs(aras3, rng, 3)
+    summaries = summarise_many(simulator, starts, goals, aras3.k, aras3.r_d, duration=0.05,
+                               dt=1e-3, build_options=options)
+    runs = [simulator.run(s, g, aras3.k, aras3.r_d, duration=0.05, dt=1e-3, plant=Plant())
+            for s, g in zip(starts, goals, strict=True)]
+    _assert_same_metrics(summaries, runs)
