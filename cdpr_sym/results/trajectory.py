@@ -9,16 +9,17 @@ import math
 import os
 import stat
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from cdpr_sym.control.flags import FALLBACK_FLAGS, FLAG_NAMES
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.results.figures import run_figure
 from cdpr_sym.results.store import load_arrays, save_arrays
 from cdpr_sym.results.summary import SETTLE_TOLERANCE, RunSummary
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 _ARRAYS = ("t", "q", "dq", "tau", "alpha", "beta", "j", "flags", "q_goal")
 
@@ -99,6 +100,8 @@ class Trajectory:
         Returns a ``matplotlib.figure.Figure`` (shown by notebooks; ``fig.savefig(path)``
         writes it); the user's matplotlib backend is not changed.
         """
+        from cdpr_sym.results.figures import run_figure  # matplotlib: 0.3 s, plots only
+
         if title is None:
             title = f"{self.info.get('robot', '')} / {self.info.get('controller', '')}"
         return run_figure(self, title=title, alpha=alpha)
