@@ -302,3 +302,18 @@ def test_a_run_records_the_gains_time_step_and_units_it_was_given(planar2, build
     assert run.info["dt"] == 2e-3
     assert run.info["units"] == list(planar2.coordinate_units)
     assert run.info["controller"] == "pd" and run.info["controller_options"] == {}
+
+
+def test_a_direct_native_call_matches_casadi_and_checks_its_buffers(simulator, rng,
+                                                                    random_states):
+    native = simulator.library.native().casadi_function("static_tension")
+    reference = simulator.model.functions["static_tension"]
+    poses, _ = random_states(simulator.robot, rng, 5)
+    for q in poses:
+        tension = np.empty(simulator.robot.n)
+        native.evaluate([np.ascontiguousarray(q, dtype=float)], [tension])
+        np.testing.assert_allclose(tension, np.array(reference(q)).ravel(), rtol=1e-12)
+    with pytest.raises(ValueError, match="C-contiguous float64"):
+        native.evaluate([np.zeros(simulator.robot.n, dtype=np.float32)], [tension])
+    with pytest.raises(ValueError, match="expected 1 inputs"):
+        native.evaluate([], [tension])

@@ -46,12 +46,15 @@ class _Rollout:
         self._call = native.entry("rollout", ctypes.c_longlong,
                                   [ctypes.c_void_p] * 3 + [ctypes.c_longlong]
                                   + [ctypes.c_void_p] * 2)
-        self._iw, self._w = native.casadi_function("step").work()
+        _, _, self._n_iw, self._n_w = native.work_sizes("step")
         self._native = native
 
     def __call__(self, states: np.ndarray, logs: np.ndarray, p: np.ndarray, n_steps: int) -> int:
+        # work memory per call: threads sharing a simulator (a Dask worker's) never share it
+        iw = np.empty(max(self._n_iw, 1), dtype=np.int64)
+        w = np.empty(max(self._n_w, 1))
         taken = self._call(states.ctypes.data, logs.ctypes.data, p.ctypes.data, n_steps,
-                           self._iw.ctypes.data, self._w.ctypes.data)
+                           iw.ctypes.data, w.ctypes.data)
         if taken < 0:
             raise RuntimeError("the generated step function reported an error")
         return int(taken)
@@ -105,6 +108,7 @@ class Simulator:
                                  extra_source=rollout_source(self.step, self.layout),
                                  options=build_options)
             self._rollout = _Rollout(self.library)
+            self._static_native = self.library.native().casadi_function("static_tension")
         else:
             self._chunk_function = chunk_function(self.step, chunk)
 
@@ -196,26 +200,30 @@ class Simulator:
         stopped = np.flatnonzero(status != 0)
         last = int(stopped[0]) if stopped.size else n_steps
         reason = STOP_REASONS[int(status[last])] if stopped.size else None
+        # views into the run's buffer, not copies: copying the strided columns was a third
+        # of a run's Python time
         x = self.layout.x.split(states[: last + 1])
         return Trajectory(
-            t=np.arange(last + 1) * dt, q=x["q"].copy(), dq=x["dq"].copy(),
+            t=np.arange(last + 1) * dt, q=x["q"], dq=x["dq"],
             q_goal=np.array(goal, dtype=float), t_min=self.robot.t_min,
             t_max=self.robot.t_max, stop_reason=reason,
             info=run_info(self.robot, self.controller, dt, k, r_d, plant,
                           integrator="rk4-sampled", backend=self.backend),
-            memory=x["memory"].copy(),
+            memory=x["memory"],
             static_tension=self._static_tension(states[0, : self.robot.n]),
             **self.layout.split_log(logs[:last]))
 
     def _static_tension(self, q: np.ndarray) -> np.ndarray:
-        return np.array(self.model.functions["static_tension"](q)).ravel()
+        if self.library is None:
+            return np.array(self.model.functions["static_tension"](q)).ravel()
+        # the compiled term: a CasADi call on numpy arrays took 27 us of a run's Python time
+        tension = np.empty(self.robot.n)
+        self._static_native.evaluate([np.ascontiguousarray(q, dtype=float)], [tension])
+        return tension
 
     def static_tensions(self, poses: np.ndarray) -> np.ndarray:
-        """W^{-1} grad V at each row of ``poses`` (runs, n), N: one CasADi call for all."""
-        poses = np.atleast_2d(poses)
-        if not len(poses):
-            return np.zeros((0, self.robot.n))
-        return np.array(self.model.functions["static_tension"](poses.T)).T
+        """W^{-1} grad V at each row of ``poses`` (runs, n), N, as each run records it."""
+        return np.array([self._static_tension(q) for q in poses]).reshape(-1, self.robot.n)
 
 
 def run_info(robot: Robot, controller: Controller, dt: float, k, r_d, plant: Plant, *,
@@ -225,7 +233,10 @@ def run_info(robot: Robot, controller: Controller, dt: float, k, r_d, plant: Pla
             "units": list(robot.coordinate_units), "controller": controller.name,
             "controller_options": controller.options(), "dt": dt,
             "k": np.asarray(k).tolist(), "r_d": np.asarray(r_d).tolist(),
-            "plant": dataclasses.asdict(plant), "integrator": integrator, **extra}
+            # the plant's fields are numbers: asdict's deep copy took 20 us per run
+            "plant": {field.name: getattr(plant, field.name)
+                      for field in dataclasses.fields(plant)},
+            "integrator": integrator, **extra}
 
 
 def controller_identifier(controller: Controller) -> str:
