@@ -8,7 +8,8 @@ It times, on one core (CPU 0), the paper case (aras3, 5 s at 1 kHz) for ``pd`` a
 the hand-written C loop (the floor), numba, JAX (single runs and a 1024-pair
 ``jit(vmap(scan))`` batch), and cdpr_sym's ``Simulator.run``, ``simulate()`` and batched
 ``run_many`` over the same 1024 pairs; then a 2,000-pair ``pd`` sweep through the command
-line on every core, start-up included, and the 6-cable platform. It writes
+line on every core, start-up included, the 6-cable platform, and a 100,000-pair sweep
+locally and on a Dask ``LocalCluster`` (``--dask-pairs``). It writes
 ``reports/bench/peers.json`` and ``reports/bench/peers.md``; every ratio in them comes from
 this one run.
 """
@@ -68,11 +69,13 @@ def cdpr_batch(robot_name: str, controller: str, seconds: float, pairs: Any = No
         min_seconds=seconds, rounds=2)
 
 
-def sweep_rate(pairs: int, workers: int) -> dict[str, float]:
+def sweep_rate(pairs: int, workers: int, dask: str | None = None) -> dict[str, Any]:
     """Wall-clock pairs per second of ``cdpr-sym sweep`` (pd, aras3, 5 s runs), start-up of
-    the command included (its compiled libraries already cached)."""
+    the command included (its compiled libraries already cached), on local processes or on
+    the Dask scheduler at ``dask``."""
     command = [sys.executable, "-m", "cdpr_sym", "sweep", "--controllers", "pd", "--duration",
-               str(DURATION), "--quiet", "--no-progress", "--workers", str(workers)]
+               str(DURATION), "--quiet", "--no-progress", "--workers", str(workers),
+               *(["--dask", dask] if dask else [])]
     with tempfile.TemporaryDirectory() as folder:
         subprocess.run([*command, "--pairs", "16", "--out", f"{folder}/warm.csv"],
                        check=True, capture_output=True)
@@ -81,10 +84,22 @@ def sweep_rate(pairs: int, workers: int) -> dict[str, float]:
                        check=True, capture_output=True)
         seconds = time.perf_counter() - start
     return {"pairs": pairs, "workers": workers, "seconds": seconds,
-            "pairs_per_s": pairs / seconds}
+            "pairs_per_s": pairs / seconds, "on": "dask" if dask else "local"}
 
 
-def measure(seconds: float) -> dict[str, Any]:
+def dask_rates(pairs: int, workers: int) -> dict[str, Any]:
+    """The same ``pairs``-pair sweep on local processes and on a Dask ``LocalCluster`` of
+    ``workers`` single-threaded worker processes (cluster start-up not timed)."""
+    from dask.distributed import LocalCluster
+
+    local = sweep_rate(pairs, workers)
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        distributed = sweep_rate(pairs, workers, dask=cluster.scheduler_address)
+    return {"local": local, "dask": distributed}
+
+
+def measure(seconds: float, dask_pairs: int) -> dict[str, Any]:
     """Every figure of the report, as one JSON-ready dictionary."""
     timing.pin_to_one_core(0)
     starts, goals = draw_pairs(BATCH_PAIRS, seed=0)
@@ -107,6 +122,7 @@ def measure(seconds: float) -> dict[str, Any]:
         "aras3": rows,
         "sweep": sweep_rate(SWEEP_PAIRS, workers),
         "spatial6": _platform_rates(seconds),
+        **({"dask": dask_rates(dask_pairs, workers)} if dask_pairs else {}),
     }
 
 
@@ -168,8 +184,17 @@ def report(figures: dict[str, Any]) -> str:
     lines.append(f"| 6-cable platform ≥ 2 × 104 sims/s (pd) | run "
                  f"{platform_rates['cdpr_run']:,.0f}, batched {platform_rates['cdpr_batch']:,.0f}"
                  f" | {_yes(max(platform_rates.values()) >= 208)} |")
-    lines += ["", "`run_many` includes building each run's `Trajectory`; a sweep also computes "
-              "each row's metrics in Python and writes the rows.", ""]
+    if "dask" in figures:
+        local, distributed = figures["dask"]["local"], figures["dask"]["dask"]
+        ratio = distributed["pairs_per_s"] / local["pairs_per_s"]
+        lines.append(f"| {distributed['pairs']:,}-pair sweep on Dask `LocalCluster` "
+                     f"({distributed['workers']} single-threaded workers) ≥ 0.8 × local | "
+                     f"{ratio:.2f} ({distributed['pairs_per_s']:,.0f} against "
+                     f"{local['pairs_per_s']:,.0f} pairs/s; {distributed['seconds']:.1f} s "
+                     f"and {local['seconds']:.1f} s) | {_yes(ratio >= 0.8)} |")
+    lines += ["", "`run_many` includes building each run's `Trajectory`. A sweep keeps no "
+              "trajectory: its batched loop reduces each run to its metrics as it advances "
+              "(`summarise_many`), and the command writes the rows.", ""]
     return "\n".join(lines)
 
 
@@ -181,12 +206,19 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=1.0,
                         help="timing per round, s (default 1)")
+    parser.add_argument("--dask-pairs", type=int, default=100_000,
+                        help="pairs of the sweep timed locally and on Dask (default 100000; "
+                             "0 skips it)")
     args = parser.parse_args(argv)
     if not 0 < args.seconds <= 60:  # checked before anything is built or timed
         print(f"error: seconds: expected a time in (0, 60] s, got {args.seconds:g}",
               file=sys.stderr)
         return 2
-    figures = measure(args.seconds)
+    if not 0 <= args.dask_pairs <= 10_000_000:
+        print(f"error: dask-pairs: expected 0 to 10000000 pairs, got {args.dask_pairs}",
+              file=sys.stderr)
+        return 2
+    figures = measure(args.seconds, args.dask_pairs)
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "peers.json").write_text(json.dumps(figures, indent=2) + "\n")
     (OUT / "peers.md").write_text(report(figures))
