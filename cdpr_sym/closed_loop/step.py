@@ -47,8 +47,11 @@ def step_function(model: SymbolicModel, controller: Controller, *,
                                               largest)
     applied = applied_tension(actuator, par["slack"])
     z_next = rk4(plant_rhs(model, applied, par["mass_scale"]), ca.vertcat(q, dq), dt)
-    # singular at the sample, or det W changes sign within the step (the plane was crossed)
-    crossed = ca.det(model.structure_matrix(q)) * ca.det(model.structure_matrix(z_next[:n])) <= 0
+    # singular at the sample, or det W changes sign within the step (the plane was crossed);
+    # the sign is read from W diag(l), which needs no square root or division: a sixth of
+    # the step's time went to W(q_next) for this sign alone
+    crossed = (ca.det(model.scaled_structure_matrix(q))
+               * ca.det(model.scaled_structure_matrix(z_next[:n])) <= 0)
     # bit test by floor alone (exact for the small integers flags are): fmod has no vector
     # form, and one call of it keeps the batched step from using SIMD
     shifted = ca.floor(law.flags / FLAG_SINGULAR)

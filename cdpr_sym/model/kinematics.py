@@ -99,6 +99,21 @@ def structure_matrix(robot: Robot, q: ca.SX) -> ca.SX:
     return -ca.jacobian(cable_lengths(robot, q), q).T
 
 
+def scaled_structure_matrix(robot: Robot, q: ca.SX) -> ca.SX:
+    """W(q) diag(l(q)), m: column i is l_i w_i = -(d(l_i^2 / 2)/dq)^T, shape (n, n).
+
+    The lengths are positive, so its determinant has the sign of det W, at a fraction of the
+    cost: no square root and no division. Rigid bodies: ``q`` must be a purely symbolic
+    ``SX``.
+    """
+    if robot.kind == "point":
+        return ca.horzcat(*[ca.DM(robot.anchors[i]) - q for i in range(robot.n)])
+    points = attachment_points(robot, q)
+    half_squares = ca.vertcat(*[0.5 * ca.sumsqr(points[i] - ca.DM(robot.anchors[i]))
+                                for i in range(robot.n)])
+    return -ca.jacobian(half_squares, q).T
+
+
 def singularity_measure(robot: Robot, W: ca.SX) -> ca.SX:
     """|det W| / prod_i |w_i| in [0, 1] (w_i the columns; 0 = singular), dimensionless.
 

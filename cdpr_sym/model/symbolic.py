@@ -60,6 +60,17 @@ class SymbolicModel:
         q = ca.SX.sym("q", self.n)
         return ca.Function("W", [q], [kinematics.structure_matrix(self.robot, q)])
 
+    def scaled_structure_matrix(self, q: ca.SX) -> ca.SX:
+        """W(q) diag(l(q)), m: det has the sign of det W, without square roots or divisions."""
+        if self.robot.kind == "point":
+            return kinematics.scaled_structure_matrix(self.robot, q)
+        return self._scaled_structure_matrix_of_symbol(q)
+
+    @functools.cached_property
+    def _scaled_structure_matrix_of_symbol(self) -> ca.Function:
+        q = ca.SX.sym("q", self.n)
+        return ca.Function("W_scaled", [q], [kinematics.scaled_structure_matrix(self.robot, q)])
+
     def jacobian_ja(self, q: ca.SX) -> ca.SX:
         """The paper's J_a = -W^T = dl/dq; l_dot = J_a dq."""
         return -self.structure_matrix(q).T
