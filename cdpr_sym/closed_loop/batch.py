@@ -143,10 +143,8 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
     out: list[Trajectory] = []
     for first in range(0, len(starts), RUNS_PER_CALL):
         block = slice(first, first + RUNS_PER_CALL)
-        x0 = np.array([simulator.initial_state(s, g, k, r_d)
-                       for s, g in zip(starts[block], goals[block], strict=True)])
-        p = np.array([simulator.parameters(g, k, r_d, dt, plant) for g in goals[block]])
-        states, logs, _ = batch(x0, p, n_steps)
+        states, logs, _ = batch(*_inputs(simulator, starts[block], goals[block], k, r_d, dt,
+                                         plant), n_steps)
         out.extend(simulator.trajectory(states[i], logs[i], n_steps, dt, goal, k, r_d, plant)
                    for i, goal in enumerate(goals[block]))
     return out
@@ -167,15 +165,22 @@ def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: n
     if batch is None:
         return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=plant).summary()
                 for s, g in zip(starts, goals, strict=True)]
-    x0 = np.array([simulator.initial_state(s, g, k, r_d) for s, g in zip(starts, goals,
-                                                                          strict=True)])
-    p = np.array([simulator.parameters(g, k, r_d, dt, plant) for g in goals])
-    rows = batch.summaries(x0, p, n_steps, SETTLE_TOLERANCE)
+    rows = batch.summaries(*_inputs(simulator, starts, goals, k, r_d, dt, plant), n_steps,
+                           SETTLE_TOLERANCE)
     static = simulator.static_tensions(starts)
     robot = simulator.robot
     return [run_summary(row, simulator.layout, goal, dt, static_tension=tension,
                         t_min=robot.t_min, t_max=robot.t_max)
             for row, goal, tension in zip(rows, goals, static, strict=True)]
+
+
+def _inputs(simulator: Simulator, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,
+            r_d: np.ndarray, dt: float, plant: Plant) -> tuple[np.ndarray, np.ndarray]:
+    """The runs' initial states x0 (runs, x size) and parameters p (runs, p size)."""
+    x0 = np.array([simulator.initial_state(s, g, k, r_d)
+                   for s, g in zip(starts, goals, strict=True)])
+    p = np.array([simulator.parameters(g, k, r_d, dt, plant) for g in goals])
+    return x0, p
 
 
 def _checked(simulator: Simulator, starts: Sequence, goals: Sequence, duration: float,

@@ -25,7 +25,14 @@ from cdpr_sym.closed_loop.case import Case, check_timing, minimal_values_per_ste
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.step import STOP_REASONS, chunk_function, step_function, step_layout
-from cdpr_sym.codegen import BuildOptions, CompiledLibrary, build, c_identifier, render
+from cdpr_sym.codegen import (
+    BuildOptions,
+    CompiledLibrary,
+    NativeLibrary,
+    build,
+    c_identifier,
+    render,
+)
 from cdpr_sym.control import (
     Controller,
     controller_by_name,
@@ -41,8 +48,7 @@ from cdpr_sym.robot import Robot, resolve_robot
 class _Rollout:
     """The compiled rollout loop, with the step's work memory."""
 
-    def __init__(self, library: CompiledLibrary) -> None:
-        native = library.native()
+    def __init__(self, native: NativeLibrary) -> None:
         self._call = native.entry("rollout", ctypes.c_longlong,
                                   [ctypes.c_void_p] * 3 + [ctypes.c_longlong]
                                   + [ctypes.c_void_p] * 2)
@@ -107,8 +113,9 @@ class Simulator:
             self.library = build(functions, self.library_name,
                                  extra_source=rollout_source(self.step, self.layout),
                                  options=build_options)
-            self._rollout = _Rollout(self.library)
-            self._static_native = self.library.native().casadi_function("static_tension")
+            native = self.library.native()
+            self._rollout = _Rollout(native)
+            self._static_native = native.casadi_function("static_tension")
         else:
             self._chunk_function = chunk_function(self.step, chunk)
 
