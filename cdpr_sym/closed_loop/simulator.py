@@ -46,30 +46,41 @@ from cdpr_sym.robot import Robot, resolve_robot
 
 
 class _Rollout:
-    """The compiled rollout loop, with the step's work memory."""
+    """The compiled rollout loop, with the work memory of the step and the static tension."""
 
     def __init__(self, native: NativeLibrary) -> None:
         self._call = native.entry("rollout", ctypes.c_longlong,
                                   [ctypes.c_void_p] * 3 + [ctypes.c_longlong]
-                                  + [ctypes.c_void_p] * 2)
-        _, _, self._n_iw, self._n_w = native.work_sizes("step")
+                                  + [ctypes.c_void_p] * 3)
+        sizes = [native.work_sizes(name) for name in _ROLLOUT_CALLS]
+        self._n_iw, self._n_w = (max(size[i] for size in sizes) for i in (2, 3))
         self._native = native
 
-    def __call__(self, states: np.ndarray, logs: np.ndarray, p: np.ndarray, n_steps: int) -> int:
+    def __call__(self, states: np.ndarray, logs: np.ndarray, p: np.ndarray, n_steps: int,
+                 static_tension: np.ndarray) -> int:
+        """Run from ``states[0]``; writes the rows taken and the start's static tension."""
         # work memory per call: threads sharing a simulator (a Dask worker's) never share it
         iw = np.empty(max(self._n_iw, 1), dtype=np.int64)
         w = np.empty(max(self._n_w, 1))
         taken = self._call(states.ctypes.data, logs.ctypes.data, p.ctypes.data, n_steps,
-                           iw.ctypes.data, w.ctypes.data)
+                           iw.ctypes.data, w.ctypes.data, static_tension.ctypes.data)
         if taken < 0:
-            raise RuntimeError("the generated step function reported an error")
+            raise RuntimeError("a generated function of the rollout reported an error")
         return int(taken)
 
 
-def rollout_source(step: ca.Function, layout: StepLayout) -> str:
-    """C source of the rollout loop over the generated ``step`` function."""
+#: The generated functions the rollout loop calls.
+_ROLLOUT_CALLS = ("static_tension", "step")
+
+
+def rollout_source(step: ca.Function, static_tension: ca.Function, layout: StepLayout) -> str:
+    """C source of the rollout loop over the generated ``step`` function, which also
+    evaluates ``static_tension`` at the start."""
+    calls = (static_tension, step)
     return render("cdpr_sym.closed_loop", "rollout.c.j2", step=step.name(),
-                  sz_arg=max(step.sz_arg(), 2), sz_res=max(step.sz_res(), 2),
+                  static=static_tension.name(), n=layout.n,
+                  sz_arg=max(2, *(call.sz_arg() for call in calls)),
+                  sz_res=max(2, *(call.sz_res() for call in calls)),
                   n_x=layout.x.size, n_log=layout.log.size, status=layout.status_index)
 
 
@@ -110,8 +121,9 @@ class Simulator:
             # initial_memory runs once per run: CasADi's virtual machine is fast enough and
             # keeps a large planning function out of the compiled library
             functions = [*self.model.functions.values(), self.law, self.step]
-            self.library = build(functions, self.library_name,
-                                 extra_source=rollout_source(self.step, self.layout),
+            loop = rollout_source(self.step, self.model.functions["static_tension"],
+                                  self.layout)
+            self.library = build(functions, self.library_name, extra_source=loop,
                                  options=build_options)
             native = self.library.native()
             self._rollout = _Rollout(native)
@@ -151,15 +163,23 @@ class Simulator:
         virtual machine runs whole chunks, so its arrays are padded to a multiple of
         ``chunk`` steps; read the first n_steps (+ 1) rows.
         """
+        states, logs, _, _ = self._rollout_with_static_tension(x0, p, n_steps)
+        return states, logs
+
+    def _rollout_with_static_tension(self, x0: np.ndarray, p: np.ndarray, n_steps: int
+                                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int | None]:
+        """:meth:`rollout`'s arrays, the static tension at x0's pose (N) and the steps the
+        compiled loop took (None from the virtual machine)."""
         padded = n_steps if self.backend == "c" else -(-n_steps // self.chunk) * self.chunk
         states = np.zeros((padded + 1, self.layout.x.size))
         logs = np.zeros((padded, self.layout.log.size))
         states[0] = x0
         if self.backend == "c":
-            self._rollout(states, logs, p, n_steps)
-        else:
-            self._run_virtual_machine(states, logs, p, n_steps)
-        return states, logs
+            # the compiled loop evaluates the static tension too: one C call per run
+            static = np.empty(self.robot.n)
+            return states, logs, static, self._rollout(states, logs, p, n_steps, static)
+        self._run_virtual_machine(states, logs, p, n_steps)
+        return states, logs, self._static_tension(states[0, : self.robot.n]), None
 
     def run(self, start: np.ndarray, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, *,
             duration: float, dt: float, plant: Plant, dq0: np.ndarray | None = None
@@ -171,9 +191,11 @@ class Simulator:
         :func:`~cdpr_sym.closed_loop.case.trajectory_budget` bytes."""
         self.check_plant(plant)
         n_steps = check_timing(duration, dt, values_per_step=self.values_per_step)
-        states, logs = self.rollout(self.initial_state(start, goal, k, r_d, dq0=dq0),
-                                    self.parameters(goal, k, r_d, dt, plant), n_steps)
-        return self.trajectory(states, logs, n_steps, dt, goal, k, r_d, plant)
+        states, logs, static, taken = self._rollout_with_static_tension(
+            self.initial_state(start, goal, k, r_d, dq0=dq0),
+            self.parameters(goal, k, r_d, dt, plant), n_steps)
+        return self.trajectory(states, logs, n_steps, dt, goal, k, r_d, plant,
+                               static_tension=static, taken=taken)
 
     def check_plant(self, plant: Plant) -> None:
         """Raise :class:`InvalidCase` (``plant``) when ``plant`` needs another step: a
@@ -199,14 +221,13 @@ class Simulator:
                 break
 
     def trajectory(self, states: np.ndarray, logs: np.ndarray, n_steps: int, dt: float,
-                   goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, plant: Plant
+                   goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, plant: Plant, *,
+                   static_tension: np.ndarray | None = None, taken: int | None = None
                    ) -> Trajectory:
         """The :class:`Trajectory` of one rollout's ``states`` and ``logs`` rows, ending at
-        its first stop status."""
-        status = states[1: n_steps + 1, self.layout.status_index]
-        stopped = np.flatnonzero(status != 0)
-        last = int(stopped[0]) if stopped.size else n_steps
-        reason = STOP_REASONS[int(status[last])] if stopped.size else None
+        its first stop status; ``static_tension`` (N) at the start and the steps ``taken``
+        (the compiled loop returns them: it ends at a stop) when already known."""
+        last, reason = self._end(states, n_steps, taken)
         # views into the run's buffer, not copies: copying the strided columns was a third
         # of a run's Python time
         x = self.layout.x.split(states[: last + 1])
@@ -217,8 +238,22 @@ class Simulator:
             info=run_info(self.robot, self.controller, dt, k, r_d, plant,
                           integrator="rk4-sampled", backend=self.backend),
             memory=x["memory"],
-            static_tension=self._static_tension(states[0, : self.robot.n]),
+            static_tension=(self._static_tension(states[0, : self.robot.n])
+                            if static_tension is None else static_tension),
             **self.layout.split_log(logs[:last]))
+
+    def _end(self, states: np.ndarray, n_steps: int, taken: int | None
+             ) -> tuple[int, str | None]:
+        """The last sample kept and the stop reason (None when the run went the distance)."""
+        index = self.layout.status_index
+        if taken is not None:
+            status = int(states[taken, index])
+            return (taken - 1, STOP_REASONS[status]) if status else (n_steps, None)
+        status = states[1: n_steps + 1, index]
+        stopped = np.flatnonzero(status != 0)
+        if not stopped.size:
+            return n_steps, None
+        return int(stopped[0]), STOP_REASONS[int(status[stopped[0]])]
 
     def _static_tension(self, q: np.ndarray) -> np.ndarray:
         if self.library is None:
