@@ -49,7 +49,6 @@ from cdpr_sym.control.flags import (
 )
 from cdpr_sym.control.interface import ControlLaw, StatelessLaw
 from cdpr_sym.control.parts import (
-    BIG,
     alpha_interval,
     beta_margin,
     clip_to_box,
@@ -57,6 +56,7 @@ from cdpr_sym.control.parts import (
     least_squares_min_norm,
     tension_parts,
 )
+from cdpr_sym.distribution.interval import BIG
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 

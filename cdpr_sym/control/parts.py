@@ -12,10 +12,8 @@ import dataclasses
 
 import casadi as ca
 
+from cdpr_sym.distribution.interval import feasible_interval
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
-
-#: A stand-in for infinity that survives generated C compiled with re-association.
-BIG = 1e300
 
 
 @dataclasses.dataclass(frozen=True)
@@ -121,9 +119,5 @@ def alpha_interval(s0: ca.SX, s1: ca.SX, lower: ca.SX, upper: ca.SX, *,
     Works elementwise on vectors and intersects the intervals; an empty result has
     low > high.
     """
-    safe = ca.if_else(ca.fabs(s1) > 1e-300, s1, 1.0)
-    a, b = (lower - s0) / safe, (upper - s0) / safe
-    inside = ca.logic_and(s0 >= lower, s0 <= upper)
-    low = ca.if_else(ca.fabs(s1) > 1e-300, ca.fmin(a, b), ca.if_else(inside, -BIG, BIG))
-    high = ca.if_else(ca.fabs(s1) > 1e-300, ca.fmax(a, b), ca.if_else(inside, BIG, -BIG))
-    return ca.fmax(ca.mmax(low), within[0]), ca.fmin(ca.mmin(high), within[1])
+    low, high = feasible_interval(s0, s1, lower, upper)
+    return ca.fmax(low, within[0]), ca.fmin(high, within[1])

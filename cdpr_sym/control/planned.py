@@ -21,13 +21,13 @@ import numpy as np
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
 from cdpr_sym.control.interface import ControlLaw
 from cdpr_sym.control.parts import (
-    BIG,
     alpha_interval,
     beta_margin,
     clip_to_box,
     flag_if,
     tension_parts,
 )
+from cdpr_sym.distribution.interval import BIG
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 

@@ -1,0 +1,52 @@
+"""The tension distribution methods by name, and their CasADi functions (W, w) -> tau."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import casadi as ca
+
+from cdpr_sym.distribution import closed_form, one_dimensional
+from cdpr_sym.errors import InvalidCase
+
+Method = Callable[[ca.SX, ca.SX, float, float], tuple[ca.SX, ca.SX]]
+
+#: name -> (method, redundancy it needs: None for any m - n >= 0, else that m - n).
+METHODS: dict[str, tuple[Method, int | None]] = {
+    "improved_closed_form": (closed_form.improved_closed_form, None),
+    "closed_form": (closed_form.closed_form, None),
+    "min_norm": (one_dimensional.min_norm, 1),
+    "centroid": (one_dimensional.centroid, 1),
+}
+#: The method used unless one is named: the standard real-time choice, any redundancy.
+DEFAULT_METHOD = "improved_closed_form"
+
+
+def check_method(name: str, n: int, m: int) -> Method:
+    """The method called ``name`` for n degrees of freedom and m cables, or
+    :class:`InvalidCase` (``distribution``) naming what it needs."""
+    if name not in METHODS:
+        raise InvalidCase("distribution", f"expected one of {tuple(METHODS)}, got {name!r}")
+    method, redundancy = METHODS[name]
+    if redundancy is not None and m - n != redundancy:
+        raise InvalidCase("distribution", f"{name} needs m = n + {redundancy} cables (a "
+                          f"{redundancy}-D null space), got n = {n}, m = {m}; use "
+                          f"{DEFAULT_METHOD}")
+    return method
+
+
+def distribute(name: str, W: ca.SX, w: ca.SX, t_min: float, t_max: float
+               ) -> tuple[ca.SX, ca.SX]:
+    """(tau (m,) N, feasible 1/0) of method ``name`` for the wrench ``w`` (n,)."""
+    n, m = W.shape
+    return check_method(name, n, m)(W, w, t_min, t_max)
+
+
+def distribution_function(name: str, n: int, m: int, t_min: float, t_max: float
+                          ) -> ca.Function:
+    """``tension_<name>``: (W (n x m), w (n)) -> (tau (m) N, feasible), for generation."""
+    check_method(name, n, m)
+    W, w = ca.SX.sym("W", n, m), ca.SX.sym("w", n)
+    tau, feasible = distribute(name, W, w, t_min, t_max)
+    return ca.Function(f"tension_{name}", [W, w], [tau, feasible], ["W", "w"],
+                       ["tau", "feasible"])

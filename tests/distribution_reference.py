@@ -1,0 +1,56 @@
+"""Tension distribution in plain numpy, written from the definitions with index sets, the
+SVD and loops, independently of cdpr_sym's masked, branch-free CasADi forms.
+
+W is n x m with full row rank, w the wrench (n), [lo, hi] the tension box (N).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def closed_form(W: np.ndarray, w: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """tau = mid + W^+ (w - W mid), with the Moore-Penrose inverse from the SVD."""
+    middle = np.full(W.shape[1], 0.5 * (lo + hi))
+    return middle + np.linalg.pinv(W) @ (w - W @ middle)
+
+
+def improved_closed_form(W: np.ndarray, w: np.ndarray, lo: float, hi: float
+                         ) -> tuple[np.ndarray, bool]:
+    """Pott's improved method with explicit sets: fix the worst violator at its bound,
+    solve the closed form for the rest, up to m - n times."""
+    n, m = W.shape
+    free = list(range(m))
+    tau = np.zeros(m)
+    fixed: dict[int, float] = {}
+    for repair in range(m - n + 1):
+        rest = w - sum((W[:, i] * value for i, value in fixed.items()), np.zeros(n))
+        tau_free = closed_form(W[:, free], rest, lo, hi)
+        tau = np.zeros(m)
+        for i, value in fixed.items():
+            tau[i] = value
+        tau[free] = tau_free
+        violations = {i: max(tau[i] - hi, lo - tau[i], 0.0) for i in free}
+        worst = max(free, key=lambda i: (violations[i], -i))
+        if violations[worst] <= 0 or repair == m - n:
+            break
+        fixed[worst] = hi if tau[worst] > hi else lo
+        free.remove(worst)
+    return tau, bool(np.all(tau >= lo) and np.all(tau <= hi))
+
+
+def segment(W: np.ndarray, w: np.ndarray, lo: float, hi: float
+            ) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """m = n + 1: (tau_p, h, s_low, s_high) with the feasible tensions tau_p + s h; h is the
+    unit null vector from the SVD, tau_p the least-squares solution."""
+    tau_p = np.linalg.lstsq(W, w, rcond=None)[0]
+    h = np.linalg.svd(W)[2][-1]
+    s_low, s_high = -np.inf, np.inf
+    for p_i, h_i in zip(tau_p, h, strict=True):
+        if abs(h_i) < 1e-15:
+            if not lo <= p_i <= hi:
+                return tau_p, h, np.inf, -np.inf
+            continue
+        a, b = (lo - p_i) / h_i, (hi - p_i) / h_i
+        s_low, s_high = max(s_low, min(a, b)), min(s_high, max(a, b))
+    return tau_p, h, s_low, s_high

@@ -1,0 +1,209 @@
+"""Tension distribution (cdpr_sym.distribution) against independent references: a numpy
+derivation with index sets and the SVD (tests/distribution_reference.py) and cvxpy +
+Clarabel programs over the tensions themselves (a second formulation); the generated C
+against its CasADi twin after a real compile."""
+
+from __future__ import annotations
+
+import casadi as ca
+import distribution_reference as dref
+import numpy as np
+import pytest
+
+from cdpr_sym import preset
+from cdpr_sym.codegen import build
+from cdpr_sym.distribution import (
+    INFEASIBLE,
+    OPTIMAL,
+    distribution_function,
+    linf_reference,
+    min_norm_reference,
+)
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SymbolicModel
+
+LO, HI = 5.0, 100.0
+
+
+def _evaluate(name: str, W: np.ndarray, w: np.ndarray, lo: float = LO, hi: float = HI
+              ) -> tuple[np.ndarray, bool]:
+    tau, feasible = distribution_function(name, *W.shape, lo, hi)(W, w)
+    return np.array(tau).ravel(), bool(float(feasible) > 0.5)
+
+
+def _random_problems(rng: np.random.Generator, n: int, m: int, count: int
+                     ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Gaussian W (full row rank almost surely) and wrenches of tensions around the box."""
+    problems = []
+    for _ in range(count):
+        W = rng.normal(size=(n, m))
+        problems.append((W, W @ rng.uniform(LO - 20, HI + 20, size=m)))
+    return problems
+
+
+def _robot_problems(name: str, rng: np.random.Generator, count: int, draw_states
+                    ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """W at random poses of a preset, and its weight plus a random force (N)."""
+    robot = preset(name)
+    model = SymbolicModel(robot)
+    poses, _ = draw_states(robot, rng, count)
+    out = []
+    for q in poses:
+        W = np.array(model.functions["structure_matrix"](q))
+        weight = np.array(model.functions["grad_potential"](q)).ravel()
+        out.append((W, weight + rng.normal(scale=30.0, size=robot.n)))
+    return out
+
+
+@pytest.mark.parametrize(("n", "m"), [(2, 2), (2, 3), (2, 4), (3, 4), (3, 6), (6, 8)])
+def test_closed_form_is_the_pseudo_inverse_solution(rng, n, m):
+    for W, w in _random_problems(rng, n, m, 20):
+        tau, feasible = _evaluate("closed_form", W, w)
+        expected = dref.closed_form(W, w, LO, HI)
+        np.testing.assert_allclose(tau, expected, rtol=1e-9, atol=1e-8)
+        assert feasible == bool(np.all(expected >= LO) and np.all(expected <= HI))
+
+
+def test_closed_form_of_a_square_w_is_its_inverse(rng):
+    for W, w in _random_problems(rng, 3, 3, 10):
+        np.testing.assert_allclose(_evaluate("closed_form", W, w)[0], np.linalg.solve(W, w),
+                                   rtol=1e-9, atol=1e-8)
+
+
+@pytest.mark.parametrize(("n", "m"), [(2, 3), (2, 4), (3, 4), (3, 5), (6, 8)])
+def test_improved_closed_form_matches_a_set_based_derivation(rng, n, m):
+    repaired = 0
+    for W, w in _random_problems(rng, n, m, 40):
+        tau, feasible = _evaluate("improved_closed_form", W, w)
+        expected, expected_feasible = dref.improved_closed_form(W, w, LO, HI)
+        np.testing.assert_allclose(tau, expected, rtol=1e-8, atol=1e-7)
+        assert feasible == expected_feasible
+        repaired += expected_feasible and not np.all(
+            (dref.closed_form(W, w, LO, HI) >= LO) & (dref.closed_form(W, w, LO, HI) <= HI))
+    assert repaired > 0  # some draws needed a repair, so the repair path was compared
+
+
+@pytest.mark.parametrize("name", ["planar4", "spatial4"])
+def test_improved_closed_form_is_sound_against_the_qp(rng, random_states, name):
+    """A tension it calls feasible produces the wrench inside the box; where the QP finds no
+    tension at all, it never calls one feasible."""
+    for W, w in _robot_problems(name, rng, 60, random_states):
+        tau, feasible = _evaluate("improved_closed_form", W, w)
+        reference = min_norm_reference(W, w, LO, HI)
+        if feasible:
+            np.testing.assert_allclose(W @ tau, w, atol=1e-8)
+            assert np.all(tau >= LO - 1e-9) and np.all(tau <= HI + 1e-9)
+            assert reference.status == OPTIMAL
+        if reference.status == INFEASIBLE:
+            assert not feasible
+
+
+def _margin(W: np.ndarray, w: np.ndarray) -> float:
+    """How far the problem is from its feasibility boundary: the segment's length (m = n +
+    1, unit null vector; negative when empty)."""
+    _, _, low, high = dref.segment(W, w, LO, HI)
+    return high - low
+
+
+def test_one_dimensional_min_norm_agrees_with_the_qp(rng, random_states):
+    checked = infeasible = 0
+    for W, w in _robot_problems("spatial4", rng, 150, random_states):
+        if abs(_margin(W, w)) < 1e-6:
+            continue  # on the boundary: either verdict is within round-off
+        tau, feasible = _evaluate("min_norm", W, w)
+        reference = min_norm_reference(W, w, LO, HI)
+        assert feasible == (reference.status == OPTIMAL)
+        if feasible:
+            np.testing.assert_allclose(tau, reference.tau, atol=1e-6)
+            checked += 1
+        else:
+            assert np.all(tau >= LO) and np.all(tau <= HI)  # clipped, flagged
+            infeasible += 1
+    assert checked > 30 and infeasible > 5  # both verdicts occurred
+
+
+def test_one_dimensional_centroid_is_the_middle_of_the_lp_segment(rng, random_states):
+    """The segment's ends are the LP's minimiser and maximiser of a generic linear form."""
+    import cvxpy as cp
+
+    checked = 0
+    for W, w in _robot_problems("spatial4", rng, 60, random_states):
+        if _margin(W, w) < 1e-3:
+            continue
+        tau = cp.Variable(W.shape[1])
+        form = rng.normal(size=W.shape[1])
+        ends = []
+        for sense in (cp.Minimize, cp.Maximize):
+            problem = cp.Problem(sense(form @ tau), [W @ tau == w, tau >= LO, tau <= HI])
+            problem.solve(solver=cp.CLARABEL, tol_gap_abs=1e-10, tol_gap_rel=1e-10,
+                          tol_feas=1e-10)
+            ends.append(np.array(tau.value))
+        centroid, feasible = _evaluate("centroid", W, w)
+        assert feasible
+        np.testing.assert_allclose(centroid, 0.5 * (ends[0] + ends[1]), atol=1e-6)
+        checked += 1
+    assert checked > 20
+
+
+def test_linf_reference_keeps_the_largest_distance_to_the_middle_smallest(rng, random_states):
+    """Against the exact one-dimensional answer: on the segment, max_i |tau_i - mid| is
+    convex piecewise linear, so a fine grid brackets its minimum."""
+    middle = 0.5 * (LO + HI)
+    for W, w in _robot_problems("spatial4", rng, 20, random_states):
+        tau_p, h, low, high = dref.segment(W, w, LO, HI)
+        if high - low < 1e-3:
+            continue
+        grid = np.linspace(low, high, 20001)
+        best = np.min(np.max(np.abs(tau_p[None] + grid[:, None] * h[None] - middle), axis=1))
+        reference = linf_reference(W, w, LO, HI)
+        assert reference.status == OPTIMAL
+        found = np.max(np.abs(reference.tau - middle))
+        grid_error = (high - low) / 20000 * np.max(np.abs(h))  # the grid's step times slope
+        assert best - grid_error - 1e-6 <= found <= best + 1e-6
+
+
+def test_a_method_refuses_a_redundancy_it_does_not_handle():
+    with pytest.raises(InvalidCase, match="distribution"):
+        distribution_function("min_norm", 2, 4, LO, HI)
+    with pytest.raises(InvalidCase, match="distribution"):
+        distribution_function("simplex", 2, 3, LO, HI)
+
+
+@pytest.mark.parametrize(("name", "n", "m"), [("improved_closed_form", 3, 6),
+                                               ("min_norm", 3, 4), ("centroid", 2, 3)])
+def test_generated_c_matches_casadi(rng, build_options, name, n, m):
+    function = distribution_function(name, n, m, LO, HI)
+    compiled = build([function], f"distribution_{name}_{n}_{m}",
+                     options=build_options).function(function.name())
+    for W, w in _random_problems(rng, n, m, 20):
+        for got, expected in zip(compiled(W, w), function(W, w), strict=True):
+            np.testing.assert_allclose(np.array(got), np.array(expected), rtol=1e-12,
+                                       atol=1e-9)
+
+
+def test_a_square_casadi_w_is_accepted_by_every_any_redundancy_method():
+    W = ca.DM([[1.0, 0.2], [0.1, 1.0]])
+    tau = np.array(distribution_function("improved_closed_form", 2, 2, LO, HI)(W, [30, 40])[0])
+    np.testing.assert_allclose(W.full() @ tau.ravel(), [30, 40], atol=1e-12)
+
+
+def test_one_dimensional_verdicts_hold_just_inside_and_just_outside_the_boundary(rng):
+    """Push the weight along a random force until the feasible segment closes (bisection on
+    the numpy segment), then ask just inside and just outside: the methods and the QP agree."""
+    model = SymbolicModel(preset("spatial4"))
+    q = preset("spatial4").goal
+    W = np.array(model.functions["structure_matrix"](q))
+    weight = np.array(model.functions["grad_potential"](q)).ravel()
+    for _ in range(8):
+        force = rng.normal(size=3)
+        inside, outside = 0.0, 1e4
+        for _ in range(200):
+            middle = 0.5 * (inside + outside)
+            _, _, low, high = dref.segment(W, weight + middle * force, LO, HI)
+            inside, outside = (middle, outside) if high >= low else (inside, middle)
+        assert outside < 1e4  # the segment does close along this force
+        for scale, expected in ((inside * (1 - 1e-4), True), (outside * (1 + 1e-4), False)):
+            w = weight + scale * force
+            assert (min_norm_reference(W, w, LO, HI).status == OPTIMAL) == expected
+            for name in ("min_norm", "centroid"):
+                assert _evaluate(name, W, w)[1] == expected, (name, scale)
