@@ -73,7 +73,7 @@ def test_nan_in_anchors_is_refused_as_anchors(aras3):
 
 
 @pytest.mark.parametrize("anchors", [
-    [[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]],  # 3 anchors in 2-D
+    [[1.0, 2.0]],  # 1 anchor in 2-D (fewer cables than coordinates)
     [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]],  # 2 anchors in 3-D
     [1.0, 2.0, 3.0],  # not a matrix
     [[1.0]],  # n = 1

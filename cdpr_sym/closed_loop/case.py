@@ -94,7 +94,7 @@ def minimal_values_per_step(robot: Robot) -> int:
 
     A controller with internal state or a rate-limited plant stores more; this lower bound
     lets :func:`check_timing` refuse an absurd run before any code is generated."""
-    return (2 * robot.n + 1) + (robot.n + 3 + robot.n_j)
+    return (2 * robot.n + 1) + (robot.m + 3 + robot.n_j)
 
 
 def check_timing(duration: float, dt: float, *, values_per_step: int = 1) -> int:

@@ -4,9 +4,11 @@ One :class:`StepLayout` describes the vectors that the generated step reads and 
 step, the simulator, the C rollout and the exported header all take their offsets from it,
 so the layout is written down once::
 
-    x   = [q (n), dq (n), memory (m), applied (n, rate-limited plants only), status (1)]
+    x   = [q (n), dq (n), memory, applied (m, rate-limited plants only), status (1)]
     p   = [q_goal (n), k (n), r_d (n), dt, mass_scale, slack, rate_limit (rate-limited only)]
-    log = [tau (n), alpha, beta, j (n(n-1)/2), flags]
+    log = [tau (m), alpha, beta, j (n(n-1)/2), flags]
+
+for n degrees of freedom and m >= n cables.
 """
 
 from __future__ import annotations
@@ -91,18 +93,26 @@ class StepLayout:
     rate_limited : bool
         Whether the plant limits the applied tension's rate (then x holds the applied
         tension and p the rate limit, N/s).
+    m : int, optional
+        Number of cables (default n).
     """
 
     n: int
     n_j: int
     n_memory: int = 0
     rate_limited: bool = False
+    m: int | None = None
+
+    @property
+    def cables(self) -> int:
+        """Number of cables: ``m``, or n when not given (fully actuated)."""
+        return self.n if self.m is None else self.m
 
     @functools.cached_property
     def x(self) -> Fields:
         """The state: q (m, rad), dq, the controller's memory, applied tension (N), status."""
         return Fields((("q", self.n), ("dq", self.n), ("memory", self.n_memory),
-                       ("applied", self.n if self.rate_limited else 0), ("status", 1)))
+                       ("applied", self.cables if self.rate_limited else 0), ("status", 1)))
 
     @functools.cached_property
     def p(self) -> Fields:
@@ -114,7 +124,7 @@ class StepLayout:
     @functools.cached_property
     def log(self) -> Fields:
         """Per step: tau (N), alpha, beta (N), j, flags."""
-        return Fields((("tau", self.n), ("alpha", 1), ("beta", 1), ("j", self.n_j),
+        return Fields((("tau", self.cables), ("alpha", 1), ("beta", 1), ("j", self.n_j),
                        ("flags", 1)))
 
     @functools.cached_property

@@ -35,6 +35,7 @@ from cdpr_sym.codegen import (
 )
 from cdpr_sym.control import (
     Controller,
+    check_cables,
     controller_by_name,
     initial_memory_function,
     law_function,
@@ -103,6 +104,7 @@ class Simulator:
     def __init__(self, robot: Robot, controller: Controller, *, chunk: int = 1000,
                  build_options: BuildOptions = BuildOptions(),
                  rate_limited: bool = False) -> None:
+        check_cables(controller, robot.n, robot.m)
         self.robot = robot
         self.controller = controller
         self.model = SymbolicModel(robot)
@@ -176,7 +178,7 @@ class Simulator:
         states[0] = x0
         if self.backend == "c":
             # the compiled loop evaluates the static tension too: one C call per run
-            static = np.empty(self.robot.n)
+            static = np.empty(self.robot.m)
             return states, logs, static, self._rollout(states, logs, p, n_steps, static)
         self._run_virtual_machine(states, logs, p, n_steps)
         return states, logs, self._static_tension(states[0, : self.robot.n]), None
@@ -259,13 +261,14 @@ class Simulator:
         if self.library is None:
             return np.array(self.model.functions["static_tension"](q)).ravel()
         # the compiled term: a CasADi call on numpy arrays took 27 us of a run's Python time
-        tension = np.empty(self.robot.n)
+        tension = np.empty(self.robot.m)
         self._static_native.evaluate([np.ascontiguousarray(q, dtype=float)], [tension])
         return tension
 
     def static_tensions(self, poses: np.ndarray) -> np.ndarray:
-        """W^{-1} grad V at each row of ``poses`` (runs, n), N, as each run records it."""
-        return np.array([self._static_tension(q) for q in poses]).reshape(-1, self.robot.n)
+        """W^{-1} grad V (m > n: its distribution) at each row of ``poses`` (runs, n), as
+        (runs, m) N, as each run records it."""
+        return np.array([self._static_tension(q) for q in poses]).reshape(-1, self.robot.m)
 
 
 def run_info(robot: Robot, controller: Controller, dt: float, k, r_d, plant: Plant, *,

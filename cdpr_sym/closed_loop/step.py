@@ -14,7 +14,7 @@ import casadi as ca
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import applied_tension, plant_rhs, rk4
 from cdpr_sym.control import FLAG_SINGULAR, Controller
-from cdpr_sym.model import SymbolicModel
+from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 
 STOP_REASONS = {1: "singular", 2: "non_finite", 3: "left_frame"}
 STOP_CODES = {name: code for code, name in STOP_REASONS.items()}
@@ -23,7 +23,8 @@ STOP_CODES = {name: code for code, name in STOP_REASONS.items()}
 def step_layout(model: SymbolicModel, controller: Controller, *,
                 rate_limited: bool = False) -> StepLayout:
     """The layout of the step of ``controller`` on ``model``."""
-    return StepLayout(model.n, model.n_j, controller.memory_size(model), rate_limited)
+    return StepLayout(model.n, model.n_j, controller.memory_size(model), rate_limited,
+                      model.m if model.m != model.n else None)
 
 
 def step_function(model: SymbolicModel, controller: Controller, *,
@@ -50,14 +51,13 @@ def step_function(model: SymbolicModel, controller: Controller, *,
     # singular at the sample, or det W changes sign within the step (the plane was crossed);
     # the sign is read from W diag(l), which needs no square root or division: a sixth of
     # the step's time went to W(q_next) for this sign alone
-    crossed = (ca.det(model.scaled_structure_matrix(q))
-               * ca.det(model.scaled_structure_matrix(z_next[:n])) <= 0)
+    crossed = _crossed(model, q, z_next[:n])
     # bit test by floor alone (exact for the small integers flags are): fmod has no vector
     # form, and one call of it keeps the batched step from using SIMD
     shifted = ca.floor(law.flags / FLAG_SINGULAR)
     singular = ca.logic_or(shifted - 2 * ca.floor(0.5 * shifted) > 0.5, crossed)
     # the command too: a slack or rate-limited plant would otherwise turn NaN into a number
-    finite = ca.sum1(ca.fabs(ca.vertcat(z_next, law.tau)) <= 1e300) > 3 * n - 0.5
+    finite = ca.sum1(ca.fabs(ca.vertcat(z_next, law.tau)) <= 1e300) > 2 * n + model.m - 0.5
     lower, upper = model.robot.frame_lower, model.robot.frame_upper
     outside = ca.sum1(z_next[:n] < lower) + ca.sum1(z_next[:n] > upper) > 0
     new_status = ca.if_else(
@@ -74,6 +74,15 @@ def step_function(model: SymbolicModel, controller: Controller, *,
     log = ca.vertcat(law.tau, law.alpha, law.beta, law.j, law.flags)
     return ca.Function("step", [x, p], [x_next, log], ["x", "p"], ["x_next", "log"],
                        {"cse": True})
+
+
+def _crossed(model: SymbolicModel, q: ca.SX, q_next: ca.SX) -> ca.SX:
+    """Whether the step passed through a singularity between samples: det W changes sign
+    (m = n), or W loses row rank at q_next (m > n: W W^T has no sign to change)."""
+    if model.m == model.n:
+        return (ca.det(model.scaled_structure_matrix(q))
+                * ca.det(model.scaled_structure_matrix(q_next)) <= 0)
+    return model.singularity_measure(model.structure_matrix(q_next)) < SINGULAR_DET
 
 
 def chunk_function(step: ca.Function, n_steps: int) -> ca.Function:

@@ -28,7 +28,7 @@ def summary_fields(layout: StepLayout) -> Fields:
     command (N), index of the last sample outside the settling band (-1: none), steps per
     flag (in the order of ``FLAG_NAMES``) and fallback steps."""
     return Fields((("commands", 1), ("status", 1), ("x_last", layout.x.size),
-                   ("first_tau", layout.n), ("min_tension", 1), ("max_tension", 1),
+                   ("first_tau", layout.cables), ("min_tension", 1), ("max_tension", 1),
                    ("min_alpha", 1), ("variation", 1), ("max_step", 1), ("last_outside", 1),
                    ("flag_counts", len(FLAG_NAMES)), ("fallback", 1)))
 
@@ -37,7 +37,8 @@ def summary_source(layout: StepLayout, step: str, lanes: int) -> str:
     """C source of ``summarise_lanes`` over the vectorised step ``step``."""
     fields = summary_fields(layout)
     return render("cdpr_sym.closed_loop", "summarise_lanes.c.j2", step=step, lanes=lanes,
-                  n=layout.n, n_x=layout.x.size, n_p=layout.p.size, n_log=layout.log.size,
+                  n=layout.n, m=layout.cables, n_x=layout.x.size, n_p=layout.p.size,
+                  n_log=layout.log.size,
                   n_s=fields.size, offsets=fields.offsets(), status=layout.status_index,
                   goal=layout.p.offset("q_goal"), tau=layout.log.offset("tau"),
                   alpha=layout.log.offset("alpha"), flags=layout.log.offset("flags"),

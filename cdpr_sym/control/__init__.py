@@ -8,6 +8,7 @@ l∞, with their cvxpy + Clarabel statement in :mod:`~cdpr_sym.control.cvx_refer
 names them and :mod:`~cdpr_sym.control.evaluate` turns them into functions.
 """
 
+from cdpr_sym.control.distributed import DistributedPD
 from cdpr_sym.control.evaluate import initial_memory_function, law_function, tension
 from cdpr_sym.control.exact_box import BoxDesign, LinfDesign
 from cdpr_sym.control.flags import (
@@ -31,6 +32,7 @@ from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.control.registry import (
     CONTROLLERS,
     DESCRIPTIONS,
+    check_cables,
     controller_by_name,
     controller_from_options,
 )
@@ -38,7 +40,8 @@ from cdpr_sym.control.registry import (
 __all__ = [
     "CONTROLLERS", "DESCRIPTIONS", "FALLBACK_FLAGS", "FLAG_ALPHA", "FLAG_BETA", "FLAG_INFEASIBLE",
     "FLAG_LOW_SPEED", "FLAG_NAMES", "FLAG_SATURATED", "FLAG_SINGULAR", "PD", "BoxDesign",
-    "ControlLaw", "ControlOutput", "Controller", "L2Design", "LinfDesign", "SaturatedPD",
-    "SmoothReference", "StatelessLaw", "VirtualReferenceIdaPbc", "controller_by_name",
-    "controller_from_options", "initial_memory_function", "law_function", "tension",
+    "ControlLaw", "ControlOutput", "Controller", "DistributedPD", "L2Design", "LinfDesign",
+    "SaturatedPD", "SmoothReference", "StatelessLaw", "VirtualReferenceIdaPbc", "check_cables",
+    "controller_by_name", "controller_from_options", "initial_memory_function", "law_function",
+    "tension",
 ]

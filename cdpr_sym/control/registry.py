@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from cdpr_sym.control.distributed import DistributedPD
 from cdpr_sym.control.exact_box import BoxDesign, LinfDesign
 from cdpr_sym.control.ida_pbc import PD, L2Design, SaturatedPD
 from cdpr_sym.control.interface import Controller
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
-from cdpr_sym.errors import UnknownName
+from cdpr_sym.errors import InvalidCase, UnknownName
 
 #: Every design under its command-line name, with its default options. ``l2`` is the
 #: paper's; ``smooth`` is the recommended one (see reports/designs).
@@ -21,6 +22,7 @@ CONTROLLERS: dict[str, Controller] = {
     "box": BoxDesign(),
     "smooth": SmoothReference(),
     "ida-ref": VirtualReferenceIdaPbc(),
+    "pd-td": DistributedPD(),
 }
 
 
@@ -34,6 +36,7 @@ DESCRIPTIONS = {
     "box": "exact tension box, largest alpha, smallest J_d tension",
     "smooth": "recommended: minimum-jerk plan + feed-forward + PD; feasible, fast and smooth",
     "ida-ref": "IDA-PBC with a virtual reference particle (H_d never increases)",
+    "pd-td": "PD + gravity compensation + tension distribution; any m >= n cables",
 }
 
 
@@ -67,3 +70,14 @@ def controller_from_options(name: str, options: dict[str, Any]) -> Controller:
     """The controller of class ``CONTROLLERS[name]`` built from ``options`` (as
     ``controller.options()`` returns them); the options are validated."""
     return type(controller_by_name(name))(**options)
+
+
+def check_cables(controller: Controller, n: int, m: int) -> None:
+    """Raise :class:`InvalidCase` (``controller``) when ``controller`` cannot run a robot of
+    n degrees of freedom on m cables: every design but ``pd-td`` inverts a square W."""
+    if m > n and not getattr(controller, "redundant", False):
+        redundant = [name for name, design in CONTROLLERS.items()
+                     if getattr(design, "redundant", False)]
+        raise InvalidCase("controller", f"{controller.name} needs as many cables as degrees "
+                          f"of freedom (it inverts W), got {m} cables for n = {n}; use "
+                          f"{', '.join(redundant)}")

@@ -351,6 +351,7 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     'cdpr_planar2_pd.h'
     """
     robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
+    _check_square(robot)
     # a registered name names the package (l2-minnorm and l2 share the class name "l2")
     label = controller if isinstance(controller, str) else controller.name
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
@@ -447,6 +448,7 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
         The compiler rejected the code (its output is in the message).
     """
     robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
+    _check_square(robot)
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
     cc = require_compiler(compiler)
     rng = np.random.default_rng(0)
@@ -481,6 +483,14 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
 
 
 # -- consistent functions -----------------------------------------------------------------
+def _check_square(robot: Robot) -> None:
+    """Refuse a robot with more cables than degrees of freedom (not exported yet: the
+    package's header and example loops size the tension by n)."""
+    if robot.m != robot.n:
+        raise InvalidCase("robot", f"export-c needs as many cables as degrees of freedom for "
+                          f"now, got {robot.m} cables for n = {robot.n}")
+
+
 def _entries(model: SymbolicModel, controller: Controller, prefix: str) -> list[_Entry]:
     layout = step_layout(model, controller)
     entries = [

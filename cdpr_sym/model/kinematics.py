@@ -53,7 +53,7 @@ def attachment_points(robot: Robot, q: ca.SX) -> list[ca.SX]:
     """World positions P_i of the cable attachments, m, each shape (d, 1)."""
     p = position(robot, q)
     if robot.kind == "point":
-        return [p] * robot.n
+        return [p] * robot.m
     R = rotation(robot, q)
     return [p + R @ ca.DM(b) for b in robot.attachments]
 
@@ -80,14 +80,14 @@ def body_angular_velocity(robot: Robot, q: ca.SX, dq: ca.SX) -> ca.SX:
 
 
 def cable_lengths(robot: Robot, q: ca.SX) -> ca.SX:
-    """l_i = |a_i - P_i(q)|, m, shape (n, 1)."""
+    """l_i = |a_i - P_i(q)|, m, shape (m, 1) for m cables."""
     points = attachment_points(robot, q)
     return ca.vertcat(*[ca.norm_2(points[i] - ca.DM(robot.anchors[i]))
-                        for i in range(robot.n)])
+                        for i in range(robot.m)])
 
 
 def structure_matrix(robot: Robot, q: ca.SX) -> ca.SX:
-    """W(q) = -(dl/dq)^T, shape (n, n); column i is cable i's generalized force per newton.
+    """W(q) = -(dl/dq)^T, shape (n, m); column i is cable i's generalized force per newton.
 
     Rigid bodies: ``q`` must be a purely symbolic ``SX`` (CasADi differentiates l). A point
     mass uses the closed form u_i = (a_i - q) / l_i (equal, and cheaper to evaluate).
@@ -95,34 +95,40 @@ def structure_matrix(robot: Robot, q: ca.SX) -> ca.SX:
     if robot.kind == "point":
         inverse_lengths = 1.0 / cable_lengths(robot, q)
         return ca.horzcat(*[(ca.DM(robot.anchors[i]) - q) * inverse_lengths[i]
-                            for i in range(robot.n)])
+                            for i in range(robot.m)])
     return -ca.jacobian(cable_lengths(robot, q), q).T
 
 
 def scaled_structure_matrix(robot: Robot, q: ca.SX) -> ca.SX:
-    """W(q) diag(l(q)), m: column i is l_i w_i = -(d(l_i^2 / 2)/dq)^T, shape (n, n).
+    """W(q) diag(l(q)), m: column i is l_i w_i = -(d(l_i^2 / 2)/dq)^T, shape (n, m).
 
     The lengths are positive, so its determinant has the sign of det W, at a fraction of the
     cost: no square root and no division. Rigid bodies: ``q`` must be a purely symbolic
     ``SX``.
     """
     if robot.kind == "point":
-        return ca.horzcat(*[ca.DM(robot.anchors[i]) - q for i in range(robot.n)])
+        return ca.horzcat(*[ca.DM(robot.anchors[i]) - q for i in range(robot.m)])
     points = attachment_points(robot, q)
     half_squares = ca.vertcat(*[0.5 * ca.sumsqr(points[i] - ca.DM(robot.anchors[i]))
-                                for i in range(robot.n)])
+                                for i in range(robot.m)])
     return -ca.jacobian(half_squares, q).T
 
 
 def singularity_measure(robot: Robot, W: ca.SX) -> ca.SX:
     """|det W| / prod_i |w_i| in [0, 1] (w_i the columns; 0 = singular), dimensionless.
 
-    Point-mass columns are unit vectors, so there it is |det W| itself.
+    Point-mass columns are unit vectors, so there it is |det W| itself. With m > n cables
+    it is sqrt(det(V V^T)) / (m / n)^(n / 2), V = W with unit columns: the same number
+    when m = n, in [0, 1] by the AM-GM inequality on V V^T's eigenvalues (trace m), and 0
+    exactly where W loses row rank.
     """
-    if robot.kind == "point":
-        return ca.fabs(ca.det(W))
-    norms = [ca.norm_2(W[:, i]) for i in range(W.shape[1])]
-    return ca.fabs(ca.det(W)) / _product(norms)
+    n, m = W.shape
+    norms = None if robot.kind == "point" else [ca.norm_2(W[:, i]) for i in range(m)]
+    if m == n:
+        return ca.fabs(ca.det(W)) if norms is None else ca.fabs(ca.det(W)) / _product(norms)
+    if norms is not None:
+        W = W @ ca.diag(1.0 / ca.vertcat(*norms))
+    return ca.sqrt(ca.fmax(ca.det(W @ W.T), 0.0)) / (m / n) ** (n / 2)
 
 
 def _product(values: list[ca.SX]) -> ca.SX:

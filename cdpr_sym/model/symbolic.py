@@ -21,6 +21,7 @@ import functools
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.distribution import DEFAULT_METHOD, distribute
 from cdpr_sym.model import kinematics
 from cdpr_sym.robot import Robot
 
@@ -42,6 +43,8 @@ class SymbolicModel:
     def __init__(self, robot: Robot) -> None:
         self.robot = robot
         self.n = robot.n
+        #: Number of cables (m >= n; m > n: W has a null space).
+        self.m = robot.m
         self.n_j = robot.n_j
 
     # -- kinematics -------------------------------------------------------------------
@@ -165,7 +168,18 @@ class SymbolicModel:
         return ca.Function("grad_V", [q], [ca.gradient(self.potential(q), q)])
 
     def static_tension(self, q: ca.SX) -> ca.SX:
-        """tau_1 = W^{-1} grad V, N: the tension holding the end-effector at rest at q."""
+        """tau_1 = W^{-1} grad V, N: the tension holding the end-effector at rest at q.
+
+        With m > n cables, the tension distribution of grad V: the exact minimum-norm one in
+        the box for m = n + 1, else the improved closed-form method's
+        (:data:`~cdpr_sym.distribution.DEFAULT_METHOD`, which can miss a feasible tension);
+        outside the box where the method finds none in it.
+        """
+        if self.m > self.n:
+            robot = self.robot
+            method = "min_norm" if self.m == self.n + 1 else DEFAULT_METHOD
+            return distribute(method, self.structure_matrix(q), self.grad_potential(q),
+                              robot.t_min, robot.t_max)[0]
         return ca.solve(self.structure_matrix(q), self.grad_potential(q))
 
     def acceleration(self, q: ca.SX, dq: ca.SX, tau: ca.SX, mass_scale: ca.SX = 1.0) -> ca.SX:
@@ -260,7 +274,7 @@ class SymbolicModel:
     def functions(self) -> dict[str, ca.Function]:
         """Every model term as a named ``ca.Function`` (keys are the function names)."""
         n, n_j = self.n, self.n_j
-        q, dq, tau = ca.SX.sym("q", n), ca.SX.sym("dq", n), ca.SX.sym("tau", n)
+        q, dq, tau = ca.SX.sym("q", n), ca.SX.sym("dq", n), ca.SX.sym("tau", self.m)
         q_goal, k, j = ca.SX.sym("q_goal", n), ca.SX.sym("k", n), ca.SX.sym("j", n_j)
         p, r_d = ca.SX.sym("momentum", n), ca.SX.sym("r_d", n)
         alpha = ca.SX.sym("alpha")
@@ -277,18 +291,28 @@ class SymbolicModel:
             ("static_tension", [q], ["q"], self.static_tension(q), "tau_1"),
             ("p_matrix", [dq], ["dq"], self.p_matrix(dq), "P"),
             ("interconnection_matrix", [j], ["j"], self.interconnection_matrix(j), "J_d"),
-            ("a_matrix", [q, dq], ["q", "dq"], self.a_matrix(q, dq), "A"),
             ("hamiltonian", [q, dq], ["q", "dq"], self.hamiltonian(q, dq), "H"),
             ("hamiltonian_d", [q, dq, q_goal, k], ["q", "dq", "q_goal", "k"],
              self.hamiltonian_d(q, dq, q_goal, k), "H_d"),
             ("acceleration", [q, dq, tau], ["q", "dq", "tau"],
              self.acceleration(q, dq, tau), "ddq"),
-            ("singularity", [q], ["q"], ca.vertcat(ca.det(W), self.singularity_measure(W)),
+            ("singularity", [q], ["q"], ca.vertcat(self._signed_volume(W),
+                                                    self.singularity_measure(W)),
              "det_W_and_measure"),
             ("kinetic_energy", [q, dq], ["q", "dq"], self.kinetic_energy(q, dq), "T"),
-            ("ida_pbc_tension", [q, p, q_goal, k, r_d, j, alpha],
-             ["q", "momentum", "q_goal", "k", "r_d", "j", "alpha"],
-             self.ida_pbc_tension(q, p, q_goal, k, r_d, j, alpha), "tau"),
         ]
+        if self.m == self.n:  # the terms that invert W
+            specs += [
+                ("a_matrix", [q, dq], ["q", "dq"], self.a_matrix(q, dq), "A"),
+                ("ida_pbc_tension", [q, p, q_goal, k, r_d, j, alpha],
+                 ["q", "momentum", "q_goal", "k", "r_d", "j", "alpha"],
+                 self.ida_pbc_tension(q, p, q_goal, k, r_d, j, alpha), "tau"),
+            ]
         return {name: ca.Function(name, args, [expr], arg_names, [out_name])
                 for name, args, arg_names, expr, out_name in specs}
+
+    def _signed_volume(self, W: ca.SX) -> ca.SX:
+        """det W, or sqrt(det(W W^T)) >= 0 with m > n cables (no orientation then)."""
+        if self.m == self.n:
+            return ca.det(W)
+        return ca.sqrt(ca.fmax(ca.det(W @ W.T), 0.0))

@@ -35,8 +35,8 @@ class Trajectory:
         arrays is the command computed at t[k] and held until t[k + 1].
     q, dq : ndarray, shape (N + 1, n)
         Position (m) and velocity (m/s).
-    tau : ndarray, shape (N, n)
-        Commanded tension, N (the plant may apply it clipped, see ``Plant.slack``).
+    tau : ndarray, shape (N, m)
+        Commanded tension of the m cables, N (the plant may apply it clipped, see ``Plant.slack``).
     alpha, beta : ndarray, shape (N,)
         Scale on the PD part (24) and margin beta of (20), N.
     j : ndarray, shape (N, n(n-1)/2)
@@ -54,7 +54,7 @@ class Trajectory:
         Robot, controller, options and integrator, for the record.
     memory : ndarray, shape (N + 1, m)
         The controller's internal state at each sample (m = 0 for memoryless controllers).
-    static_tension : ndarray, shape (n,), optional
+    static_tension : ndarray, shape (m,), optional
         W^{-1} grad V at the start, N: the tension holding the robot at rest there.
     """
 
@@ -221,12 +221,12 @@ class Trajectory:
 
     def _stored(self) -> dict[str, Any]:
         """The arrays and metadata :meth:`save` writes."""
-        n = self.q.shape[1]
+        cables = self.tau.shape[1]
         return {
             **{name: getattr(self, name) for name in _ARRAYS},
             "memory": self.memory if self.memory is not None else np.zeros((len(self.t), 0)),
             "static_tension": (self.static_tension if self.static_tension is not None
-                               else np.full(n, np.nan)),
+                               else np.full(cables, np.nan)),
             "t_min": self.t_min, "t_max": self.t_max,
             "stop_reason": self.stop_reason or "", "info": self.info}
 
@@ -243,7 +243,7 @@ class Trajectory:
         missing = [name for name in (*_ARRAYS, "t_min", "t_max", "info") if name not in data]
         if missing:
             raise InvalidCase("path", f"{path} is not a stored trajectory (no {missing[0]})")
-        static = data.get("static_tension", np.full(data["q"].shape[1], np.nan))
+        static = data.get("static_tension", np.full(data["tau"].shape[1], np.nan))
         return cls(**{name: data[name] for name in _ARRAYS},
                    t_min=float(data["t_min"]), t_max=float(data["t_max"]),
                    stop_reason=str(data.get("stop_reason", "")) or None,

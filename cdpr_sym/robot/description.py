@@ -39,15 +39,17 @@ PITCH_LIMIT = 1.5
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Robot:
-    """A fully actuated cable robot: n cables, n degrees of freedom.
+    """A cable robot: m >= n cables on an end-effector of n degrees of freedom.
 
     Parameters
     ----------
     name : str
         Identifier used in reports and cache keys: 1 to :data:`MAX_NAME_LENGTH` printable
         characters (any script; no line breaks or control characters).
-    anchors : ndarray, shape (n, d)
-        Row i is the frame anchor a_i of cable i in the world (d = 2 or 3), m.
+    anchors : ndarray, shape (m, d)
+        Row i is the frame anchor a_i of cable i in the world (d = 2 or 3), m. m = n cables
+        make the robot fully actuated; m > n redundantly actuated (W has a null space of
+        internal tension, see :mod:`cdpr_sym.distribution`).
     mass : float
         End-effector mass, kg.
     gravity : float
@@ -61,7 +63,7 @@ class Robot:
     k, r_d : ndarray, shape (n,)
         Diagonals of the potential-shaping gain K (N/m; N m/rad for angles) and damping
         R_d (N s/m; N m s/rad).
-    attachments : ndarray, shape (n, d), optional
+    attachments : ndarray, shape (m, d), optional
         Row i is the attachment point b_i of cable i in the body frame, m. Given, the
         end-effector is a rigid body (``kind`` "planar" for d = 2, "spatial" for d = 3,
         coordinates in :mod:`cdpr_sym.model.kinematics`); omitted, it is a point mass.
@@ -119,8 +121,8 @@ class Robot:
 
     def __repr__(self) -> str:
         body = {"point": "point mass", "planar": "planar body", "spatial": "spatial body"}
-        return (f"Robot({self.name!r}: {body[self.kind]}, n = {self.n} cables and DOF, "
-                f"m = {self.mass:g} kg, T in [{self.t_min:g}, {self.t_max:g}] N)")
+        return (f"Robot({self.name!r}: {body[self.kind]}, {self.n} DOF, {self.m} cables, "
+                f"mass {self.mass:g} kg, T in [{self.t_min:g}, {self.t_max:g}] N)")
 
     def _repr_html_(self) -> str:
         """A notebook's view: the description as a small table."""
@@ -147,8 +149,18 @@ class Robot:
         return self.anchors.shape[1]
 
     @property
+    def m(self) -> int:
+        """Number of cables (m >= n)."""
+        return self.anchors.shape[0]
+
+    @property
+    def redundancy(self) -> int:
+        """m - n: the dimension of W's null space where W has full row rank."""
+        return self.m - self.n
+
+    @property
     def n(self) -> int:
-        """Degrees of freedom (= number of cables)."""
+        """Degrees of freedom."""
         if self.kind == "point":
             return self.dimension
         return len(COORDINATES[self.kind, self.dimension][0])
@@ -195,10 +207,11 @@ class Robot:
 
     def _check_point_body(self) -> None:
         anchors = self.anchors
-        if anchors.shape[1] < 2 or anchors.shape[0] != anchors.shape[1]:
+        if anchors.shape[1] < 2 or anchors.shape[0] < anchors.shape[1]:
             raise InvalidRobot(
-                "anchors", f"expected an (n, n) array with n >= 2 for a point mass (one "
-                f"anchor per cable and coordinate), got shape {anchors.shape}")
+                "anchors", f"expected an (m, n) array with m >= n >= 2 for a point mass (one "
+                f"anchor per cable, at least one cable per coordinate), got shape "
+                f"{anchors.shape}")
         for field in ("inertia", "center_of_mass"):
             if getattr(self, field) is not None:
                 raise InvalidRobot(f"body.{field}", "a rigid body needs body.attachments; "
@@ -210,13 +223,14 @@ class Robot:
             raise InvalidRobot("anchors", f"expected 2 or 3 coordinates per anchor for a "
                                f"rigid body, got {d}")
         n = len(COORDINATES["planar" if d == 2 else "spatial", d][0])
-        if self.anchors.shape[0] != n:
-            raise InvalidRobot("anchors", f"expected {n} anchors (one cable per degree of "
-                               f"freedom of a {'planar' if d == 2 else 'spatial'} body), "
-                               f"got {self.anchors.shape[0]}")
+        m = self.anchors.shape[0]
+        if m < n:
+            raise InvalidRobot("anchors", f"expected at least {n} anchors (one cable per "
+                               f"degree of freedom of a {'planar' if d == 2 else 'spatial'} "
+                               f"body), got {m}")
         attachments = _float_array("body.attachments", self.attachments, ndim=2)
-        if attachments.shape != (n, d):
-            raise InvalidRobot("body.attachments", f"expected shape {(n, d)} (one body-frame "
+        if attachments.shape != (m, d):
+            raise InvalidRobot("body.attachments", f"expected shape {(m, d)} (one body-frame "
                                f"point per cable), got {attachments.shape}")
         _set(self, "attachments", attachments)
         _set(self, "inertia", _inertia_tensor(self.inertia, d))

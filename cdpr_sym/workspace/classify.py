@@ -33,7 +33,7 @@ def classification_function(model: SymbolicModel) -> ca.Function:
     W = model.structure_matrix(q)
     tau_1 = model.static_tension(q)
     regular = model.singularity_measure(W) >= SINGULAR_DET
-    in_box = ca.sum1(tau_1 >= robot.t_min) + ca.sum1(tau_1 <= robot.t_max) > 2 * model.n - 0.5
+    in_box = ca.sum1(tau_1 >= robot.t_min) + ca.sum1(tau_1 <= robot.t_max) > 2 * model.m - 0.5
     mid, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
     in_ball = ca.norm_2(tau_1 - mid) <= half
     return ca.Function("classify", [q], [tau_1, ca.logic_and(regular, in_box),
@@ -43,7 +43,7 @@ def classification_function(model: SymbolicModel) -> ca.Function:
 
 @dataclasses.dataclass(frozen=True)
 class Classification:
-    """Per-pose results: tau_1 (N, n) in N; feasible and ball (N,) booleans."""
+    """Per-pose results: tau_1 (N, m) in N; feasible and ball (N,) booleans."""
 
     tau_1: np.ndarray
     feasible: np.ndarray
@@ -77,7 +77,7 @@ class WorkspaceEvaluator:
         padded = np.empty((blocks * BLOCK, n))
         padded[:count] = points
         padded[count:] = self.robot.goal  # any valid pose
-        tau = np.empty((blocks * BLOCK, n))
+        tau = np.empty((blocks * BLOCK, self.robot.m))
         feasible = np.empty(blocks * BLOCK)
         ball = np.empty(blocks * BLOCK)
         for b in range(blocks):

@@ -1,0 +1,68 @@
+"""PD plus gravity compensation through a tension distribution: the baseline for robots
+with more cables than degrees of freedom (and, with m = n, PD clipped where infeasible).
+
+The law asks for the generalised force of PD plus gravity compensation,
+w = grad V - K (q - q_goal) - R_d dq, and distributes it over the m cables with a method of
+:mod:`cdpr_sym.distribution`. Where no tension in [T_min, T_max] produces w, the method's
+tension is clipped to the box and the step flagged ``infeasible``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import casadi as ca
+
+from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
+from cdpr_sym.control.interface import ControlLaw, StatelessLaw
+from cdpr_sym.control.parts import clip_to_box, flag_if
+from cdpr_sym.distribution import DEFAULT_METHOD, METHODS, distribute
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SINGULAR_DET, SymbolicModel
+
+
+@dataclasses.dataclass(frozen=True)
+class DistributedPD(StatelessLaw):
+    """PD + gravity compensation + tension distribution, for any m >= n cables.
+
+    Parameters
+    ----------
+    method : str
+        The distribution (see :data:`cdpr_sym.distribution.METHODS`): the improved
+        closed-form method by default; ``min_norm`` and ``centroid`` are exact for
+        m = n + 1.
+
+    Notes
+    -----
+    Guarantee: tensions in the box at every step (clipped where infeasible, flagged); where
+    no step is infeasible the robot receives exactly the PD + gravity force, whose
+    continuous-time energy H_d decreases (eq. (4) with J_d = 0). ``alpha`` is 1, ``j`` 0,
+    and ``beta`` the commanded tension's smallest distance to a bound, N.
+    """
+
+    method: str = DEFAULT_METHOD
+    name: ClassVar[str] = "pd-td"
+    #: Runs on robots with more cables than degrees of freedom.
+    redundant: ClassVar[bool] = True
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise InvalidCase("method", f"expected one of {tuple(METHODS)}, "
+                              f"got {self.method!r}")
+
+    def options(self) -> dict[str, Any]:
+        return {"method": self.method}
+
+    def law(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
+            r_d: ca.SX) -> ControlLaw:
+        robot = model.robot
+        W = model.structure_matrix(q)
+        wrench = model.grad_potential(q) - k * (q - q_goal) - r_d * dq
+        tau, feasible = distribute(self.method, W, wrench, robot.t_min, robot.t_max)
+        tau, clipped = clip_to_box(model, tau)
+        margin = ca.fmin(ca.mmin(tau) - robot.t_min, robot.t_max - ca.mmax(tau))
+        singular = model.singularity_measure(W) < SINGULAR_DET
+        flags = (flag_if(feasible < 0.5, FLAG_INFEASIBLE) + flag_if(clipped, FLAG_SATURATED)
+                 + flag_if(singular, FLAG_SINGULAR))
+        return ControlLaw(tau, ca.SX(1.0), margin, ca.SX.zeros(model.n_j), flags)
