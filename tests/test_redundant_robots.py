@@ -55,11 +55,19 @@ def test_the_structure_matrix_and_its_rank_measure_match_numpy(name, rng, random
         assert 0 < measure <= 1
 
 
-@pytest.mark.parametrize("name", sorted(set(CONTROLLERS) - {"pd-td"}))
+SQUARE_ONLY = sorted(name for name, design in CONTROLLERS.items()
+                     if not getattr(design, "redundant", False))
+
+
+def test_the_designs_for_redundant_robots_are_pd_td_and_smooth():
+    assert set(CONTROLLERS) - set(SQUARE_ONLY) == {"pd-td", "smooth"}
+
+
+@pytest.mark.parametrize("name", SQUARE_ONLY)
 def test_a_design_that_inverts_w_refuses_a_redundant_robot(name, capsys):
     with pytest.raises(InvalidCase, match="controller") as raised:
         get_simulator(preset("planar4"), CONTROLLERS[name])
-    assert "pd-td" in str(raised.value)
+    assert str(raised.value).endswith("use smooth, pd-td")
     assert main(["simulate", "--robot", "planar4", "--controller", name]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("cdpr-sym: error: controller:")
@@ -119,3 +127,64 @@ def test_the_batched_runs_of_a_redundant_robot_equal_its_single_runs(name, build
         for metric in ("max_tension_step", "min_tension", "max_tension", "start_jump"):
             assert summary.metrics()[metric] == pytest.approx(alone.metrics()[metric],
                                                               rel=1e-9, abs=1e-9), metric
+
+
+def _min_norm(W, w, lo, hi):
+    """The numpy minimum-norm tension in [lo, hi] (None when there is none)."""
+    tau_p, h, low, high = dref.segment(W, w, lo, hi)
+    return tau_p + min(max(0.0, low), high) * h if low <= high else None
+
+
+def _plan_admissible(robot, controller, start, goal, duration, margin):
+    """Whether the feed-forward along the minimum-jerk path, distributed by the numpy
+    minimum norm into the shrunk box, exists at every sample and changes slowly enough."""
+    u = np.linspace(0.0, 1.0, controller.samples)
+    delta = goal - start
+    taus = []
+    for value in u:
+        s = 10 * value**3 - 15 * value**4 + 6 * value**5
+        dds = 60 * value - 180 * value**2 + 120 * value**3
+        q = start + delta * s
+        wrench = (ref.grad_potential(robot.mass, robot.gravity, robot.n)
+                  + robot.mass * dds * delta / duration**2)
+        tau = _min_norm(ref.structure_matrix(q, robot.anchors), wrench,
+                        robot.t_min + margin, robot.t_max - margin)
+        if tau is None:
+            return False
+        taus.append(tau)
+    rates = np.abs(np.diff(taus, axis=0)) / (duration * (u[1] - u[0]))
+    return bool(rates.max() <= controller.max_rate)
+
+
+@pytest.mark.slow  # building the planner's expression takes ~10 s
+def test_smooth_plans_the_shortest_admissible_move_of_a_redundant_robot(rng, random_states,
+                                                                       build_options):
+    """Against a numpy planner: the chosen (margin, T) is admissible, and no shorter T at
+    that margin, nor any T at a wider margin, is."""
+    robot = preset("spatial4")
+    controller = CONTROLLERS["smooth"]
+    planner = get_simulator(robot, controller, build_options=build_options).initial_memory
+    starts, _ = random_states(robot, rng, 4, margin=0.25)
+    for start in starts:
+        memory = np.array(planner(start, robot.goal, robot.k, robot.r_d)).ravel()
+        duration, margin = memory[-2], memory[-1]
+        assert margin >= 0
+        assert _plan_admissible(robot, controller, start, robot.goal, duration, margin)
+        for shorter in (d for d in controller.durations if d < duration):
+            assert not _plan_admissible(robot, controller, start, robot.goal, shorter, margin)
+        for wider in (m for m in controller.margins if m > margin):
+            assert not any(_plan_admissible(robot, controller, start, robot.goal, d, wider)
+                           for d in controller.durations)
+
+
+@pytest.mark.slow  # building the planner's expression takes ~10 s a robot
+def test_smooth_on_a_redundant_robot_starts_without_a_jump_and_stays_in_the_box(
+        build_options):
+    for name in ("spatial4", "planar4"):
+        robot = preset(name)
+        run = get_simulator(robot, CONTROLLERS["smooth"], build_options=build_options).run(
+            robot.start, robot.goal, robot.k, robot.r_d, duration=3.0, dt=DT, plant=Plant())
+        metrics = run.metrics()
+        assert metrics["start_jump"] < 1e-9
+        assert metrics["tension_feasible"] and metrics["max_tension_step"] < 1.0
+        assert metrics["settle_time"] is not None and metrics["settle_time"] < 3.0

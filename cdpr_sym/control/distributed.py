@@ -17,7 +17,7 @@ import casadi as ca
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
 from cdpr_sym.control.interface import ControlLaw, StatelessLaw
 from cdpr_sym.control.parts import clip_to_box, flag_if
-from cdpr_sym.distribution import DEFAULT_METHOD, METHODS, distribute
+from cdpr_sym.distribution import AUTO, METHODS, distribute
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 
@@ -29,9 +29,9 @@ class DistributedPD(StatelessLaw):
     Parameters
     ----------
     method : str
-        The distribution (see :data:`cdpr_sym.distribution.METHODS`): the improved
-        closed-form method by default; ``min_norm`` and ``centroid`` are exact for
-        m = n + 1.
+        The distribution (see :data:`cdpr_sym.distribution.METHODS`); ``"auto"`` (default):
+        the exact minimum-norm tension for m = n + 1, else the improved closed-form method
+        (:func:`cdpr_sym.distribution.preferred_method`).
 
     Notes
     -----
@@ -41,14 +41,14 @@ class DistributedPD(StatelessLaw):
     and ``beta`` the commanded tension's smallest distance to a bound, N.
     """
 
-    method: str = DEFAULT_METHOD
+    method: str = AUTO
     name: ClassVar[str] = "pd-td"
     #: Runs on robots with more cables than degrees of freedom.
     redundant: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise InvalidCase("method", f"expected one of {tuple(METHODS)}, "
+        if self.method != AUTO and self.method not in METHODS:
+            raise InvalidCase("method", f"expected one of {(AUTO, *METHODS)}, "
                               f"got {self.method!r}")
 
     def options(self) -> dict[str, Any]:

@@ -13,6 +13,7 @@ once per move) and carry the plan in their memory, through the one controller in
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from typing import Any, ClassVar
 
 import casadi as ca
@@ -27,9 +28,10 @@ from cdpr_sym.control.parts import (
     flag_if,
     tension_parts,
 )
+from cdpr_sym.distribution import AUTO, distribute
 from cdpr_sym.distribution.interval import BIG
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.model import SymbolicModel
+from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 
 
 def minimum_jerk(u: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -77,6 +79,8 @@ class SmoothReference:
     max_rate: float = 600.0
     samples: int = 33
     name: ClassVar[str] = "smooth"
+    #: Runs on robots with more cables than degrees of freedom (tension distribution).
+    redundant: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         for field in ("durations", "margins"):  # options() gives lists; keep it hashable
@@ -102,6 +106,8 @@ class SmoothReference:
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
         """Plan: the first admissible (margin, T) in preference order."""
+        if model.m > model.n:
+            return self._plan_redundant(model, q0, q_goal)
         robot = model.robot
         delta = q_goal - q0
         u = np.linspace(0.0, 1.0, self.samples)
@@ -139,10 +145,48 @@ class SmoothReference:
         chosen_margin = ca.if_else(crosses, -1.0, chosen_margin)
         return ca.vertcat(0.0, q0, chosen_T, chosen_margin)
 
+    def _plan_redundant(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX) -> ca.SX:
+        """The plan with m > n cables: the feed-forward force along the path distributed
+        (:data:`~cdpr_sym.distribution.AUTO`) into the box shrunk by the margin, feasible at
+        every sample and changing by at most ``max_rate``; W keeps full row rank."""
+        robot = model.robot
+        delta = q_goal - q0
+        u = np.linspace(0.0, 1.0, self.samples)
+        weights, inertials, structures, regular = [], [], [], []
+        for value in u:
+            s, ds, dds = minimum_jerk(ca.SX(value))
+            q_r = q0 + delta * s
+            structures.append(model.structure_matrix(q_r))
+            regular.append(model.singularity_measure(structures[-1]) >= SINGULAR_DET)
+            weights.append(model.grad_potential(q_r))
+            inertials.append(model.mass_matrix(q_r) @ (dds * delta)
+                             + model.coriolis_force(q_r, ds * delta))
+        step = u[1] - u[0]
+        chosen_T, chosen_margin = ca.SX(max(self.durations)), ca.SX(-1.0)
+        for margin in reversed(self.margins):
+            if robot.t_min + margin >= robot.t_max - margin:
+                continue
+            for T in sorted(self.durations, reverse=True):
+                taus, feasible = [], ca.SX(1.0)
+                for W, weight, inertial in zip(structures, weights, inertials, strict=True):
+                    tau, ok = distribute(AUTO, W, weight + inertial / T**2,
+                                         robot.t_min + margin, robot.t_max - margin)
+                    taus.append(tau)
+                    feasible = feasible * ok
+                rates = ca.vertcat(*[ca.fabs(b - a) for a, b in itertools.pairwise(taus)])
+                ok = ca.logic_and(feasible > 0.5, ca.mmax(rates) / (T * step) <= self.max_rate)
+                chosen_T = ca.if_else(ok, T, chosen_T)
+                chosen_margin = ca.if_else(ok, margin, chosen_margin)
+        chosen_margin = ca.if_else(ca.sum1(ca.vertcat(*regular)) < len(regular), -1.0,
+                                   chosen_margin)
+        return ca.vertcat(0.0, q0, chosen_T, chosen_margin)
+
     def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
              r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
         n = model.n
         t, q_start, T, margin = memory[0], memory[1: n + 1], memory[n + 1], memory[n + 2]
+        if model.m > model.n:
+            return self._step_redundant(model, q, dq, q_goal, k, r_d, memory, dt)
         u = ca.fmin(ca.fmax(t / T, 0.0), 1.0)
         s, ds, dds = minimum_jerk(u)
         delta = q_goal - q_start
@@ -155,6 +199,30 @@ class SmoothReference:
                  + flag_if(parts.singular, FLAG_SINGULAR))
         law = ControlLaw(tau, ca.SX(1.0), beta_margin(model, parts.tau_1), ca.SX.zeros(model.n_j),
                          flags)
+        return law, ca.vertcat(t + dt, q_start, T, margin)
+
+    def _step_redundant(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX,
+                        k: ca.SX, r_d: ca.SX, memory: ca.SX, dt: ca.SX
+                        ) -> tuple[ControlLaw, ca.SX]:
+        """The step with m > n cables: the same force, distributed, clipped where the
+        distribution finds no tension in the box (FLAG_SATURATED); beta is the command's
+        smallest distance to a bound, N."""
+        robot, n = model.robot, model.n
+        t, q_start, T, margin = memory[0], memory[1: n + 1], memory[n + 1], memory[n + 2]
+        u = ca.fmin(ca.fmax(t / T, 0.0), 1.0)
+        s, ds, dds = minimum_jerk(u)
+        delta = q_goal - q_start
+        q_r, dq_r, ddq_r = q_start + delta * s, delta * ds / T, delta * dds / T**2
+        W = model.structure_matrix(q)
+        force = (model.mass_matrix(q) @ ddq_r + model.coriolis_matrix(q, dq) @ dq_r
+                 + model.grad_potential(q) - k * (q - q_r) - r_d * (dq - dq_r))
+        tau, feasible = distribute(AUTO, W, force, robot.t_min, robot.t_max)
+        tau, clipped = clip_to_box(model, tau)
+        singular = model.singularity_measure(W) < SINGULAR_DET
+        flags = (flag_if(ca.logic_or(clipped, feasible < 0.5), FLAG_SATURATED)
+                 + flag_if(margin < 0, FLAG_INFEASIBLE) + flag_if(singular, FLAG_SINGULAR))
+        box_margin = ca.fmin(ca.mmin(tau) - robot.t_min, robot.t_max - ca.mmax(tau))
+        law = ControlLaw(tau, ca.SX(1.0), box_margin, ca.SX.zeros(model.n_j), flags)
         return law, ca.vertcat(t + dt, q_start, T, margin)
 
 

@@ -8,11 +8,13 @@ the cvxpy + Clarabel programs they are checked against.
 """
 
 from cdpr_sym.distribution.methods import (
+    AUTO,
     DEFAULT_METHOD,
     METHODS,
     check_method,
     distribute,
     distribution_function,
+    preferred_method,
 )
 
 #: Names served by the cvxpy reference, imported on first use (cvxpy takes ~1 s to import).
@@ -28,6 +30,6 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["DEFAULT_METHOD", "INFEASIBLE", "METHODS", "OPTIMAL", "ReferenceTension",
+__all__ = ["AUTO", "DEFAULT_METHOD", "INFEASIBLE", "METHODS", "OPTIMAL", "ReferenceTension",
            "check_method", "distribute", "distribution_function", "linf_reference",
-           "min_norm_reference"]
+           "min_norm_reference", "preferred_method"]

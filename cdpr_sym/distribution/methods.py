@@ -18,15 +18,24 @@ METHODS: dict[str, tuple[Method, int | None]] = {
     "min_norm": (one_dimensional.min_norm, 1),
     "centroid": (one_dimensional.centroid, 1),
 }
-#: The method used unless one is named: the standard real-time choice, any redundancy.
+#: The method for any redundancy: the standard real-time choice.
 DEFAULT_METHOD = "improved_closed_form"
+#: Picks :func:`preferred_method` for the robot.
+AUTO = "auto"
+
+
+def preferred_method(n: int, m: int) -> str:
+    """The exact, continuous ``min_norm`` for m = n + 1 (its tension moves continuously with
+    the wrench), else :data:`DEFAULT_METHOD` (whose repairs can switch cables abruptly)."""
+    return "min_norm" if m == n + 1 else DEFAULT_METHOD
 
 
 def check_method(name: str, n: int, m: int) -> Method:
-    """The method called ``name`` for n degrees of freedom and m cables, or
-    :class:`InvalidCase` (``distribution``) naming what it needs."""
+    """The method called ``name`` (or :data:`AUTO`) for n degrees of freedom and m cables,
+    or :class:`InvalidCase` (``distribution``) naming what it needs."""
+    name = preferred_method(n, m) if name == AUTO else name
     if name not in METHODS:
-        raise InvalidCase("distribution", f"expected one of {tuple(METHODS)}, got {name!r}")
+        raise InvalidCase("distribution", f"expected one of {(AUTO, *METHODS)}, got {name!r}")
     method, redundancy = METHODS[name]
     if redundancy is not None and m - n != redundancy:
         raise InvalidCase("distribution", f"{name} needs m = n + {redundancy} cables (a "
@@ -46,6 +55,7 @@ def distribution_function(name: str, n: int, m: int, t_min: float, t_max: float
                           ) -> ca.Function:
     """``tension_<name>``: (W (n x m), w (n)) -> (tau (m) N, feasible), for generation."""
     check_method(name, n, m)
+    name = preferred_method(n, m) if name == AUTO else name
     W, w = ca.SX.sym("W", n, m), ca.SX.sym("w", n)
     tau, feasible = distribute(name, W, w, t_min, t_max)
     return ca.Function(f"tension_{name}", [W, w], [tau, feasible], ["W", "w"],

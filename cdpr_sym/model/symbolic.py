@@ -21,7 +21,7 @@ import functools
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.distribution import DEFAULT_METHOD, distribute
+from cdpr_sym.distribution import AUTO, distribute
 from cdpr_sym.model import kinematics
 from cdpr_sym.robot import Robot
 
@@ -177,8 +177,7 @@ class SymbolicModel:
         """
         if self.m > self.n:
             robot = self.robot
-            method = "min_norm" if self.m == self.n + 1 else DEFAULT_METHOD
-            return distribute(method, self.structure_matrix(q), self.grad_potential(q),
+            return distribute(AUTO, self.structure_matrix(q), self.grad_potential(q),
                               robot.t_min, robot.t_max)[0]
         return ca.solve(self.structure_matrix(q), self.grad_potential(q))
 
