@@ -188,3 +188,43 @@ def test_smooth_on_a_redundant_robot_starts_without_a_jump_and_stays_in_the_box(
         assert metrics["start_jump"] < 1e-9
         assert metrics["tension_feasible"] and metrics["max_tension_step"] < 1.0
         assert metrics["settle_time"] is not None and metrics["settle_time"] < 3.0
+
+
+@pytest.mark.parametrize("name", ["spatial4", "planar4"])
+def test_the_static_workspace_of_a_redundant_robot_agrees_with_the_qp(name, rng):
+    """Statically feasible (a tension in the box holds the weight) by the compiled
+    classifier and by cvxpy's QP on the same poses; planar4's improved closed form may
+    miss a feasible pose (m - n = 2) but never claims an infeasible one."""
+    from cdpr_sym.distribution import OPTIMAL, min_norm_reference
+    from cdpr_sym.workspace import WorkspaceEvaluator, interior_box
+
+    robot = preset(name)
+    low, high = interior_box(robot, 0.05)
+    poses = rng.uniform(low, high, (300, robot.n))
+    verdicts = WorkspaceEvaluator(robot).classify(poses).feasible
+    missed = 0
+    weight = ref.grad_potential(robot.mass, robot.gravity, robot.n)
+    for q, verdict in zip(poses, verdicts, strict=True):
+        W = ref.structure_matrix(q, robot.anchors)
+        feasible = min_norm_reference(W, weight, robot.t_min, robot.t_max).status == OPTIMAL
+        assert feasible or not verdict
+        missed += feasible and not verdict
+    if robot.redundancy == 1:
+        assert missed == 0
+    assert 0 < verdicts.mean() < 1  # both verdicts occur
+
+
+def test_a_goal_no_tension_in_the_box_can_hold_is_refused_naming_the_goal(capsys):
+    """Near spatial4's anchor plane the weight needs more than T_max in some cable (the QP
+    finds no tension): the distribution's clipped tension must not pass for a held one."""
+    goal = [0.38, -0.6, 3.89]
+    robot = preset("spatial4")
+    W = ref.structure_matrix(np.array(goal), robot.anchors)
+    from cdpr_sym.distribution import INFEASIBLE, min_norm_reference
+
+    weight = ref.grad_potential(robot.mass, robot.gravity, robot.n)
+    assert min_norm_reference(W, weight, robot.t_min, robot.t_max).status == INFEASIBLE
+    assert main(["simulate", "--robot", "spatial4", "--controller", "pd-td", "--goal",
+                 *map(str, goal)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("cdpr-sym: error: goal:")

@@ -113,6 +113,9 @@ def check_pairs_and_seed(args: argparse.Namespace) -> None:
 
 def study_command(args: argparse.Namespace, out: Output) -> int:
     check_pairs_and_seed(args)
+    if args.name == "redundant" and args.robot:
+        raise InvalidCase("robot", "the redundant study compares its own presets (aras3, "
+                          "spatial4, planar4); it takes no --robot")
     robot = checked_robot(args.robot or "aras3")
     default = args.robot is None or (args.robot == "aras3" and args.name != "rigid")
     stem = Path(args.robot).stem if args.robot else ""
@@ -147,6 +150,14 @@ def study_command(args: argparse.Namespace, out: Output) -> int:
             best = best_design(summary["sweep"])
             lines.append(f"{name:<10} best {best}: meets target on "
                          f"{100 * summary['sweep'][best]['meets_target']:5.1f} % of pairs")
+    elif args.name == "redundant":
+        from cdpr_sym.studies.redundant import run_redundant_study
+
+        value = run_redundant_study(folder, pairs=args.pairs, seed=args.seed,
+                                    progress=progress)
+        lines = [f"{name:<9} {design:<7} meets target {100 * row['meets_target']:5.1f} % "
+                 f"(same pairs)" for name in ("aras3", "spatial4")
+                 for design, row in value["same_pairs"][name].items()]
     else:
         from cdpr_sym.studies.designs import run_designs_study
 

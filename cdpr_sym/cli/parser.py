@@ -16,7 +16,8 @@ from cdpr_sym.workspace import MAX_GRID_POSES
 STUDY_REPORTS = {"paper": ("cdpr_sym.studies.paper", "write_paper_report"),
                  "compare": ("cdpr_sym.studies.compare", "write_compare_report"),
                  "designs": ("cdpr_sym.studies.designs", "write_designs_report"),
-                 "rigid": ("cdpr_sym.studies.rigid", "write_rigid_report")}
+                 "rigid": ("cdpr_sym.studies.rigid", "write_rigid_report"),
+                 "redundant": ("cdpr_sym.studies.redundant", "write_redundant_report")}
 
 #: Most local worker processes of a sweep.
 MAX_WORKERS = 256
@@ -94,15 +95,16 @@ def build_parser() -> argparse.ArgumentParser:
                      "appended to a name without it)")
 
     study = command("study", "run a study and write its report", progress=True)
-    study.add_argument("name", choices=["paper", "compare", "designs", "rigid"],
+    study.add_argument("name", choices=["paper", "compare", "designs", "rigid", "redundant"],
                        help="the study")
     study.add_argument("--robot", help=f"{_ROBOT_HELP} (default aras3; the paper's claims are "
                        "about aras3, others are judged on their case; rigid: planar3 and "
-                       "spatial6 unless given)")
+                       "spatial6 unless given; redundant compares its own presets and takes "
+                       "none)")
     study.add_argument("--out", type=Path, help="output folder (default reports/<name>)")
     study.add_argument("--pairs", type=int, default=200,
-                       help=f"start/goal pairs of the sweeps (compare, designs, rigid; at most "
-                       f"{MAX_PAIRS:,})")
+                       help=f"start/goal pairs of the sweeps (compare, designs, rigid, "
+                       f"redundant; at most {MAX_PAIRS:,})")
     study.add_argument("--seed", type=int, default=0, help="seed of the pair draw (>= 0)")
 
     workspace = command("workspace", "map the static workspace")

@@ -50,8 +50,9 @@ class Case:
         model = model or SymbolicModel(robot)
         for field in ("start", "goal"):
             _check_regular(model, field, getattr(checked, field))
-        tau_1 = np.array(model.functions["static_tension"](checked.goal).full()).ravel()
-        if np.any(tau_1 < robot.t_min) or np.any(tau_1 > robot.t_max):
+        tension, held = model.static_distribution_function(checked.goal)
+        tau_1 = np.array(tension.full()).ravel()
+        if not float(held) > 0.5:
             raise InvalidCase(
                 "goal", f"expected a goal in the static workspace (gravity-holding tension "
                 f"within [{robot.t_min}, {robot.t_max}] N), got {checked.goal.tolist()} "

@@ -175,11 +175,26 @@ class SymbolicModel:
         (:data:`~cdpr_sym.distribution.DEFAULT_METHOD`, which can miss a feasible tension);
         outside the box where the method finds none in it.
         """
+        return self.static_distribution(q)[0]
+
+    @functools.cached_property
+    def static_distribution_function(self) -> ca.Function:
+        """:meth:`static_distribution` as a function: (q) -> (tau_1, held)."""
+        q = ca.SX.sym("q", self.n)
+        tau, held = self.static_distribution(q)
+        return ca.Function("static_distribution", [q], [tau, held], ["q"], ["tau_1", "held"])
+
+    def static_distribution(self, q: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """(tau_1 (N), held): :meth:`static_tension` and 1 where it lies in [T_min, T_max]
+        and holds the weight (m > n: where the distribution found such a tension; its
+        tension is then clipped to the box), else 0."""
+        robot = self.robot
         if self.m > self.n:
-            robot = self.robot
             return distribute(AUTO, self.structure_matrix(q), self.grad_potential(q),
-                              robot.t_min, robot.t_max)[0]
-        return ca.solve(self.structure_matrix(q), self.grad_potential(q))
+                              robot.t_min, robot.t_max)
+        tau = ca.solve(self.structure_matrix(q), self.grad_potential(q))
+        inside = ca.logic_and(ca.mmin(tau) >= robot.t_min, ca.mmax(tau) <= robot.t_max)
+        return tau, ca.if_else(inside, 1.0, 0.0)
 
     def acceleration(self, q: ca.SX, dq: ca.SX, tau: ca.SX, mass_scale: ca.SX = 1.0) -> ca.SX:
         """ddq = M_plant^{-1} (W tau - C dq - grad V_plant), m/s^2 (rad/s^2 for angles).
