@@ -13,7 +13,6 @@ once per move) and carry the plan in their memory, through the one controller in
 from __future__ import annotations
 
 import dataclasses
-import itertools
 from typing import Any, ClassVar
 
 import casadi as ca
@@ -28,7 +27,7 @@ from cdpr_sym.control.parts import (
     flag_if,
     tension_parts,
 )
-from cdpr_sym.distribution import AUTO, distribute
+from cdpr_sym.distribution import DEFAULT_METHOD, distribute
 from cdpr_sym.distribution.interval import BIG
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
@@ -71,6 +70,9 @@ class SmoothReference:
     Command: W^{-1} (M(q) ddq_r + C(q, dq) dq_r + grad V - K (q - q_r) - R_d (dq - dq_r)),
     clipped; the plan's feed-forward is M(q_r) ddq_r + C(q_r, dq_r) dq_r + grad V (m ddq_r
     + grad V for a point mass).
+    With m > n cables W^{-1} becomes Pott's closed form mid + W^+ (f - W mid) in the plan
+    (linear in the force, so the same interval test applies) and the improved closed form
+    in the command (equal to it wherever it is in the box).
     Memory: [t, q_start (n), T, margin].
     """
 
@@ -106,8 +108,6 @@ class SmoothReference:
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
         """Plan: the first admissible (margin, T) in preference order."""
-        if model.m > model.n:
-            return self._plan_redundant(model, q0, q_goal)
         robot = model.robot
         delta = q_goal - q0
         u = np.linspace(0.0, 1.0, self.samples)
@@ -116,18 +116,26 @@ class SmoothReference:
             s, ds, dds = minimum_jerk(ca.SX(value))
             q_r = q0 + delta * s
             W = model.structure_matrix(q_r)
-            dets.append(ca.det(W))
-            static.append(model.static_tension(q_r))
             # M q_r'' + C(q_r, q_r') q_r' = (M dds delta + C(q_r, ds delta) ds delta) / T^2
             inertial = (model.mass_matrix(q_r) @ (dds * delta)
                         + model.coriolis_force(q_r, ds * delta))
-            accel.append(ca.solve(W, inertial))
+            if model.m == model.n:
+                dets.append(ca.det(W))
+                static.append(model.static_tension(q_r))
+                accel.append(ca.solve(W, inertial))
+            else:  # Pott's closed form, linear in the force: the same interval test
+                dets.append(model.singularity_measure(W) - SINGULAR_DET)
+                middle = ca.DM.ones(model.m) * 0.5 * (robot.t_min + robot.t_max)
+                pseudo_inverse = W.T @ ca.inv(W @ W.T)
+                static.append(middle + pseudo_inverse @ (model.grad_potential(q_r)
+                                                         - W @ middle))
+                accel.append(pseudo_inverse @ inertial)
         a, b = ca.vertcat(*static), ca.vertcat(*accel)
         step = u[1] - u[0]
         slow_enough = {}
         for T in self.durations:
             tau = a + b / T**2
-            rates = ca.fabs(tau[robot.n:] - tau[: -robot.n]) / (T * step)
+            rates = ca.fabs(tau[robot.m:] - tau[: -robot.m]) / (T * step)
             slow_enough[T] = ca.mmax(rates) <= self.max_rate
         chosen_T, chosen_margin = ca.SX(max(self.durations)), ca.SX(-1.0)
         for margin in reversed(self.margins):
@@ -140,45 +148,10 @@ class SmoothReference:
                 ok = ca.logic_and(ca.logic_and(low <= x, x <= high), slow_enough[T])
                 chosen_T = ca.if_else(ok, T, chosen_T)
                 chosen_margin = ca.if_else(ok, margin, chosen_margin)
-        # a straight path through det W = 0 (the sign changes between samples) has no plan
+        # a straight path through det W = 0 (the sign changes between samples; m > n: W
+        # loses rank at a sample) has no plan
         crosses = ca.sum1(ca.vertcat(*dets) * dets[0] <= 0) > 0
         chosen_margin = ca.if_else(crosses, -1.0, chosen_margin)
-        return ca.vertcat(0.0, q0, chosen_T, chosen_margin)
-
-    def _plan_redundant(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX) -> ca.SX:
-        """The plan with m > n cables: the feed-forward force along the path distributed
-        (:data:`~cdpr_sym.distribution.AUTO`) into the box shrunk by the margin, feasible at
-        every sample and changing by at most ``max_rate``; W keeps full row rank."""
-        robot = model.robot
-        delta = q_goal - q0
-        u = np.linspace(0.0, 1.0, self.samples)
-        weights, inertials, structures, regular = [], [], [], []
-        for value in u:
-            s, ds, dds = minimum_jerk(ca.SX(value))
-            q_r = q0 + delta * s
-            structures.append(model.structure_matrix(q_r))
-            regular.append(model.singularity_measure(structures[-1]) >= SINGULAR_DET)
-            weights.append(model.grad_potential(q_r))
-            inertials.append(model.mass_matrix(q_r) @ (dds * delta)
-                             + model.coriolis_force(q_r, ds * delta))
-        step = u[1] - u[0]
-        chosen_T, chosen_margin = ca.SX(max(self.durations)), ca.SX(-1.0)
-        for margin in reversed(self.margins):
-            if robot.t_min + margin >= robot.t_max - margin:
-                continue
-            for T in sorted(self.durations, reverse=True):
-                taus, feasible = [], ca.SX(1.0)
-                for W, weight, inertial in zip(structures, weights, inertials, strict=True):
-                    tau, ok = distribute(AUTO, W, weight + inertial / T**2,
-                                         robot.t_min + margin, robot.t_max - margin)
-                    taus.append(tau)
-                    feasible = feasible * ok
-                rates = ca.vertcat(*[ca.fabs(b - a) for a, b in itertools.pairwise(taus)])
-                ok = ca.logic_and(feasible > 0.5, ca.mmax(rates) / (T * step) <= self.max_rate)
-                chosen_T = ca.if_else(ok, T, chosen_T)
-                chosen_margin = ca.if_else(ok, margin, chosen_margin)
-        chosen_margin = ca.if_else(ca.sum1(ca.vertcat(*regular)) < len(regular), -1.0,
-                                   chosen_margin)
         return ca.vertcat(0.0, q0, chosen_T, chosen_margin)
 
     def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
@@ -204,9 +177,11 @@ class SmoothReference:
     def _step_redundant(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX,
                         k: ca.SX, r_d: ca.SX, memory: ca.SX, dt: ca.SX
                         ) -> tuple[ControlLaw, ca.SX]:
-        """The step with m > n cables: the same force, distributed, clipped where the
-        distribution finds no tension in the box (FLAG_SATURATED); beta is the command's
-        smallest distance to a bound, N."""
+        """The step with m > n cables: the same force, distributed by the improved
+        closed-form method (which returns the plan's closed-form tension wherever that is in
+        the box, so plan and command agree along the reference), clipped where it finds no
+        tension in the box (FLAG_SATURATED); beta is the command's smallest distance to a
+        bound, N."""
         robot, n = model.robot, model.n
         t, q_start, T, margin = memory[0], memory[1: n + 1], memory[n + 1], memory[n + 2]
         u = ca.fmin(ca.fmax(t / T, 0.0), 1.0)
@@ -216,7 +191,7 @@ class SmoothReference:
         W = model.structure_matrix(q)
         force = (model.mass_matrix(q) @ ddq_r + model.coriolis_matrix(q, dq) @ dq_r
                  + model.grad_potential(q) - k * (q - q_r) - r_d * (dq - dq_r))
-        tau, feasible = distribute(AUTO, W, force, robot.t_min, robot.t_max)
+        tau, feasible = distribute(DEFAULT_METHOD, W, force, robot.t_min, robot.t_max)
         tau, clipped = clip_to_box(model, tau)
         singular = model.singularity_measure(W) < SINGULAR_DET
         flags = (flag_if(ca.logic_or(clipped, feasible < 0.5), FLAG_SATURATED)

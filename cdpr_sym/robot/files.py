@@ -13,7 +13,7 @@ from typing import Any
 from cdpr_sym.errors import InvalidRobot, UnknownName
 from cdpr_sym.robot.description import Robot
 
-PRESET_NAMES = ("aras3", "planar2", "planar3", "spatial6", "planar4", "spatial4")
+PRESET_NAMES = ("aras3", "planar2", "planar3", "spatial6", "planar4", "spatial4", "ipanema8")
 
 #: Largest robot file read, bytes (1 MiB; the presets are under 2 KiB). A larger file, or
 #: anything that is not a regular file (a device, a FIFO), is refused before it is read.
