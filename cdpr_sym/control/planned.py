@@ -13,6 +13,7 @@ once per move) and carry the plan in their memory, through the one controller in
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from typing import Any, ClassVar
 
 import casadi as ca
@@ -27,10 +28,12 @@ from cdpr_sym.control.parts import (
     flag_if,
     tension_parts,
 )
-from cdpr_sym.distribution import DEFAULT_METHOD, distribute
-from cdpr_sym.distribution.interval import BIG
+from cdpr_sym.distribution import AUTO, distribute
+from cdpr_sym.distribution.interval import BIG, feasible_interval
+from cdpr_sym.distribution.one_dimensional import null_vector
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
+from cdpr_sym.robot import Robot
 
 
 def minimum_jerk(u: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -111,7 +114,7 @@ class SmoothReference:
         robot = model.robot
         delta = q_goal - q0
         u = np.linspace(0.0, 1.0, self.samples)
-        static, accel, dets = [], [], []
+        static, accel, dets, segments = [], [], [], []
         for value in u:
             s, ds, dds = minimum_jerk(ca.SX(value))
             q_r = q0 + delta * s
@@ -130,8 +133,24 @@ class SmoothReference:
                 static.append(middle + pseudo_inverse @ (model.grad_potential(q_r)
                                                          - W @ middle))
                 accel.append(pseudo_inverse @ inertial)
-        a, b = ca.vertcat(*static), ca.vertcat(*accel)
+                if model.m == model.n + 1:  # tau = W^+ (grad V + x inertial) + s h
+                    segments.append((pseudo_inverse @ model.grad_potential(q_r),
+                                     pseudo_inverse @ inertial, null_vector(W)))
         step = u[1] - u[0]
+        if model.m == model.n + 1:
+            chosen_T, chosen_margin = self._choose_on_segments(robot, segments, step)
+        else:
+            chosen_T, chosen_margin = self._choose(robot, ca.vertcat(*static),
+                                                   ca.vertcat(*accel), step)
+        # a straight path through det W = 0 (the sign changes between samples; m > n: W
+        # loses rank at a sample) has no plan
+        crosses = ca.sum1(ca.vertcat(*dets) * dets[0] <= 0) > 0
+        chosen_margin = ca.if_else(crosses, -1.0, chosen_margin)
+        return ca.vertcat(0.0, q0, chosen_T, chosen_margin)
+
+    def _choose(self, robot: Robot, a: ca.SX, b: ca.SX, step: float) -> tuple[ca.SX, ca.SX]:
+        """(T, margin) for a planned tension a + b / T^2 (stacked samples): the widest margin,
+        then the shortest T, keeping it in the shrunk box and slow enough."""
         slow_enough = {}
         for T in self.durations:
             tau = a + b / T**2
@@ -148,11 +167,38 @@ class SmoothReference:
                 ok = ca.logic_and(ca.logic_and(low <= x, x <= high), slow_enough[T])
                 chosen_T = ca.if_else(ok, T, chosen_T)
                 chosen_margin = ca.if_else(ok, margin, chosen_margin)
-        # a straight path through det W = 0 (the sign changes between samples; m > n: W
-        # loses rank at a sample) has no plan
-        crosses = ca.sum1(ca.vertcat(*dets) * dets[0] <= 0) > 0
-        chosen_margin = ca.if_else(crosses, -1.0, chosen_margin)
-        return ca.vertcat(0.0, q0, chosen_T, chosen_margin)
+        return chosen_T, chosen_margin
+
+    def _choose_on_segments(self, robot: Robot, segments: list[tuple[ca.SX, ca.SX, ca.SX]],
+                            step: float) -> tuple[ca.SX, ca.SX]:
+        """:meth:`_choose` for m = n + 1 with the exact minimum-norm distribution: at a sample
+        the tensions producing grad V + x inertial (x = 1 / T^2) are p0 + x p1 + s h on an
+        interval of s; the plan needs that interval non-empty in the shrunk box, and the
+        command (the minimum norm in the full box) slow enough."""
+        m = robot.m
+        chosen_T, chosen_margin = ca.SX(max(self.durations)), ca.SX(-1.0)
+        slow_enough = {}
+        for T in self.durations:
+            taus = []
+            for p0, p1, h in segments:
+                tau_p = p0 + p1 / T**2
+                low, high = feasible_interval(tau_p, h, ca.DM.ones(m) * robot.t_min,
+                                              ca.DM.ones(m) * robot.t_max)
+                taus.append(tau_p + ca.fmin(ca.fmax(0.0, low), high) * h)
+            rates = ca.vertcat(*[ca.fabs(b - a) for a, b in itertools.pairwise(taus)])
+            slow_enough[T] = ca.mmax(rates) / (T * step) <= self.max_rate
+        for margin in reversed(self.margins):
+            for T in sorted(self.durations, reverse=True):
+                inside = ca.SX(1.0)
+                for p0, p1, h in segments:
+                    low, high = feasible_interval(p0 + p1 / T**2, h,
+                                                  ca.DM.ones(m) * (robot.t_min + margin),
+                                                  ca.DM.ones(m) * (robot.t_max - margin))
+                    inside = inside * (low <= high)
+                ok = ca.logic_and(inside > 0.5, slow_enough[T])
+                chosen_T = ca.if_else(ok, T, chosen_T)
+                chosen_margin = ca.if_else(ok, margin, chosen_margin)
+        return chosen_T, chosen_margin
 
     def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
              r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
@@ -191,7 +237,7 @@ class SmoothReference:
         W = model.structure_matrix(q)
         force = (model.mass_matrix(q) @ ddq_r + model.coriolis_matrix(q, dq) @ dq_r
                  + model.grad_potential(q) - k * (q - q_r) - r_d * (dq - dq_r))
-        tau, feasible = distribute(DEFAULT_METHOD, W, force, robot.t_min, robot.t_max)
+        tau, feasible = distribute(AUTO, W, force, robot.t_min, robot.t_max)
         tau, clipped = clip_to_box(model, tau)
         singular = model.singularity_measure(W) < SINGULAR_DET
         flags = (flag_if(ca.logic_or(clipped, feasible < 0.5), FLAG_SATURATED)
