@@ -207,3 +207,16 @@ def test_one_dimensional_verdicts_hold_just_inside_and_just_outside_the_boundary
             assert (min_norm_reference(W, w, LO, HI).status == OPTIMAL) == expected
             for name in ("min_norm", "centroid"):
                 assert _evaluate(name, W, w)[1] == expected, (name, scale)
+
+
+def test_improved_closed_form_never_calls_feasible_a_tension_that_misses_the_wrench():
+    """planar4 on its diagonal: cables 0 and 2 are anti-parallel, so after a repair the free
+    cables can fail to span the plane; the QP finds no tension for these wrenches."""
+    robot = preset("planar4")
+    model = SymbolicModel(robot)
+    q = np.array([-2.0 + 4.0 * 0.4, 3.0 * 0.4])
+    W = np.array(model.functions["structure_matrix"](q))
+    for w in (np.array([100.0, -50.0]), np.array([-500.0, 224.0])):
+        tau, feasible = _evaluate("improved_closed_form", W, w, robot.t_min, robot.t_max)
+        assert min_norm_reference(W, w, robot.t_min, robot.t_max).status == INFEASIBLE
+        assert not feasible, (w, W @ tau - w)

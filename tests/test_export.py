@@ -375,9 +375,13 @@ def test_every_controller_and_preset_builds_strict_and_reproduces_simulation(tmp
     halves the compile time of its large planners; planar2 with the default.
     """
     gcc = _tool("gcc")
+    square = [name for name in PRESET_NAMES if preset(name).m == preset(name).n]
+    for name in set(PRESET_NAMES) - set(square):  # not exported yet: refused, naming it
+        with pytest.raises(InvalidCase, match=r"^robot: export-c needs as many cables"):
+            export_c(name, "pd-td", tmp_path / name)
     results = {(robot, controller): export_c(robot, controller, tmp_path / f"{robot}_{controller}",
                                              avoid_stack=robot != "aras3")
-               for robot in PRESET_NAMES for controller in CONTROLLERS}
+               for robot in square for controller in CONTROLLERS}
     objects = {}
     for key, result in results.items():
         objects[key] = [(result.source, result.out_dir / "main.o", ())]

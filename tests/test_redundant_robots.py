@@ -256,3 +256,28 @@ def test_the_eight_cable_platform_static_verdicts_are_sound_against_the_qp(rng):
         held = min_norm_reference(W, weight, robot.t_min, robot.t_max).status == OPTIMAL
         assert held or not verdict
     assert verdicts.any()
+
+
+def test_pd_td_flags_every_infeasible_step_as_saturated(build_options):
+    """The minimum-norm method clips an infeasible tension itself: still a saturated step."""
+    robot = preset("spatial4")
+    run = get_simulator(robot, DistributedPD(), build_options=build_options).run(
+        robot.start, robot.goal, robot.k, robot.r_d, duration=1.0, dt=DT, plant=Plant())
+    infeasible = (run.flags & 32) != 0
+    assert infeasible.any()
+    assert np.all((run.flags[infeasible] & 4) != 0)
+
+
+def test_the_continuous_time_cross_check_refuses_a_design_that_inverts_w():
+    from cdpr_sym.closed_loop import simulate_adaptive
+
+    with pytest.raises(InvalidCase, match="controller"):
+        simulate_adaptive(preset("planar4"), CONTROLLERS["pd-sat"], duration=0.01)
+
+
+def test_bench_and_the_redundant_report_run_on_redundant_robots(capsys, tmp_path):
+    assert main(["bench", "--robot", "planar4", "--seconds", "0.05"]) == 0
+    out = capsys.readouterr().out
+    assert "pd-td" in out and "smooth" in out and "not timed" in out
+    assert main(["study", "redundant", "--robot", "aras3"]) == 2
+    assert capsys.readouterr().err.strip().startswith("cdpr-sym: error: robot:")

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cdpr_sym.cli.output import Output, quantity, yes_no
-from cdpr_sym.cli.parser import MAX_WORKERS, STUDY_REPORTS
+from cdpr_sym.cli.parser import MAX_WORKERS, STUDIES_WITHOUT_RUNS, STUDY_REPORTS
 from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
 from cdpr_sym.codegen import BuildOptions
@@ -115,7 +115,7 @@ def study_command(args: argparse.Namespace, out: Output) -> int:
     check_pairs_and_seed(args)
     if args.name == "redundant" and args.robot:
         raise InvalidCase("robot", "the redundant study compares its own presets (aras3, "
-                          "spatial4, planar4); it takes no --robot")
+                          "spatial4, planar4, ipanema8); it takes no --robot")
     robot = checked_robot(args.robot or "aras3")
     default = args.robot is None or (args.robot == "aras3" and args.name != "rigid")
     stem = Path(args.robot).stem if args.robot else ""
@@ -246,7 +246,7 @@ def report_command(args: argparse.Namespace, out: Output) -> int:
     kind = data.get("study") if isinstance(data, dict) else None
     if kind != args.kind:
         raise InvalidCase("results", f"{args.results} holds a {kind} study, not {args.kind}")
-    if not runs.exists():
+    if not runs.exists() and args.kind not in STUDIES_WITHOUT_RUNS:
         raise InvalidCase("results", f"{args.results} has no stored runs (runs/ is not kept "
                           f"in git); run 'cdpr-sym study {args.kind}' to compute them")
     getattr(importlib.import_module(module), function)(args.results)

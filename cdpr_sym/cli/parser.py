@@ -7,6 +7,7 @@ from pathlib import Path
 
 from cdpr_sym.closed_loop.case import TRAJECTORY_BUDGET_BYTES
 from cdpr_sym.control import CONTROLLERS, DESCRIPTIONS
+from cdpr_sym.robot import PRESET_NAMES
 from cdpr_sym.studies.bench import MAX_SECONDS
 from cdpr_sym.sweep.config import FORMATS, MAX_PAIRS
 from cdpr_sym.version import __version__
@@ -18,13 +19,15 @@ STUDY_REPORTS = {"paper": ("cdpr_sym.studies.paper", "write_paper_report"),
                  "designs": ("cdpr_sym.studies.designs", "write_designs_report"),
                  "rigid": ("cdpr_sym.studies.rigid", "write_rigid_report"),
                  "redundant": ("cdpr_sym.studies.redundant", "write_redundant_report")}
+#: Studies whose report needs no stored runs (only their tables and JSON files).
+STUDIES_WITHOUT_RUNS = ("redundant",)
 
 #: Most local worker processes of a sweep.
 MAX_WORKERS = 256
 
 _CONTROLLER_HELP = "controllers:\n" + "\n".join(
     f"  {name:<11} {text}" for name, text in DESCRIPTIONS.items())
-_ROBOT_HELP = "preset name (aras3, planar2, planar3, spatial6) or robot TOML file"
+_ROBOT_HELP = f"preset name ({', '.join(PRESET_NAMES)}) or robot TOML file"
 
 
 class _Formatter(argparse.RawDescriptionHelpFormatter):

@@ -14,7 +14,7 @@ from cdpr_sym.closed_loop.case import Case, check_timing
 from cdpr_sym.closed_loop.plant import Plant, applied_tension, plant_rhs
 from cdpr_sym.closed_loop.simulator import run_info
 from cdpr_sym.closed_loop.step import step_layout
-from cdpr_sym.control import Controller, law_function
+from cdpr_sym.control import Controller, check_cables, law_function
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.results import Trajectory
@@ -76,6 +76,7 @@ def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=
     InvalidCase
         A bad case, a rate-limited plant, or a controller with internal state.
     """
+    check_cables(controller, robot.n, robot.m)
     model = SymbolicModel(robot)
     case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d, model=model)
     n_steps = check_timing(duration, dt)

@@ -63,6 +63,8 @@ class DistributedPD(StatelessLaw):
         tau, clipped = clip_to_box(model, tau)
         margin = ca.fmin(ca.mmin(tau) - robot.t_min, robot.t_max - ca.mmax(tau))
         singular = model.singularity_measure(W) < SINGULAR_DET
-        flags = (flag_if(feasible < 0.5, FLAG_INFEASIBLE) + flag_if(clipped, FLAG_SATURATED)
+        # an infeasible tension is clipped, by the method itself or here
+        flags = (flag_if(feasible < 0.5, FLAG_INFEASIBLE)
+                 + flag_if(ca.logic_or(clipped, feasible < 0.5), FLAG_SATURATED)
                  + flag_if(singular, FLAG_SINGULAR))
         return ControlLaw(tau, ca.SX(1.0), margin, ca.SX.zeros(model.n_j), flags)

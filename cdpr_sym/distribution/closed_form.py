@@ -18,6 +18,9 @@ from __future__ import annotations
 
 import casadi as ca
 
+#: Largest residual |W tau - w|_inf, relative to 1 + |w|_inf, of a tension called feasible.
+RESIDUAL = 1e-9
+
 
 def closed_form(W: ca.SX, w: ca.SX, t_min: float, t_max: float) -> tuple[ca.SX, ca.SX]:
     """(tau, feasible) of the closed-form method: tau (m,) in N; feasible is 1 when every
@@ -33,8 +36,9 @@ def improved_closed_form(W: ca.SX, w: ca.SX, t_min: float, t_max: float
     """(tau, feasible) of the improved closed-form method (m - n repairs at most).
 
     A repair fixes the free cable with the largest violation of its box at the bound it
-    violates. Infeasible (0) when tension outside the box remains after the last repair;
-    tau is then the last solve's, unclipped.
+    violates. Infeasible (0) when tension outside the box remains after the last repair, or
+    when the cables left free no longer produce w (they align); tau is then the last
+    solve's, unclipped.
     """
     n, m = W.shape
     free = ca.SX.ones(m)  # 1 for a cable still to be solved for
@@ -49,7 +53,10 @@ def improved_closed_form(W: ca.SX, w: ca.SX, t_min: float, t_max: float
         fixed = fixed + chosen * bound
         free = free - chosen
         tau = ca.if_else(repair, _nearest_to_middle(W, w, free, fixed, t_min, t_max), tau)
-    return tau, _inside(tau, t_min, t_max)
+    # the repairs can leave free cables that no longer span the wrench space (on lines where
+    # cables align): the solve then returns numbers in the box that do not produce w
+    produces = ca.norm_inf(W @ tau - w) <= RESIDUAL * (1.0 + ca.norm_inf(w))
+    return tau, _inside(tau, t_min, t_max) * ca.if_else(produces, 1.0, 0.0)
 
 
 def _nearest_to_middle(W: ca.SX, w: ca.SX, free: ca.SX, fixed: ca.SX, t_min: float,

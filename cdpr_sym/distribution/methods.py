@@ -33,6 +33,9 @@ def preferred_method(n: int, m: int) -> str:
 def check_method(name: str, n: int, m: int) -> Method:
     """The method called ``name`` (or :data:`AUTO`) for n degrees of freedom and m cables,
     or :class:`InvalidCase` (``distribution``) naming what it needs."""
+    if m < n:
+        raise InvalidCase("distribution", f"expected at least as many cables as degrees of "
+                          f"freedom, got m = {m} for n = {n}")
     name = preferred_method(n, m) if name == AUTO else name
     if name not in METHODS:
         raise InvalidCase("distribution", f"expected one of {(AUTO, *METHODS)}, got {name!r}")

@@ -55,6 +55,8 @@ def bench_controllers(robot: Robot, *, duration: float = 5.0, dt: float = 1e-3,
     """Closed-loop simulations per second (``duration`` s at 1/``dt`` Hz) per controller."""
     out = {}
     for name, controller in CONTROLLERS.items():
+        if robot.m > robot.n and not getattr(controller, "redundant", False):
+            continue  # it inverts W: refused on a robot with more cables than DOF
         simulator = get_simulator(robot, controller, build_options=build_options)
 
         def run(simulator=simulator):
@@ -118,9 +120,13 @@ def run_bench(robot: Robot, *, min_seconds: float = 1.0,
     """All benchmarks as one JSON-ready dictionary; ``min_seconds`` (s) per row is checked
     by :func:`check_seconds` before anything is built (field ``seconds``)."""
     min_seconds = check_seconds(min_seconds)
+    controllers = bench_controllers(robot, min_seconds=min_seconds, build_options=build_options)
+    if robot.m > robot.n:  # A = W^-1 P, the box designs and export-c need m = n
+        return {"robot": robot.name, "duration_s": 5.0, "dt_s": 1e-3,
+                "controllers": controllers, "model_call": {}, "cvxpy": {}, "export_c": {},
+                "target_sims_per_s": 1000}
     return {"robot": robot.name, "duration_s": 5.0, "dt_s": 1e-3,
-            "controllers": bench_controllers(robot, min_seconds=min_seconds,
-                                             build_options=build_options),
+            "controllers": controllers,
             "model_call": bench_model_call(robot, min_seconds=min_seconds / 2,
                                            build_options=build_options),
             "cvxpy": bench_cvxpy(robot),
@@ -137,6 +143,10 @@ def format_table(result: dict[str, Any]) -> str:
         stopped = row.get("stop_reason")
         note = f"  (stopped after {row['steps']} steps: {stopped})" if stopped else ""
         lines.append(f"{name:<14}{row['sims_per_s']:>10.0f}{row['us_per_step']:>10.3f}{note}")
+    if not result["cvxpy"]:
+        return "\n".join([*lines, "", f"{result['robot']} has more cables than degrees of "
+                           "freedom: the designs that invert W, A = W^-1 P and export-c are "
+                           "not timed"])
     lines.append("")
     lines.append("box / l∞ design, one control step: fast path (generated C, whole closed-loop "
                  "step) vs cvxpy + Clarabel (solve only)")
