@@ -106,6 +106,7 @@ def test_pd_with_minimum_norm_distribution_matches_a_numpy_closed_loop(build_opt
     assert np.any(run.flags & 32) and not np.all(run.flags & 32)  # both regimes were met
 
 
+@pytest.mark.slow  # several seconds: kept out of the quick suite
 @pytest.mark.parametrize("name", ["planar4", "spatial4"])
 def test_the_batched_runs_of_a_redundant_robot_equal_its_single_runs(name, build_options,
                                                                     rng, random_states):
@@ -153,6 +154,7 @@ def _plan_admissible(robot, controller, start, goal, duration, margin):
     return bool(rates.max() <= controller.max_rate)
 
 
+@pytest.mark.slow  # several seconds: kept out of the quick suite
 def test_smooth_plans_the_shortest_admissible_move_of_a_redundant_robot(rng, random_states,
                                                                        build_options):
     """Against a numpy planner: the chosen (margin, T) is admissible, and no shorter T at
@@ -186,6 +188,7 @@ def test_smooth_on_a_redundant_robot_starts_without_a_jump_and_stays_in_the_box(
         assert metrics["settle_time"] is not None and metrics["settle_time"] < 3.0
 
 
+@pytest.mark.slow  # several seconds: kept out of the quick suite
 @pytest.mark.parametrize("name", ["spatial4", "planar4"])
 def test_the_static_workspace_of_a_redundant_robot_agrees_with_the_qp(name, rng):
     """Statically feasible (a tension in the box holds the weight) by the compiled
@@ -240,6 +243,7 @@ def test_the_eight_cable_platform_accelerates_as_newton_euler_says(rng, random_s
                                    nref.acceleration(body, q, dq, tau), rtol=1e-9, atol=1e-9)
 
 
+@pytest.mark.slow  # several seconds: kept out of the quick suite
 def test_the_eight_cable_platform_static_verdicts_are_sound_against_the_qp(rng):
     """Improved closed form (m - n = 2): a pose it calls held is held; the QP may hold more."""
     from cdpr_sym.distribution import OPTIMAL, min_norm_reference
