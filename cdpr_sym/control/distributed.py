@@ -16,10 +16,10 @@ import casadi as ca
 
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
 from cdpr_sym.control.interface import ControlLaw, StatelessLaw
-from cdpr_sym.control.parts import clip_to_box, flag_if
-from cdpr_sym.distribution import AUTO, METHODS, distribute
+from cdpr_sym.control.parts import distributed_command, flag_if
+from cdpr_sym.distribution import AUTO, METHODS
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.model import SINGULAR_DET, SymbolicModel
+from cdpr_sym.model import SymbolicModel
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,15 +56,10 @@ class DistributedPD(StatelessLaw):
 
     def law(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
             r_d: ca.SX) -> ControlLaw:
-        robot = model.robot
-        W = model.structure_matrix(q)
         wrench = model.grad_potential(q) - k * (q - q_goal) - r_d * dq
-        tau, feasible = distribute(self.method, W, wrench, robot.t_min, robot.t_max)
-        tau, clipped = clip_to_box(model, tau)
-        margin = ca.fmin(ca.mmin(tau) - robot.t_min, robot.t_max - ca.mmax(tau))
-        singular = model.singularity_measure(W) < SINGULAR_DET
-        # an infeasible tension is clipped, by the method itself or here
-        flags = (flag_if(feasible < 0.5, FLAG_INFEASIBLE)
-                 + flag_if(ca.logic_or(clipped, feasible < 0.5), FLAG_SATURATED)
-                 + flag_if(singular, FLAG_SINGULAR))
-        return ControlLaw(tau, ca.SX(1.0), margin, ca.SX.zeros(model.n_j), flags)
+        command = distributed_command(model, model.structure_matrix(q), wrench, self.method)
+        flags = (flag_if(command.infeasible, FLAG_INFEASIBLE)
+                 + flag_if(command.saturated, FLAG_SATURATED)
+                 + flag_if(command.singular, FLAG_SINGULAR))
+        return ControlLaw(command.tau, ca.SX(1.0), command.margin, ca.SX.zeros(model.n_j),
+                          flags)

@@ -12,6 +12,7 @@ import dataclasses
 
 import casadi as ca
 
+from cdpr_sym.distribution import AUTO, distribute
 from cdpr_sym.distribution.interval import feasible_interval
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 
@@ -43,6 +44,32 @@ def clip_to_box(model: SymbolicModel, tau: ca.SX) -> tuple[ca.SX, ca.SX]:
     t_min, t_max = model.robot.t_min, model.robot.t_max
     clipped = ca.fmin(ca.fmax(tau, t_min), t_max)
     return clipped, ca.sum1(tau < t_min) + ca.sum1(tau > t_max) > 0
+
+
+@dataclasses.dataclass(frozen=True)
+class DistributedCommand:
+    """A force distributed over m >= n cables: the tension in the box (N), its smallest
+    distance to a bound (N), and whether it was clipped (the method found no tension in the
+    box, or left one outside) or W is singular."""
+
+    tau: ca.SX
+    margin: ca.SX
+    saturated: ca.SX
+    infeasible: ca.SX
+    singular: ca.SX
+
+
+def distributed_command(model: SymbolicModel, W: ca.SX, force: ca.SX,
+                        method: str = AUTO) -> DistributedCommand:
+    """The tension producing ``force`` (N, N m) by the distribution ``method``, clipped."""
+    robot = model.robot
+    tau, feasible = distribute(method, W, force, robot.t_min, robot.t_max)
+    tau, clipped = clip_to_box(model, tau)
+    infeasible = feasible < 0.5
+    return DistributedCommand(
+        tau=tau, margin=ca.fmin(ca.mmin(tau) - robot.t_min, robot.t_max - ca.mmax(tau)),
+        saturated=ca.logic_or(clipped, infeasible), infeasible=infeasible,
+        singular=model.singularity_measure(W) < SINGULAR_DET)
 
 
 def flag_if(condition: ca.SX, bit: int) -> ca.SX:

@@ -25,10 +25,10 @@ from cdpr_sym.control.parts import (
     alpha_interval,
     beta_margin,
     clip_to_box,
+    distributed_command,
     flag_if,
     tension_parts,
 )
-from cdpr_sym.distribution import AUTO, distribute
 from cdpr_sym.distribution.interval import BIG, feasible_interval
 from cdpr_sym.distribution.one_dimensional import null_vector
 from cdpr_sym.errors import InvalidCase
@@ -202,48 +202,29 @@ class SmoothReference:
 
     def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
              r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
+        """The tracking force at (q, dq) as tension: W^{-1} force, clipped (m = n), or the
+        force distributed (m > n; the method the plan used, so plan and command agree
+        along the reference), clipped where no tension in the box produces it; then beta
+        is the command's smallest distance to a bound, N."""
         n = model.n
         t, q_start, T, margin = memory[0], memory[1: n + 1], memory[n + 1], memory[n + 2]
+        u = ca.fmin(ca.fmax(t / T, 0.0), 1.0)
+        s, ds, dds = minimum_jerk(u)
+        delta = q_goal - q_start
+        q_r, dq_r, ddq_r = q_start + delta * s, delta * ds / T, delta * dds / T**2
+        force = (model.mass_matrix(q) @ ddq_r + model.coriolis_matrix(q, dq) @ dq_r
+                 + model.grad_potential(q) - k * (q - q_r) - r_d * (dq - dq_r))
         if model.m > model.n:
-            return self._step_redundant(model, q, dq, q_goal, k, r_d, memory, dt)
-        u = ca.fmin(ca.fmax(t / T, 0.0), 1.0)
-        s, ds, dds = minimum_jerk(u)
-        delta = q_goal - q_start
-        q_r, dq_r, ddq_r = q_start + delta * s, delta * ds / T, delta * dds / T**2
-        parts = tension_parts(model, q, dq, q_goal, k, r_d)
-        force = (model.mass_matrix(q) @ ddq_r + model.coriolis_matrix(q, dq) @ dq_r
-                 + model.grad_potential(q) - k * (q - q_r) - r_d * (dq - dq_r))
-        tau, clipped = clip_to_box(model, parts.W_inv @ force)
-        flags = (flag_if(clipped, FLAG_SATURATED) + flag_if(margin < 0, FLAG_INFEASIBLE)
-                 + flag_if(parts.singular, FLAG_SINGULAR))
-        law = ControlLaw(tau, ca.SX(1.0), beta_margin(model, parts.tau_1), ca.SX.zeros(model.n_j),
-                         flags)
-        return law, ca.vertcat(t + dt, q_start, T, margin)
-
-    def _step_redundant(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX,
-                        k: ca.SX, r_d: ca.SX, memory: ca.SX, dt: ca.SX
-                        ) -> tuple[ControlLaw, ca.SX]:
-        """The step with m > n cables: the same force, distributed by the improved
-        closed-form method (which returns the plan's closed-form tension wherever that is in
-        the box, so plan and command agree along the reference), clipped where it finds no
-        tension in the box (FLAG_SATURATED); beta is the command's smallest distance to a
-        bound, N."""
-        robot, n = model.robot, model.n
-        t, q_start, T, margin = memory[0], memory[1: n + 1], memory[n + 1], memory[n + 2]
-        u = ca.fmin(ca.fmax(t / T, 0.0), 1.0)
-        s, ds, dds = minimum_jerk(u)
-        delta = q_goal - q_start
-        q_r, dq_r, ddq_r = q_start + delta * s, delta * ds / T, delta * dds / T**2
-        W = model.structure_matrix(q)
-        force = (model.mass_matrix(q) @ ddq_r + model.coriolis_matrix(q, dq) @ dq_r
-                 + model.grad_potential(q) - k * (q - q_r) - r_d * (dq - dq_r))
-        tau, feasible = distribute(AUTO, W, force, robot.t_min, robot.t_max)
-        tau, clipped = clip_to_box(model, tau)
-        singular = model.singularity_measure(W) < SINGULAR_DET
-        flags = (flag_if(ca.logic_or(clipped, feasible < 0.5), FLAG_SATURATED)
-                 + flag_if(margin < 0, FLAG_INFEASIBLE) + flag_if(singular, FLAG_SINGULAR))
-        box_margin = ca.fmin(ca.mmin(tau) - robot.t_min, robot.t_max - ca.mmax(tau))
-        law = ControlLaw(tau, ca.SX(1.0), box_margin, ca.SX.zeros(model.n_j), flags)
+            command = distributed_command(model, model.structure_matrix(q), force)
+            tau, saturated, singular, beta = (command.tau, command.saturated,
+                                              command.singular, command.margin)
+        else:
+            parts = tension_parts(model, q, dq, q_goal, k, r_d)
+            tau, saturated = clip_to_box(model, parts.W_inv @ force)
+            singular, beta = parts.singular, beta_margin(model, parts.tau_1)
+        flags = (flag_if(saturated, FLAG_SATURATED) + flag_if(margin < 0, FLAG_INFEASIBLE)
+                 + flag_if(singular, FLAG_SINGULAR))
+        law = ControlLaw(tau, ca.SX(1.0), beta, ca.SX.zeros(model.n_j), flags)
         return law, ca.vertcat(t + dt, q_start, T, margin)
 
 

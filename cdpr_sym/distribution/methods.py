@@ -30,35 +30,33 @@ def preferred_method(n: int, m: int) -> str:
     return "min_norm" if m == n + 1 else DEFAULT_METHOD
 
 
-def check_method(name: str, n: int, m: int) -> Method:
-    """The method called ``name`` (or :data:`AUTO`) for n degrees of freedom and m cables,
-    or :class:`InvalidCase` (``distribution``) naming what it needs."""
+def check_method(name: str, n: int, m: int) -> str:
+    """The method called ``name`` (:data:`AUTO` resolved) for n degrees of freedom and m
+    cables, or :class:`InvalidCase` (``distribution``) naming what it needs."""
     if m < n:
         raise InvalidCase("distribution", f"expected at least as many cables as degrees of "
                           f"freedom, got m = {m} for n = {n}")
     name = preferred_method(n, m) if name == AUTO else name
     if name not in METHODS:
         raise InvalidCase("distribution", f"expected one of {(AUTO, *METHODS)}, got {name!r}")
-    method, redundancy = METHODS[name]
+    redundancy = METHODS[name][1]
     if redundancy is not None and m - n != redundancy:
         raise InvalidCase("distribution", f"{name} needs m = n + {redundancy} cables (a "
                           f"{redundancy}-D null space), got n = {n}, m = {m}; use "
                           f"{DEFAULT_METHOD}")
-    return method
+    return name
 
 
 def distribute(name: str, W: ca.SX, w: ca.SX, t_min: float, t_max: float
                ) -> tuple[ca.SX, ca.SX]:
     """(tau (m,) N, feasible 1/0) of method ``name`` for the wrench ``w`` (n,)."""
-    n, m = W.shape
-    return check_method(name, n, m)(W, w, t_min, t_max)
+    return METHODS[check_method(name, *W.shape)][0](W, w, t_min, t_max)
 
 
 def distribution_function(name: str, n: int, m: int, t_min: float, t_max: float
                           ) -> ca.Function:
     """``tension_<name>``: (W (n x m), w (n)) -> (tau (m) N, feasible), for generation."""
-    check_method(name, n, m)
-    name = preferred_method(n, m) if name == AUTO else name
+    name = check_method(name, n, m)
     W, w = ca.SX.sym("W", n, m), ca.SX.sym("w", n)
     tau, feasible = distribute(name, W, w, t_min, t_max)
     return ca.Function(f"tension_{name}", [W, w], [tau, feasible], ["W", "w"],

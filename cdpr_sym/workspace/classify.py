@@ -32,12 +32,9 @@ def classification_function(model: SymbolicModel) -> ca.Function:
     q = ca.SX.sym("q", model.n)
     W = model.structure_matrix(q)
     regular = model.singularity_measure(W) >= SINGULAR_DET
-    if model.m == model.n:
-        tau_1 = model.static_tension(q)
-        in_box = ca.sum1(tau_1 >= robot.t_min) + ca.sum1(tau_1 <= robot.t_max) > 2 * model.n - 0.5
-    else:  # the distribution says whether its tension holds the weight inside the box
-        tau_1, held = model.static_distribution(q)
-        in_box = held > 0.5
+    # in the box (m > n: the distribution found a tension there that holds the weight)
+    tau_1, held = model.static_distribution(q)
+    in_box = held > 0.5
     mid, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
     in_ball = ca.norm_2(tau_1 - mid) <= half
     return ca.Function("classify", [q], [tau_1, ca.logic_and(regular, in_box),
