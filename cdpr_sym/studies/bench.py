@@ -120,17 +120,14 @@ def run_bench(robot: Robot, *, min_seconds: float = 1.0,
     """All benchmarks as one JSON-ready dictionary; ``min_seconds`` (s) per row is checked
     by :func:`check_seconds` before anything is built (field ``seconds``)."""
     min_seconds = check_seconds(min_seconds)
-    controllers = bench_controllers(robot, min_seconds=min_seconds, build_options=build_options)
-    if robot.m > robot.n:  # A = W^-1 P, the box designs and export-c need m = n
-        return {"robot": robot.name, "duration_s": 5.0, "dt_s": 1e-3,
-                "controllers": controllers, "model_call": {}, "cvxpy": {}, "export_c": {},
-                "target_sims_per_s": 1000}
+    square = robot.m == robot.n  # A = W^-1 P, the box designs and export-c need m = n
     return {"robot": robot.name, "duration_s": 5.0, "dt_s": 1e-3,
-            "controllers": controllers,
+            "controllers": bench_controllers(robot, min_seconds=min_seconds,
+                                             build_options=build_options),
             "model_call": bench_model_call(robot, min_seconds=min_seconds / 2,
-                                           build_options=build_options),
-            "cvxpy": bench_cvxpy(robot),
-            "export_c": bench_exported(robot),
+                                           build_options=build_options) if square else {},
+            "cvxpy": bench_cvxpy(robot) if square else {},
+            "export_c": bench_exported(robot) if square else {},
             "target_sims_per_s": 1000}
 
 
