@@ -285,3 +285,15 @@ def test_bench_and_the_redundant_report_run_on_redundant_robots(capsys, tmp_path
     assert "pd-td" in out and "smooth" in out and "not timed" in out
     assert main(["study", "redundant", "--robot", "aras3"]) == 2
     assert capsys.readouterr().err.strip().startswith("cdpr-sym: error: robot:")
+
+
+def test_the_redundant_report_is_rebuilt_from_its_files_alone(capsys, tmp_path):
+    """The study keeps no runs/ folder: its report comes from the tables and JSON files."""
+    import shutil
+    from pathlib import Path
+
+    committed = Path(__file__).parents[1] / "reports" / "redundant"
+    folder = shutil.copytree(committed, tmp_path / "redundant")
+    (folder / "report.md").unlink()
+    assert main(["report", "redundant", str(folder)]) == 0
+    assert (folder / "report.md").read_text() == (committed / "report.md").read_text()
