@@ -227,6 +227,7 @@ def test_a_goal_no_tension_in_the_box_can_hold_is_refused_naming_the_goal(capsys
                  *map(str, goal)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("cdpr-sym: error: goal:")
+    assert err[0].endswith("where no such tension holds the weight")  # not a clipped tension
 
 
 def test_the_eight_cable_platform_accelerates_as_newton_euler_says(rng, random_states):

@@ -53,10 +53,13 @@ class Case:
         tension, held = model.static_distribution_function(checked.goal)
         tau_1 = np.array(tension.full()).ravel()
         if not float(held) > 0.5:
+            # m > n: the distribution's tension is already clipped, so it shows nothing
+            need = (f"needing {[round(float(value), 3) for value in tau_1]} N"
+                    if robot.m == robot.n else "where no such tension holds the weight")
             raise InvalidCase(
                 "goal", f"expected a goal in the static workspace (gravity-holding tension "
                 f"within [{robot.t_min}, {robot.t_max}] N), got {checked.goal.tolist()} "
-                f"needing {[round(float(value), 3) for value in tau_1]} N")
+                f"{need}")
         return cls(checked.start, checked.goal, checked.k, checked.r_d)
 
 
