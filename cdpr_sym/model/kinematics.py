@@ -79,6 +79,24 @@ def body_angular_velocity(robot: Robot, q: ca.SX, dq: ca.SX) -> ca.SX:
     return ca.vertcat(skew[2, 1], skew[0, 2], skew[1, 0])
 
 
+def wrench_jacobian(robot: Robot, q: ca.SX) -> ca.SX:
+    """J(q) with (v_c, w) = J dq: the centre of mass velocity (m/s) and the world angular
+    velocity (rad/s) per generalized velocity, shape (d + rotations, n).
+
+    An external force f at the centre of mass and moment mu (world axes) act on the
+    generalized coordinates as J^T (f, mu) (the same virtual power). ``q`` must be a purely
+    symbolic ``SX`` for a rigid body.
+    """
+    if robot.kind == "point":
+        return ca.SX.eye(robot.n)
+    dq = ca.SX.sym("dq", robot.n)
+    velocity = ca.jtimes(center_of_mass(robot, q), q, dq)
+    spin = body_angular_velocity(robot, q, dq)
+    if robot.kind == "spatial":
+        spin = rotation(robot, q) @ spin  # the body's angular velocity in world axes
+    return ca.jacobian(ca.vertcat(velocity, spin), dq)
+
+
 def cable_lengths(robot: Robot, q: ca.SX) -> ca.SX:
     """l_i = |a_i - P_i(q)|, m, shape (m, 1) for m cables."""
     points = attachment_points(robot, q)

@@ -78,6 +78,18 @@ class SymbolicModel:
         """The paper's J_a = -W^T = dl/dq; l_dot = J_a dq."""
         return -self.structure_matrix(q).T
 
+    def wrench_jacobian(self, q: ca.SX) -> ca.SX:
+        """J(q): (v_c, w) = J dq, shape (d + rotations, n); an external wrench (f at the
+        centre of mass, N; moment, N m; world axes) acts as the generalized force J^T (f, mu)."""
+        if self.robot.kind == "point":
+            return kinematics.wrench_jacobian(self.robot, q)
+        return self._wrench_jacobian_of_symbol(q)
+
+    @functools.cached_property
+    def _wrench_jacobian_of_symbol(self) -> ca.Function:
+        q = ca.SX.sym("q", self.n)
+        return ca.Function("J_wrench", [q], [kinematics.wrench_jacobian(self.robot, q)])
+
     def singularity_measure(self, W: ca.SX) -> ca.SX:
         """|det W| / prod |w_i| (columns w_i), in [0, 1]; compared with ``SINGULAR_DET``."""
         return kinematics.singularity_measure(self.robot, W)

@@ -30,6 +30,10 @@ COORDINATES = {
 #: Fields that only a rigid body has.
 _BODY_FIELDS = ("attachments", "inertia", "center_of_mass")
 
+#: Optional fields left out of :meth:`Robot.as_dict` when not given, so a robot without
+#: them keeps the description (and the sweep identities) it had before they existed.
+_OPTIONAL_FIELDS = (*_BODY_FIELDS, "external_force", "external_moment")
+
 #: Longest robot name, characters (it heads reports and names generated code).
 MAX_NAME_LENGTH = 100
 
@@ -72,6 +76,13 @@ class Robot:
         (1, 1) for a planar body, (3, 3) symmetric positive definite for a spatial one.
     center_of_mass : ndarray, shape (d,), optional
         Rigid bodies: centre of mass in the body frame, m (default: the body-frame origin).
+    external_force : ndarray, shape (d,), optional
+        Half-widths f_i >= 0 of the box of external forces the end-effector must withstand
+        beside its weight (world axes, applied at the centre of mass), N; the wrench-feasible
+        workspace (:mod:`cdpr_sym.workspace.wrench`) asks for every force in [-f, f].
+        Omitted: no external force.
+    external_moment : ndarray, shape (1,) or (3,), optional
+        Rigid bodies: half-widths of the box of external moments (world axes), N m.
 
     Notes
     -----
@@ -94,6 +105,8 @@ class Robot:
     attachments: np.ndarray | None = None
     inertia: np.ndarray | None = None
     center_of_mass: np.ndarray | None = None
+    external_force: np.ndarray | None = None
+    external_moment: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         _check_name(self.name)
@@ -112,6 +125,7 @@ class Robot:
         for field in ("mass", "gravity", "t_min", "t_max"):
             _set(self, field, _float_scalar(field, getattr(self, field)))
         self._check_physics()
+        self._check_external_wrench()
         self._check_frame()
         if self.kind == "spatial":
             self._check_pitch_range()
@@ -182,6 +196,20 @@ class Robot:
         return tuple(f"q{i + 1}" for i in range(self.n)), ("m",) * self.n
 
     @property
+    def rotations(self) -> int:
+        """Rotational degrees of freedom: 0 (point mass), 1 (planar body), 3 (spatial)."""
+        return self.n - self.dimension if self.kind != "point" else 0
+
+    @property
+    def wrench_half_widths(self) -> np.ndarray:
+        """Half-widths of the external wrench box, (force (N) then moment (N m)), shape
+        (d + rotations,); zeros where the robot file gives none."""
+        force = np.zeros(self.dimension) if self.external_force is None else self.external_force
+        moment = (np.zeros(self.rotations) if self.external_moment is None
+                  else self.external_moment)
+        return np.concatenate([force, moment])
+
+    @property
     def n_j(self) -> int:
         """Number of free entries of the skew matrix J_d, n(n-1)/2."""
         return self.n * (self.n - 1) // 2
@@ -200,7 +228,7 @@ class Robot:
         out: dict[str, Any] = {}
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)
-            if value is None and field.name in _BODY_FIELDS:
+            if value is None and field.name in _OPTIONAL_FIELDS:
                 continue
             out[field.name] = value.tolist() if isinstance(value, np.ndarray) else value
         return out
@@ -262,6 +290,23 @@ class Robot:
             raise InvalidRobot("k", f"expected positive stiffness gains, got {self.k.tolist()}")
         if np.any(self.r_d <= 0):
             raise InvalidRobot("r_d", f"expected positive damping gains, got {self.r_d.tolist()}")
+
+    def _check_external_wrench(self) -> None:
+        sizes = {"external_force": self.dimension, "external_moment": self.rotations}
+        names = {"external_force": "wrench.force", "external_moment": "wrench.moment"}
+        for field, size in sizes.items():
+            value = getattr(self, field)
+            if value is None:
+                continue
+            name = names[field]
+            if size == 0:
+                raise InvalidRobot(name, "a point mass takes no moment; give wrench.force only")
+            vector = _float_array(name, value, ndim=1)
+            if vector.shape != (size,):
+                raise InvalidRobot(name, f"expected {size} half-widths, got {vector.shape[0]}")
+            if np.any(vector < 0):
+                raise InvalidRobot(name, f"expected half-widths >= 0, got {vector.tolist()}")
+            _set(self, field, vector)
 
     def _check_frame(self) -> None:
         if np.any(self.frame_lower >= self.frame_upper):

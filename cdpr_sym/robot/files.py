@@ -24,6 +24,7 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
     """Build a :class:`Robot` from the robot-file layout (README, "Robot files")."""
     _check_known_fields(data, source)
     body = data.get("body", {})
+    wrench = data.get("wrench", {})
     if "body" in data and "attachments" not in body:
         raise InvalidRobot("body.attachments", f"required field missing in {source} (a [body] "
                            "table makes the end-effector a rigid body)")
@@ -50,14 +51,17 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
         start=get("case.start"), goal=get("case.goal"), k=get("case.k"), r_d=get("case.r_d"),
         attachments=body.get("attachments"), inertia=body.get("inertia"),
         center_of_mass=body.get("center_of_mass"),
+        external_force=wrench.get("force"), external_moment=wrench.get("moment"),
     )
 
 
 #: The robot-file layout: top-level fields, and the fields of each table.
-FILE_FIELDS = {"": {"name", "mass", "gravity", "anchors", "tension", "frame", "case", "body"},
+FILE_FIELDS = {"": {"name", "mass", "gravity", "anchors", "tension", "frame", "case", "body",
+                    "wrench"},
                "tension": {"min", "max"}, "frame": {"lower", "upper"},
                "case": {"start", "goal", "k", "r_d"},
-               "body": {"attachments", "inertia", "center_of_mass"}}
+               "body": {"attachments", "inertia", "center_of_mass"},
+               "wrench": {"force", "moment"}}
 
 
 def _check_known_fields(data: dict[str, Any], source: str) -> None:

@@ -1,7 +1,7 @@
-"""The static workspace: poses where gravity can be held with tensions in the box."""
+"""Workspaces: poses where the weight (static) or a box of wrenches (wrench-feasible) can be
+held with tensions in the box, and wrench closure; classified in generated C."""
 
 from cdpr_sym.workspace.classify import (
-    BLOCK,
     MAX_GRID_POSES,
     MAX_SAMPLE_POSES,
     Classification,
@@ -11,7 +11,15 @@ from cdpr_sym.workspace.classify import (
     interior_box,
     sample_static_workspace,
 )
+from cdpr_sym.workspace.mapped import BLOCK, MappedEvaluator
+from cdpr_sym.workspace.wrench import (
+    WrenchClassification,
+    WrenchEvaluator,
+    facet_normals,
+    wrench_function,
+)
 
-__all__ = ["BLOCK", "MAX_GRID_POSES", "MAX_SAMPLE_POSES", "Classification",
-           "WorkspaceEvaluator", "classification_function", "frame_shares", "interior_box",
-           "sample_static_workspace"]
+__all__ = ["BLOCK", "MAX_GRID_POSES", "MAX_SAMPLE_POSES", "Classification", "MappedEvaluator",
+           "WorkspaceEvaluator", "WrenchClassification", "WrenchEvaluator",
+           "classification_function", "facet_normals", "frame_shares", "interior_box",
+           "sample_static_workspace", "wrench_function"]

@@ -12,12 +12,12 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.codegen import BuildOptions, build, c_identifier
+from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
+from cdpr_sym.workspace.mapped import MappedEvaluator
 
-BLOCK = 4096
 #: Most grid poses a workspace map classifies (125 points per axis in 3-D, 1414 in 2-D);
 #: the poses and their results take about 10 x 8 x n bytes each.
 MAX_GRID_POSES = 2_000_000
@@ -57,41 +57,13 @@ class WorkspaceEvaluator:
     def __init__(self, robot: Robot, *, build_options: BuildOptions = BuildOptions()) -> None:
         self.robot = robot
         self.model = SymbolicModel(robot)
-        single = classification_function(self.model)
-        points = ca.MX.sym("q", robot.n, BLOCK)
-        self._mapped = ca.Function("classify_block", [points], single.map(BLOCK)(points),
-                                   ["q"], ["tau_1", "feasible", "ball"])
-        self._native = None
-        if build_options.resolved_backend() == "c":
-            library = build([self._mapped], f"workspace_{c_identifier(robot.name)}",
-                            options=build_options)
-            self._native = library.native().casadi_function("classify_block")
+        self._mapped = MappedEvaluator(robot, classification_function(self.model), "workspace",
+                                       build_options=build_options)
 
     def classify(self, points: np.ndarray) -> Classification:
         """Classify poses ``points`` of shape (N, n), m."""
-        points = np.asarray(points, dtype=float)
-        n = self.robot.n
-        if points.ndim != 2 or points.shape[1] != n:
-            raise InvalidCase("points", f"expected shape (N, {n}), got {points.shape}")
-        count = len(points)
-        blocks = -(-count // BLOCK)
-        padded = np.empty((blocks * BLOCK, n))
-        padded[:count] = points
-        padded[count:] = self.robot.goal  # any valid pose
-        tau = np.empty((blocks * BLOCK, self.robot.m))
-        feasible = np.empty(blocks * BLOCK)
-        ball = np.empty(blocks * BLOCK)
-        for b in range(blocks):
-            rows = slice(b * BLOCK, (b + 1) * BLOCK)
-            if self._native is not None:
-                self._native.bind([padded[rows]], [tau[rows], feasible[rows], ball[rows]])
-                self._native()
-            else:
-                out = self._mapped(padded[rows].T)
-                tau[rows] = np.array(out[0]).T
-                feasible[rows] = np.array(out[1]).ravel()
-                ball[rows] = np.array(out[2]).ravel()
-        return Classification(tau[:count], feasible[:count] > 0.5, ball[:count] > 0.5)
+        tau, feasible, ball = self._mapped.evaluate(points)
+        return Classification(tau, feasible.ravel() > 0.5, ball.ravel() > 0.5)
 
 
 def interior_box(robot: Robot, margin: float) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,138 @@
+"""The wrench-feasible workspace and wrench closure, by hyperplane shifting.
+
+At a pose q the cables can produce the *available* set of generalized forces
+Z = {W tau : T_min <= tau <= T_max}, a zonotope. Holding the weight against any external
+wrench (f, mu) of the robot's box |f_i| <= F_i, |mu_i| <= M_i asks for the *required* set
+R = {grad V - J^T (f, mu)} (J: :meth:`~cdpr_sym.model.SymbolicModel.wrench_jacobian`), a
+box's image with centre grad V. The pose is *wrench feasible* when R lies in Z.
+
+Hyperplane shifting (Gouttefarde, Daney and Merlet, IEEE T-RO 27(1), 2011; Bouchard, Gosselin
+and Moore, ASME J. Mech. Robot. 2(1), 2010): every facet of Z is parallel to n - 1 columns of
+W, so its normal c is their generalized cross product (the cofactors of the n x (n - 1)
+block), and Z's support in direction c is c . W tau_mid + 1/2 sum_j |c . w_j| (T_max - T_min).
+R lies in Z exactly when, for every such c,
+
+    |c . (grad V - W tau_mid)| + sum_i |(J c)_i| h_i <= 1/2 (T_max - T_min) sum_j |c . w_j|
+
+(h the box's half-widths). The least slack over the facets, divided by |c|, is the *capacity
+margin* (Guay, Cardou, Cruz-Ruiz and Caro, 2014): the distance, in generalized force units
+(N, N m), by which R could grow before it leaves Z; negative outside.
+
+*Wrench closure* (any wrench, with tensions that may be as large as needed): W has full row
+rank and no facet normal has every column on one side, i.e. sum_j max(+-c . w_j, 0) > 0 for
+both signs. A fully actuated robot (m = n) is never wrench closed.
+
+Everything is branch-free CasADi, generated to C by :class:`WrenchEvaluator`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.codegen import BuildOptions
+from cdpr_sym.model import SINGULAR_DET, SymbolicModel
+from cdpr_sym.robot import Robot
+from cdpr_sym.workspace.mapped import MappedEvaluator
+
+#: A facet normal shorter than this (relative to the product of its column norms) comes from
+#: dependent columns; it bounds nothing and is left out.
+DEPENDENT = 1e-12
+#: Wrench closure asks each side of every facet for this share of the columns' size.
+CLOSURE_SHARE = 1e-9
+
+
+def facet_normals(W: ca.SX) -> list[tuple[tuple[int, ...], ca.SX]]:
+    """(columns, c) for every set of n - 1 columns of W (n x m): c is orthogonal to them.
+
+    c_i = (-1)^i det(W[rows except i, columns]), the generalized cross product, computed
+    from shared minors (Laplace expansion along the first remaining row, memoised): about
+    C(n, n-1) C(m, n-1) minors of each size instead of one determinant per entry.
+    """
+    n, m = W.shape
+    minors: dict[tuple[tuple[int, ...], tuple[int, ...]], ca.SX] = {}
+
+    def minor(rows: tuple[int, ...], columns: tuple[int, ...]) -> ca.SX:
+        if len(rows) == 1:
+            return W[rows[0], columns[0]]
+        key = (rows, columns)
+        if key not in minors:
+            first, rest = rows[0], rows[1:]
+            total = 0
+            for place, column in enumerate(columns):
+                others = columns[:place] + columns[place + 1:]
+                term = W[first, column] * minor(rest, others)
+                total = total + term if place % 2 == 0 else total - term
+            minors[key] = total
+        return minors[key]
+
+    normals = []
+    for columns in itertools.combinations(range(m), n - 1):
+        if n == 1:
+            normals.append((columns, ca.SX.ones(1)))
+            continue
+        entries = [minor(tuple(r for r in range(n) if r != i), columns) * (-1) ** i
+                   for i in range(n)]
+        normals.append((columns, ca.vertcat(*entries)))
+    return normals
+
+
+def wrench_function(model: SymbolicModel) -> ca.Function:
+    """(q) -> (margin, feasible, closure): capacity margin (N or N m), and the two verdicts
+    (1.0 / 0.0), for the robot's external wrench box (none given: the weight alone)."""
+    robot = model.robot
+    h = robot.wrench_half_widths
+    q = ca.SX.sym("q", model.n)
+    W = model.structure_matrix(q)
+    J = model.wrench_jacobian(q)
+    mid, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
+    offset = model.grad_potential(q) - W @ ca.DM.ones(model.m) * mid
+    column_size = ca.mmax(ca.sqrt(ca.sum1(W * W)))
+    margins, closures = [], []
+    for columns, c in facet_normals(W):
+        size = ca.norm_2(c)
+        scale = column_size ** (model.n - 1)
+        bounding = size > DEPENDENT * scale
+        # c . w_j = 0 for the facet's own columns: only the others project
+        projections = ca.vertcat(*[ca.dot(c, W[:, j]) for j in range(model.m)
+                                   if j not in columns])
+        support = half * ca.sum1(ca.fabs(projections))
+        required = ca.fabs(ca.dot(c, offset)) + ca.dot(ca.fabs(J @ c), ca.DM(h))
+        margins.append(ca.if_else(bounding, (support - required) / size, ca.inf))
+        pulls = ca.fmin(ca.sum1(ca.fmax(projections, 0)), ca.sum1(ca.fmax(-projections, 0)))
+        closures.append(ca.if_else(bounding, pulls / (size * column_size), ca.inf))
+    regular = model.singularity_measure(W) >= SINGULAR_DET
+    margin = ca.mmin(ca.vertcat(*margins))
+    closed = ca.logic_and(regular, ca.mmin(ca.vertcat(*closures)) > CLOSURE_SHARE)
+    return ca.Function("wrench", [q], [margin, ca.logic_and(regular, margin >= 0), closed],
+                       ["q"], ["margin", "feasible", "closure"], {"cse": True})
+
+
+@dataclasses.dataclass(frozen=True)
+class WrenchClassification:
+    """Per-pose results: margin (N,) in generalized force units (N, N m; negative outside
+    the wrench-feasible workspace); feasible and closure (N,) booleans."""
+
+    margin: np.ndarray
+    feasible: np.ndarray
+    closure: np.ndarray
+
+
+class WrenchEvaluator:
+    """Classifies many poses at once, wrench feasibility and closure, in generated C."""
+
+    def __init__(self, robot: Robot, *, build_options: BuildOptions = BuildOptions()) -> None:
+        """The box is the robot's (``external_force``, ``external_moment``): give another
+        with ``robot.with_case(external_force=..., external_moment=...)``."""
+        self.robot = robot
+        single = wrench_function(SymbolicModel(robot))
+        self._mapped = MappedEvaluator(robot, single, "wrench", build_options=build_options)
+
+    def classify(self, points: np.ndarray) -> WrenchClassification:
+        """Classify poses ``points`` of shape (N, n), m and rad."""
+        margin, feasible, closure = self._mapped.evaluate(points)
+        return WrenchClassification(margin.ravel(), feasible.ravel() > 0.5,
+                                    closure.ravel() > 0.5)
