@@ -20,7 +20,7 @@ from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import Controller, controller_by_name
-from cdpr_sym.errors import InvalidCase
+from cdpr_sym.errors import InvalidCase, InvalidRobot
 from cdpr_sym.results.store import read_json
 from cdpr_sym.results.trajectory import save_path
 from cdpr_sym.robot import PRESET_NAMES, Robot, resolve_robot
@@ -178,10 +178,26 @@ def check_workspace_args(args: argparse.Namespace) -> tuple[Robot, np.ndarray | 
     per rotational coordinate) and ``out`` (not a file)."""
     from cdpr_sym.studies.workspace import check_grid
 
-    robot = checked_robot(args.robot)
+    robot = with_wrench_box(checked_robot(args.robot), args.force, args.moment)
     orientation = check_grid(robot, args.resolution, args.orientation)
     _check_folder("out", args.out)
     return robot, orientation
+
+
+def with_wrench_box(robot: Robot, force: list[float] | None, moment: list[float] | None
+                    ) -> Robot:
+    """``robot`` with the external wrench box of ``--force`` and ``--moment`` (each
+    replacing the robot file's when given), or InvalidCase naming the option."""
+    changes = {}
+    if force is not None:
+        changes["external_force"] = force
+    if moment is not None:
+        changes["external_moment"] = moment
+    try:
+        return robot.with_case(**changes)
+    except InvalidRobot as bad:
+        option = {"wrench.force": "force", "wrench.moment": "moment"}.get(bad.field, bad.field)
+        raise InvalidCase(option, str(bad).split(": ", 1)[1]) from None
 
 
 def workspace_command(args: argparse.Namespace, out: Output) -> int:
@@ -193,7 +209,10 @@ def workspace_command(args: argparse.Namespace, out: Output) -> int:
     lines = [f"{summary['points']} poses in {summary['seconds']:.3f} s "
              f"({summary['poses_per_s']:.3g} poses/s); feasible "
              f"{100 * summary['feasible_share']:.1f} %, ball (13) "
-             f"{100 * summary['ball_share']:.1f} %"]
+             f"{100 * summary['ball_share']:.1f} %",
+             f"wrench-feasible {100 * summary['wrench_share']:.1f} % (box "
+             f"{summary['wrench_box']}), wrench closure {100 * summary['closure_share']:.1f} % "
+             f"({summary['wrench_poses_per_s']:.3g} poses/s)"]
     for row in summary["by_height"][:: max(1, len(summary["by_height"]) // 10)]:
         lines.append(f"  z = {row['height_m']:6.3f} m  feasible "
                      f"{100 * row['feasible_share']:5.1f} %")

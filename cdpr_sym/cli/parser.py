@@ -110,13 +110,19 @@ def build_parser() -> argparse.ArgumentParser:
                        f"redundant; at most {MAX_PAIRS:,})")
     study.add_argument("--seed", type=int, default=0, help="seed of the pair draw (>= 0)")
 
-    workspace = command("workspace", "map the static workspace")
+    workspace = command("workspace", "map the static and wrench-feasible workspaces")
     workspace.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
     workspace.add_argument("--resolution", type=int, default=61,
                            help=f"grid points per axis (>= 2; at most {MAX_GRID_POSES:,} "
                            "poses in all)")
     workspace.add_argument("--orientation", nargs="+", type=float, metavar="RAD",
                            help="angles held fixed for a rigid body (default: the goal's)")
+    workspace.add_argument("--force", nargs="+", type=float, metavar="N",
+                           help="half-widths of the external force box per world axis, N, "
+                           "for the wrench-feasible workspace (default: the robot file's "
+                           "[wrench] table, else none)")
+    workspace.add_argument("--moment", nargs="+", type=float, metavar="NM",
+                           help="rigid bodies: half-widths of the external moment box, N m")
     workspace.add_argument("--out", type=Path, default=Path("reports/workspace"),
                            help="output folder")
 

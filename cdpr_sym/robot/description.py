@@ -300,7 +300,7 @@ class Robot:
                 continue
             name = names[field]
             if size == 0:
-                raise InvalidRobot(name, "a point mass takes no moment; give wrench.force only")
+                raise InvalidRobot(name, "a point mass takes no moment; give a force box only")
             vector = _float_array(name, value, ndim=1)
             if vector.shape != (size,):
                 raise InvalidRobot(name, f"expected {size} half-widths, got {vector.shape[0]}")

@@ -1,4 +1,5 @@
-"""``cdpr-sym workspace``: the static workspace on a grid, by height, as figures and a table.
+"""``cdpr-sym workspace``: the static and wrench-feasible workspaces on a grid, by height,
+as figures and a table.
 
 For a rigid body this is the constant-orientation workspace: positions on the grid, the
 angles held at the robot's goal orientation (or a given one).
@@ -18,7 +19,7 @@ from matplotlib.figure import Figure
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results.store import write_json
 from cdpr_sym.robot import Robot
-from cdpr_sym.workspace import MAX_GRID_POSES, WorkspaceEvaluator
+from cdpr_sym.workspace import MAX_GRID_POSES, WorkspaceEvaluator, WrenchEvaluator
 
 
 def check_grid(robot: Robot, resolution: int, orientation: Any = None) -> np.ndarray | None:
@@ -93,39 +94,63 @@ def run_workspace_study(robot: Robot, out_dir: Path, *, resolution: int = 61,
     orientation = check_grid(robot, resolution, orientation)
     out_dir.mkdir(parents=True, exist_ok=True)
     evaluator = WorkspaceEvaluator(robot)
+    wrench_evaluator = WrenchEvaluator(robot)
     axes, points = grid_points(robot, resolution, orientation)
     start = time.perf_counter()
     result = evaluator.classify(points)
     seconds = time.perf_counter() - start
+    start = time.perf_counter()
+    wrench_result = wrench_evaluator.classify(points)
+    wrench_seconds = time.perf_counter() - start
     shape = tuple(len(a) for a in axes)
-    feasible = result.feasible.reshape(shape)
-    ball = result.ball.reshape(shape)
+    maps = {"feasible": result.feasible.reshape(shape), "ball": result.ball.reshape(shape),
+            "wrench": wrench_result.feasible.reshape(shape),
+            "closure": wrench_result.closure.reshape(shape)}
     heights = axes[-1]
     other = tuple(range(len(axes) - 1))
-    by_height = [{"height_m": float(h), "feasible_share": float(f), "ball_share": float(b)}
-                 for h, f, b in zip(heights, feasible.mean(axis=other), ball.mean(axis=other),
-                                    strict=True)]
+    shares = {name: grid.mean(axis=other) for name, grid in maps.items()}
+    by_height = [{"height_m": float(h), **{f"{name}_share": float(values[i])
+                                            for name, values in shares.items()}}
+                 for i, h in enumerate(heights)]
     angles = points[0, robot.dimension:]
     summary = {"robot": robot.name, "points": len(points), "seconds": seconds,
                "orientation_rad": angles.tolist(),
-               "poses_per_s": len(points) / seconds, "feasible_share": float(feasible.mean()),
-               "ball_share": float(ball.mean()), "by_height": by_height}
+               "wrench_box": _box_text(robot),
+               "poses_per_s": len(points) / seconds,
+               "wrench_poses_per_s": len(points) / wrench_seconds,
+               **{f"{name}_share": float(grid.mean()) for name, grid in maps.items()},
+               "by_height": by_height}
     # the files hold what the grid gives, not how fast this machine was: re-running the study
-    # leaves them unchanged (the rate is returned and printed)
-    timing = ("seconds", "poses_per_s")
+    # leaves them unchanged (the rates are returned and printed)
+    timing = ("seconds", "poses_per_s", "wrench_poses_per_s")
     write_json(out_dir / "workspace.json", {k: v for k, v in summary.items() if k not in timing})
-    figures = _figures(robot, axes, feasible, ball, out_dir)
+    figures = _figures(robot, axes, maps, out_dir)
     (out_dir / "workspace.md").write_text(_markdown(summary, figures, robot))
     return summary
 
 
-def _figures(robot: Robot, axes, feasible, ball, out_dir: Path) -> list[str]:
+def _box_text(robot: Robot) -> str:
+    """The external wrench box as text: 'none', or its half-widths with units."""
+    widths = robot.wrench_half_widths
+    if not widths.any():
+        return "none"
+    d = robot.dimension
+    text = "force ±" + "/".join(f"{value:g}" for value in widths[:d]) + " N"
+    if robot.rotations:
+        text += ", moment ±" + "/".join(f"{value:g}" for value in widths[d:]) + " N m"
+    return text
+
+
+def _figures(robot: Robot, axes, maps: dict[str, np.ndarray], out_dir: Path) -> list[str]:
     if len(axes) > 3:
         return []
+    feasible, ball, wrench = maps["feasible"], maps["ball"], maps["wrench"]
     if len(axes) == 2:
         fig = Figure(figsize=(5.5, 4.5))
         ax = fig.subplots()
-        _panel(ax, axes[0], axes[1], feasible, ball, "x [m]", "z [m]", "static workspace")
+        _panel(ax, axes[0], axes[1], feasible, ball, wrench, "x [m]", "z [m]",
+               "static workspace")
+        fig.suptitle(LEGEND, fontsize=7)
         fig.tight_layout()
         fig.savefig(out_dir / "workspace_plane.png", dpi=110)
         return ["workspace_plane.png"]
@@ -133,27 +158,37 @@ def _figures(robot: Robot, axes, feasible, ball, out_dir: Path) -> list[str]:
     fig = Figure(figsize=(3.6 * len(levels), 4.2))
     grid = fig.subplots(1, len(levels), squeeze=False)
     for ax, level in zip(grid[0], levels, strict=True):
-        _panel(ax, axes[0], axes[1], feasible[:, :, level], ball[:, :, level], "x [m]", "y [m]",
-               f"z = {axes[2][level]:.2f} m")
+        _panel(ax, axes[0], axes[1], feasible[:, :, level], ball[:, :, level],
+               wrench[:, :, level], "x [m]", "y [m]", f"z = {axes[2][level]:.2f} m")
+    fig.suptitle(LEGEND, fontsize=8)
     fig.tight_layout()
     fig.savefig(out_dir / "workspace_slices.png", dpi=110)
     fig = Figure(figsize=(10, 4.2))
     grid = fig.subplots(1, 2)
     _panel(grid[0], axes[0], axes[2], feasible.mean(axis=1) > 0, ball.mean(axis=1) > 0,
-           "x [m]", "z [m]", "projection on x-z (feasible for some y)")
+           wrench.mean(axis=1) > 0, "x [m]", "z [m]", "projection on x-z (feasible for some y)")
     _panel(grid[1], axes[1], axes[2], feasible.mean(axis=0) > 0, ball.mean(axis=0) > 0,
-           "y [m]", "z [m]", "projection on y-z (feasible for some x)")
+           wrench.mean(axis=0) > 0, "y [m]", "z [m]", "projection on y-z (feasible for some x)")
+    fig.suptitle(LEGEND, fontsize=8)
     fig.tight_layout()
     fig.savefig(out_dir / "workspace_projections.png", dpi=110)
     return ["workspace_slices.png", "workspace_projections.png"]
 
 
-def _panel(ax, first, second, feasible, ball, xlabel, ylabel, title) -> None:
+#: The figures' key: shading by the static tests, the line by the wrench box.
+LEGEND = ("light: T_m ≤ τ₁ ≤ T_M, dark: also ball (13); black line: edge of the "
+          "wrench-feasible workspace")
+
+
+def _panel(ax, first, second, feasible, ball, wrench, xlabel, ylabel, title) -> None:
     image = feasible.astype(float) + ball.astype(float)
     ax.pcolormesh(first, second, image.T, cmap="Greens", vmin=0, vmax=2, shading="nearest")
+    if wrench.any() and not wrench.all():
+        ax.contour(first, second, wrench.T.astype(float), levels=[0.5], colors="k",
+                   linewidths=0.9)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.set_title(title + "\n(light: T_m ≤ τ₁ ≤ T_M, dark: also ball (13))", fontsize=8)
+    ax.set_title(title, fontsize=9)
     ax.set_aspect("equal")
 
 
@@ -169,8 +204,15 @@ def _markdown(summary: dict[str, Any], figures: list[str], robot: Robot) -> str:
              "prints the rate; `cdpr-sym bench` times it). Feasible (T_m ≤ W⁻¹∇V ≤ "
              f"T_M): {100 * summary['feasible_share']:.1f} % of the frame; ball condition (13): "
              f"{100 * summary['ball_share']:.1f} %.", "",
-             "| height [m] | feasible | ball (13) |", "|---|---|---|"]
+             "Wrench-feasible (every external wrench of the box, beside the weight, held with "
+             "tensions in the box; hyperplane shifting, exact also where m > n): "
+             f"{100 * summary['wrench_share']:.1f} % with the box {summary['wrench_box']}; "
+             f"wrench closure (cables positively spanning every wrench): "
+             f"{100 * summary['closure_share']:.1f} %.", "",
+             "| height [m] | feasible | ball (13) | wrench-feasible | wrench closure |",
+             "|---|---|---|---|---|"]
     lines += [f"| {row['height_m']:.3f} | {100 * row['feasible_share']:.1f} % | "
-              f"{100 * row['ball_share']:.1f} % |" for row in summary["by_height"]]
+              f"{100 * row['ball_share']:.1f} % | {100 * row['wrench_share']:.1f} % | "
+              f"{100 * row['closure_share']:.1f} % |" for row in summary["by_height"]]
     lines += ["", *[f"![{name}]({name})\n" for name in figures]]
     return "\n".join(lines)
