@@ -108,6 +108,10 @@ def test_simulate_save_without_json_names_the_file(capsys, tmp_path):
     (["sweep", "--pairs", "0", "--out", "{tmp}/results.csv"], "pairs"),
     (["sweep", "--pairs", "2", "--workers", "0", "--out", "{tmp}/results.csv"], "workers"),
     (["workspace", "--robot", "nosuch", "--out", "{tmp}/ws"], "robot"),
+    (["workspace", "--force", "1", "1", "--out", "{tmp}/ws"], "force"),
+    (["workspace", "--force", "1", "-1", "1", "--out", "{tmp}/ws"], "force"),
+    (["workspace", "--moment", "1", "--out", "{tmp}/ws"], "moment"),
+    (["workspace", "--robot", "planar3", "--moment", "1", "2", "--out", "{tmp}/ws"], "moment"),
 ])
 def test_bad_input_exits_2_with_one_line_naming_the_field(capsys, tmp_path, argv, field):
     status, out, err = _run(capsys, *(arg.format(tmp=tmp_path) for arg in argv))
@@ -139,10 +143,26 @@ def test_workspace_writes_its_report_and_figures(capsys, tmp_path, robot, figure
     summary = json.loads((out_dir / "workspace.json").read_text())
     assert summary["points"] == 11 ** preset(robot).n
     assert 0 < summary["feasible_share"] <= 1
+    # no box given: the weight alone, and for m = n exactly the static workspace
+    assert summary["wrench_box"] == "none"
+    assert summary["wrench_share"] == summary["feasible_share"]
+    assert "wrench-feasible" in text
     for figure in figures:
         assert (out_dir / figure).read_bytes()[:8] == PNG
         assert (out_dir / figure).stat().st_size > 1000
         assert f"({figure})" in text
+
+
+def test_a_wrench_box_shrinks_the_wrench_feasible_workspace(capsys, tmp_path):
+    shares = []
+    for force in ("0", "3"):
+        status, out, _ = _run(capsys, "workspace", "--robot", "planar2", "--resolution", "21",
+                              "--force", force, force, "--out", str(tmp_path / force))
+        assert status == 0
+        summary = json.loads((tmp_path / force / "workspace.json").read_text())
+        shares.append(summary["wrench_share"])
+    assert summary["wrench_box"] == "force ±3/3 N" and "±3/3 N" in out
+    assert 0 < shares[1] < shares[0] == summary["feasible_share"]
 
 
 def test_installed_console_script_runs_simulate():

@@ -25,7 +25,7 @@ from cdpr_sym.results.store import load_table, read_json, write_json
 from cdpr_sym.robot import preset
 from cdpr_sym.studies.outline import read_study, study_sweep, write_study
 from cdpr_sym.sweep import SweepConfig
-from cdpr_sym.workspace import WorkspaceEvaluator, interior_box
+from cdpr_sym.workspace import WorkspaceEvaluator, WrenchEvaluator, interior_box
 
 #: The designs run on each robot: the redundant ones, and the fully actuated frame's
 #: clipped PD (the analogue of pd-td), smooth and the paper's l2.
@@ -35,6 +35,10 @@ DESIGNS = {"aras3": ("pd-sat", "l2", "smooth"), "spatial4": ("pd-td", "smooth"),
 SAME_FRAME = ("spatial4", "aras3")
 #: Uniform poses per robot for the workspace shares and margins.
 WORKSPACE_POSES = 20000
+#: The external wrench box of the wrench-feasible shares, relative to the weight m g: a
+#: force of +-10 % of it on every axis and, for rigid bodies, a moment of +-10 % of it
+#: times 0.1 m about every axis.
+WRENCH_SHARE, WRENCH_ARM = 0.1, 0.1
 #: Margin of the frame kept clear when drawing poses, as a fraction of its span.
 FRAME_MARGIN = 0.05
 DURATION, DT = 10.0, 1e-3
@@ -62,7 +66,9 @@ def compute_redundant_study(out_dir: Path, *, pairs: int = 200, seed: int = 0,
 
 def _workspaces(seed: int) -> dict[str, Any]:
     """Per robot, over the same seeded uniform poses of its frame: the statically feasible
-    share and the static tension's smallest distance to a bound there (N)."""
+    share (its tension distribution) and the static tension's smallest distance to a bound
+    there (N); by hyperplane shifting, the share where some tension holds the weight, where
+    every wrench of the box :data:`WRENCH_SHARE` is held, and wrench closure."""
     out = {}
     for name in DESIGNS:
         robot = preset(name)
@@ -71,10 +77,20 @@ def _workspaces(seed: int) -> dict[str, Any]:
         result = WorkspaceEvaluator(robot).classify(poses)
         tau = result.tau_1[result.feasible]
         margin = np.minimum(tau.min(axis=1) - robot.t_min, robot.t_max - tau.max(axis=1))
+        wrench = WrenchEvaluator(robot)
+        weight = WRENCH_SHARE * robot.mass * robot.gravity
+        box = np.concatenate([np.full(robot.dimension, weight),
+                              np.full(robot.rotations, weight * WRENCH_ARM)])
+        holdable = wrench.classify(poses, np.zeros_like(box))
+        boxed = wrench.classify(poses, box)
         out[name] = {"n": robot.n, "m": robot.m, "poses": WORKSPACE_POSES,
                      "feasible": float(result.feasible.mean()),
                      "median_margin_n": float(np.median(margin)) if tau.size else None,
-                     "p05_margin_n": float(np.percentile(margin, 5)) if tau.size else None}
+                     "p05_margin_n": float(np.percentile(margin, 5)) if tau.size else None,
+                     "holdable": float(holdable.feasible.mean()),
+                     "wrench_box": box.tolist(),
+                     "wrench_feasible": float(boxed.feasible.mean()),
+                     "closure": float(boxed.closure.mean())}
     return out
 
 
@@ -152,7 +168,22 @@ def _markdown(summary: dict[str, Any]) -> str:
         "feasible poses. The minimum-norm distribution runs the slackest cable at T_min "
         "wherever it can, so a redundant robot's margin is often 0 by construction: it is "
         "the least-tension choice, not the most centred one (the `centroid` method is).",
-        "",
+        "", "## Wrench-feasible workspace and wrench closure", "",
+        "Over the same poses, by hyperplane shifting (exact for any m): *holdable* — some "
+        "tension in the box holds the weight; *wrench-feasible* — the weight and every "
+        f"external force of ±{100 * WRENCH_SHARE:g} % of it on each axis (and, for rigid "
+        f"bodies, every moment of ±{100 * WRENCH_SHARE:g} % of it times {WRENCH_ARM:g} m) are "
+        "held; *wrench closure* — the cables positively span every wrench (tensions "
+        "unbounded).", "",
+        "| robot | holdable | statically feasible (distribution) | wrench box (N; N m) | "
+        "wrench-feasible | wrench closure |", "|---|---|---|---|---|---|"]
+    for name, w in workspace.items():
+        box = "±" + ", ±".join(f"{value:.3g}" for value in w["wrench_box"])
+        lines.append(f"| {name} | {share(w['holdable'])} | {share(w['feasible'])} | {box} | "
+                     f"{share(w['wrench_feasible'])} | {share(w['closure'])} |")
+    lines += [
+        "", "Where *holdable* exceeds the distribution's share, the distribution misses "
+        "tensions that exist (Pott's improved closed form for m - n >= 2).", "",
         f"## The same pairs on `{square}` and `{redundant}`", "",
         f"Of {counts['poses']:,} uniform poses of the shared frame, {counts['both']:,} are "
         f"statically feasible for both robots, {counts[redundant + '_only']:,} for "
@@ -180,6 +211,13 @@ def _reading(summary: dict[str, Any]) -> str:
         f"and the median tension margin there from "
         f"{number(workspace[square]['median_margin_n'])} N to "
         f"{number(workspace[redundant]['median_margin_n'])} N.",
+        "- Asking for the weight and a ±" f"{100 * WRENCH_SHARE:g} % external wrench box "
+        "leaves " + ", ".join(f"{share(w['wrench_feasible'])} of `{name}`'s frame"
+                              for name, w in workspace.items())
+        + "; wrench closure holds on " + ", ".join(
+            f"{share(w['closure'])} (`{name}`)" for name, w in workspace.items())
+        + ". A frame with every anchor above the end-effector is never wrench closed: "
+        "nothing pulls it down but gravity.",
         f"- On the same pairs, the best design meets the target on "
         f"{share(same[square][best[square]]['meets_target'])} of pairs on `{square}` "
         f"({best[square]}) and on {share(same[redundant][best[redundant]]['meets_target'])} "

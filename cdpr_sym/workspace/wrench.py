@@ -34,6 +34,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.codegen import BuildOptions
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
 from cdpr_sym.workspace.mapped import MappedEvaluator
@@ -81,10 +82,11 @@ def facet_normals(W: ca.SX) -> list[tuple[tuple[int, ...], ca.SX]]:
 
 
 def wrench_function(model: SymbolicModel) -> ca.Function:
-    """(q) -> (margin, feasible, closure): capacity margin (N or N m), and the two verdicts
-    (1.0 / 0.0), for the robot's external wrench box (none given: the weight alone)."""
+    """(q, h) -> (margin, feasible, closure): capacity margin (N or N m), and the two
+    verdicts (1.0 / 0.0), for the external wrench box of half-widths h (force N, then moment
+    N m; zeros: the weight alone)."""
     robot = model.robot
-    h = robot.wrench_half_widths
+    h = ca.SX.sym("h", robot.dimension + robot.rotations)
     q = ca.SX.sym("q", model.n)
     W = model.structure_matrix(q)
     J = model.wrench_jacobian(q)
@@ -100,15 +102,15 @@ def wrench_function(model: SymbolicModel) -> ca.Function:
         projections = ca.vertcat(*[ca.dot(c, W[:, j]) for j in range(model.m)
                                    if j not in columns])
         support = half * ca.sum1(ca.fabs(projections))
-        required = ca.fabs(ca.dot(c, offset)) + ca.dot(ca.fabs(J @ c), ca.DM(h))
+        required = ca.fabs(ca.dot(c, offset)) + ca.dot(ca.fabs(J @ c), h)
         margins.append(ca.if_else(bounding, (support - required) / size, ca.inf))
         pulls = ca.fmin(ca.sum1(ca.fmax(projections, 0)), ca.sum1(ca.fmax(-projections, 0)))
         closures.append(ca.if_else(bounding, pulls / (size * column_size), ca.inf))
     regular = model.singularity_measure(W) >= SINGULAR_DET
     margin = ca.mmin(ca.vertcat(*margins))
     closed = ca.logic_and(regular, ca.mmin(ca.vertcat(*closures)) > CLOSURE_SHARE)
-    return ca.Function("wrench", [q], [margin, ca.logic_and(regular, margin >= 0), closed],
-                       ["q"], ["margin", "feasible", "closure"], {"cse": True})
+    return ca.Function("wrench", [q, h], [margin, ca.logic_and(regular, margin >= 0), closed],
+                       ["q", "h"], ["margin", "feasible", "closure"], {"cse": True})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,14 +127,24 @@ class WrenchEvaluator:
     """Classifies many poses at once, wrench feasibility and closure, in generated C."""
 
     def __init__(self, robot: Robot, *, build_options: BuildOptions = BuildOptions()) -> None:
-        """The box is the robot's (``external_force``, ``external_moment``): give another
-        with ``robot.with_case(external_force=..., external_moment=...)``."""
+        """The default box is the robot's (``external_force``, ``external_moment``)."""
         self.robot = robot
         single = wrench_function(SymbolicModel(robot))
         self._mapped = MappedEvaluator(robot, single, "wrench", build_options=build_options)
 
-    def classify(self, points: np.ndarray) -> WrenchClassification:
-        """Classify poses ``points`` of shape (N, n), m and rad."""
-        margin, feasible, closure = self._mapped.evaluate(points)
+    def classify(self, points: np.ndarray, half_widths: np.ndarray | None = None
+                 ) -> WrenchClassification:
+        """Classify poses ``points`` of shape (N, n), m and rad, for the wrench box of
+        ``half_widths`` (force N, then moment N m; default the robot's; the generated code
+        takes the box as an input, so one build serves every box).
+
+        Raises :class:`InvalidCase` (``half_widths``) unless d + rotations values >= 0.
+        """
+        box = self.robot.wrench_half_widths if half_widths is None else np.asarray(
+            half_widths, dtype=float)
+        if box.shape != self.robot.wrench_half_widths.shape or not np.all(box >= 0):
+            raise InvalidCase("half_widths", f"expected {self.robot.wrench_half_widths.size} "
+                              f"values >= 0 (force N, then moment N m), got {box.tolist()}")
+        margin, feasible, closure = self._mapped.evaluate(points, box)
         return WrenchClassification(margin.ravel(), feasible.ravel() > 0.5,
                                     closure.ravel() > 0.5)
