@@ -19,7 +19,12 @@ from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 
 @dataclasses.dataclass(frozen=True)
 class TensionParts:
-    """Common pieces of (8): tau_1 = W^{-1} grad V and the PD part at alpha = 1."""
+    """Common pieces of (8): tau_1 = W^{-1} grad V and the PD part at alpha = 1.
+
+    With m > n cables ``W_inv`` is the pseudo-inverse W^+ = W^T (W W^T)^{-1} and tau_1 the
+    tension nearest the box's centre that holds the weight,
+    tau_1 = c 1 + W^+ (grad V - W c 1), c = (T_min + T_max) / 2: the largest beta of (20).
+    """
 
     W: ca.SX
     W_inv: ca.SX
@@ -30,10 +35,16 @@ class TensionParts:
 
 def tension_parts(model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX,
                   k: ca.SX, r_d: ca.SX) -> TensionParts:
-    """W, W^{-1}, tau_1 (N), tau_2 at alpha = 1 (N) and the singularity test at (q, dq)."""
+    """W, W^{-1} (W^+ for m > n), tau_1 (N), tau_2 at alpha = 1 (N) and the singularity
+    test at (q, dq)."""
     W = model.structure_matrix(q)
-    W_inv = ca.inv(W)
-    tau_1 = W_inv @ model.grad_potential(q)
+    if model.m == model.n:
+        W_inv = ca.inv(W)
+        tau_1 = W_inv @ model.grad_potential(q)
+    else:
+        W_inv = W.T @ ca.inv(W @ W.T)
+        middle = 0.5 * (model.robot.t_min + model.robot.t_max) * ca.DM.ones(model.m)
+        tau_1 = middle + W_inv @ (model.grad_potential(q) - W @ middle)
     tau_2_full = -W_inv @ (k * (q - q_goal) + r_d * dq)
     return TensionParts(W=W, W_inv=W_inv, tau_1=tau_1, tau_2_full=tau_2_full,
                         singular=model.singularity_measure(W) < SINGULAR_DET)
@@ -120,6 +131,12 @@ def least_squares_closed_form(model: SymbolicModel, W: ca.SX, direction: ca.SX,
     Every j with A j = tau_3 solves P(d) j = y = W tau_3 (and y is orthogonal to d); as
     P(d) P(d)^T = |d|^2 I - d d^T, the minimum-norm one is j = P(d)^T y / |d|^2. No
     solve: a few dozen operations instead of the normal equations.
+
+    m > n cables (W^+ for W^{-1}, internal tension W mu = 0 free): the smallest
+    |tau_2 + tau_3 + mu| over j and mu is the same v (v^T tau_2) / |v|^2. With
+    f = W tau_2, tau_2 + tau_3 = W^+ (f + y) over y orthogonal to d, plus mu orthogonal to
+    it (so mu = 0); minimising (f + y)^T (W W^T)^{-1} (f + y) subject to d^T y = 0 gives
+    f + y = W W^T d t, i.e. tau_2 + tau_3 = v t with t = d^T f / |v|^2 = v^T tau_2 / |v|^2.
 
     Returns
     -------

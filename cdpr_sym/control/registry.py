@@ -30,7 +30,7 @@ CONTROLLERS: dict[str, Controller] = {
 DESCRIPTIONS = {
     "pd": "PD + gravity compensation (IDA-PBC with J_d = 0); no tension bound",
     "pd-sat": "the same, clipped to [T_min, T_max] (the paper's Fig. 3); chatters at the bounds",
-    "l2": "the paper's design: least-squares J_d (exact, in closed form) and alpha of (24)",
+    "l2": "the paper's design: least-squares J_d (exact, in closed form) and alpha of (24); m >= n",
     "l2-minnorm": "the paper's design with the exact minimum-norm least squares (n >= 4)",
     "linf": "exact tension box, tensions centred in the l-infinity sense (paper's future work)",
     "box": "exact tension box, largest alpha, smallest J_d tension",
