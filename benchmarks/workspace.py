@@ -4,7 +4,8 @@ Run from the repository root: ``python -m benchmarks.workspace``; it prints the 
 writes it to ``reports/bench/workspace.md``. For each preset, 200,000 uniform poses of its
 frame, classified in generated C on one core (best of 3): the static classifier (its tension
 distribution of the weight) and hyperplane shifting for the weight plus a ±10 % wrench box,
-with the number of facet inequalities, C(m, n - 1), it checks per pose.
+with the number of facet normals, C(m, n - 1), it checks per pose (each bounds a pair
+of opposite facets).
 """
 
 from __future__ import annotations
@@ -57,8 +58,8 @@ def main(argv: list[str] | None = None) -> int:
              "generated C, best of 3. Static: the tension distribution of the weight "
              "(W⁻¹∇V for m = n). Wrench-feasible: hyperplane shifting for the weight and "
              "a ±10 % box of external forces (and moments of 0.1 m times that), plus wrench "
-             "closure, over C(m, n − 1) facets.", "",
-             "| robot | n | cables | facets | static [poses/s] | wrench-feasible [poses/s] |",
+             "closure, over C(m, n − 1) pairs of opposite facets.", "",
+             "| robot | n | cables | facet pairs | static [poses/s] | wrench-feasible [poses/s] |",
              "|---|---|---|---|---|---|"]
     for name in PRESET_NAMES:
         r = measure(name)

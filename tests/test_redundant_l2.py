@@ -9,6 +9,7 @@ import pytest
 
 from cdpr_sym.control import CONTROLLERS, L2Design, law_function
 from cdpr_sym.control.flags import FALLBACK_FLAGS
+from cdpr_sym.control.parts import tension_parts
 from cdpr_sym.control.registry import check_cables
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
@@ -75,6 +76,28 @@ def test_l2_on_a_redundant_robot_matches_the_joint_least_squares(name, rng, rand
         np.testing.assert_allclose(W @ tau, wanted, atol=1e-8 * robot.t_max)
         checked += 1
     assert checked >= 15
+
+
+@pytest.mark.parametrize("name", ["spatial4", "ipanema8"])
+def test_tau_1_is_the_weight_holding_tension_nearest_the_centre(name):
+    """Against a QP (cvxpy + Clarabel): min |tau - mid 1| subject to W tau = grad V."""
+    import cvxpy as cp
+
+    robot = preset(name)
+    model = SymbolicModel(robot)
+    q_sym = ca.SX.sym("q", robot.n)
+    parts = tension_parts(model, q_sym, ca.DM.zeros(robot.n), ca.DM(robot.goal),
+                          ca.DM(robot.k), ca.DM(robot.r_d))
+    numbers = ca.Function("parts", [q_sym], [parts.tau_1, model.structure_matrix(q_sym),
+                                             model.grad_potential(q_sym)])
+    mid = 0.5 * (robot.t_min + robot.t_max)
+    for q in (robot.start, robot.goal):
+        tau_1, W, grad_v = (np.array(value) for value in numbers(q))
+        tension = cp.Variable(robot.m)
+        problem = cp.Problem(cp.Minimize(cp.sum_squares(tension - mid)),
+                             [W @ tension == grad_v.ravel()])
+        problem.solve(solver=cp.CLARABEL)
+        np.testing.assert_allclose(tau_1.ravel(), tension.value, atol=1e-6)
 
 
 def test_only_the_closed_form_construction_runs_on_more_cables():

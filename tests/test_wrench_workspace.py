@@ -82,7 +82,7 @@ def test_a_vertical_force_box_is_the_static_workspace_of_the_lightest_and_heavie
     for weight in (robot.mass * robot.gravity - 8.0, robot.mass * robot.gravity + 8.0):
         other = preset("aras3").with_case(mass=weight / robot.gravity)
         held &= WorkspaceEvaluator(other, build_options=build_options).classify(poses).feasible
-    assert 0.05 < held.mean() < preset("aras3").with_case().mass  # some, not all
+    assert 0.05 < held.mean() < 0.95  # some, not all
     np.testing.assert_array_equal(wrench.feasible, held)
     assert wrench.feasible.mean() < WrenchEvaluator(
         preset("aras3"), build_options=build_options).classify(poses).feasible.mean()
@@ -175,3 +175,47 @@ def test_a_point_mass_is_wrench_closed_exactly_inside_the_hull_of_its_anchors(
     clear = np.abs(depth) > 1e-9
     assert 0.02 < (depth > 0).mean() < 0.6
     np.testing.assert_array_equal(closure[clear], depth[clear] > 0)
+
+
+def test_the_capacity_margin_of_a_point_between_six_axis_cables_is_the_hand_value(
+        build_options):
+    """Cables along +-x, +-y, +-z on a point mass at the origin: the net force on each axis
+    spans +-(T_max - T_min), so the margin is min over axes of that less the weight and the
+    box's half-width on the axis. Opposite cables are dependent columns."""
+    from cdpr_sym.robot import Robot
+
+    anchors = np.vstack([np.eye(3), -np.eye(3)])
+    robot = Robot(name="octahedron", anchors=anchors, mass=1.0, gravity=9.81, t_min=1.0,
+                  t_max=21.0, frame_lower=np.full(3, -0.5), frame_upper=np.full(3, 0.5),
+                  start=np.zeros(3), goal=np.full(3, 0.1), k=np.ones(3), r_d=np.ones(3),
+                  external_force=[1.0, 2.0, 3.0])
+    result = WrenchEvaluator(robot, build_options=build_options).classify(np.zeros((1, 3)))
+    span = robot.t_max - robot.t_min
+    expected = min(span - 1.0, span - 2.0, span - robot.mass * robot.gravity - 3.0)
+    assert result.margin[0] == pytest.approx(expected, rel=1e-12)
+    assert result.feasible[0] and result.closure[0]
+
+
+@pytest.mark.parametrize("name", ["planar3", "spatial6"])
+def test_the_moment_rows_are_the_world_angular_velocity(name, rng, random_states):
+    """(v_c, w) = J dq against the numpy rigid-body reference's world angular velocity and
+    a finite difference of the centre of mass."""
+    import casadi as ca
+    import rigid_reference
+
+    robot = preset(name).with_case(center_of_mass=[0.02, -0.01, 0.03][: preset(name).dimension])
+    model = SymbolicModel(robot)
+    q_sym = ca.SX.sym("q", robot.n)
+    J_of = ca.Function("J", [q_sym], [model.wrench_jacobian(q_sym)])
+    geometry = rigid_reference.geometry_of(robot)
+    q, dq = random_states(robot, rng, 20)
+    d = robot.dimension
+    for q_i, dq_i in zip(q, dq, strict=True):
+        twist = np.array(J_of(q_i)) @ dq_i
+        np.testing.assert_allclose(twist[d:], rigid_reference.angular_velocity(geometry, q_i,
+                                                                               dq_i),
+                                   atol=1e-12)
+        step = 1e-6
+        velocity = (rigid_reference.center_of_mass(geometry, q_i + step * dq_i)
+                    - rigid_reference.center_of_mass(geometry, q_i - step * dq_i)) / (2 * step)
+        np.testing.assert_allclose(twist[:d], velocity, atol=1e-8)

@@ -143,7 +143,10 @@ def _versions() -> dict[str, str]:
 
 def _identity(config: SweepConfig, robot: Robot) -> dict[str, Any]:
     """What a row depends on besides the config: robot data, controller options, versions."""
-    return {"robot": robot.as_dict(), "versions": _versions(),
+    # the external wrench box only shapes the wrench-feasible workspace, never a run
+    described = {key: value for key, value in robot.as_dict().items()
+                 if key not in ("external_force", "external_moment")}
+    return {"robot": described, "versions": _versions(),
             "controller_options": {name: controller_by_name(name).options()
                                    for name in config.controllers}}
 
