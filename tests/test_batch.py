@@ -33,7 +33,8 @@ def _assert_same_runs(batched, single):
 
 
 @pytest.mark.parametrize("robot_name,controller", [
-    ("aras3", "pd"), ("aras3", "smooth"), ("planar3", "l2"), ("spatial6", "pd")])
+    ("aras3", "pd"), ("aras3", "smooth"), ("planar3", "l2"),
+    pytest.param("spatial6", "pd", marks=pytest.mark.slow)])
 def test_batched_runs_equal_single_runs(robot_name, controller, request, rng, build_options):
     robot = request.getfixturevalue(robot_name)
     simulator = get_simulator(robot, CONTROLLERS[controller], build_options=build_options)

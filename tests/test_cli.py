@@ -238,6 +238,7 @@ def test_export_c_package_of_a_rigid_robot_file_builds_and_converges(capsys, tmp
     assert float(values["final_error"]) < 1e-6
 
 
+@pytest.mark.slow  # the quick suite keeps to about 3 minutes
 def test_paper_study_runs_on_a_rigid_robot_file(capsys, tmp_path, robot_file):
     status, out, _ = _run(capsys, "study", "paper", "--robot", str(robot_file), "--out",
                           str(tmp_path / "paper"))
@@ -251,6 +252,7 @@ def test_paper_study_runs_on_a_rigid_robot_file(capsys, tmp_path, robot_file):
     assert ("**not tested**" in theorem) == (metrics["l2"]["share_fallback"] == 1.0)
 
 
+@pytest.mark.slow  # the quick suite keeps to about 3 minutes
 def test_bench_runs_on_a_rigid_robot_file(capsys, robot_file):
     status, out, _ = _run(capsys, "bench", "--robot", str(robot_file), "--seconds", "0.01",
                           "--json")
@@ -274,6 +276,7 @@ def test_rigid_study_writes_its_report_for_both_rigid_presets(capsys, tmp_path):
     assert (tmp_path / "rigid" / "spatial6_case.png").read_bytes()[:8] == PNG
 
 
+@pytest.mark.slow  # the quick suite keeps to about 3 minutes
 def test_study_of_another_robot_writes_beside_the_default_report(capsys, tmp_path,
                                                                 monkeypatch):
     monkeypatch.chdir(tmp_path)

@@ -24,6 +24,7 @@ from tools import tool as _tool
 
 from cdpr_sym import (
     BuildOptions,
+    CompilationFailed,
     InvalidCase,
     SymbolicModel,
     UnknownName,
@@ -369,16 +370,15 @@ def test_header_documents_sizes_flags_work_memory_and_model_terms(package):
 # -- every controller and preset; lighter checks ---------------------------------------------
 @pytest.mark.slow
 def test_every_controller_and_preset_builds_strict_and_reproduces_simulation(tmp_path):
-    """All presets x controllers: strict build (planner at -O0, as the Makefile does), run.
+    """Presets with as many cables as degrees of freedom x every controller: strict build
+    (planner at -O0, as the Makefile does), run. The robots with more cables are checked in
+    the next section.
 
     aras3 is exported with ``avoid_stack=False`` (intermediates on the stack), which also
     halves the compile time of its large planners; planar2 with the default.
     """
     gcc = _tool("gcc")
     square = [name for name in PRESET_NAMES if preset(name).m == preset(name).n]
-    for name in set(PRESET_NAMES) - set(square):  # not exported yet: refused, naming it
-        with pytest.raises(InvalidCase, match=r"^robot: export-c needs as many cables"):
-            export_c(name, "pd-td", tmp_path / name)
     results = {(robot, controller): export_c(robot, controller, tmp_path / f"{robot}_{controller}",
                                              avoid_stack=robot != "aras3")
                for robot in square for controller in CONTROLLERS}
@@ -485,6 +485,195 @@ def test_the_bench_of_a_planning_controller_times_code_built_with_o2(monkeypatch
     timed = next(c for c in compiles if any(part.endswith("bench.c") for part in c))
     assert [part for part in timed if part.startswith("-O")] == ["-O2"]
     assert any(part.endswith("cdpr_bench.c") for part in timed)  # the control step's source
+
+
+# -- more cables than degrees of freedom ------------------------------------------------------
+#: Robot and controller pairs with m > n exported and run in the quick suite (spatial4 with
+#: smooth is left out: its planner takes the compiler about ten minutes at -O0).
+REDUNDANT = [("planar4", "pd-td"), pytest.param("planar4", "smooth", marks=pytest.mark.slow),
+             ("spatial4", "l2"),
+             ("spatial4", "pd-td")]
+
+
+@dataclasses.dataclass(frozen=True)
+class Example:
+    """An exported package built with make (strict flags) and what its example printed."""
+
+    result: ExportResult
+    printed: dict[str, np.ndarray]
+
+
+def _build_and_run_example(result: ExportResult) -> Example:
+    """``result``'s package built by its Makefile with strict gcc flags, its example run."""
+    _run([_tool("make"), "CC=gcc", f"CFLAGS={' '.join(STRICT)}"], cwd=result.out_dir)
+    return Example(result, _example_output(_run([result.out_dir / "example"])))
+
+
+@pytest.fixture(scope="module")
+def example(tmp_path_factory):
+    """``example(robot, controller)``: exported, built with make, example run (cached).
+
+    Unlike :func:`package` it builds no harness, which calls the square-only ``a_matrix``.
+    """
+    built: dict[tuple[str, str], Example] = {}
+
+    def get(robot: str, controller: str) -> Example:
+        if (robot, controller) not in built:
+            folder = tmp_path_factory.mktemp(f"{robot}_{controller}_example")
+            built[robot, controller] = _build_and_run_example(
+                export_c(robot, controller, folder / "pkg"))
+        return built[robot, controller]
+    return get
+
+
+def _assert_example_matches_simulation(printed: dict[str, np.ndarray], robot,
+                                       controller: str) -> None:
+    """The example's final state, last tension (every cable) and tension range against the
+    Python closed loop on CasADi's virtual machine (equal bit for bit at -O2, measured)."""
+    run = _reference_run(robot, controller)
+    label = f"{robot.name}/{controller}"
+    assert printed["final_tau_N"].shape == (robot.m,), label
+    np.testing.assert_allclose(printed["final_q"], run.q[-1], rtol=0, atol=1e-9, err_msg=label)
+    np.testing.assert_allclose(printed["final_dq"], run.dq[-1], rtol=0, atol=1e-9, err_msg=label)
+    np.testing.assert_allclose(printed["final_tau_N"], run.tau[-1], rtol=1e-9, err_msg=label)
+    np.testing.assert_allclose(printed["tension_min_N"], run.tau.min(), rtol=1e-9, err_msg=label)
+    np.testing.assert_allclose(printed["tension_max_N"], run.tau.max(), rtol=1e-9, err_msg=label)
+    np.testing.assert_allclose(printed["final_error"], np.linalg.norm(run.q[-1] - robot.goal),
+                               rtol=1e-6, atol=1e-300, err_msg=label)
+
+
+@pytest.mark.parametrize(("robot_name", "controller"), REDUNDANT)
+def test_example_of_a_robot_with_more_cables_matches_python_simulation(
+        example, robot_name, controller):
+    robot = preset(robot_name)
+    assert robot.m > robot.n
+    _assert_example_matches_simulation(example(robot_name, controller).printed, robot,
+                                       controller)
+
+
+def test_header_sizes_tensions_by_cables_and_coordinates_by_degrees_of_freedom(example):
+    """planar4 (n = 2, m = 4) with pd-td: log = tau 4 + alpha + beta + j 1 + flags."""
+    result = example("planar4", "pd-td").result
+    header, up, prefix = result.header.read_text(), result.prefix.upper(), result.prefix
+    for name in ("N 2", "M 4", "NJ 1", "NX 5", "NP 9", "NLOG 8", "LOG_TAU 0", "LOG_ALPHA 4",
+                 "LOG_FLAGS 7", "P_DT 6"):
+        assert f"#define {up}_{name} " in header or f"#define {up}_{name}\n" in header, name
+    declaration = re.sub(r"\s+", " ", header[header.index(f"int {prefix}_control("):])
+    assert declaration.startswith(f"int {prefix}_control(const double q[2], const double dq[2], "
+                                  f"const double q_goal[2], const double k[2], "
+                                  f"const double r_d[2], double tau[4], ")
+    assert f"extern const double {prefix}_case_start[{up}_N];" in header
+    assert re.search(rf"int {prefix}_static_tension\(const double q\[2\], double tau_1\[4\]",
+                     re.sub(r"\s+", " ", header))
+    assert f"_{prefix}_a_matrix" not in header and "`_a_matrix`" not in result.readme.read_text()
+    readme = " ".join(result.readme.read_text().split())
+    assert f"n = `{up}_N` = 2" in readme and f"m = `{up}_M` = 4" in readme
+
+
+@pytest.mark.parametrize(("robot_name", "controller"), [("planar4", "pd-td"),
+                                                         ("spatial4", "l2")])
+def test_control_call_of_a_robot_with_more_cables_matches_python_law_under_valgrind(
+        example, robot_name, controller, rng, random_states, tmp_path):
+    """``_control`` writes one tension per cable (the law's, or T_MIN on every cable for a
+    NaN input) into an array of exactly M doubles on the heap, as valgrind checks."""
+    robot, result = preset(robot_name), example(robot_name, controller).result
+    prefix, up = result.prefix, result.prefix.upper()
+    q, dq = random_states(robot, rng, 20)
+    states = np.vstack([np.column_stack([q, dq]), np.r_[np.full(robot.n, np.nan),
+                                                        np.zeros(robot.n)]])
+    rows = ",\n".join("{" + ", ".join("NAN" if np.isnan(value) else repr(float(value))
+                                        for value in state) + "}" for state in states)
+    program = tmp_path / "call.c"
+    program.write_text(f"""#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include "{prefix}.h"
+static const double states[][2 * {up}_N] = {{
+{rows}}};
+int main(void) {{
+  {prefix}_work *work = ({prefix}_work *) malloc(sizeof({prefix}_work));
+  double *tau = (double *) malloc({up}_M * sizeof(double));
+  size_t s;
+  int i;
+  for (s = 0; s < sizeof states / sizeof states[0]; ++s) {{
+    int ret = {prefix}_control(states[s], states[s] + {up}_N, {prefix}_case_goal, 0, 0, tau,
+                               0, 0, 0, 0, work);
+    printf("%d", ret);
+    for (i = 0; i < {up}_M; ++i) printf(" %.17g", tau[i]);
+    printf("\\n");
+  }}
+  free(tau);
+  free(work);
+  return 0;
+}}
+""")
+    _run([_tool("gcc"), *STRICT, "-g", "-I", result.out_dir, program, result.source, "-lm",
+          "-o", tmp_path / "call"])
+    output = np.loadtxt(_run([_tool("valgrind"), "--error-exitcode=1", "--leak-check=full",
+                              "-q", tmp_path / "call"]).splitlines())
+    assert output.shape == (len(states), 1 + robot.m)
+    np.testing.assert_array_equal(output[:-1, 0], 0)
+    law = law_function(SymbolicModel(robot), controller_by_name(controller)).map(len(q))
+    expected = np.array(law(q.T, dq.T, robot.goal, robot.k, robot.r_d, np.zeros((0, len(q))),
+                            1e-3)[0].full()).T
+    assert _relative_error(output[:-1, 1:], expected) <= TOLERANCE
+    assert output[-1, 0] == 1  # CONTROL_INVALID_INPUT, the safe command on every cable
+    np.testing.assert_array_equal(output[-1, 1:], robot.t_min)
+
+
+def test_a_controller_that_inverts_w_is_refused_on_more_cables_naming_it(tmp_path, capsys):
+    """Exported like simulated: every design but the redundant ones is refused, in one line
+    naming the controller, before any file is written."""
+    redundant = {name for name, design in CONTROLLERS.items()
+                 if getattr(design, "redundant", False)}
+    assert {"pd-td", "smooth", "l2"} <= redundant
+    for robot in (name for name in PRESET_NAMES if preset(name).m > preset(name).n):
+        for name in set(CONTROLLERS) - redundant:
+            design = controller_by_name(name)
+            with pytest.raises(InvalidCase, match=rf"^controller: {re.escape(design.name)} "
+                               r"needs as many cables") as raised:
+                export_c(robot, name, tmp_path / robot / name)
+            assert raised.value.field == "controller"
+    assert not any(tmp_path.iterdir())
+    with pytest.raises(InvalidCase, match=r"^controller: pd-sat needs as many cables"):
+        bench_export("planar4", "pd-sat", min_seconds=0.01)
+    out = tmp_path / "pkg"
+    assert main(["export-c", "--robot", "planar4", "--controller", "pd-sat", "--out",
+                 str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("cdpr-sym: error: controller: pd-sat needs as many cables")
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def _sanitizing_compiler(folder: Path) -> Path:
+    """A gcc that builds with AddressSanitizer (the test is skipped where it cannot)."""
+    gcc, compiler = _tool("gcc"), folder / "gcc-asan"
+    compiler.write_text(f'#!/bin/sh\nexec {gcc} -fsanitize=address -fno-omit-frame-pointer "$@"\n')
+    compiler.chmod(0o755)
+    probe = folder / "probe.c"
+    probe.write_text("int main(void) { return 0; }\n")
+    try:
+        run_command([compiler, probe, "-o", folder / "probe"])
+        run_command([folder / "probe"])
+    except CompilationFailed:
+        pytest.skip("gcc cannot build with -fsanitize=address here")
+    return compiler
+
+
+def test_bench_export_times_a_robot_with_more_cables(tmp_path, monkeypatch):
+    """The timing program holds one tension per cable: built with AddressSanitizer, which
+    aborts it on a write past an array sized by the degrees of freedom."""
+    monkeypatch.setenv("ASAN_OPTIONS", "detect_leaks=0")  # leak checks need ptrace rights
+    compiler = _sanitizing_compiler(tmp_path)
+    assert bench_export("planar4", "pd-td", min_seconds=0.03, compiler=str(compiler)) > 1e3
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("controller", ["pd-td", "l2"])
+def test_ipanema8_example_matches_python_simulation(tmp_path, controller):
+    """The 6-DOF platform on eight cables (the large exports: each builds in about 10 s)."""
+    built = _build_and_run_example(export_c("ipanema8", controller, tmp_path / "pkg"))
+    _assert_example_matches_simulation(built.printed, preset("ipanema8"), controller)
 
 
 # -- bad input -------------------------------------------------------------------------------

@@ -58,6 +58,7 @@ from cdpr_sym.codegen.names import MAX_IDENTIFIER
 from cdpr_sym.control import (
     FLAG_NAMES,
     Controller,
+    check_cables,
     controller_by_name,
     initial_memory_function,
     law_function,
@@ -73,7 +74,9 @@ _GENERATOR = "cdpr_sym"
 #: The prefix of the package that :func:`bench_export` times (``bench.c.j2`` names it).
 _BENCH_PREFIX = "cdpr_bench"
 
-#: The model terms that always get a wrapper (every ``SymbolicModel.functions`` entry does).
+#: The model terms a package of a robot with as many cables as degrees of freedom always
+#: wraps (every ``SymbolicModel.functions`` entry gets a wrapper; with more cables than degrees
+#: of freedom the model has no ``a_matrix``, which inverts W).
 REQUIRED_MODEL_TERMS = ("cable_lengths", "structure_matrix", "mass_matrix", "potential",
                         "p_matrix", "a_matrix")
 
@@ -99,14 +102,16 @@ _MODEL_DOCS = {
     "cable_lengths": "cable lengths l_i = |a_i - P_i(q)|, m",
     "structure_matrix": "structure matrix W = -(dl/dq)^T (point mass: unit vectors), -",
     "jacobian_ja": "the paper's J_a = -W^T (l_dot = J_a dq), -",
-    "singularity": "[det W, |det W| / prod |w_i|]; the loop stops below 1e-6",
+    "singularity": "[det W, |det W| / prod |w_i|] (m > n: sqrt det(W W^T) and its measure "
+                   "in [0, 1]); the loop stops below 1e-6",
     "mass_matrix": "inertia matrix M(q), kg (kg m, kg m^2 for angles)",
     "kinetic_energy": "kinetic energy T = dq^T M dq / 2, J",
     "ida_pbc_tension": "the law (3) in (q, p) with M_d = M (reference form), N",
     "coriolis_matrix": "Coriolis matrix C, kg/s",
     "potential": "potential energy V, J",
     "grad_potential": "gradient of V, N",
-    "static_tension": "gravity-holding tension tau_1 = W^-1 grad V, N",
+    "static_tension": "gravity-holding tension tau_1 = W^-1 grad V (m > n: its distribution "
+                      "in the tension box), N",
     "p_matrix": "P(dq) with J_d dq = P j, m/s",
     "interconnection_matrix": "skew matrix J_d(j), N s/m",
     "a_matrix": "A = W^-1 P(dq) (tau_3 = A j), m/s",
@@ -155,7 +160,7 @@ class _Spec(NamedTuple):
     """How one argument of ``<prefix>_control`` is declared (see :class:`_CArgument`)."""
 
     c_type: str
-    length: str | None  # "n", "nj", "nmem"; None: a scalar
+    length: str | None  # "n" (coordinates), "m" (cables), "nj", "nmem"; None: a scalar
     doc: str
     optional: bool = False
     case_default: bool = False
@@ -177,7 +182,7 @@ _CONTROL_ARGUMENTS = {
                     "move, then the previous call's memory_next"),
     "dt": _Spec("double", None, "time since the previous call (control period), s",
                 by_value=True),
-    "tau": _Spec("double", "n", "commanded cable tensions, N (> 0 pulls)",
+    "tau": _Spec("double", "m", "commanded cable tensions, N (> 0 pulls)",
                  safe="{upper}_T_MIN"),
     "alpha": _Spec("double", None, "scale on the PD part, eq. (24), 0 < alpha <= 1",
                    optional=True),
@@ -332,8 +337,10 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
         The robot file is missing or malformed.
     InvalidCase
         ``out_dir`` is an existing file (or cannot be created), a folder that is neither empty
-        nor an earlier export (without ``overwrite``), or ``prefix`` is unusable (see
-        :func:`prefix_problem`).
+        nor an earlier export (without ``overwrite``), ``prefix`` is unusable (see
+        :func:`prefix_problem`), or the robot has more cables than degrees of freedom and
+        the controller inverts W (field ``controller``, see
+        :func:`cdpr_sym.control.check_cables`).
 
     Notes
     -----
@@ -351,10 +358,10 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     'cdpr_planar2_pd.h'
     """
     robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
-    _check_square(robot)
     # a registered name names the package (l2-minnorm and l2 share the class name "l2")
     label = controller if isinstance(controller, str) else controller.name
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
+    check_cables(controller, robot.n, robot.m)
     prefix = prefix if prefix is not None else c_identifier(f"cdpr_{robot.name}_{label}")
     problem = prefix_problem(prefix)
     if problem:
@@ -442,14 +449,16 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
 
     Raises
     ------
+    InvalidCase
+        The robot has more cables than degrees of freedom and the controller inverts W.
     CompilerNotFound
         No C compiler is available.
     CompilationFailed
         The compiler rejected the code (its output is in the message).
     """
     robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
-    _check_square(robot)
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
+    check_cables(controller, robot.n, robot.m)
     cc = require_compiler(compiler)
     rng = np.random.default_rng(0)
     states = np.column_stack([robot.start + rng.normal(scale=0.05, size=(64, robot.n)),
@@ -483,14 +492,6 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
 
 
 # -- consistent functions -----------------------------------------------------------------
-def _check_square(robot: Robot) -> None:
-    """Refuse a robot with more cables than degrees of freedom (not exported yet: the
-    package's header and example loops size the tension by n)."""
-    if robot.m != robot.n:
-        raise InvalidCase("robot", f"export-c needs as many cables as degrees of freedom for "
-                          f"now, got {robot.m} cables for n = {robot.n}")
-
-
 def _entries(model: SymbolicModel, controller: Controller, prefix: str) -> list[_Entry]:
     layout = step_layout(model, controller)
     entries = [
@@ -549,17 +550,18 @@ def _description(robot: Robot, controller: Controller, prefix: str, entries: lis
     ``entries[0]`` is the control law; every other entry gets a plain wrapper, the planner
     (``initial_memory``) in ``<prefix>_plan.c``, the others in ``<prefix>.c``.
     """
-    upper, n = prefix.upper(), robot.n
+    upper, n, m = prefix.upper(), robot.n, robot.m
     functions = [entry.description for entry in entries[1:]]
     generated = [entry.function for entry in entries]
     return {
-        "prefix": prefix, "upper": upper, "n": n, "avoid_stack": avoid_stack,
+        "prefix": prefix, "upper": upper, "n": n, "m": m, "avoid_stack": avoid_stack,
         "version": _numeric_version(__version__),
         **_names(robot, controller),
         "operations": max(entry.function.n_instructions() for entry in entries
                           if entry.name != "initial_memory"),
         "sizes": [
-            _Macro("N", n, "degrees of freedom = cables"),
+            _Macro("N", n, "degrees of freedom: length of q, dq, q_goal, k, r_d"),
+            _Macro("M", m, "cables: length of tau, one tension per cable"),
             _Macro("NJ", robot.n_j, "free entries of J_d, n(n-1)/2"),
             _Macro("NMEM", layout.n_memory, "the controller's internal state"),
             _Macro("NX", layout.x.size, "step state x = [q, dq, memory, status]"),
@@ -608,7 +610,8 @@ def _control(law: ca.Function, layout: StepLayout, upper: str) -> _Control:
         raise RuntimeError(f"the C exporter does not know the law arguments {unknown}")
     # a stateless law has an empty memory: no memory, dt or memory_next in its C signature
     unused = frozenset() if layout.n_memory else _STATEFUL_ARGUMENTS
-    lengths = {"n": layout.n, "nj": layout.n_j, "nmem": layout.n_memory, None: None}
+    lengths = {"n": layout.n, "m": layout.cables, "nj": layout.n_j, "nmem": layout.n_memory,
+               None: None}
 
     def argument(name: str, direction: str) -> _CArgument:
         spec = _CONTROL_ARGUMENTS[name]

@@ -120,14 +120,15 @@ def run_bench(robot: Robot, *, min_seconds: float = 1.0,
     """All benchmarks as one JSON-ready dictionary; ``min_seconds`` (s) per row is checked
     by :func:`check_seconds` before anything is built (field ``seconds``)."""
     min_seconds = check_seconds(min_seconds)
-    square = robot.m == robot.n  # A = W^-1 P, the box designs and export-c need m = n
+    square = robot.m == robot.n  # A = W^-1 P and the box designs need m = n
     return {"robot": robot.name, "duration_s": 5.0, "dt_s": 1e-3,
             "controllers": bench_controllers(robot, min_seconds=min_seconds,
                                              build_options=build_options),
             "model_call": bench_model_call(robot, min_seconds=min_seconds / 2,
                                            build_options=build_options) if square else {},
             "cvxpy": bench_cvxpy(robot) if square else {},
-            "export_c": bench_exported(robot) if square else {},
+            "export_c": bench_exported(robot, ("pd", "l2", "box") if square
+                                       else ("pd-td", "l2")),
             "target_sims_per_s": 1000}
 
 
@@ -141,9 +142,12 @@ def format_table(result: dict[str, Any]) -> str:
         note = f"  (stopped after {row['steps']} steps: {stopped})" if stopped else ""
         lines.append(f"{name:<14}{row['sims_per_s']:>10.0f}{row['us_per_step']:>10.3f}{note}")
     if not result["cvxpy"]:
+        lines += ["", "exported standalone C controller (cdpr-sym export-c), one control call "
+                  "in C"]
+        lines += [f"{name:<14}{row['control_calls_per_s']:>10.3g} calls/s"
+                  for name, row in result["export_c"].items()]
         return "\n".join([*lines, "", f"{result['robot']} has more cables than degrees of "
-                           "freedom: the designs that invert W, A = W^-1 P and export-c are "
-                           "not timed"])
+                           "freedom: the designs that invert W and A = W^-1 P are not timed"])
     lines.append("")
     lines.append("box / l∞ design, one control step: fast path (generated C, whole closed-loop "
                  "step) vs cvxpy + Clarabel (solve only)")
