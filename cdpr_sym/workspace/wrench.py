@@ -47,7 +47,8 @@ CLOSURE_SHARE = 1e-9
 
 
 def facet_normals(W: ca.SX) -> list[tuple[tuple[int, ...], ca.SX]]:
-    """(columns, c) for every set of n - 1 columns of W (n x m): c is orthogonal to them.
+    """(columns, c) for every set of n - 1 columns of W (n x m, n >= 2): c is orthogonal to
+    them.
 
     c_i = (-1)^i det(W[rows except i, columns]), the generalized cross product, computed
     from shared minors (Laplace expansion along the first remaining row, memoised): about
@@ -72,9 +73,6 @@ def facet_normals(W: ca.SX) -> list[tuple[tuple[int, ...], ca.SX]]:
 
     normals = []
     for columns in itertools.combinations(range(m), n - 1):
-        if n == 1:
-            normals.append((columns, ca.SX.ones(1)))
-            continue
         entries = [minor(tuple(r for r in range(n) if r != i), columns) * (-1) ** i
                    for i in range(n)]
         normals.append((columns, ca.vertcat(*entries)))
@@ -93,10 +91,10 @@ def wrench_function(model: SymbolicModel) -> ca.Function:
     mid, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
     offset = model.grad_potential(q) - W @ ca.DM.ones(model.m) * mid
     column_size = ca.mmax(ca.sqrt(ca.sum1(W * W)))
+    scale = column_size ** (model.n - 1)  # the largest |c| columns this size can give
     margins, closures = [], []
     for columns, c in facet_normals(W):
         size = ca.norm_2(c)
-        scale = column_size ** (model.n - 1)
         bounding = size > DEPENDENT * scale
         # c . w_j = 0 for the facet's own columns: only the others project
         projections = ca.vertcat(*[ca.dot(c, W[:, j]) for j in range(model.m)
