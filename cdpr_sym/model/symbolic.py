@@ -17,6 +17,7 @@ V = m g (height of the centre of mass). Coordinates: :mod:`cdpr_sym.model.kinema
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 
 import casadi as ca
 import numpy as np
@@ -46,6 +47,8 @@ class SymbolicModel:
         #: Number of cables (m >= n; m > n: W has a null space).
         self.m = robot.m
         self.n_j = robot.n_j
+        #: Kinematic expressions of a rigid body, each built once on a symbol.
+        self._of_symbol: dict[Callable[[Robot, ca.SX], ca.SX], ca.Function] = {}
 
     # -- kinematics -------------------------------------------------------------------
     def cable_lengths(self, q: ca.SX) -> ca.SX:
@@ -53,26 +56,23 @@ class SymbolicModel:
         return kinematics.cable_lengths(self.robot, q)
 
     def structure_matrix(self, q: ca.SX) -> ca.SX:
-        """W(q) = -(dl/dq)^T, shape (n, n); point mass: column i is (a_i - q) / l_i."""
-        if self.robot.kind == "point":
-            return kinematics.structure_matrix(self.robot, q)
-        return self._structure_matrix_of_symbol(q)
-
-    @functools.cached_property
-    def _structure_matrix_of_symbol(self) -> ca.Function:
-        q = ca.SX.sym("q", self.n)
-        return ca.Function("W", [q], [kinematics.structure_matrix(self.robot, q)])
+        """W(q) = -(dl/dq)^T, shape (n, m); point mass: column i is (a_i - q) / l_i."""
+        return self._kinematic(kinematics.structure_matrix, q)
 
     def scaled_structure_matrix(self, q: ca.SX) -> ca.SX:
         """W(q) diag(l(q)), m: det has the sign of det W, without square roots or divisions."""
-        if self.robot.kind == "point":
-            return kinematics.scaled_structure_matrix(self.robot, q)
-        return self._scaled_structure_matrix_of_symbol(q)
+        return self._kinematic(kinematics.scaled_structure_matrix, q)
 
-    @functools.cached_property
-    def _scaled_structure_matrix_of_symbol(self) -> ca.Function:
-        q = ca.SX.sym("q", self.n)
-        return ca.Function("W_scaled", [q], [kinematics.scaled_structure_matrix(self.robot, q)])
+    def _kinematic(self, expression: Callable[[Robot, ca.SX], ca.SX], q: ca.SX) -> ca.SX:
+        """``expression(robot, q)``. A rigid body's is differentiated by CasADi, which needs
+        a purely symbolic q: it is built once on a symbol and called at ``q``."""
+        if self.robot.kind == "point":
+            return expression(self.robot, q)
+        if expression not in self._of_symbol:
+            symbol = ca.SX.sym("q", self.n)
+            self._of_symbol[expression] = ca.Function(expression.__name__, [symbol],
+                                                      [expression(self.robot, symbol)])
+        return self._of_symbol[expression](q)
 
     def jacobian_ja(self, q: ca.SX) -> ca.SX:
         """The paper's J_a = -W^T = dl/dq; l_dot = J_a dq."""
@@ -81,14 +81,7 @@ class SymbolicModel:
     def wrench_jacobian(self, q: ca.SX) -> ca.SX:
         """J(q): (v_c, w) = J dq, shape (d + rotations, n); an external wrench (f at the
         centre of mass, N; moment, N m; world axes) acts as the generalized force J^T (f, mu)."""
-        if self.robot.kind == "point":
-            return kinematics.wrench_jacobian(self.robot, q)
-        return self._wrench_jacobian_of_symbol(q)
-
-    @functools.cached_property
-    def _wrench_jacobian_of_symbol(self) -> ca.Function:
-        q = ca.SX.sym("q", self.n)
-        return ca.Function("J_wrench", [q], [kinematics.wrench_jacobian(self.robot, q)])
+        return self._kinematic(kinematics.wrench_jacobian, q)
 
     def singularity_measure(self, W: ca.SX) -> ca.SX:
         """|det W| / prod |w_i| (columns w_i), in [0, 1]; compared with ``SINGULAR_DET``."""
