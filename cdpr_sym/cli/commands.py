@@ -197,7 +197,7 @@ def with_wrench_box(robot: Robot, force: list[float] | None, moment: list[float]
         return robot.with_case(**changes)
     except InvalidRobot as bad:
         option = {"wrench.force": "force", "wrench.moment": "moment"}.get(bad.field, bad.field)
-        raise InvalidCase(option, str(bad).split(": ", 1)[1]) from None
+        raise InvalidCase(option, bad.message) from None
 
 
 def workspace_command(args: argparse.Namespace, out: Output) -> int:

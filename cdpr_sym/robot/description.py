@@ -30,9 +30,12 @@ COORDINATES = {
 #: Fields that only a rigid body has.
 _BODY_FIELDS = ("attachments", "inertia", "center_of_mass")
 
+#: The external wrench box: it shapes the wrench-feasible workspace and never a run.
+WRENCH_FIELDS = ("external_force", "external_moment")
+
 #: Optional fields left out of :meth:`Robot.as_dict` when not given, so a robot without
 #: them keeps the description (and the sweep identities) it had before they existed.
-_OPTIONAL_FIELDS = (*_BODY_FIELDS, "external_force", "external_moment")
+_OPTIONAL_FIELDS = (*_BODY_FIELDS, *WRENCH_FIELDS)
 
 #: Longest robot name, characters (it heads reports and names generated code).
 MAX_NAME_LENGTH = 100

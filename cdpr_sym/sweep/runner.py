@@ -42,7 +42,7 @@ from cdpr_sym.results.store import (
     require_parquet,
     sidecar_path,
 )
-from cdpr_sym.robot import Robot, resolve_robot
+from cdpr_sym.robot import WRENCH_FIELDS, Robot, resolve_robot
 from cdpr_sym.sweep.config import FORMATS, SweepConfig, column_types, columns, draw_pairs
 from cdpr_sym.sweep.output import check_identity, done_rows, exclusive_output
 from cdpr_sym.sweep.workers import (
@@ -143,9 +143,8 @@ def _versions() -> dict[str, str]:
 
 def _identity(config: SweepConfig, robot: Robot) -> dict[str, Any]:
     """What a row depends on besides the config: robot data, controller options, versions."""
-    # the external wrench box only shapes the wrench-feasible workspace, never a run
     described = {key: value for key, value in robot.as_dict().items()
-                 if key not in ("external_force", "external_moment")}
+                 if key not in WRENCH_FIELDS}  # no run depends on the wrench box
     return {"robot": described, "versions": _versions(),
             "controller_options": {name: controller_by_name(name).options()
                                    for name in config.controllers}}
