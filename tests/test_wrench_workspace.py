@@ -219,3 +219,14 @@ def test_the_moment_rows_are_the_world_angular_velocity(name, rng, random_states
         velocity = (rigid_reference.center_of_mass(geometry, q_i + step * dq_i)
                     - rigid_reference.center_of_mass(geometry, q_i - step * dq_i)) / (2 * step)
         np.testing.assert_allclose(twist[:d], velocity, atol=1e-8)
+
+
+def test_a_wrench_box_leaves_the_identity_of_a_sweep_unchanged():
+    """No run depends on the box, so adding one to a robot file keeps its sweeps resumable."""
+    from cdpr_sym.sweep import SweepConfig
+    from cdpr_sym.sweep.runner import _identity
+
+    config = SweepConfig(robot="aras3", controllers=("pd",), pairs=2, seed=0)
+    boxed = preset("aras3").with_case(external_force=[1.0, 1.0, 1.0])
+    assert _identity(config, boxed) == _identity(config, preset("aras3"))
+    assert _identity(config, boxed.with_case(mass=5.0)) != _identity(config, preset("aras3"))
