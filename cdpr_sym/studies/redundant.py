@@ -25,7 +25,7 @@ from cdpr_sym.reporting.format import number, share
 from cdpr_sym.reporting.sweep_report import summary_table
 from cdpr_sym.results.judging import summarise
 from cdpr_sym.results.store import load_table, read_json, write_json
-from cdpr_sym.robot import preset
+from cdpr_sym.robot import Robot, preset
 from cdpr_sym.studies.outline import read_study, study_sweep, write_study
 from cdpr_sym.sweep import SweepConfig
 from cdpr_sym.workspace import (
@@ -75,6 +75,14 @@ def compute_redundant_study(out_dir: Path, *, pairs: int = 200, seed: int = 0,
                 designs={name: list(names) for name, names in DESIGNS.items()})
 
 
+def wrench_box(robot: Robot) -> np.ndarray:
+    """The study's external wrench box: force half-widths of :data:`WRENCH_SHARE` of the
+    weight (N), then moment half-widths of that times :data:`WRENCH_ARM` (N m)."""
+    force = WRENCH_SHARE * robot.mass * robot.gravity
+    return np.concatenate([np.full(robot.dimension, force),
+                           np.full(robot.rotations, force * WRENCH_ARM)])
+
+
 def _workspaces(seed: int) -> dict[str, Any]:
     """Per robot, over the same seeded uniform poses of its frame: the statically feasible
     share (its tension distribution) and the static tension's smallest distance to a bound
@@ -89,9 +97,7 @@ def _workspaces(seed: int) -> dict[str, Any]:
         tau = result.tau_1[result.feasible]
         margin = np.minimum(tau.min(axis=1) - robot.t_min, robot.t_max - tau.max(axis=1))
         wrench = WrenchEvaluator(robot)
-        weight = WRENCH_SHARE * robot.mass * robot.gravity
-        box = np.concatenate([np.full(robot.dimension, weight),
-                              np.full(robot.rotations, weight * WRENCH_ARM)])
+        box = wrench_box(robot)
         holdable = wrench.classify(poses, np.zeros_like(box))
         boxed = wrench.classify(poses, box)
         out[name] = {"n": robot.n, "m": robot.m, "poses": WORKSPACE_POSES,
