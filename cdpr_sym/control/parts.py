@@ -13,6 +13,7 @@ import dataclasses
 import casadi as ca
 
 from cdpr_sym.distribution import AUTO, distribute
+from cdpr_sym.distribution.closed_form import closed_form
 from cdpr_sym.distribution.interval import feasible_interval
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 
@@ -41,10 +42,10 @@ def tension_parts(model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX,
     if model.m == model.n:
         W_inv = ca.inv(W)
         tau_1 = W_inv @ model.grad_potential(q)
-    else:
+    else:  # tau_1: Pott's closed form, the tension nearest the centre holding the weight
         W_inv = W.T @ ca.inv(W @ W.T)
-        middle = 0.5 * (model.robot.t_min + model.robot.t_max) * ca.DM.ones(model.m)
-        tau_1 = middle + W_inv @ (model.grad_potential(q) - W @ middle)
+        tau_1 = closed_form(W, model.grad_potential(q), model.robot.t_min,
+                            model.robot.t_max)[0]
     tau_2_full = -W_inv @ (k * (q - q_goal) + r_d * dq)
     return TensionParts(W=W, W_inv=W_inv, tau_1=tau_1, tau_2_full=tau_2_full,
                         singular=model.singularity_measure(W) < SINGULAR_DET)
