@@ -124,6 +124,15 @@ def test_bad_input_exits_2_with_one_line_naming_the_field(capsys, tmp_path, argv
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 
+@pytest.mark.parametrize(("argv", "option"), [
+    (["--force", "1", "1"], "force"), (["--moment", "1"], "moment"),
+    (["--robot", "planar3", "--moment", "-1"], "moment")])
+def test_a_bad_wrench_box_names_the_option_not_the_robot_file_field(capsys, tmp_path, argv,
+                                                                   option):
+    status, _, err = _run(capsys, "workspace", *argv, "--out", str(tmp_path / "ws"))
+    assert status == 2 and err.startswith(f"cdpr-sym: error: {option}: ")
+
+
 def test_goal_outside_the_static_workspace_is_named_as_such(capsys):
     _, _, err = _run(capsys, "simulate", "--goal", "0", "0", "0.3")
     assert "goal: expected a goal in the static workspace" in err
