@@ -29,7 +29,7 @@ from cdpr_sym.errors import (
     InvalidRobot,
     UnknownName,
 )
-from cdpr_sym.model import SymbolicModel
+from cdpr_sym.model import SymbolicModel, forward_kinematics
 from cdpr_sym.results import SweepResults, Trajectory, load_sweep
 from cdpr_sym.robot import Robot, load_robot, preset, resolve_robot
 from cdpr_sym.version import __version__
@@ -39,7 +39,7 @@ __all__ = [
     "CompilationFailed", "CompilerNotFound", "Controller", "InvalidCase", "InvalidRobot",
     "L2Design", "LinfDesign", "Plant", "Robot", "SaturatedPD", "Simulator",
     "SmoothReference", "SweepResults", "SymbolicModel", "Trajectory", "UnknownName",
-    "VirtualReferenceIdaPbc", "__version__", "controller_by_name", "get_simulator",
-    "load_robot", "load_sweep", "preset", "resolve_robot", "simulate", "simulate_adaptive",
-    "tension",
+    "VirtualReferenceIdaPbc", "__version__", "controller_by_name", "forward_kinematics",
+    "get_simulator", "load_robot", "load_sweep", "preset", "resolve_robot", "simulate",
+    "simulate_adaptive", "tension",
 ]

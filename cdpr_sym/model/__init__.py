@@ -1,10 +1,24 @@
 """The symbolic model: CasADi expressions and named functions of one robot.
 
 :mod:`~cdpr_sym.model.kinematics` places the end-effector and its cables;
-:class:`SymbolicModel` builds l, W, J_a, M, C, V, P, A, H, H_d and law (3) on it.
+:class:`SymbolicModel` builds l, W, J_a, M, C, V, P, A, H, H_d and law (3) on it;
+:mod:`~cdpr_sym.model.forward_kinematics` finds the pose from measured cable lengths.
 """
 
+from cdpr_sym.model.forward_kinematics import (
+    FK_ITERATIONS,
+    FK_STEP_TOLERANCE,
+    FK_TOLERANCE,
+    ForwardKinematicsResult,
+    forward_kinematics,
+    forward_kinematics_expression,
+    forward_kinematics_function,
+    quantisation_tolerance,
+)
 from cdpr_sym.model.kinematics import SINGULAR_DET
 from cdpr_sym.model.symbolic import SymbolicModel
 
-__all__ = ["SINGULAR_DET", "SymbolicModel"]
+__all__ = ["FK_ITERATIONS", "FK_STEP_TOLERANCE", "FK_TOLERANCE", "SINGULAR_DET",
+           "ForwardKinematicsResult", "SymbolicModel", "forward_kinematics",
+           "forward_kinematics_expression", "forward_kinematics_function",
+           "quantisation_tolerance"]
