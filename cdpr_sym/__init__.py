@@ -21,6 +21,7 @@ from cdpr_sym.control import (
     controller_by_name,
     tension,
 )
+from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
 from cdpr_sym.errors import (
     CdprError,
     CompilationFailed,
@@ -35,6 +36,7 @@ from cdpr_sym.robot import Robot, load_robot, preset, resolve_robot
 from cdpr_sym.version import __version__
 
 __all__ = [
+    "Actuation", "AsBuilt", "Sensing",
     "CONTROLLERS", "PD", "BoxDesign", "BuildOptions", "Case", "CdprError",
     "CompilationFailed", "CompilerNotFound", "Controller", "InvalidCase", "InvalidRobot",
     "L2Design", "LinfDesign", "Plant", "Robot", "SaturatedPD", "Simulator",

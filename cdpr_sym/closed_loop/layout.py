@@ -4,11 +4,13 @@ One :class:`StepLayout` describes the vectors that the generated step reads and 
 step, the simulator, the C rollout and the exported header all take their offsets from it,
 so the layout is written down once::
 
-    x   = [q (n), dq (n), memory, applied (m, rate-limited plants only), status (1)]
-    p   = [q_goal (n), k (n), r_d (n), dt, mass_scale, slack, rate_limit (rate-limited only)]
-    log = [tau (m), alpha, beta, j (n(n-1)/2), flags]
+    x   = [q (n), dq (n), memory, applied (m, rate-limited plants only), plant, status (1)]
+    p   = [q_goal (n), k (n), r_d (n), dt, mass_scale, slack, rate_limit (rate-limited only),
+           plant]
+    log = [tau (m), alpha, beta, j (n(n-1)/2), flags, plant]
 
-for n degrees of freedom and m >= n cables.
+for n degrees of freedom and m >= n cables; the ``plant`` fields are those an as-built plant
+adds (:mod:`cdpr_sym.closed_loop.as_built_step`), none for the ideal plant.
 """
 
 from __future__ import annotations
@@ -95,6 +97,8 @@ class StepLayout:
         tension and p the rate limit, N/s).
     m : int, optional
         Number of cables (default n).
+    plant_x, plant_p, plant_log : tuple of (name, size)
+        Fields an as-built plant adds to x (before the status), p and the log.
     """
 
     n: int
@@ -102,6 +106,9 @@ class StepLayout:
     n_memory: int = 0
     rate_limited: bool = False
     m: int | None = None
+    plant_x: tuple[tuple[str, int], ...] = ()
+    plant_p: tuple[tuple[str, int], ...] = ()
+    plant_log: tuple[tuple[str, int], ...] = ()
 
     @property
     def cables(self) -> int:
@@ -112,20 +119,21 @@ class StepLayout:
     def x(self) -> Fields:
         """The state: q (m, rad), dq, the controller's memory, applied tension (N), status."""
         return Fields((("q", self.n), ("dq", self.n), ("memory", self.n_memory),
-                       ("applied", self.cables if self.rate_limited else 0), ("status", 1)))
+                       ("applied", self.cables if self.rate_limited else 0), *self.plant_x,
+                       ("status", 1)))
 
     @functools.cached_property
     def p(self) -> Fields:
         """The parameters: goal, gains, dt (s), plant mass factor, slack switch, rate limit."""
         return Fields((("q_goal", self.n), ("k", self.n), ("r_d", self.n), ("dt", 1),
                        ("mass_scale", 1), ("slack", 1),
-                       ("rate_limit", 1 if self.rate_limited else 0)))
+                       ("rate_limit", 1 if self.rate_limited else 0), *self.plant_p))
 
     @functools.cached_property
     def log(self) -> Fields:
         """Per step: tau (N), alpha, beta (N), j, flags."""
         return Fields((("tau", self.cables), ("alpha", 1), ("beta", 1), ("j", self.n_j),
-                       ("flags", 1)))
+                       ("flags", 1), *self.plant_log))
 
     @functools.cached_property
     def status_index(self) -> int:
@@ -133,11 +141,14 @@ class StepLayout:
         return self.x.offset("status")
 
     def parameters(self, goal, k, r_d, dt: float, *, mass_scale: float = 1.0,
-                   slack: bool = False, rate_limit: float | None = None) -> np.ndarray:
-        """p for one run (``rate_limit`` in N/s, used by a rate-limited layout only)."""
+                   slack: bool = False, rate_limit: float | None = None,
+                   plant: Mapping[str, object] | None = None) -> np.ndarray:
+        """p for one run (``rate_limit`` in N/s, used by a rate-limited layout only;
+        ``plant`` the values of the ``plant_p`` fields)."""
         return self.p.pack({"q_goal": goal, "k": k, "r_d": r_d, "dt": dt,
                             "mass_scale": mass_scale, "slack": float(slack),
-                            "rate_limit": [rate_limit or 0.0] if self.rate_limited else []})
+                            "rate_limit": [rate_limit or 0.0] if self.rate_limited else [],
+                            **(plant or {})})
 
     def split_log(self, log: np.ndarray) -> dict[str, np.ndarray]:
         """The per-step columns of a log array of shape (N, log size)."""

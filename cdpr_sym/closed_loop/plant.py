@@ -3,6 +3,8 @@
 The plant is M ddq + C dq + grad V = W tau_applied with mass (and weight) scaled by
 ``Plant.mass_scale``; a slack-cable plant applies max(tau, 0); a rate-limited plant moves
 the applied tension towards the command by at most ``rate_limit * dt`` per control period.
+An as-built plant (:class:`~cdpr_sym.as_built.AsBuilt`) adds winches, elastic cables,
+sensing, delay and anchor errors; its step is :mod:`cdpr_sym.closed_loop.as_built_step`.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from collections.abc import Callable
 
 import casadi as ca
 
+from cdpr_sym.as_built import AsBuilt
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 
@@ -32,11 +35,15 @@ class Plant:
         Actuator tension-rate limit, N/s: the applied tension moves towards the command by
         at most ``rate_limit * dt`` per control step, starting from the static tension at
         the start. None (default) applies the command at once.
+    as_built : AsBuilt, optional
+        The effects of the robot as built (winches, sensing, delay, anchor offsets); its
+        cables never push, whatever ``slack`` says. None (default): the ideal plant.
     """
 
     mass_scale: float = 1.0
     slack: bool = False
     rate_limit: float | None = None
+    as_built: AsBuilt | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.mass_scale) and self.mass_scale > 0):
@@ -45,11 +52,20 @@ class Plant:
                                                 and self.rate_limit > 0):
             raise InvalidCase("rate_limit", f"expected a positive rate in N/s, "
                               f"got {self.rate_limit}")
+        if self.as_built is not None and self.rate_limit is not None:
+            raise InvalidCase("rate_limit", "an as-built plant limits the tension through its "
+                              "winches (as_built.actuation); leave rate_limit unset")
 
     @property
     def rate_limited(self) -> bool:
         """Whether the applied tension is rate limited (a state of the plant)."""
         return self.rate_limit is not None
+
+    def record(self) -> dict[str, object]:
+        """The plant's fields as plain numbers and lists, for a run's record."""
+        return {"mass_scale": self.mass_scale, "slack": self.slack,
+                "rate_limit": self.rate_limit,
+                "as_built": self.as_built.as_dict() if self.as_built else None}
 
 
 def rk4(rhs: Callable[[ca.SX], ca.SX], x: ca.SX, h: ca.SX) -> ca.SX:

@@ -21,6 +21,13 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.as_built import AsBuiltStructure, true_static_function
+from cdpr_sym.as_built.geometry import true_geometry_function
+from cdpr_sym.closed_loop.as_built_step import (
+    PLANT_STOP_REASONS,
+    as_built_layout,
+    as_built_step_function,
+)
 from cdpr_sym.closed_loop.case import Case, check_timing, minimal_values_per_step
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
@@ -70,6 +77,9 @@ class _Rollout:
         return int(taken)
 
 
+#: Every stop status a run can end with: the ideal step's and the as-built plant's.
+ALL_STOP_REASONS = {**STOP_REASONS, **PLANT_STOP_REASONS}
+
 #: The generated functions the rollout loop calls.
 _ROLLOUT_CALLS = ("static_tension", "step")
 
@@ -99,23 +109,35 @@ class Simulator:
         Backend (C or CasADi's virtual machine), cache folder, compiler.
     rate_limited : bool
         Build the step of a plant with a tension-rate limit (see :class:`Plant`).
+    as_built : AsBuiltStructure, optional
+        Build the step of an as-built plant with these effects (see
+        :class:`~cdpr_sym.as_built.AsBuilt`); runs then take a plant whose
+        ``as_built.structure()`` is this.
     """
 
     def __init__(self, robot: Robot, controller: Controller, *, chunk: int = 1000,
                  build_options: BuildOptions = BuildOptions(),
-                 rate_limited: bool = False) -> None:
+                 rate_limited: bool = False, as_built: AsBuiltStructure | None = None
+                 ) -> None:
         check_cables(controller, robot.n, robot.m)
         self.robot = robot
         self.controller = controller
         self.model = SymbolicModel(robot)
-        self.layout = step_layout(self.model, controller, rate_limited=rate_limited)
+        self.as_built = as_built
         self.chunk = chunk
-        self.step = step_function(self.model, controller, rate_limited=rate_limited)
+        if as_built is None:
+            self.layout = step_layout(self.model, controller, rate_limited=rate_limited)
+            self.step = step_function(self.model, controller, rate_limited=rate_limited)
+        else:
+            self.layout = as_built_layout(self.model, controller, as_built)
+            self.step = as_built_step_function(self.model, controller, as_built)
+            self._true_static = true_static_function(self.model)
+            self._true_geometry = true_geometry_function(robot)
         self.law = law_function(self.model, controller)
         self.initial_memory = initial_memory_function(self.model, controller)
         self.backend = build_options.resolved_backend()
         self.library: CompiledLibrary | None = None
-        suffix = "_rate" if rate_limited else ""
+        suffix = "_rate" if rate_limited else _as_built_suffix(as_built)
         #: The base name of this loop's compiled libraries.
         self.library_name = (f"cdpr_{c_identifier(robot.name)}_"
                              f"{controller_identifier(controller)}{suffix}")
@@ -146,16 +168,53 @@ class Simulator:
         return self.library.function(name)
 
     def initial_state(self, start: np.ndarray, goal: np.ndarray, k: np.ndarray,
-                      r_d: np.ndarray, *, dq0: np.ndarray | None = None) -> np.ndarray:
+                      r_d: np.ndarray, *, dq0: np.ndarray | None = None,
+                      plant: Plant = Plant()) -> np.ndarray:
         """x at the start of a move: at rest (or ``dq0``), the controller's plan, and for a
-        rate-limited plant the static tension as the applied one."""
+        rate-limited plant the static tension as the applied one. An as-built plant starts
+        at rest as the ideal one does: the controller held it there with the model's static
+        tension, so its cables carry that tension (stretched to it, the winches' torque
+        holding it) and the commands still on their way are it; where the plant's mass or
+        anchors differ, its own mismatch acts from t = 0 on."""
         fields = {"q": start, "dq": np.zeros(self.robot.n) if dq0 is None else dq0,
                   # an empty memory needs no call (a CasADi call costs ~40 us per run)
                   "memory": np.array(self.initial_memory(start, goal, k, r_d)).ravel()
                   if self.layout.n_memory else [],
                   "applied": self._static_tension(start) if self.layout.rate_limited else [],
                   "status": 0.0}
+        if self.as_built is not None:
+            fields.update(self._as_built_start(start, fields["dq"], plant))
         return self.layout.x.pack(fields)
+
+    def true_static_tension(self, q: np.ndarray, plant: Plant) -> np.ndarray:
+        """The tension (N) holding the as-built ``plant`` at rest at ``q``: its mass and
+        anchors (m > n: the default distribution of its weight)."""
+        tension, _ = self._true_static(q, plant.mass_scale, _anchor_offsets(self.robot, plant))
+        return np.array(tension).ravel()
+
+    def true_static_held(self, q: np.ndarray, plant: Plant) -> bool:
+        """Whether the as-built ``plant`` can be held at rest at ``q`` with tensions in
+        [T_min, T_max] (m > n: by the default distribution, which can miss a tension)."""
+        _, held = self._true_static(q, plant.mass_scale, _anchor_offsets(self.robot, plant))
+        return bool(float(held) > 0.5)
+
+    def _as_built_start(self, start: np.ndarray, dq0: np.ndarray, plant: Plant
+                        ) -> dict[str, object]:
+        """The as-built plant's own state fields at the start of a move."""
+        structure, spec = self.as_built, plant.as_built
+        tension = self._static_tension(start)
+        fields: dict[str, object] = {"pending": np.tile(tension, structure.delay)}
+        if structure.actuation:
+            drive = spec.actuation
+            lengths, _ = self._true_geometry(start, _anchor_offsets(self.robot, plant))
+            # stretched to carry the tension: l = l0 (1 + T / EA)
+            fields.update(payout=np.array(lengths).ravel() / (1 + tension
+                                                                / drive.cable_stiffness),
+                          drum_speed=np.zeros(self.robot.m),
+                          motor_torque=drive.drum_radius * tension)
+        if structure.sensing:
+            fields.update(q_read=start, dq_read=dq0)
+        return fields
 
     def rollout(self, x0: np.ndarray, p: np.ndarray, n_steps: int
                 ) -> tuple[np.ndarray, np.ndarray]:
@@ -194,7 +253,7 @@ class Simulator:
         self.check_plant(plant)
         n_steps = check_timing(duration, dt, values_per_step=self.values_per_step)
         states, logs, static, taken = self._rollout_with_static_tension(
-            self.initial_state(start, goal, k, r_d, dq0=dq0),
+            self.initial_state(start, goal, k, r_d, dq0=dq0, plant=plant),
             self.parameters(goal, k, r_d, dt, plant), n_steps)
         return self.trajectory(states, logs, n_steps, dt, goal, k, r_d, plant,
                                static_tension=static, taken=taken)
@@ -205,13 +264,30 @@ class Simulator:
         if self.layout.rate_limited != plant.rate_limited:
             raise InvalidCase("plant", "a rate-limited plant needs a simulator built with "
                               "rate_limited=True (simulate() chooses it)")
+        structure = None if plant.as_built is None else plant.as_built.structure()
+        if structure != self.as_built:
+            raise InvalidCase("plant", f"this simulator's step is built for the as-built "
+                              f"effects {self.as_built}, the plant has {structure} "
+                              f"(simulate() chooses the step)")
+        if plant.as_built is not None:
+            plant.as_built.check_robot(self.robot.m, self.robot.dimension)
 
     def parameters(self, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, dt: float,
                    plant: Plant) -> np.ndarray:
         """The step's parameter vector p for a move to ``goal`` (m) with gains ``k`` (N/m),
         ``r_d`` (N s/m), period ``dt`` (s) and ``plant``."""
+        values: dict[str, object] = {}
+        spec = plant.as_built
+        if spec is not None:
+            if spec.actuation is not None:
+                values["actuation"] = spec.actuation.parameters()
+            if spec.sensing is not None:
+                values["sensing"] = spec.sensing.parameters()
+            if spec.anchor_offsets is not None:
+                values["anchor_offsets"] = spec.anchor_offsets
         return self.layout.parameters(goal, k, r_d, dt, mass_scale=plant.mass_scale,
-                                      slack=plant.slack, rate_limit=plant.rate_limit)
+                                      slack=plant.slack, rate_limit=plant.rate_limit,
+                                      plant=values)
 
     def _run_virtual_machine(self, states: np.ndarray, logs: np.ndarray, p: np.ndarray,
                              n_steps: int) -> None:
@@ -233,6 +309,10 @@ class Simulator:
         # views into the run's buffer, not copies: copying the strided columns was a third
         # of a run's Python time
         x = self.layout.x.split(states[: last + 1])
+        log = self.layout.split_log(logs[:last])
+        if self.as_built is not None:  # judged on the cables' true tension
+            log["command"] = log["tau"]
+            log["tau"] = self.layout.log.split(logs[:last])["tension"]
         return Trajectory(
             t=np.arange(last + 1) * dt, q=x["q"], dq=x["dq"],
             q_goal=np.array(goal, dtype=float), t_min=self.robot.t_min,
@@ -242,7 +322,7 @@ class Simulator:
             memory=x["memory"],
             static_tension=(self._static_tension(states[0, : self.robot.n])
                             if static_tension is None else static_tension),
-            **self.layout.split_log(logs[:last]))
+            **log)
 
     def _end(self, states: np.ndarray, n_steps: int, taken: int | None
              ) -> tuple[int, str | None]:
@@ -250,12 +330,12 @@ class Simulator:
         index = self.layout.status_index
         if taken is not None:
             status = int(states[taken, index])
-            return (taken - 1, STOP_REASONS[status]) if status else (n_steps, None)
+            return (taken - 1, ALL_STOP_REASONS[status]) if status else (n_steps, None)
         status = states[1: n_steps + 1, index]
         stopped = np.flatnonzero(status != 0)
         if not stopped.size:
             return n_steps, None
-        return int(stopped[0]), STOP_REASONS[int(status[stopped[0]])]
+        return int(stopped[0]), ALL_STOP_REASONS[int(status[stopped[0]])]
 
     def _static_tension(self, q: np.ndarray) -> np.ndarray:
         if self.library is None:
@@ -279,9 +359,24 @@ def run_info(robot: Robot, controller: Controller, dt: float, k, r_d, plant: Pla
             "controller_options": controller.options(), "dt": dt,
             "k": np.asarray(k).tolist(), "r_d": np.asarray(r_d).tolist(),
             # the plant's fields are numbers: asdict's deep copy took 20 us per run
-            "plant": {field.name: getattr(plant, field.name)
-                      for field in dataclasses.fields(plant)},
+            "plant": plant.record(),
             "integrator": integrator, **extra}
+
+
+def _anchor_offsets(robot: Robot, plant: Plant) -> np.ndarray:
+    """The plant's anchor offsets, flat (m d), m; zeros when it has none."""
+    spec = plant.as_built
+    if spec is None or spec.anchor_offsets is None:
+        return np.zeros(robot.m * robot.dimension)
+    return spec.anchor_offsets.ravel()
+
+
+def _as_built_suffix(structure: AsBuiltStructure | None) -> str:
+    """The library-name suffix of an as-built step (empty for the ideal plant)."""
+    if structure is None:
+        return ""
+    text = json.dumps(dataclasses.asdict(structure), sort_keys=True)
+    return f"_built_{hashlib.sha256(text.encode()).hexdigest()[:8]}"
 
 
 def controller_identifier(controller: Controller) -> str:
@@ -309,7 +404,8 @@ def _robot_key(robot: Robot) -> str:
 
 def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
                   build_options: BuildOptions = BuildOptions(),
-                  rate_limited: bool = False) -> Simulator:
+                  rate_limited: bool = False, as_built: AsBuiltStructure | None = None
+                  ) -> Simulator:
     """A :class:`Simulator`, reused within the process for equal robots and options.
 
     Parameters
@@ -322,6 +418,8 @@ def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
         Backend, cache folder and compiler.
     rate_limited : bool
         The step of a plant with a tension-rate limit.
+    as_built : AsBuiltStructure, optional
+        The step of an as-built plant with these effects.
 
     Returns
     -------
@@ -329,10 +427,11 @@ def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
         Built (and compiled) on first use, then shared.
     """
     key = (_robot_key(robot), controller, chunk, build_options,
-           build_options.resolved_backend(), rate_limited)
+           build_options.resolved_backend(), rate_limited, as_built)
     if key not in _SIMULATORS:
         _SIMULATORS[key] = Simulator(robot, controller, chunk=chunk,
-                                     build_options=build_options, rate_limited=rate_limited)
+                                     build_options=build_options, rate_limited=rate_limited,
+                                     as_built=as_built)
     return _SIMULATORS[key]
 
 
@@ -390,7 +489,9 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=N
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
     check_timing(duration, dt, values_per_step=minimal_values_per_step(robot))
     simulator = get_simulator(robot, controller, build_options=build_options,
-                              rate_limited=plant.rate_limited)
+                              rate_limited=plant.rate_limited,
+                              as_built=None if plant.as_built is None
+                              else plant.as_built.structure())
     case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d, model=simulator.model)
     return simulator.run(case.start, case.goal, case.k, case.r_d,
                          duration=duration, dt=dt, plant=plant)

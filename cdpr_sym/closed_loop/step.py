@@ -51,11 +51,7 @@ def step_function(model: SymbolicModel, controller: Controller, *,
     # singular at the sample, or det W changes sign within the step (the plane was crossed);
     # the sign is read from W diag(l), which needs no square root or division: a sixth of
     # the step's time went to W(q_next) for this sign alone
-    crossed = _crossed(model, q, z_next[:n])
-    # bit test by floor alone (exact for the small integers flags are): fmod has no vector
-    # form, and one call of it keeps the batched step from using SIMD
-    shifted = ca.floor(law.flags / FLAG_SINGULAR)
-    singular = ca.logic_or(shifted - 2 * ca.floor(0.5 * shifted) > 0.5, crossed)
+    singular = ca.logic_or(singular_flag(law.flags), crossed_singularity(model, q, z_next[:n]))
     # the command too: a slack or rate-limited plant would otherwise turn NaN into a number
     finite = ca.sum1(ca.fabs(ca.vertcat(z_next, law.tau)) <= 1e300) > 2 * n + model.m - 0.5
     lower, upper = model.robot.frame_lower, model.robot.frame_upper
@@ -76,7 +72,17 @@ def step_function(model: SymbolicModel, controller: Controller, *,
                        {"cse": True})
 
 
-def _crossed(model: SymbolicModel, q: ca.SX, q_next: ca.SX) -> ca.SX:
+def singular_flag(flags: ca.SX) -> ca.SX:
+    """Whether the controller's flags hold FLAG_SINGULAR.
+
+    A bit test by floor alone (exact for the small integers flags are): fmod has no vector
+    form, and one call of it keeps the batched step from using SIMD.
+    """
+    shifted = ca.floor(flags / FLAG_SINGULAR)
+    return shifted - 2 * ca.floor(0.5 * shifted) > 0.5
+
+
+def crossed_singularity(model: SymbolicModel, q: ca.SX, q_next: ca.SX) -> ca.SX:
     """Whether the step passed through a singularity between samples: det W changes sign
     (m = n), or W loses row rank at q_next (m > n: W W^T has no sign to change)."""
     if model.m == model.n:

@@ -28,6 +28,12 @@ from cdpr_sym.robot import Robot
 SINGULAR_DET = 1e-6
 
 
+def _vector(value: object) -> ca.SX | ca.DM:
+    """A robot's point as a CasADi column: numbers become constants, while a symbolic
+    point (a plant whose anchors are parameters, :mod:`cdpr_sym.as_built`) stays symbolic."""
+    return value if isinstance(value, ca.SX) else ca.DM(value)
+
+
 def position(robot: Robot, q: ca.SX) -> ca.SX:
     """Body-frame origin p (the point itself for a point mass), m, shape (d, 1)."""
     return q[: robot.dimension]
@@ -62,7 +68,7 @@ def center_of_mass(robot: Robot, q: ca.SX) -> ca.SX:
     """World position of the centre of mass, m, shape (d, 1)."""
     if robot.kind == "point":
         return position(robot, q)
-    return position(robot, q) + rotation(robot, q) @ ca.DM(robot.center_of_mass)
+    return position(robot, q) + rotation(robot, q) @ _vector(robot.center_of_mass)
 
 
 def body_angular_velocity(robot: Robot, q: ca.SX, dq: ca.SX) -> ca.SX:
@@ -100,7 +106,7 @@ def wrench_jacobian(robot: Robot, q: ca.SX) -> ca.SX:
 def cable_lengths(robot: Robot, q: ca.SX) -> ca.SX:
     """l_i = |a_i - P_i(q)|, m, shape (m, 1) for m cables."""
     points = attachment_points(robot, q)
-    return ca.vertcat(*[ca.norm_2(points[i] - ca.DM(robot.anchors[i]))
+    return ca.vertcat(*[ca.norm_2(points[i] - _vector(robot.anchors[i]))
                         for i in range(robot.m)])
 
 
@@ -112,7 +118,7 @@ def structure_matrix(robot: Robot, q: ca.SX) -> ca.SX:
     """
     if robot.kind == "point":
         inverse_lengths = 1.0 / cable_lengths(robot, q)
-        return ca.horzcat(*[(ca.DM(robot.anchors[i]) - q) * inverse_lengths[i]
+        return ca.horzcat(*[(_vector(robot.anchors[i]) - q) * inverse_lengths[i]
                             for i in range(robot.m)])
     return -ca.jacobian(cable_lengths(robot, q), q).T
 
@@ -125,9 +131,9 @@ def scaled_structure_matrix(robot: Robot, q: ca.SX) -> ca.SX:
     ``SX``.
     """
     if robot.kind == "point":
-        return ca.horzcat(*[ca.DM(robot.anchors[i]) - q for i in range(robot.m)])
+        return ca.horzcat(*[_vector(robot.anchors[i]) - q for i in range(robot.m)])
     points = attachment_points(robot, q)
-    half_squares = ca.vertcat(*[0.5 * ca.sumsqr(points[i] - ca.DM(robot.anchors[i]))
+    half_squares = ca.vertcat(*[0.5 * ca.sumsqr(points[i] - _vector(robot.anchors[i]))
                                 for i in range(robot.m)])
     return -ca.jacobian(half_squares, q).T
 

@@ -207,8 +207,14 @@ class SymbolicModel:
         ``mass_scale`` multiplies the mass and inertia of the plant (and so its weight), to
         simulate a plant that differs from the controller's model.
         """
-        force = (self.structure_matrix(q) @ tau
-                 - mass_scale * (self.coriolis_force(q, dq) + self.grad_potential(q)))
+        return self.acceleration_from_force(q, dq, self.structure_matrix(q) @ tau, mass_scale)
+
+    def acceleration_from_force(self, q: ca.SX, dq: ca.SX, cable_force: ca.SX,
+                                mass_scale: ca.SX = 1.0) -> ca.SX:
+        """ddq = M_plant^{-1} (cable_force - C dq - grad V_plant): :meth:`acceleration` for a
+        given generalized cable force (N, N m for angles), e.g. one of a plant whose cables
+        differ from the model's."""
+        force = cable_force - mass_scale * (self.coriolis_force(q, dq) + self.grad_potential(q))
         M = self.mass_matrix(q)
         if M.is_constant():  # invert once, numerically, instead of a symbolic solve per call
             return (ca.DM(np.linalg.inv(np.array(ca.DM(M)))) @ force) * (1.0 / mass_scale)

@@ -56,6 +56,9 @@ class Trajectory:
         The controller's internal state at each sample (m = 0 for memoryless controllers).
     static_tension : ndarray, shape (m,), optional
         W^{-1} grad V at the start, N: the tension holding the robot at rest there.
+    command : ndarray, shape (N, m), optional
+        Runs on an as-built plant: the controller's tension command, N. ``tau`` is then the
+        true tension in the cables at t[k], on which the run is judged.
     """
 
     t: np.ndarray
@@ -73,6 +76,7 @@ class Trajectory:
     info: dict[str, Any] = dataclasses.field(default_factory=dict)
     memory: np.ndarray | None = None
     static_tension: np.ndarray | None = None
+    command: np.ndarray | None = None
 
     def __repr__(self) -> str:
         robot, controller = self.info.get("robot", "?"), self.info.get("controller", "?")
@@ -228,7 +232,8 @@ class Trajectory:
             "static_tension": (self.static_tension if self.static_tension is not None
                                else np.full(cables, np.nan)),
             "t_min": self.t_min, "t_max": self.t_max,
-            "stop_reason": self.stop_reason or "", "info": self.info}
+            "stop_reason": self.stop_reason or "", "info": self.info,
+            **({} if self.command is None else {"command": self.command})}
 
     @classmethod
     def load(cls, path: str | Path) -> Trajectory:
@@ -248,7 +253,8 @@ class Trajectory:
                    t_min=float(data["t_min"]), t_max=float(data["t_max"]),
                    stop_reason=str(data.get("stop_reason", "")) or None,
                    info=json.loads(str(data["info"])), memory=data.get("memory"),
-                   static_tension=None if np.isnan(static).all() else static)
+                   static_tension=None if np.isnan(static).all() else static,
+                   command=data.get("command"))
 
 
 def save_path(path: str | Path, *, field: str = "path") -> Path:

@@ -1,0 +1,231 @@
+"""What the robot as built adds to the ideal plant: each effect an option, off by default.
+
+The ideal plant (:class:`~cdpr_sym.closed_loop.Plant`) applies the commanded tension through
+massless rigid cables and lets the controller read the exact state. :class:`AsBuilt` lists
+what a real robot adds, each effect independently:
+
+* :class:`Actuation`: elastic cables on winches. The controller's tension command becomes the
+  reference of each winch's torque loop; the tension in the cable follows from its stretch.
+* :class:`Sensing`: the controller reads the pose from quantised encoder cable lengths by
+  forward kinematics, and the velocity from a filtered difference of those poses.
+* ``delay``: the command reaches the winches ``delay`` control periods late.
+* ``anchor_offsets``: where the frame's anchors really are, relative to the controller's model.
+
+The plant's mass error is :attr:`Plant.mass_scale`. The typical values below are for a
+laboratory CDPR of a few kilograms with 2 mm polymer cables; each default states its source.
+Numbers that only scale the dynamics are parameters of the generated step, so one build
+serves a whole Monte Carlo draw; which effects are on (:meth:`AsBuilt.structure`) is part of
+the generated code.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from cdpr_sym.errors import InvalidCase
+
+#: Angular speed over which Coulomb friction turns over, rad/s: friction is
+#: tau_c tanh(omega / FRICTION_SPEED), a smooth sign that a fixed-step integrator can follow.
+FRICTION_SPEED = 0.1
+
+
+def _positive(field: str, value: float, unit: str, *, zero: bool = False) -> None:
+    """Raise :class:`InvalidCase` naming ``field`` unless ``value`` is finite and positive
+    (or zero, when ``zero``)."""
+    ok = math.isfinite(value) and (value >= 0 if zero else value > 0)
+    if not ok:
+        kind = "a non-negative" if zero else "a positive"
+        raise InvalidCase(field, f"expected {kind} number in {unit}, got {value}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Actuation:
+    """Elastic cables on torque-controlled winches.
+
+    Cable i is unwound from a drum of radius r at angle theta_i (positive pays out), so its
+    unstretched length is l0_i = L_i + r theta_i, and with length l_i(q) it carries
+
+        T_i = max(0, EA / l0_i * s_i + c_EA / l0_i * ds_i/dt) if s_i = l_i - l0_i > 0, else 0,
+
+    a spring-damper that goes slack instead of pushing. Each drum obeys
+    J domega_i = r T_i - tau_i - b omega_i - tau_c tanh(omega_i / FRICTION_SPEED), and its
+    motor torque tau_i follows the reference r T_cmd_i (clipped to the torque limit) through
+    a first-order torque loop of the given bandwidth.
+
+    Parameters
+    ----------
+    cable_stiffness : float
+        Axial stiffness EA, N (stiffness EA / l0 per cable). Default 1e5 N: a 2 mm braided
+        UHMWPE (Dyneema) cable, fibre modulus about 110 GPa (DSM Dyneema SK75 data sheet)
+        over about 30 % of its 3.1 mm^2 section.
+    cable_damping : float
+        Axial damping c_EA, N s (damping c_EA / l0 per cable). Default 4 N s: a loss factor
+        omega c_EA / EA of 2 % at the cable-winch mode (~80 Hz), an assumed light structural
+        damping; set 0 for an undamped cable.
+    drum_radius : float
+        Drum radius r, m; default 0.03 m.
+    inertia : float
+        Rotor plus drum inertia about the drum axis, kg m^2; default 1e-4 kg m^2 (a 200 W
+        servo motor's rotor, ~3e-5 kg m^2, plus an aluminium drum).
+    viscous : float
+        Viscous friction b, N m s/rad; default 1e-4.
+    coulomb : float
+        Coulomb friction tau_c, N m; default 0.01 N m (0.33 N of cable tension on 0.03 m).
+    torque_limit : float, optional
+        Largest motor torque, N m; None (default) leaves the torque unlimited.
+    bandwidth : float
+        Torque (current) loop bandwidth, Hz; default 500 Hz (servo drives close their current
+        loop at 1-4 kHz; 500 Hz is a conservative figure for the torque at the drum).
+    """
+
+    cable_stiffness: float = 1e5
+    cable_damping: float = 4.0
+    drum_radius: float = 0.03
+    inertia: float = 1e-4
+    viscous: float = 1e-4
+    coulomb: float = 0.01
+    torque_limit: float | None = None
+    bandwidth: float = 500.0
+
+    def __post_init__(self) -> None:
+        _positive("cable_stiffness", self.cable_stiffness, "N")
+        _positive("cable_damping", self.cable_damping, "N s", zero=True)
+        _positive("drum_radius", self.drum_radius, "m")
+        _positive("inertia", self.inertia, "kg m^2")
+        _positive("viscous", self.viscous, "N m s/rad", zero=True)
+        _positive("coulomb", self.coulomb, "N m", zero=True)
+        if self.torque_limit is not None:
+            _positive("torque_limit", self.torque_limit, "N m")
+        _positive("bandwidth", self.bandwidth, "Hz")
+
+    def parameters(self) -> list[float]:
+        """The numbers the generated step reads (see :data:`ACTUATION_PARAMETERS`); an
+        unlimited torque is passed as infinity."""
+        limit = math.inf if self.torque_limit is None else self.torque_limit
+        return [self.cable_stiffness, self.cable_damping, self.drum_radius, self.inertia,
+                self.viscous, self.coulomb, limit, self.bandwidth]
+
+
+#: The order of :meth:`Actuation.parameters` in the step's parameter vector.
+ACTUATION_PARAMETERS = ("cable_stiffness", "cable_damping", "drum_radius", "inertia",
+                        "viscous", "coulomb", "torque_limit", "bandwidth")
+
+
+@dataclasses.dataclass(frozen=True)
+class Sensing:
+    """The controller's view of the state: encoder lengths, forward kinematics, a filter.
+
+    At every control period the encoders read each cable's length rounded to ``resolution``
+    (with :class:`Actuation`, the unstretched length the drum has paid out, which is what a
+    winch encoder measures; else the geometric length). Forward kinematics with the
+    controller's model turns them into the pose, starting from the previous estimate; a
+    failed solve stops the run (``"lost_pose"``). The velocity is the pose's difference
+    quotient through a first-order low-pass filter of cut-off ``velocity_cutoff``.
+
+    Parameters
+    ----------
+    resolution : float
+        Encoder resolution in cable length, m; 0 reads exact lengths. Default 1e-5 m: a
+        12-bit motor encoder behind a 5:1 gear on a 0.03 m drum reads
+        2 pi 0.03 / (4096 * 5) = 9.2e-6 m per count.
+    velocity_cutoff : float
+        Cut-off of the velocity filter, Hz; default 50 Hz.
+    """
+
+    resolution: float = 1e-5
+    velocity_cutoff: float = 50.0
+
+    def __post_init__(self) -> None:
+        _positive("resolution", self.resolution, "m", zero=True)
+        _positive("velocity_cutoff", self.velocity_cutoff, "Hz")
+
+    def parameters(self) -> list[float]:
+        """The numbers the generated step reads: resolution (m), cut-off (Hz)."""
+        return [self.resolution, self.velocity_cutoff]
+
+
+#: Longest command delay, control periods (each a state of the generated step per cable).
+MAX_DELAY = 100
+
+#: Fewest and most RK4 steps per control period of an as-built plant.
+SUBSTEP_RANGE = (1, 64)
+
+
+@dataclasses.dataclass(frozen=True)
+class AsBuiltStructure:
+    """Which as-built effects a generated step contains; the numbers are parameters."""
+
+    actuation: bool = False
+    sensing: bool = False
+    delay: int = 0
+    anchors: bool = False
+    substeps: int = 4
+
+
+@dataclasses.dataclass(frozen=True)
+class AsBuilt:
+    """The effects a real robot adds to the ideal plant (each None or 0: off).
+
+    Parameters
+    ----------
+    actuation : Actuation, optional
+        Elastic cables on winches; None: the cables apply the command exactly (clipped at
+        zero: a cable cannot push).
+    sensing : Sensing, optional
+        Encoder lengths, forward kinematics and a velocity filter; None: the exact state.
+    delay : int
+        Control periods between the controller's command and the winches (0 to
+        :data:`MAX_DELAY`).
+    anchor_offsets : ndarray, shape (m, d), optional
+        True anchor position minus the model's, per cable, m.
+    substeps : int
+        RK4 steps per control period; default 4 (the torque loop at 500 Hz and the
+        cable-winch mode need h << 1 / (2 pi 500) s; the tests check 4 against 64).
+    """
+
+    actuation: Actuation | None = None
+    sensing: Sensing | None = None
+    delay: int = 0
+    anchor_offsets: Any = None
+    substeps: int = 4
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.delay, int) and 0 <= self.delay <= MAX_DELAY):
+            raise InvalidCase("delay", f"expected a whole number of control periods in "
+                              f"0..{MAX_DELAY}, got {self.delay!r}")
+        low, high = SUBSTEP_RANGE
+        if not (isinstance(self.substeps, int) and low <= self.substeps <= high):
+            raise InvalidCase("substeps", f"expected a whole number in {low}..{high}, "
+                              f"got {self.substeps!r}")
+        if self.anchor_offsets is not None:
+            offsets = np.asarray(self.anchor_offsets, dtype=float)
+            if offsets.ndim != 2 or not np.isfinite(offsets).all():
+                raise InvalidCase("anchor_offsets", "expected a finite (cables x dimension) "
+                                  "array in m")
+            offsets.setflags(write=False)
+            object.__setattr__(self, "anchor_offsets", offsets)
+
+    def structure(self) -> AsBuiltStructure:
+        """What the generated step depends on (which effects are on, the delay and
+        substeps); the numbers themselves are parameters."""
+        return AsBuiltStructure(self.actuation is not None, self.sensing is not None,
+                                self.delay, self.anchor_offsets is not None, self.substeps)
+
+    def check_robot(self, cables: int, dimension: int) -> None:
+        """Raise :class:`InvalidCase` (``anchor_offsets``) unless the offsets fit a robot
+        with ``cables`` anchors in ``dimension`` world coordinates."""
+        if self.anchor_offsets is not None and self.anchor_offsets.shape != (cables, dimension):
+            raise InvalidCase("anchor_offsets", f"expected shape ({cables}, {dimension}), got "
+                              f"{self.anchor_offsets.shape}")
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain numbers and lists, for a run's record."""
+        return {"actuation": dataclasses.asdict(self.actuation) if self.actuation else None,
+                "sensing": dataclasses.asdict(self.sensing) if self.sensing else None,
+                "delay": self.delay, "substeps": self.substeps,
+                "anchor_offsets": (None if self.anchor_offsets is None
+                                   else self.anchor_offsets.tolist())}

@@ -1,0 +1,200 @@
+"""The closed-loop step on the robot as built: sensing, delay, winches and the true geometry.
+
+One control period of :func:`as_built_step_function`, in order:
+
+1. *Sensing* (:class:`~cdpr_sym.as_built.Sensing`): the encoders read the cable lengths
+   (the paid-out, unstretched lengths r theta with winches; the geometric ones without),
+   rounded to the resolution; forward kinematics with the controller's model, from the
+   previous estimate, gives the pose; a filtered difference quotient the velocity. Without
+   sensing the controller reads the true state.
+2. The controller computes its tension command from what it reads.
+3. *Delay*: the winches receive the command of ``delay`` periods ago.
+4. *Plant*: ``substeps`` RK4 steps of the true dynamics with the command held: with
+   :class:`~cdpr_sym.as_built.Actuation`, the cables' tension follows from their stretch
+   and the winches from their torque loops; without, the cables apply the command clipped
+   at zero. Anchors are where the plant's offsets put them; mass as ``mass_scale`` says.
+
+The log adds the true cable tension at the start of the period (``tension``), on which runs
+are judged. A failed forward kinematics stops the run (``"lost_pose"``), as a real
+controller that lost its pose must.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+
+from cdpr_sym.as_built import actuation
+from cdpr_sym.as_built.geometry import true_geometry_function
+from cdpr_sym.as_built.spec import ACTUATION_PARAMETERS, AsBuiltStructure
+from cdpr_sym.closed_loop.layout import StepLayout
+from cdpr_sym.closed_loop.plant import rk4
+from cdpr_sym.closed_loop.step import STOP_CODES, crossed_singularity, singular_flag
+from cdpr_sym.control import Controller
+from cdpr_sym.model import SymbolicModel
+from cdpr_sym.model.forward_kinematics import FK_TOLERANCE, forward_kinematics_expression
+
+#: Stop statuses only an as-built plant raises (beside :data:`STOP_REASONS`).
+PLANT_STOP_REASONS = {4: "lost_pose"}
+
+
+def as_built_layout(model: SymbolicModel, controller: Controller,
+                    structure: AsBuiltStructure) -> StepLayout:
+    """The layout of the as-built step: the base fields plus the plant's own."""
+    n, m = model.n, model.m
+    plant_x = []
+    if structure.actuation:  # drum payout r theta (m), drum speed (rad/s), motor torque
+        plant_x += [("payout", m), ("drum_speed", m), ("motor_torque", m)]
+    plant_x.append(("pending", structure.delay * m))
+    if structure.sensing:
+        plant_x += [("q_read", n), ("dq_read", n)]
+    plant_p = []
+    if structure.actuation:
+        plant_p.append(("actuation", len(ACTUATION_PARAMETERS)))
+    if structure.sensing:
+        plant_p.append(("sensing", 2))
+    if structure.anchors:
+        plant_p.append(("anchor_offsets", m * model.robot.dimension))
+    return StepLayout(n, model.n_j, controller.memory_size(model), False,
+                      m if m != n else None, plant_x=tuple(plant_x), plant_p=tuple(plant_p),
+                      plant_log=(("tension", m),))
+
+
+def as_built_step_function(model: SymbolicModel, controller: Controller,
+                           structure: AsBuiltStructure) -> ca.Function:
+    """One control period on the as-built plant: (x, p) -> (x_next, log), laid out by
+    :func:`as_built_layout`; once the status is non-zero the state is frozen."""
+    layout = as_built_layout(model, controller, structure)
+    n, m = model.n, model.m
+    x, p = ca.SX.sym("x", layout.x.size), ca.SX.sym("p", layout.p.size)
+    state, par = layout.x.split(x), layout.p.split(p)
+    q, dq, status = state["q"], state["dq"], state["status"]
+    dt = par["dt"]
+    offsets = (par["anchor_offsets"] if structure.anchors
+               else ca.DM.zeros(m * model.robot.dimension))
+    geometry = true_geometry_function(model.robot)
+    plant = _PlantDynamics(model, geometry, offsets, par, structure)
+    z = plant.pack(state)
+
+    q_read, dq_read, pose_ok = q, dq, 1
+    if structure.sensing:
+        q_read, dq_read, pose_ok = _sense(model, plant, z, state, par["sensing"], dt)
+    law, memory_next = controller.step(model, q_read, dq_read, par["q_goal"], par["k"],
+                                       par["r_d"], state["memory"], dt)
+    pending = state["pending"]
+    command = pending[:m] if structure.delay else law.tau
+    pending_next = ca.vertcat(pending[m:], law.tau) if structure.delay else pending
+
+    h = dt / structure.substeps
+    z_next = z
+    for _ in range(structure.substeps):
+        z_next = rk4(lambda zz: plant.rhs(zz, command), z_next, h)
+    q_next = z_next[:n]
+
+    singular = ca.logic_or(singular_flag(law.flags), crossed_singularity(model, q, q_next))
+    finite = ca.sum1(ca.fabs(ca.vertcat(z_next, law.tau)) <= 1e300) > z.numel() + m - 0.5
+    lower, upper = model.robot.frame_lower, model.robot.frame_upper
+    outside = ca.sum1(q_next < lower) + ca.sum1(q_next > upper) > 0
+    new_status = ca.if_else(
+        status != 0, status,
+        ca.if_else(pose_ok < 0.5, 4,
+                   ca.if_else(singular, STOP_CODES["singular"],
+                              ca.if_else(ca.logic_not(finite), STOP_CODES["non_finite"],
+                                         ca.if_else(outside, STOP_CODES["left_frame"], 0)))))
+    stopped = new_status != 0
+
+    def keep(old: ca.SX, new: ca.SX) -> ca.SX:
+        return ca.if_else(stopped, old, new)
+
+    parts = {"q": q, "dq": dq, "memory": state["memory"], "pending": pending,
+             "applied": state["applied"]}  # empty: no rate limit on an as-built plant
+    moved = {"q": z_next[:n], "dq": z_next[n:2 * n], "memory": memory_next,
+             "pending": pending_next, "applied": state["applied"]}
+    if structure.actuation:
+        for index, name in enumerate(("payout", "drum_speed", "motor_torque")):
+            parts[name] = state[name]
+            moved[name] = z_next[2 * n + index * m: 2 * n + (index + 1) * m]
+    if structure.sensing:
+        parts.update(q_read=state["q_read"], dq_read=state["dq_read"])
+        moved.update(q_read=q_read, dq_read=dq_read)
+    fields = [keep(parts[name], moved[name]) for name in layout.x.names if name != "status"]
+    x_next = ca.vertcat(*fields, new_status)
+    log = ca.vertcat(law.tau, law.alpha, law.beta, law.j, law.flags, plant.tension(z, command))
+    return ca.Function("step", [x, p], [x_next, log], ["x", "p"], ["x_next", "log"],
+                       {"cse": True})
+
+
+class _PlantDynamics:
+    """The as-built plant's state z = [q, dq, (payout, drum speed, motor torque)] and its
+    right-hand side with the command held."""
+
+    def __init__(self, model: SymbolicModel, geometry: ca.Function, offsets: ca.SX,
+                 par: dict[str, ca.SX], structure: AsBuiltStructure) -> None:
+        self.model, self.geometry, self.offsets = model, geometry, offsets
+        self.mass_scale = par["mass_scale"]
+        self.actuation = par["actuation"] if structure.actuation else None
+
+    def pack(self, state: dict[str, ca.SX]) -> ca.SX:
+        """z from the step's state fields."""
+        parts = [state["q"], state["dq"]]
+        if self.actuation is not None:
+            parts += [state["payout"], state["drum_speed"], state["motor_torque"]]
+        return ca.vertcat(*parts)
+
+    def lengths(self, q: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """True cable lengths (m) and their Jacobian dl/dq."""
+        return self.geometry(q, self.offsets)
+
+    def tension(self, z: ca.SX, command: ca.SX) -> ca.SX:
+        """The true cable tension at z, N."""
+        n, m = self.model.n, self.model.m
+        if self.actuation is None:
+            return ca.fmax(command, 0)
+        lengths, jacobian = self.lengths(z[:n])
+        radius = self.actuation[ACTUATION_PARAMETERS.index("drum_radius")]
+        payout, speed = z[2 * n: 2 * n + m], z[2 * n + m: 2 * n + 2 * m]
+        return actuation.cable_tension(lengths, jacobian @ z[n:2 * n], payout, radius * speed,
+                                       self.actuation)
+
+    def rhs(self, z: ca.SX, command: ca.SX) -> ca.SX:
+        """dz/dt with the tension command (N) held."""
+        n, m = self.model.n, self.model.m
+        q, dq = z[:n], z[n:2 * n]
+        _, jacobian = self.lengths(q)
+        tension = self.tension(z, command)
+        ddq = self.model.acceleration_from_force(q, dq, -jacobian.T @ tension, self.mass_scale)
+        if self.actuation is None:
+            return ca.vertcat(dq, ddq)
+        radius = self.actuation[ACTUATION_PARAMETERS.index("drum_radius")]
+        speed, torque = z[2 * n + m: 2 * n + 2 * m], z[2 * n + 2 * m:]
+        return ca.vertcat(dq, ddq, radius * speed,
+                          actuation.drum_acceleration(tension, speed, torque, self.actuation),
+                          actuation.torque_rate(torque, command, self.actuation))
+
+    def encoder_lengths(self, z: ca.SX) -> ca.SX:
+        """What the encoders measure, m: the paid-out length with winches, else the true
+        geometric length."""
+        n, m = self.model.n, self.model.m
+        if self.actuation is not None:
+            return z[2 * n: 2 * n + m]
+        return self.lengths(z[:n])[0]
+
+
+def _sense(model: SymbolicModel, plant: _PlantDynamics, z: ca.SX, state: dict[str, ca.SX],
+           sensing: ca.SX, dt: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """(q read, dq read, pose ok) from quantised encoder lengths: forward kinematics from
+    the previous estimate, velocity by a first-order filtered difference."""
+    resolution, cutoff = sensing[0], sensing[1]
+    exact = plant.encoder_lengths(z)
+    step = ca.fmax(resolution, 1e-300)
+    read = ca.if_else(resolution > 0, step * ca.floor(exact / step + 0.5), exact)
+    # the residual bound of quantised lengths: round-off for m = n (some pose has exactly
+    # these lengths), half a count per cable for m > n (see quantisation_tolerance)
+    q_read, ok, residual = forward_kinematics_expression(model, read, state["q_read"],
+                                                         tolerance=1.0)
+    bound = FK_TOLERANCE + (0 if model.m == model.n else math.sqrt(model.m) * resolution / 2)
+    ok = ca.logic_and(ok, residual <= bound)
+    keep = ca.exp(-2 * math.pi * cutoff * dt)
+    dq_read = keep * state["dq_read"] + (1 - keep) * (q_read - state["q_read"]) / dt
+    return q_read, dq_read, ok

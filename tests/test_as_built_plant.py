@@ -1,0 +1,134 @@
+"""The as-built plant's effects one by one, each against an independent statement of it.
+
+The energy balance of elastic cables and winches is in ``test_as_built_energy``; here:
+an as-built plant with every effect off is the ideal plant; the delay hands the winches the
+command of ``delay`` periods ago; the anchors sit where the offsets put them (a numpy static
+tension); the encoders, forward kinematics and velocity filter read what numpy says they
+read; a lost pose stops the run; fine substeps agree with coarse ones; bad options are named.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import reference
+
+from cdpr_sym import simulate
+from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
+from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.control import controller_by_name
+from cdpr_sym.errors import InvalidCase
+
+
+def _rollout(robot, controller, plant, build_options, *, dt=1e-3, steps=400, goal=None):
+    """States split by field, the log split by field, and the simulator."""
+    simulator = get_simulator(robot, controller_by_name(controller),
+                              build_options=build_options,
+                              as_built=plant.as_built.structure())
+    goal = robot.goal if goal is None else goal
+    x0 = simulator.initial_state(robot.start, goal, robot.k, robot.r_d, plant=plant)
+    states, logs = simulator.rollout(x0, simulator.parameters(goal, robot.k, robot.r_d, dt,
+                                                              plant), steps)
+    return (simulator.layout.x.split(states), simulator.layout.log.split(logs), simulator)
+
+
+@pytest.mark.parametrize("name", ["aras3", "planar3"])
+def test_nothing_on_is_the_ideal_plant(name, request, build_options):
+    robot = request.getfixturevalue(name)
+    ideal = simulate(robot, "smooth", duration=1.0, build_options=build_options)
+    built = simulate(robot, "smooth", duration=1.0, build_options=build_options,
+                     plant=Plant(as_built=AsBuilt(substeps=1)))
+    assert built.stop_reason is None
+    np.testing.assert_allclose(built.q, ideal.q, rtol=0, atol=1e-10)
+    # the true tension is the command (positive here), and the command the ideal one
+    np.testing.assert_allclose(built.tau, ideal.tau, rtol=0, atol=1e-7)
+    np.testing.assert_array_equal(built.tau, built.command)
+
+
+@pytest.mark.parametrize("delay", [1, 3])
+def test_the_winches_receive_the_command_of_delay_periods_ago(aras3, build_options, delay):
+    plant = Plant(mass_scale=1.05, as_built=AsBuilt(delay=delay))
+    run = simulate(aras3, "smooth", duration=0.5, build_options=build_options, plant=plant)
+    # before t = 0 the controller held the robot with the model's static tension
+    held = reference.static_tension(aras3.start, aras3.anchors, aras3.mass, aras3.gravity)
+    np.testing.assert_allclose(run.tau[:delay], np.tile(held, (delay, 1)), rtol=1e-12)
+    np.testing.assert_array_equal(run.tau[delay:], np.maximum(run.command[:-delay], 0))
+
+
+def test_the_plant_holds_its_weight_on_its_own_anchors(aras3, rng, build_options):
+    offsets = rng.uniform(-0.005, 0.005, size=(3, 3))
+    plant = Plant(mass_scale=0.9, as_built=AsBuilt(anchor_offsets=offsets))
+    simulator = get_simulator(aras3, controller_by_name("smooth"), build_options=build_options,
+                              as_built=plant.as_built.structure())
+    for q in (aras3.start, aras3.goal):
+        expected = reference.static_tension(q, np.asarray(aras3.anchors) + offsets,
+                                            0.9 * aras3.mass, aras3.gravity)
+        np.testing.assert_allclose(simulator.true_static_tension(q, plant), expected,
+                                   rtol=1e-10)
+    # held by that tension, an open loop (the command is the true static tension, delayed
+    # forever) would stay; the model's own static tension lets it drift
+    nominal = reference.static_tension(aras3.start, aras3.anchors, aras3.mass, aras3.gravity)
+    assert np.max(np.abs(simulator.true_static_tension(aras3.start, plant) - nominal)) > 0.5
+
+
+def test_encoders_forward_kinematics_and_filter_read_what_numpy_says(aras3, build_options):
+    resolution, cutoff, dt = 1e-4, 40.0, 1e-3
+    plant = Plant(as_built=AsBuilt(sensing=Sensing(resolution=resolution,
+                                                   velocity_cutoff=cutoff)))
+    x, _, _ = _rollout(aras3, "smooth", plant, build_options, dt=dt, steps=600)
+    assert not x["status"].any()
+    q, q_read, dq_read = x["q"], x["q_read"], x["dq_read"]
+    # row k + 1 holds what the controller read at t_k: the rounded true lengths at t_k,
+    # explained exactly by the pose read (m = n: some pose has those lengths)
+    counts = np.array([np.round(reference.cable_lengths(pose, aras3.anchors) / resolution)
+                       for pose in q[:-1]])
+    read_lengths = np.array([reference.cable_lengths(pose, aras3.anchors)
+                             for pose in q_read[1:]])
+    np.testing.assert_allclose(read_lengths, counts * resolution, rtol=0, atol=1e-9)
+    assert np.max(np.abs(q_read[1:] - q[:-1])) > 1e-6  # rounding is visible in the pose
+    keep = np.exp(-2 * np.pi * cutoff * dt)
+    expected = keep * dq_read[:-1] + (1 - keep) * np.diff(q_read, axis=0) / dt
+    np.testing.assert_allclose(dq_read[1:], expected, rtol=0, atol=1e-9)
+
+
+def test_a_pose_that_cannot_be_read_stops_the_run(aras3, build_options):
+    # lengths rounded to whole metres: the pose they give is 0.6 m from the last one, too
+    # far for the solver's four steps from there
+    plant = Plant(as_built=AsBuilt(sensing=Sensing(resolution=1.0)))
+    run = simulate(aras3, "smooth", duration=0.5, build_options=build_options, plant=plant)
+    assert run.stop_reason == "lost_pose"
+    assert len(run.t) == 1
+
+
+def test_four_substeps_agree_with_sixty_four(aras3, build_options):
+    drive = Actuation(cable_damping=40.0)
+    runs = [simulate(aras3, "smooth", duration=1.0, build_options=build_options,
+                     plant=Plant(as_built=AsBuilt(actuation=drive, substeps=substeps)))
+            for substeps in (4, 64)]
+    assert all(run.stop_reason is None for run in runs)
+    np.testing.assert_allclose(runs[0].q, runs[1].q, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(runs[0].tau, runs[1].tau, rtol=0, atol=1e-3)
+
+
+@pytest.mark.parametrize(("make", "field"), [
+    (lambda: Actuation(cable_stiffness=-1.0), "cable_stiffness"),
+    (lambda: Actuation(bandwidth=float("nan")), "bandwidth"),
+    (lambda: Actuation(torque_limit=0.0), "torque_limit"),
+    (lambda: Sensing(resolution=-1e-5), "resolution"),
+    (lambda: AsBuilt(delay=-1), "delay"),
+    (lambda: AsBuilt(delay=1.5), "delay"),
+    (lambda: AsBuilt(substeps=0), "substeps"),
+    (lambda: AsBuilt(anchor_offsets=[[np.nan, 0, 0]]), "anchor_offsets"),
+    (lambda: Plant(rate_limit=100.0, as_built=AsBuilt()), "rate_limit"),
+])
+def test_bad_options_name_their_field(make, field):
+    with pytest.raises(InvalidCase) as raised:
+        make()
+    assert raised.value.field == field
+
+
+def test_offsets_of_the_wrong_shape_are_refused_before_a_run(aras3, build_options):
+    plant = Plant(as_built=AsBuilt(anchor_offsets=np.zeros((4, 3))))
+    with pytest.raises(InvalidCase) as raised:
+        simulate(aras3, "smooth", duration=0.1, build_options=build_options, plant=plant)
+    assert raised.value.field == "anchor_offsets"
