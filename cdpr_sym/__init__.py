@@ -6,6 +6,7 @@ The package follows the flow of the work, one folder a stage: ``robot`` (the des
 → ``reporting``, ``studies``, ``export`` → ``cli``.
 """
 
+from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
 from cdpr_sym.closed_loop import Case, Plant, Simulator, get_simulator, simulate, simulate_adaptive
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import (
@@ -21,7 +22,6 @@ from cdpr_sym.control import (
     controller_by_name,
     tension,
 )
-from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
 from cdpr_sym.errors import (
     CdprError,
     CompilationFailed,
@@ -36,10 +36,9 @@ from cdpr_sym.robot import Robot, load_robot, preset, resolve_robot
 from cdpr_sym.version import __version__
 
 __all__ = [
-    "Actuation", "AsBuilt", "Sensing",
-    "CONTROLLERS", "PD", "BoxDesign", "BuildOptions", "Case", "CdprError",
+    "CONTROLLERS", "PD", "Actuation", "AsBuilt", "BoxDesign", "BuildOptions", "Case", "CdprError",
     "CompilationFailed", "CompilerNotFound", "Controller", "InvalidCase", "InvalidRobot",
-    "L2Design", "LinfDesign", "Plant", "Robot", "SaturatedPD", "Simulator",
+    "L2Design", "LinfDesign", "Plant", "Robot", "SaturatedPD", "Sensing", "Simulator",
     "SmoothReference", "SweepResults", "SymbolicModel", "Trajectory", "UnknownName",
     "VirtualReferenceIdaPbc", "__version__", "controller_by_name", "forward_kinematics",
     "get_simulator", "load_robot", "load_sweep", "preset", "resolve_robot", "simulate",
