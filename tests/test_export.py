@@ -818,3 +818,54 @@ def test_the_result_names_every_file_written(tmp_path):
     stateless = export_c("planar2", "pd", tmp_path / "stateless")
     assert stateless.plan_source is None and stateless.plan_generated is None
     assert not list(stateless.out_dir.glob("cdpr_planar2_pd_plan*"))
+
+
+_FK_PROGRAM = """#include <stdio.h>
+#include "{prefix}.h"
+int main(void) {{
+  static {prefix}_work work;
+  double q_true[{n}] = {{{q_true}}}, guess[{n}] = {{{guess}}}, far[{n}] = {{{far}}};
+  double lengths[{m}], q[{n}], ok, residual;
+  int i;
+  if ({prefix}_cable_lengths(q_true, lengths, &work) != 0) return 1;
+  if ({prefix}_forward_kinematics(lengths, guess, q, &ok, &residual, &work) != 0) return 1;
+  printf("%.0f %.17g", ok, residual);
+  for (i = 0; i < {n}; ++i) printf(" %.17g", q[i]);
+  for (i = 0; i < {m}; ++i) lengths[i] *= 0.1; /* no pose in the frame has these */
+  if ({prefix}_forward_kinematics(lengths, far, q, &ok, &residual, &work) != 0) return 1;
+  printf(" %.0f\\n", ok);
+  return 0;
+}}
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("robot_name", ["planar3", "spatial4"])
+def test_exported_forward_kinematics_finds_the_pose_of_the_exported_lengths(
+        robot_name, tmp_path, rng):
+    """The package's forward kinematics, fed the package's own cable lengths of a pose, finds
+    that pose from a guess a millimetre and a milliradian away, as the Python solver does;
+    lengths no pose has are flagged."""
+    robot = preset(robot_name)
+    controller = "smooth" if robot.m == robot.n else "pd-td"
+    result = export_c(robot, controller, tmp_path / "pkg")
+    prefix = result.header.stem
+    q_true = robot.start + rng.uniform(-0.05, 0.05, robot.n)
+    guess = q_true + rng.choice([-1e-3, 1e-3], robot.n)
+    source = _FK_PROGRAM.format(prefix=prefix, n=robot.n, m=robot.m,
+                                q_true=", ".join(repr(float(v)) for v in q_true),
+                                guess=", ".join(repr(float(v)) for v in guess),
+                                far=", ".join(repr(float(v)) for v in robot.start))
+    (tmp_path / "fk.c").write_text(source)
+    program = tmp_path / "fk"
+    sources = [str(path) for path in result.out_dir.glob("*.c") if path.name != "main.c"]
+    _run([_tool("gcc"), *STRICT, "-I", str(result.out_dir), str(tmp_path / "fk.c"), *sources,
+          "-lm", "-o", str(program)])
+    values = [float(v) for v in _run([program]).split()]
+    ok, residual, q, failed = values[0], values[1], np.array(values[2:-1]), values[-1]
+    assert ok == 1 and residual <= 1e-9 and failed == 0
+    np.testing.assert_allclose(q, q_true, rtol=0, atol=1e-9)
+    from cdpr_sym import forward_kinematics
+    lengths = np.array(SymbolicModel(robot).functions["cable_lengths"](q_true)).ravel()
+    np.testing.assert_allclose(q, forward_kinematics(robot, lengths, guess).q, rtol=0,
+                               atol=1e-12)

@@ -65,6 +65,11 @@ from cdpr_sym.control import (
 )
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.model.forward_kinematics import (
+    FK_ITERATIONS,
+    FK_TOLERANCE,
+    forward_kinematics_function,
+)
 from cdpr_sym.robot import Robot, resolve_robot
 from cdpr_sym.version import __version__
 
@@ -86,6 +91,10 @@ _ARGUMENT_DOCS = {
     "q_goal": "goal position, m (rad)", "k": "stiffness gains K (diagonal), N/m (N m/rad)",
     "r_d": "damping gains R_d (diagonal), N s/m (N m s/rad)",
     "tau": "cable tensions, N (> 0 pulls)",
+    "lengths": "measured cable lengths, m", "q_guess": "starting pose (the previous one), m (rad)",
+    "ok": "1 when q is a pose of these lengths (converged, within the tolerance, regular, "
+          "inside the frame), else 0: then do not use q",
+    "residual": "max_i |l_i(q) - lengths_i|, m (inf when not finite)",
     "j": "free entries of J_d (row-major strict upper triangle), N s/m (N m s/rad)",
     "alpha": "scale on the PD part, eq. (24), 0 < alpha <= 1",
     "q0": "start position of the move, m (rad)",
@@ -509,6 +518,10 @@ def _entries(model: SymbolicModel, controller: Controller, prefix: str) -> list[
     for name, function in model.functions.items():
         entries.append(_entry(name, function, prefix, _MODEL_DOCS.get(
             name, f"model term {name} (see cdpr_sym.model.SymbolicModel)")))
+    entries.append(_entry(
+        "forward_kinematics", forward_kinematics_function(model), prefix,
+        f"forward kinematics: the pose q whose cable lengths are `lengths`, by {FK_ITERATIONS} "
+        f"Newton steps from q_guess (the previous pose), residual tolerance {FK_TOLERANCE:g} m"))
     return entries
 
 
@@ -523,7 +536,7 @@ def _entry(name: str, function: ca.Function, prefix: str, summary: str) -> _Entr
     def describe(index: int, is_input: bool) -> _CArgument:
         label = (function.name_in if is_input else function.name_out)(index)
         rows, cols = (function.size_in if is_input else function.size_out)(index)
-        documented = is_input or name in ("step", "initial_memory")
+        documented = is_input or name in ("step", "initial_memory", "forward_kinematics")
         return _CArgument(_C_NAMES.get(label, label), "in" if is_input else "out", rows * cols,
                           _ARGUMENT_DOCS.get(label, summary) if documented else summary,
                           matrix=(rows, cols) if rows > 1 and cols > 1 else None)
