@@ -158,6 +158,14 @@ def study_command(args: argparse.Namespace, out: Output) -> int:
         lines = [f"{name:<9} {design:<7} meets target {100 * row['meets_target']:5.1f} % "
                  f"(same pairs)" for name in ("aras3", "spatial4")
                  for design, row in value["same_pairs"][name].items()]
+    elif args.name == "robustness":
+        from cdpr_sym.studies.robustness import run_robustness_study
+
+        value = run_robustness_study(robot, folder, pairs=args.pairs, seed=args.seed,
+                                     progress=progress)
+        lines = [f"{design:<8} meets target: " + ", ".join(
+            f"{effect} {_percent(row[design]['meets_target'])}" for effect, row in value.items())
+            for design in next(iter(value.values()))]
     else:
         from cdpr_sym.studies.designs import run_designs_study
 
@@ -170,6 +178,11 @@ def study_command(args: argparse.Namespace, out: Output) -> int:
     out.result({"study": args.name, "report": str(folder / "report.md"), "result": value},
                [*lines, f"report: {folder / 'report.md'}"])
     return 0
+
+
+def _percent(value: float | None) -> str:
+    """A share as a percentage, or a dash when nothing was counted."""
+    return "–" if value is None else f"{100 * value:.1f} %"
 
 
 def check_workspace_args(args: argparse.Namespace) -> tuple[Robot, np.ndarray | None]:

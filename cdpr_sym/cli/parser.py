@@ -18,9 +18,10 @@ STUDY_REPORTS = {"paper": ("cdpr_sym.studies.paper", "write_paper_report"),
                  "compare": ("cdpr_sym.studies.compare", "write_compare_report"),
                  "designs": ("cdpr_sym.studies.designs", "write_designs_report"),
                  "rigid": ("cdpr_sym.studies.rigid", "write_rigid_report"),
-                 "redundant": ("cdpr_sym.studies.redundant", "write_redundant_report")}
+                 "redundant": ("cdpr_sym.studies.redundant", "write_redundant_report"),
+                 "robustness": ("cdpr_sym.studies.robustness", "write_robustness_report")}
 #: Studies whose report needs no stored runs (only their tables and JSON files).
-STUDIES_WITHOUT_RUNS = ("redundant",)
+STUDIES_WITHOUT_RUNS = ("redundant", "robustness")
 
 #: Most local worker processes of a sweep.
 MAX_WORKERS = 256
@@ -98,7 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
                      "appended to a name without it)")
 
     study = command("study", "run a study and write its report", progress=True)
-    study.add_argument("name", choices=["paper", "compare", "designs", "rigid", "redundant"],
+    study.add_argument("name", choices=["paper", "compare", "designs", "rigid", "redundant",
+                                          "robustness"],
                        help="the study")
     study.add_argument("--robot", help=f"{_ROBOT_HELP} (default aras3; the paper's claims are "
                        "about aras3, others are judged on their case; rigid: planar3 and "

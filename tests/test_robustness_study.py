@@ -1,0 +1,94 @@
+"""The robustness study: how it counts, and a small run end to end.
+
+The counting is checked on hand-made rows whose answer is known; the end-to-end run (slow)
+recounts the shares from the stored rows by their definition, checks the stored
+specification rebuilds each run's plant, and that the report is rebuilt from the files.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from cdpr_sym.as_built import AsBuilt
+from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.control import controller_by_name
+from cdpr_sym.studies import robustness
+
+
+def _row(effect, design, *, held=True, meets=False, status="ok", feasible=True, settle=1.0,
+         step=0.5, jump=0.0, stop=None):
+    return {"effect": effect, "design": design, "held": held, "meets_target": meets,
+            "status": status, "stop_reason": stop, "tension_feasible": feasible,
+            "settle_time": settle, "max_tension_step": step, "start_jump": jump}
+
+
+def test_shares_count_held_pairs_only_and_name_the_first_miss():
+    rows = [_row("ideal", "a", meets=True), _row("ideal", "a", meets=True),
+            _row("ideal", "a", held=False),  # excluded whatever it did
+            _row("ideal", "a", status="stopped", stop="left_frame", feasible=False),
+            _row("ideal", "a", feasible=False, settle=None),  # infeasible is named first
+            _row("ideal", "a", settle=None), _row("ideal", "a", step=3.0),
+            _row("ideal", "a", jump=2.0)]
+    table = robustness.summary(rows)["ideal"]["a"]
+    assert table["pairs"] == 8 and table["held"] == 7
+    assert table["meets_target"] == pytest.approx(2 / 7)
+    assert table["misses"] == {"stopped (left_frame)": 1, "tension outside the box": 1,
+                               "not within 1 cm by 5 s": 1, "tension step > 1 N": 1,
+                               "start jump > 1 N": 1}
+
+
+def test_an_effect_with_no_held_pair_has_no_share():
+    table = robustness.summary([_row("winches", "a", held=False)])
+    assert table["winches"]["a"]["meets_target"] is None
+
+
+def test_every_effect_draws_its_declared_plant(aras3):
+    rng = np.random.default_rng(1)
+    plants = {effect.name: effect.draw(rng, aras3) for effect in robustness.EFFECTS}
+    assert plants["mass +10 %"].mass_scale == pytest.approx(1.1)
+    assert plants["delay"].as_built.delay == 1
+    offsets = plants["anchors"].as_built.anchor_offsets
+    assert offsets.shape == (3, 3) and np.abs(offsets).max() <= 0.005
+    built = plants["as built"]
+    assert 0.9 <= built.mass_scale <= 1.1
+    assert built.as_built.actuation.torque_limit == pytest.approx(1.5 * 60.0 * 0.03)
+    assert built.as_built.sensing is not None and built.as_built.delay == 1
+
+
+@pytest.mark.slow
+def test_a_small_study_stores_what_its_report_says(aras3, tmp_path):
+    table = robustness.run_robustness_study(aras3, tmp_path, pairs=3, seed=5, progress=False)
+    rows = json.loads((tmp_path / "runs.json").read_text())
+    study = json.loads((tmp_path / "study.json").read_text())
+    assert len(rows) == 3 * len(robustness.EFFECTS) * len(robustness.DESIGNS)
+    for effect in robustness.EFFECTS:
+        for design in robustness.DESIGNS:
+            mine = [r for r in rows if r["effect"] == effect.name and r["design"] == design]
+            held = [r for r in mine if r["held"]]
+            expected = (sum(r["status"] == "ok" and r["tension_feasible"]
+                            and r["settle_time"] is not None and r["settle_time"] <= 5.0
+                            and r["max_tension_step"] <= 1.0
+                            and (r["start_jump"] or 0.0) <= 1.0 for r in held) / len(held)
+                        if held else None)
+            assert table[effect.name][design]["meets_target"] == expected
+    # the stored specification rebuilds a run: the as-built effect's last pair, re-run
+    spec = study["effects"]["as built"]["plants"][2]["as_built"]
+    plant = Plant(mass_scale=study["effects"]["as built"]["plants"][2]["mass_scale"],
+                  as_built=AsBuilt(delay=spec["delay"], substeps=spec["substeps"],
+                                   anchor_offsets=np.array(spec["anchor_offsets"]),
+                                   actuation=robustness._winches(aras3),
+                                   sensing=robustness.Sensing()))
+    simulator = get_simulator(aras3, controller_by_name("smooth"),
+                              as_built=plant.as_built.structure())
+    run = simulator.run(np.array(study["starts"][2]), np.array(study["goals"][2]), aras3.k,
+                        aras3.r_d, duration=study["duration"], dt=study["dt"], plant=plant)
+    stored = next(r for r in rows if r["effect"] == "as built" and r["design"] == "smooth"
+                  and r["pair"] == 2)
+    assert run.metrics()["final_error"] == pytest.approx(stored["final_error"], rel=1e-9)
+    (tmp_path / "report.md").unlink()
+    robustness.write_robustness_report(tmp_path)
+    report = (tmp_path / "report.md").read_text()
+    assert "| smooth |" in report and (tmp_path / "shares.png").stat().st_size > 1000
