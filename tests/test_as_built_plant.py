@@ -100,6 +100,7 @@ def test_a_pose_that_cannot_be_read_stops_the_run(aras3, build_options):
     assert len(run.t) == 1
 
 
+@pytest.mark.slow
 def test_four_substeps_agree_with_sixty_four(aras3, build_options):
     drive = Actuation(cable_damping=40.0)
     runs = [simulate(aras3, "smooth", duration=1.0, build_options=build_options,
