@@ -133,3 +133,44 @@ def test_offsets_of_the_wrong_shape_are_refused_before_a_run(aras3, build_option
     with pytest.raises(InvalidCase) as raised:
         simulate(aras3, "smooth", duration=0.1, build_options=build_options, plant=plant)
     assert raised.value.field == "anchor_offsets"
+
+
+def test_a_robot_with_more_cables_reads_its_pose_despite_stretch_and_anchor_errors(
+        rng, build_options):
+    """m > n: the readings of stretched cables and moved anchors fit no pose exactly; the
+    least-squares pose is still read (within ``Sensing.consistency``) and the move settles."""
+    from cdpr_sym import preset
+    robot = preset("planar4")
+    spec = AsBuilt(sensing=Sensing(), actuation=Actuation(cable_damping=40.0),
+                   anchor_offsets=rng.uniform(-0.005, 0.005, (robot.m, robot.dimension)))
+    run = simulate(robot, "smooth", duration=3.0, build_options=build_options,
+                   plant=Plant(as_built=spec))
+    assert run.stop_reason is None
+    assert run.metrics()["settle_time"] is not None
+    strict = AsBuilt(sensing=Sensing(consistency=0.0), anchor_offsets=spec.anchor_offsets)
+    lost = simulate(robot, "smooth", duration=0.1, build_options=build_options,
+                    plant=Plant(as_built=strict))
+    assert lost.stop_reason == "lost_pose"
+
+
+def test_the_first_velocity_read_at_rest_is_only_rounding(aras3, rng, build_options):
+    """Before the move the encoders already read the (offset) pose, so at rest the first
+    velocity estimate is rounding noise, not the pose error over one period."""
+    plant = Plant(as_built=AsBuilt(sensing=Sensing(),
+                                   anchor_offsets=rng.uniform(-0.005, 0.005, (3, 3))))
+    x, _, _ = _rollout(aras3, "smooth", plant, build_options, steps=5, goal=aras3.start)
+    assert np.max(np.abs(x["dq_read"][1])) <= 1e-5 / 1e-3
+
+
+def test_batched_and_continuous_time_runs_refuse_an_as_built_plant(aras3, build_options):
+    from cdpr_sym.closed_loop import run_many, simulate_adaptive
+    plant = Plant(as_built=AsBuilt(delay=1))
+    simulator = get_simulator(aras3, controller_by_name("smooth"), build_options=build_options,
+                              as_built=plant.as_built.structure())
+    with pytest.raises(InvalidCase) as raised:
+        run_many(simulator, [aras3.start], [aras3.goal], aras3.k, aras3.r_d, duration=0.1,
+                 dt=1e-3, plant=plant)
+    assert raised.value.field == "plant"
+    with pytest.raises(InvalidCase) as raised:
+        simulate_adaptive(aras3, "pd", duration=0.1, plant=plant)
+    assert raised.value.field == "plant"

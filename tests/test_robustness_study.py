@@ -56,6 +56,7 @@ def test_every_effect_draws_its_declared_plant(aras3):
     assert 0.9 <= built.mass_scale <= 1.1
     assert built.as_built.actuation.torque_limit == pytest.approx(1.5 * 60.0 * 0.03)
     assert built.as_built.sensing is not None and built.as_built.delay == 1
+    assert plants["as built, damped"].as_built.actuation.cable_damping == robustness.DAMPED
 
 
 @pytest.mark.slow

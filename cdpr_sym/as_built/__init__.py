@@ -9,6 +9,7 @@ from cdpr_sym.as_built.spec import (
     ACTUATION_PARAMETERS,
     FRICTION_SPEED,
     MAX_DELAY,
+    SENSING_PARAMETERS,
     Actuation,
     AsBuilt,
     AsBuiltStructure,
@@ -16,5 +17,5 @@ from cdpr_sym.as_built.spec import (
 )
 from cdpr_sym.as_built.static import true_static_function
 
-__all__ = ["ACTUATION_PARAMETERS", "FRICTION_SPEED", "MAX_DELAY", "Actuation", "AsBuilt",
-           "AsBuiltStructure", "Sensing", "true_static_function"]
+__all__ = ["ACTUATION_PARAMETERS", "FRICTION_SPEED", "MAX_DELAY", "SENSING_PARAMETERS",
+           "Actuation", "AsBuilt", "AsBuiltStructure", "Sensing", "true_static_function"]

@@ -33,6 +33,11 @@ from cdpr_sym.errors import InvalidCase
 FRICTION_SPEED = 0.1
 
 
+def _whole(value: object) -> bool:
+    """Whether ``value`` is an integer (numpy's too), not a bool."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
 def _positive(field: str, value: float, unit: str, *, zero: bool = False) -> None:
     """Raise :class:`InvalidCase` naming ``field`` unless ``value`` is finite and positive
     (or zero, when ``zero``)."""
@@ -134,18 +139,31 @@ class Sensing:
         2 pi 0.03 / (4096 * 5) = 9.2e-6 m per count.
     velocity_cutoff : float
         Cut-off of the velocity filter, Hz; default 50 Hz.
+    consistency : float
+        With more cables than degrees of freedom, the largest misfit max_i |l_i(q) - read_i|
+        (m) of the least-squares pose that still counts as read, beyond the rounding. The
+        readings of a real robot disagree with the model's geometry by the cables' stretch
+        (T l / EA: 2.4 mm for 60 N on 4 m of the default cable) and the anchor errors.
+        Default 0.01 m; a larger misfit means a broken reading and stops the run.
     """
 
     resolution: float = 1e-5
     velocity_cutoff: float = 50.0
+    consistency: float = 0.01
 
     def __post_init__(self) -> None:
         _positive("resolution", self.resolution, "m", zero=True)
         _positive("velocity_cutoff", self.velocity_cutoff, "Hz")
+        _positive("consistency", self.consistency, "m", zero=True)
 
     def parameters(self) -> list[float]:
-        """The numbers the generated step reads: resolution (m), cut-off (Hz)."""
-        return [self.resolution, self.velocity_cutoff]
+        """The numbers the generated step reads: resolution (m), cut-off (Hz), consistency
+        (m); see :data:`SENSING_PARAMETERS`."""
+        return [self.resolution, self.velocity_cutoff, self.consistency]
+
+
+#: The order of :meth:`Sensing.parameters` in the step's parameter vector.
+SENSING_PARAMETERS = ("resolution", "velocity_cutoff", "consistency")
 
 
 #: Longest command delay, control periods (each a state of the generated step per cable).
@@ -194,13 +212,15 @@ class AsBuilt:
     substeps: int = 4
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.delay, int) and 0 <= self.delay <= MAX_DELAY):
+        if not (_whole(self.delay) and 0 <= self.delay <= MAX_DELAY):
             raise InvalidCase("delay", f"expected a whole number of control periods in "
                               f"0..{MAX_DELAY}, got {self.delay!r}")
         low, high = SUBSTEP_RANGE
-        if not (isinstance(self.substeps, int) and low <= self.substeps <= high):
+        if not (_whole(self.substeps) and low <= self.substeps <= high):
             raise InvalidCase("substeps", f"expected a whole number in {low}..{high}, "
                               f"got {self.substeps!r}")
+        object.__setattr__(self, "delay", int(self.delay))
+        object.__setattr__(self, "substeps", int(self.substeps))
         if self.anchor_offsets is not None:
             offsets = np.asarray(self.anchor_offsets, dtype=float)
             if offsets.ndim != 2 or not np.isfinite(offsets).all():

@@ -82,6 +82,8 @@ def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=
     n_steps = check_timing(duration, dt)
     if plant.rate_limited:
         raise InvalidCase("plant", "the continuous-time cross-check has no rate-limited plant")
+    if plant.as_built is not None:
+        raise InvalidCase("plant", "the continuous-time cross-check has no as-built plant")
     if controller.memory_size(model):
         raise InvalidCase("controller", f"{controller.name} has an internal state updated at "
                           "the control rate; the continuous-time cross-check does not apply")

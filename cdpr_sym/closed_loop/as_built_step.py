@@ -27,7 +27,7 @@ import casadi as ca
 
 from cdpr_sym.as_built import actuation
 from cdpr_sym.as_built.geometry import true_geometry_function
-from cdpr_sym.as_built.spec import ACTUATION_PARAMETERS, AsBuiltStructure
+from cdpr_sym.as_built.spec import ACTUATION_PARAMETERS, SENSING_PARAMETERS, AsBuiltStructure
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import rk4
 from cdpr_sym.closed_loop.step import STOP_CODES, crossed_singularity, singular_flag
@@ -53,7 +53,7 @@ def as_built_layout(model: SymbolicModel, controller: Controller,
     if structure.actuation:
         plant_p.append(("actuation", len(ACTUATION_PARAMETERS)))
     if structure.sensing:
-        plant_p.append(("sensing", 2))
+        plant_p.append(("sensing", len(SENSING_PARAMETERS)))
     if structure.anchors:
         plant_p.append(("anchor_offsets", m * model.robot.dimension))
     return StepLayout(n, model.n_j, controller.memory_size(model), False,
@@ -181,20 +181,28 @@ class _PlantDynamics:
         return self.lengths(z[:n])[0]
 
 
+def reading_bound(n: int, m: int, resolution, consistency):
+    """The largest misfit max_i |l_i(q) - read_i| (m) of a pose read from encoders: round-off
+    for m = n (some pose has exactly these lengths); for m > n half a count per cable (see
+    :func:`~cdpr_sym.model.forward_kinematics.quantisation_tolerance`) plus ``consistency``.
+    Numbers or CasADi expressions."""
+    if m == n:
+        return FK_TOLERANCE
+    return FK_TOLERANCE + math.sqrt(m) * resolution / 2 + consistency
+
+
 def _sense(model: SymbolicModel, plant: _PlantDynamics, z: ca.SX, state: dict[str, ca.SX],
            sensing: ca.SX, dt: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
     """(q read, dq read, pose ok) from quantised encoder lengths: forward kinematics from
     the previous estimate, velocity by a first-order filtered difference."""
-    resolution, cutoff = sensing[0], sensing[1]
+    resolution, cutoff, consistency = sensing[0], sensing[1], sensing[2]
     exact = plant.encoder_lengths(z)
     step = ca.fmax(resolution, 1e-300)
     read = ca.if_else(resolution > 0, step * ca.floor(exact / step + 0.5), exact)
-    # the residual bound of quantised lengths: round-off for m = n (some pose has exactly
-    # these lengths), half a count per cable for m > n (see quantisation_tolerance)
+    # the solver's own residual test is left wide open: reading_bound decides
     q_read, ok, residual = forward_kinematics_expression(model, read, state["q_read"],
                                                          tolerance=1.0)
-    bound = FK_TOLERANCE + (0 if model.m == model.n else math.sqrt(model.m) * resolution / 2)
-    ok = ca.logic_and(ok, residual <= bound)
+    ok = ca.logic_and(ok, residual <= reading_bound(model.n, model.m, resolution, consistency))
     keep = ca.exp(-2 * math.pi * cutoff * dt)
     dq_read = keep * state["dq_read"] + (1 - keep) * (q_read - state["q_read"]) / dt
     return q_read, dq_read, ok

@@ -191,5 +191,8 @@ def _checked(simulator: Simulator, starts: Sequence, goals: Sequence, duration: 
         raise InvalidCase("starts", f"expected starts and goals of shape (runs, "
                           f"{simulator.robot.n}), got {starts.shape} and {goals.shape}")
     simulator.check_plant(plant)
+    if plant.as_built is not None:
+        raise InvalidCase("plant", "batched runs simulate the ideal plant; run an as-built "
+                          "plant with simulate() or Simulator.run")
     n_steps = check_timing(duration, dt, values_per_step=simulator.values_per_step)
     return starts, goals, n_steps

@@ -21,12 +21,13 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.as_built import AsBuiltStructure, true_static_function
+from cdpr_sym.as_built import AsBuiltStructure, Sensing, true_static_function
 from cdpr_sym.as_built.geometry import true_geometry_function
 from cdpr_sym.closed_loop.as_built_step import (
     PLANT_STOP_REASONS,
     as_built_layout,
     as_built_step_function,
+    reading_bound,
 )
 from cdpr_sym.closed_loop.case import Case, check_timing, minimal_values_per_step
 from cdpr_sym.closed_loop.layout import StepLayout
@@ -49,6 +50,7 @@ from cdpr_sym.control import (
 )
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.model.forward_kinematics import forward_kinematics_function
 from cdpr_sym.results import Trajectory
 from cdpr_sym.robot import Robot, resolve_robot
 
@@ -133,6 +135,7 @@ class Simulator:
             self.step = as_built_step_function(self.model, controller, as_built)
             self._true_static = true_static_function(self.model)
             self._true_geometry = true_geometry_function(robot)
+            self._forward_kinematics = forward_kinematics_function(self.model, tolerance=1.0)
         self.law = law_function(self.model, controller)
         self.initial_memory = initial_memory_function(self.model, controller)
         self.backend = build_options.resolved_backend()
@@ -204,17 +207,31 @@ class Simulator:
         structure, spec = self.as_built, plant.as_built
         tension = self._static_tension(start)
         fields: dict[str, object] = {"pending": np.tile(tension, structure.delay)}
+        lengths, _ = self._true_geometry(start, _anchor_offsets(self.robot, plant))
+        reading = np.array(lengths).ravel()
         if structure.actuation:
             drive = spec.actuation
-            lengths, _ = self._true_geometry(start, _anchor_offsets(self.robot, plant))
-            # stretched to carry the tension: l = l0 (1 + T / EA)
-            fields.update(payout=np.array(lengths).ravel() / (1 + tension
-                                                                / drive.cable_stiffness),
-                          drum_speed=np.zeros(self.robot.m),
+            # stretched to carry the tension: l = l0 (1 + T / EA); the encoders read l0
+            reading = reading / (1 + tension / drive.cable_stiffness)
+            fields.update(payout=reading, drum_speed=np.zeros(self.robot.m),
                           motor_torque=drive.drum_radius * tension)
         if structure.sensing:
-            fields.update(q_read=start, dq_read=dq0)
+            # what the encoders read before the move, so the first velocity estimate
+            # compares like with like (the estimate is off by stretch and anchor errors)
+            fields.update(q_read=self._read_pose(reading, start, spec.sensing), dq_read=dq0)
         return fields
+
+    def _read_pose(self, reading: np.ndarray, start: np.ndarray, sensing: Sensing
+                   ) -> np.ndarray:
+        """The pose forward kinematics gives for encoder ``reading`` (m), rounded to the
+        resolution, from ``start``; ``start`` itself when no pose fits (the first step then
+        flags it)."""
+        if sensing.resolution > 0:
+            reading = sensing.resolution * np.floor(reading / sensing.resolution + 0.5)
+        q, ok, residual = self._forward_kinematics(reading, start)
+        bound = reading_bound(self.robot.n, self.robot.m, sensing.resolution,
+                              sensing.consistency)
+        return np.array(q).ravel() if float(ok) > 0.5 and float(residual) <= bound else start
 
     def rollout(self, x0: np.ndarray, p: np.ndarray, n_steps: int
                 ) -> tuple[np.ndarray, np.ndarray]:
