@@ -12,13 +12,12 @@ feasible.
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import numpy as np
 
 from benchmarks.peers.timing import pin_to_one_core
-from benchmarks.tables import one_core_run, publish
+from benchmarks.tables import best_seconds, one_core_run, publish
 from cdpr_sym import SymbolicModel, preset
 from cdpr_sym.codegen import build
 from cdpr_sym.distribution import distribution_function, min_norm_reference
@@ -57,7 +56,7 @@ def measure(name: str, method: str) -> dict[str, float]:
     tau, held = np.empty(CALLS * robot.m), np.empty(CALLS)
     native.bind([W_in, w_in], [tau, held])
     native()
-    best = min(_seconds(native) for _ in range(5)) / CALLS
+    best = best_seconds(native) / CALLS
     tau = tau.reshape(CALLS, robot.m)
     reference, gaps, qp_held, both = [], [], 0, 0
     for index in range(REFERENCE_CALLS):
@@ -71,11 +70,6 @@ def measure(name: str, method: str) -> dict[str, float]:
             "held": float(held.mean()), "qp_held": qp_held / REFERENCE_CALLS,
             "found": both / max(qp_held, 1), "largest_gap_n": max(gaps) if gaps else None}
 
-
-def _seconds(call) -> float:
-    start = time.perf_counter()
-    call()
-    return time.perf_counter() - start
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -13,13 +13,12 @@ residual and the worst pose error of those (against the drawn pose), and the C s
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import numpy as np
 
 from benchmarks.peers.timing import pin_to_one_core
-from benchmarks.tables import one_core_run, publish
+from benchmarks.tables import best_seconds, one_core_run, publish
 from cdpr_sym import SymbolicModel, preset
 from cdpr_sym.codegen import build
 from cdpr_sym.model import FK_ITERATIONS, forward_kinematics_function
@@ -60,7 +59,7 @@ def measure(name: str) -> dict[str, float]:
     native.bind([np.ascontiguousarray(lengths.ravel()), np.ascontiguousarray(guesses.ravel())],
                 [q, ok, residual])
     native()
-    best = min(_seconds(native) for _ in range(5)) / SOLVES
+    best = best_seconds(native) / SOLVES
     flagged = ok > 0.5
     error = np.abs(q.reshape(SOLVES, robot.n) - poses).max(axis=1)
     return {"n": robot.n, "m": robot.m, "us": best * 1e6, "ok": float(flagged.mean()),
@@ -77,11 +76,6 @@ def _largest_measure(model: SymbolicModel, poses: np.ndarray) -> float | None:
     measures = model.functions["singularity"].map(len(poses))(poses.T)[1, :]
     return float(np.max(np.array(measures)))
 
-
-def _seconds(call) -> float:
-    start = time.perf_counter()
-    call()
-    return time.perf_counter() - start
 
 
 def main(argv: list[str] | None = None) -> int:

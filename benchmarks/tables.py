@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import platform
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 
@@ -18,3 +20,13 @@ def publish(path: Path, lines: list[str]) -> None:
     text = "\n".join(lines) + "\n"
     path.write_text(text)
     print(text)
+
+
+def best_seconds(call: Callable[[], object], rounds: int = 5) -> float:
+    """The shortest wall-clock time of ``rounds`` calls of ``call``, s."""
+    best = float("inf")
+    for _ in range(rounds):
+        start = time.perf_counter()
+        call()
+        best = min(best, time.perf_counter() - start)
+    return best
