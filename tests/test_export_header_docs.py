@@ -119,9 +119,9 @@ def test_every_argument_of_a_model_function_has_its_own_words(header):
     # an argument without its own entry would repeat the function's one-line summary
     functions = list(re.finditer(r"/\* (.+?)\.\n \* \d+ straight-line operations(.*?)\*/",
                                  header, re.S))
-    # every generated function but _control states its operation count: step, the planner
-    # and the 17 model terms
-    assert len(functions) == 19
+    # every generated function but _control states its operation count: step, the planner,
+    # the 17 model terms and forward kinematics
+    assert len(functions) == 20
     for function in functions:
         summary, arguments = function.group(1), function.group(2)
         summary = re.sub(r"\s*\n \*\s*", " ", summary)[:40]  # its opening words, one line
