@@ -68,7 +68,7 @@ def _geometry(robot, offsets):
     return lengths, energy
 
 
-@pytest.mark.parametrize("name", ["aras3", "planar3"])
+@pytest.mark.parametrize("name", ["aras3", pytest.param("planar3", marks=pytest.mark.slow)])
 def test_energy_balance_closes(name, request, rng, build_options):
     robot = request.getfixturevalue(name)
     drive = Actuation(torque_limit=0.8 * robot.t_max * 0.03, cable_damping=40.0)

@@ -32,7 +32,7 @@ def _rollout(robot, controller, plant, build_options, *, dt=1e-3, steps=400, goa
     return (simulator.layout.x.split(states), simulator.layout.log.split(logs), simulator)
 
 
-@pytest.mark.parametrize("name", ["aras3", "planar3"])
+@pytest.mark.parametrize("name", ["aras3", pytest.param("planar3", marks=pytest.mark.slow)])
 def test_nothing_on_is_the_ideal_plant(name, request, build_options):
     robot = request.getfixturevalue(name)
     ideal = simulate(robot, "smooth", duration=1.0, build_options=build_options)
