@@ -77,7 +77,6 @@ def _largest_measure(model: SymbolicModel, poses: np.ndarray) -> float | None:
     return float(np.max(np.array(measures)))
 
 
-
 def main(argv: list[str] | None = None) -> int:
     argparse.ArgumentParser(description=__doc__).parse_args(argv)
     pin_to_one_core(0)

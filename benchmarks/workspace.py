@@ -12,13 +12,12 @@ from __future__ import annotations
 
 import argparse
 import math
-import time
 from pathlib import Path
 
 import numpy as np
 
 from benchmarks.peers.timing import pin_to_one_core
-from benchmarks.tables import one_core_run, publish
+from benchmarks.tables import best_seconds, one_core_run, publish
 from cdpr_sym.robot import PRESET_NAMES, preset
 from cdpr_sym.studies.redundant import wrench_box
 from cdpr_sym.workspace import WorkspaceEvaluator, WrenchEvaluator, interior_box
@@ -28,12 +27,8 @@ OUT = Path(__file__).resolve().parents[1] / "reports" / "bench" / "workspace.md"
 
 
 def _rate(call, count: int) -> float:
-    best = math.inf
-    for _ in range(3):
-        start = time.perf_counter()
-        call()
-        best = min(best, time.perf_counter() - start)
-    return count / best
+    """Calls per second of ``call`` handling ``count`` items, best of 3."""
+    return count / best_seconds(call, rounds=3)
 
 
 def measure(name: str) -> dict[str, float]:

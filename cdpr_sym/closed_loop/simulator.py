@@ -14,7 +14,6 @@ import ctypes
 import dataclasses
 import hashlib
 import json
-import weakref
 from pathlib import Path
 from typing import Any
 
@@ -52,7 +51,7 @@ from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.model.forward_kinematics import forward_kinematics_function
 from cdpr_sym.results import Trajectory
-from cdpr_sym.robot import Robot, resolve_robot
+from cdpr_sym.robot import Robot, resolve_robot, robot_key
 
 
 class _Rollout:
@@ -406,17 +405,6 @@ def controller_identifier(controller: Controller) -> str:
 
 
 _SIMULATORS: dict[tuple, Simulator] = {}
-#: Each robot's description as JSON, kept while the (frozen) robot lives: serialising it
-#: at every lookup cost 0.17 ms per run.
-_ROBOT_KEYS: weakref.WeakKeyDictionary[Robot, str] = weakref.WeakKeyDictionary()
-
-
-def _robot_key(robot: Robot) -> str:
-    """The robot's description as JSON: equal robots share simulators."""
-    key = _ROBOT_KEYS.get(robot)
-    if key is None:
-        key = _ROBOT_KEYS[robot] = json.dumps(robot.as_dict(), sort_keys=True)
-    return key
 
 
 def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
@@ -443,7 +431,7 @@ def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
     Simulator
         Built (and compiled) on first use, then shared.
     """
-    key = (_robot_key(robot), controller, chunk, build_options,
+    key = (robot_key(robot), controller, chunk, build_options,
            build_options.resolved_backend(), rate_limited, as_built)
     if key not in _SIMULATORS:
         _SIMULATORS[key] = Simulator(robot, controller, chunk=chunk,

@@ -56,7 +56,7 @@ import numpy.typing as npt
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model.kinematics import SINGULAR_DET
 from cdpr_sym.model.symbolic import SymbolicModel
-from cdpr_sym.robot import Robot, resolve_robot
+from cdpr_sym.robot import Robot, resolve_robot, robot_key
 
 #: Newton iterations unrolled in the generated solver (from the previous pose at 1 kHz).
 #: Measured on 2,000 random poses of each preset's frame shrunk by 10 % (near-singular ones
@@ -274,7 +274,7 @@ def forward_kinematics(robot: Robot | str, lengths: npt.ArrayLike,
     robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
     lengths = _numeric_vector("lengths", lengths, robot.m)
     q_guess = robot.start if q_guess is None else _numeric_vector("q_guess", q_guess, robot.n)
-    key = (_description(robot), iterations, tolerance, step_tolerance)
+    key = (robot_key(robot), iterations, tolerance, step_tolerance)
     if key not in _FUNCTIONS:
         _FUNCTIONS[key] = forward_kinematics_function(
             SymbolicModel(robot), iterations=iterations, tolerance=tolerance,
@@ -282,10 +282,6 @@ def forward_kinematics(robot: Robot | str, lengths: npt.ArrayLike,
     q, ok, residual = _FUNCTIONS[key](lengths, q_guess)
     return ForwardKinematicsResult(q=np.array(q.full()).ravel(), ok=bool(float(ok) > 0.5),
                                    residual=float(residual))
-
-
-def _description(robot: Robot) -> str:
-    return repr(sorted(robot.as_dict().items()))
 
 
 def _finite(x: ca.SX) -> ca.SX:

@@ -4,8 +4,14 @@ This is the first room of the flow and knows no CasADi: :class:`Robot` validates
 with numpy, :func:`load_robot` reads the TOML layout, :func:`preset` the bundled robots.
 """
 
-from cdpr_sym.robot.description import COORDINATES, PITCH_LIMIT, WRENCH_FIELDS, Robot
+from cdpr_sym.robot.description import (
+    COORDINATES,
+    PITCH_LIMIT,
+    WRENCH_FIELDS,
+    Robot,
+    robot_key,
+)
 from cdpr_sym.robot.files import PRESET_NAMES, load_robot, preset, resolve_robot, robot_from_dict
 
 __all__ = ["COORDINATES", "PITCH_LIMIT", "PRESET_NAMES", "WRENCH_FIELDS", "Robot",
-           "load_robot", "preset", "resolve_robot", "robot_from_dict"]
+           "load_robot", "preset", "resolve_robot", "robot_from_dict", "robot_key"]

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import dataclasses
 import html
+import json
+import weakref
 from typing import Any
 
 import numpy as np
@@ -423,3 +425,17 @@ def _float_scalar(field: str, value: Any) -> float:
 
 def _set(robot: Robot, field: str, value: Any) -> None:
     object.__setattr__(robot, field, value)
+
+
+#: Each robot's description as JSON, kept while the (frozen) robot lives: serialising it
+#: at every simulator lookup cost 0.17 ms per run.
+_DESCRIPTIONS: weakref.WeakKeyDictionary[Robot, str] = weakref.WeakKeyDictionary()
+
+
+def robot_key(robot: Robot) -> str:
+    """The robot's description as JSON (sorted keys): equal robots have equal keys, so
+    functions and simulators built for one serve the other."""
+    key = _DESCRIPTIONS.get(robot)
+    if key is None:
+        key = _DESCRIPTIONS[robot] = json.dumps(robot.as_dict(), sort_keys=True)
+    return key
