@@ -30,13 +30,18 @@ from cdpr_sym.as_built.geometry import true_geometry_function
 from cdpr_sym.as_built.spec import ACTUATION_PARAMETERS, SENSING_PARAMETERS, AsBuiltStructure
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import rk4
-from cdpr_sym.closed_loop.step import STOP_CODES, crossed_singularity, singular_flag
+from cdpr_sym.closed_loop.step import stop_status
 from cdpr_sym.control import Controller
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.model.forward_kinematics import FK_TOLERANCE, forward_kinematics_expression
 
+#: The winch states of an as-built plant with actuation: payout r theta (m), drum speed
+#: (rad/s), motor torque (N m), each per cable.
+DRIVE_FIELDS = ("payout", "drum_speed", "motor_torque")
+#: The stop status of a pose the encoders cannot give.
+LOST_POSE = 4
 #: Stop statuses only an as-built plant raises (beside :data:`STOP_REASONS`).
-PLANT_STOP_REASONS = {4: "lost_pose"}
+PLANT_STOP_REASONS = {LOST_POSE: "lost_pose"}
 
 
 def as_built_layout(model: SymbolicModel, controller: Controller,
@@ -45,7 +50,7 @@ def as_built_layout(model: SymbolicModel, controller: Controller,
     n, m = model.n, model.m
     plant_x = []
     if structure.actuation:  # drum payout r theta (m), drum speed (rad/s), motor torque
-        plant_x += [("payout", m), ("drum_speed", m), ("motor_torque", m)]
+        plant_x += [(name, m) for name in DRIVE_FIELDS]
     plant_x.append(("pending", structure.delay * m))
     if structure.sensing:
         plant_x += [("q_read", n), ("dq_read", n)]
@@ -66,7 +71,7 @@ def as_built_step_function(model: SymbolicModel, controller: Controller,
     """One control period on the as-built plant: (x, p) -> (x_next, log), laid out by
     :func:`as_built_layout`; once the status is non-zero the state is frozen."""
     layout = as_built_layout(model, controller, structure)
-    n, m = model.n, model.m
+    m = model.m
     x, p = ca.SX.sym("x", layout.x.size), ca.SX.sym("p", layout.p.size)
     state, par = layout.x.split(x), layout.p.split(p)
     q, dq, status = state["q"], state["dq"], state["status"]
@@ -77,7 +82,7 @@ def as_built_step_function(model: SymbolicModel, controller: Controller,
     plant = _PlantDynamics(model, geometry, offsets, par, structure)
     z = plant.pack(state)
 
-    q_read, dq_read, pose_ok = q, dq, 1
+    q_read, dq_read, pose_ok = q, dq, None
     if structure.sensing:
         q_read, dq_read, pose_ok = _sense(model, plant, z, state, par["sensing"], dt)
     law, memory_next = controller.step(model, q_read, dq_read, par["q_goal"], par["k"],
@@ -90,18 +95,9 @@ def as_built_step_function(model: SymbolicModel, controller: Controller,
     z_next = z
     for _ in range(structure.substeps):
         z_next = rk4(lambda zz: plant.rhs(zz, command), z_next, h)
-    q_next = z_next[:n]
 
-    singular = ca.logic_or(singular_flag(law.flags), crossed_singularity(model, q, q_next))
-    finite = ca.sum1(ca.fabs(ca.vertcat(z_next, law.tau)) <= 1e300) > z.numel() + m - 0.5
-    lower, upper = model.robot.frame_lower, model.robot.frame_upper
-    outside = ca.sum1(q_next < lower) + ca.sum1(q_next > upper) > 0
-    new_status = ca.if_else(
-        status != 0, status,
-        ca.if_else(pose_ok < 0.5, 4,
-                   ca.if_else(singular, STOP_CODES["singular"],
-                              ca.if_else(ca.logic_not(finite), STOP_CODES["non_finite"],
-                                         ca.if_else(outside, STOP_CODES["left_frame"], 0)))))
+    lost = ((pose_ok < 0.5, LOST_POSE),) if structure.sensing else ()
+    new_status = stop_status(model, status, law.flags, law.tau, q, z_next, earlier=lost)
     stopped = new_status != 0
 
     def keep(old: ca.SX, new: ca.SX) -> ca.SX:
@@ -109,12 +105,9 @@ def as_built_step_function(model: SymbolicModel, controller: Controller,
 
     parts = {"q": q, "dq": dq, "memory": state["memory"], "pending": pending,
              "applied": state["applied"]}  # empty: no rate limit on an as-built plant
-    moved = {"q": z_next[:n], "dq": z_next[n:2 * n], "memory": memory_next,
-             "pending": pending_next, "applied": state["applied"]}
-    if structure.actuation:
-        for index, name in enumerate(("payout", "drum_speed", "motor_torque")):
-            parts[name] = state[name]
-            moved[name] = z_next[2 * n + index * m: 2 * n + (index + 1) * m]
+    moved = {**plant.split(z_next), "memory": memory_next, "pending": pending_next,
+             "applied": state["applied"]}
+    parts.update({name: state[name] for name in plant.fields()})
     if structure.sensing:
         parts.update(q_read=state["q_read"], dq_read=state["dq_read"])
         moved.update(q_read=q_read, dq_read=dq_read)
@@ -137,10 +130,22 @@ class _PlantDynamics:
 
     def pack(self, state: dict[str, ca.SX]) -> ca.SX:
         """z from the step's state fields."""
-        parts = [state["q"], state["dq"]]
-        if self.actuation is not None:
-            parts += [state["payout"], state["drum_speed"], state["motor_torque"]]
-        return ca.vertcat(*parts)
+        return ca.vertcat(*(state[name] for name in self.fields()))
+
+    def fields(self) -> tuple[str, ...]:
+        """The step's state fields z is made of, in order."""
+        if self.actuation is None:
+            return ("q", "dq")
+        return ("q", "dq", *DRIVE_FIELDS)
+
+    def split(self, z: ca.SX) -> dict[str, ca.SX]:
+        """z's parts by state field name."""
+        n, m = self.model.n, self.model.m
+        parts, start = {}, 0
+        for name in self.fields():
+            size = n if name in ("q", "dq") else m
+            parts[name], start = z[start: start + size], start + size
+        return parts
 
     def lengths(self, q: ca.SX) -> tuple[ca.SX, ca.SX]:
         """True cable lengths (m) and their Jacobian dl/dq."""
@@ -148,26 +153,29 @@ class _PlantDynamics:
 
     def tension(self, z: ca.SX, command: ca.SX) -> ca.SX:
         """The true cable tension at z, N."""
-        n, m = self.model.n, self.model.m
         if self.actuation is None:
             return ca.fmax(command, 0)
-        lengths, jacobian = self.lengths(z[:n])
-        radius = self.actuation[ACTUATION_PARAMETERS.index("drum_radius")]
-        payout, speed = z[2 * n: 2 * n + m], z[2 * n + m: 2 * n + 2 * m]
-        return actuation.cable_tension(lengths, jacobian @ z[n:2 * n], payout, radius * speed,
-                                       self.actuation)
+        return self._stretch_tension(self.split(z), *self.lengths(z[: self.model.n]))
+
+    def _stretch_tension(self, parts: dict[str, ca.SX], lengths: ca.SX, jacobian: ca.SX
+                         ) -> ca.SX:
+        """The tension of the elastic cables (N) at the state ``parts``."""
+        radius = actuation.named(self.actuation)["drum_radius"]
+        return actuation.cable_tension(lengths, jacobian @ parts["dq"], parts["payout"],
+                                       radius * parts["drum_speed"], self.actuation)
 
     def rhs(self, z: ca.SX, command: ca.SX) -> ca.SX:
         """dz/dt with the tension command (N) held."""
-        n, m = self.model.n, self.model.m
-        q, dq = z[:n], z[n:2 * n]
-        _, jacobian = self.lengths(q)
-        tension = self.tension(z, command)
+        parts = self.split(z)
+        q, dq = parts["q"], parts["dq"]
+        lengths, jacobian = self.lengths(q)
+        tension = (ca.fmax(command, 0) if self.actuation is None
+                   else self._stretch_tension(parts, lengths, jacobian))
         ddq = self.model.acceleration_from_force(q, dq, -jacobian.T @ tension, self.mass_scale)
         if self.actuation is None:
             return ca.vertcat(dq, ddq)
-        radius = self.actuation[ACTUATION_PARAMETERS.index("drum_radius")]
-        speed, torque = z[2 * n + m: 2 * n + 2 * m], z[2 * n + 2 * m:]
+        speed, torque = parts["drum_speed"], parts["motor_torque"]
+        radius = actuation.named(self.actuation)["drum_radius"]
         return ca.vertcat(dq, ddq, radius * speed,
                           actuation.drum_acceleration(tension, speed, torque, self.actuation),
                           actuation.torque_rate(torque, command, self.actuation))
@@ -175,10 +183,9 @@ class _PlantDynamics:
     def encoder_lengths(self, z: ca.SX) -> ca.SX:
         """What the encoders measure, m: the paid-out length with winches, else the true
         geometric length."""
-        n, m = self.model.n, self.model.m
         if self.actuation is not None:
-            return z[2 * n: 2 * n + m]
-        return self.lengths(z[:n])[0]
+            return self.split(z)["payout"]
+        return self.lengths(z[: self.model.n])[0]
 
 
 def reading_bound(n: int, m: int, resolution, consistency):

@@ -34,7 +34,6 @@ def step_function(model: SymbolicModel, controller: Controller, *,
     Once status is non-zero the state is frozen.
     """
     layout = step_layout(model, controller, rate_limited=rate_limited)
-    n = model.n
     x, p = ca.SX.sym("x", layout.x.size), ca.SX.sym("p", layout.p.size)
     state, par = layout.x.split(x), layout.p.split(p)
     q, dq, memory, status = state["q"], state["dq"], state["memory"], state["status"]
@@ -48,19 +47,7 @@ def step_function(model: SymbolicModel, controller: Controller, *,
                                               largest)
     applied = applied_tension(actuator, par["slack"])
     z_next = rk4(plant_rhs(model, applied, par["mass_scale"]), ca.vertcat(q, dq), dt)
-    # singular at the sample, or det W changes sign within the step (the plane was crossed);
-    # the sign is read from W diag(l), which needs no square root or division: a sixth of
-    # the step's time went to W(q_next) for this sign alone
-    singular = ca.logic_or(singular_flag(law.flags), crossed_singularity(model, q, z_next[:n]))
-    # the command too: a slack or rate-limited plant would otherwise turn NaN into a number
-    finite = ca.sum1(ca.fabs(ca.vertcat(z_next, law.tau)) <= 1e300) > 2 * n + model.m - 0.5
-    lower, upper = model.robot.frame_lower, model.robot.frame_upper
-    outside = ca.sum1(z_next[:n] < lower) + ca.sum1(z_next[:n] > upper) > 0
-    new_status = ca.if_else(
-        status != 0, status,
-        ca.if_else(singular, STOP_CODES["singular"],
-                   ca.if_else(ca.logic_not(finite), STOP_CODES["non_finite"],
-                              ca.if_else(outside, STOP_CODES["left_frame"], 0))))
+    new_status = stop_status(model, status, law.flags, law.tau, q, z_next)
     stopped = new_status != 0
     x_next = ca.vertcat(ca.if_else(stopped, ca.vertcat(q, dq), z_next),
                         ca.if_else(stopped, memory, memory_next),
@@ -70,6 +57,29 @@ def step_function(model: SymbolicModel, controller: Controller, *,
     log = ca.vertcat(law.tau, law.alpha, law.beta, law.j, law.flags)
     return ca.Function("step", [x, p], [x_next, log], ["x", "p"], ["x_next", "log"],
                        {"cse": True})
+
+
+def stop_status(model: SymbolicModel, status: ca.SX, flags: ca.SX, command: ca.SX, q: ca.SX,
+                z_next: ca.SX, *, earlier: tuple[tuple[ca.SX, int], ...] = ()) -> ca.SX:
+    """The status after a step from pose ``q`` to the plant state ``z_next`` (its first n
+    entries the pose): ``status`` once stopped; else the code of the first stop that holds,
+    the ``earlier`` (condition, code) pairs first, then singular (the controller's flag, or
+    det W changing sign within the step), non-finite (any of ``z_next`` or the command:
+    a slack or rate-limited plant would otherwise turn NaN into a number) and outside the
+    frame; 0 to go on."""
+    q_next = z_next[: model.n]
+    singular = ca.logic_or(singular_flag(flags), crossed_singularity(model, q, q_next))
+    finite = ca.sum1(ca.fabs(ca.vertcat(z_next, command)) <= 1e300) > (
+        z_next.numel() + command.numel() - 0.5)
+    lower, upper = model.robot.frame_lower, model.robot.frame_upper
+    outside = ca.sum1(q_next < lower) + ca.sum1(q_next > upper) > 0
+    stops = (*earlier, (singular, STOP_CODES["singular"]),
+             (ca.logic_not(finite), STOP_CODES["non_finite"]),
+             (outside, STOP_CODES["left_frame"]))
+    new_status = ca.SX(0)
+    for condition, code in reversed(stops):
+        new_status = ca.if_else(condition, code, new_status)
+    return ca.if_else(status != 0, status, new_status)
 
 
 def singular_flag(flags: ca.SX) -> ca.SX:
@@ -84,7 +94,9 @@ def singular_flag(flags: ca.SX) -> ca.SX:
 
 def crossed_singularity(model: SymbolicModel, q: ca.SX, q_next: ca.SX) -> ca.SX:
     """Whether the step passed through a singularity between samples: det W changes sign
-    (m = n), or W loses row rank at q_next (m > n: W W^T has no sign to change)."""
+    (m = n; read from W diag(l), which needs no square root or division: a sixth of the
+    step's time went to W(q_next) for this sign alone), or W loses row rank at q_next
+    (m > n: W W^T has no sign to change)."""
     if model.m == model.n:
         return (ca.det(model.scaled_structure_matrix(q))
                 * ca.det(model.scaled_structure_matrix(q_next)) <= 0)
