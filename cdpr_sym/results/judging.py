@@ -22,8 +22,13 @@ def outcome(row: dict[str, Any]) -> int:
     return 0 if row["converged"] else 1
 
 
-def meets_target(row: dict[str, Any], *, settle_within: float = 5.0,
-                 step_limit: float = 1.0) -> bool:
+#: The design target: within 1 cm of the goal by this time (s), and no tension step or
+#: start jump above this limit (N).
+SETTLE_WITHIN, STEP_LIMIT = 5.0, 1.0
+
+
+def meets_target(row: dict[str, Any], *, settle_within: float = SETTLE_WITHIN,
+                 step_limit: float = STEP_LIMIT) -> bool:
     """Feasible, settled within ``settle_within`` s, no tension step or start jump > limit (N)."""
     return (row["status"] == "ok" and bool(row["tension_feasible"])
             and row["settle_time"] is not None and row["settle_time"] <= settle_within

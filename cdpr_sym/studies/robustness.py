@@ -27,7 +27,7 @@ from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.reporting.format import share
-from cdpr_sym.results.judging import meets_target
+from cdpr_sym.results.judging import SETTLE_WITHIN, STEP_LIMIT, meets_target
 from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
 from cdpr_sym.studies.outline import read_study, write_study
@@ -147,9 +147,7 @@ def _damping_scan(robot: Robot, starts: np.ndarray, goals: np.ndarray, progress:
             drive = dataclasses.replace(_winches(robot), cable_damping=damping)
             plants = [Plant(as_built=AsBuilt(actuation=drive))] * len(starts)
             rows = _effect_rows(robot, design, "scan", plants, starts, goals)
-            held = [row for row in rows if row["held"]]
-            shares.append(sum(row["meets_target"] for row in held) / len(held)
-                          if held else None)
+            shares.append(summary(rows)["scan"][design]["meets_target"])
         out[design] = shares
     return out
 
@@ -191,9 +189,9 @@ def _why(row: dict[str, Any]) -> str:
         return f"stopped ({row['stop_reason']})"
     if not row["tension_feasible"]:
         return "tension outside the box"
-    if row["settle_time"] is None or row["settle_time"] > 5.0:
+    if row["settle_time"] is None or row["settle_time"] > SETTLE_WITHIN:
         return "not within 1 cm by 5 s"
-    if row["max_tension_step"] > 1.0:
+    if row["max_tension_step"] > STEP_LIMIT:
         return "tension step > 1 N"
     return "start jump > 1 N"
 
