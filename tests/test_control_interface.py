@@ -61,7 +61,10 @@ def test_controller_is_documented(name):
     (SmoothReference, "max_rate", float("nan")),
     (VirtualReferenceIdaPbc, "delta", -1.0), (VirtualReferenceIdaPbc, "start_share", 0.0),
     (VirtualReferenceIdaPbc, "lam", float("nan")),
-    (VirtualReferenceIdaPbc, "goal_stiffness", 0.0), (VirtualReferenceIdaPbc, "plan", 3)])
+    (VirtualReferenceIdaPbc, "goal_stiffness", 0.0), (VirtualReferenceIdaPbc, "plan", 3),
+    (SmoothReference, "command_cutoff", 0.0), (SmoothReference, "command_cutoff", "15"),
+    (VirtualReferenceIdaPbc, "observer_rate", -1.0),
+    (VirtualReferenceIdaPbc, "command_cutoff", float("inf"))])
 def test_bad_option_is_refused_naming_it(cls, field, value):
     with pytest.raises(InvalidCase) as raised:
         cls(**{field: value})

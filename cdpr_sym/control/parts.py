@@ -11,10 +11,12 @@ from __future__ import annotations
 import dataclasses
 
 import casadi as ca
+import numpy as np
 
 from cdpr_sym.distribution import AUTO, distribute
 from cdpr_sym.distribution.closed_form import closed_form
 from cdpr_sym.distribution.interval import feasible_interval
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 
 
@@ -166,3 +168,33 @@ def alpha_interval(s0: ca.SX, s1: ca.SX, lower: ca.SX, upper: ca.SX, *,
     """
     low, high = feasible_interval(s0, s1, lower, upper)
     return ca.fmax(low, within[0]), ca.fmin(high, within[1])
+
+
+#: First-order stages of the command filter (two: -40 dB per decade above the cutoff).
+FILTER_STAGES = 2
+
+
+def check_cutoff(field: str, value: float | None) -> None:
+    """Raise :class:`~cdpr_sym.errors.InvalidCase` (``field``) unless ``value`` is None or
+    a positive finite frequency, Hz."""
+    if value is not None and not (isinstance(value, (int, float)) and np.isfinite(value)
+                                  and value > 0):
+        raise InvalidCase(field, f"expected a positive frequency in Hz or None, got {value!r}")
+
+
+def filter_command(tau: ca.SX, stages: ca.SX, cutoff: float, dt: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """Tension ``tau`` (N, m entries) through :data:`FILTER_STAGES` first-order low-pass
+    stages of corner ``cutoff`` Hz, each discretised exactly for a held input over ``dt`` s.
+
+    ``stages`` stacks the stages' outputs (FILTER_STAGES m); returns the filtered tension
+    (the last stage, after this step) and the stages' next values. Every stage is a convex
+    combination of its input and its past value, so a command in the box stays in it.
+    """
+    m = tau.shape[0]
+    gain = 1 - ca.exp(-2 * np.pi * cutoff * dt)
+    signal, updated = tau, []
+    for index in range(FILTER_STAGES):
+        past = stages[index * m: (index + 1) * m]
+        signal = past + gain * (signal - past)
+        updated.append(signal)
+    return signal, ca.vertcat(*updated)

@@ -22,10 +22,13 @@ import numpy as np
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
 from cdpr_sym.control.interface import ControlLaw
 from cdpr_sym.control.parts import (
+    FILTER_STAGES,
     alpha_interval,
     beta_margin,
+    check_cutoff,
     clip_to_box,
     distributed_command,
+    filter_command,
     flag_if,
     tension_parts,
 )
@@ -58,6 +61,10 @@ class SmoothReference:
         per 1 ms step, leaving room for the feedback under the 1 N per step target).
     samples : int
         Points along the path where the plan is checked.
+    command_cutoff : float or None
+        Hz; set, the command passes two first-order low-pass stages of this corner (see
+        :func:`~cdpr_sym.control.parts.filter_command`), which keep the loop's gain low at
+        the drive's cable–drum mode on elastic cables (``smooth-lp``; reports/robustness).
 
     Notes
     -----
@@ -76,13 +83,15 @@ class SmoothReference:
     With m > n cables W^{-1} becomes Pott's closed form mid + W^+ (f - W mid) in the plan
     (linear in the force, so the same interval test applies) and the improved closed form
     in the command (equal to it wherever it is in the box).
-    Memory: [t, q_start (n), T, margin].
+    Memory: [t, q_start (n), T, margin] and, with ``command_cutoff``, the filter's stages
+    (2 m), which start at the first command so that the filter adds no start jump.
     """
 
     durations: tuple[float, ...] = tuple(np.round(np.arange(1.0, 4.01, 0.25), 2))
     margins: tuple[float, ...] = (5.0, 3.0, 2.0, 1.0, 0.5, 0.0)
     max_rate: float = 600.0
     samples: int = 33
+    command_cutoff: float | None = None
     name: ClassVar[str] = "smooth"
     #: Runs on robots with more cables than degrees of freedom (tension distribution).
     redundant: ClassVar[bool] = True
@@ -99,14 +108,16 @@ class SmoothReference:
         if isinstance(self.samples, bool) or not isinstance(self.samples, int) \
                 or self.samples < 3:
             raise InvalidCase("samples", f"expected at least 3 samples, got {self.samples}")
+        check_cutoff("command_cutoff", self.command_cutoff)
 
     def options(self) -> dict[str, Any]:
         return {"durations": list(self.durations), "margins": list(self.margins),
-                "max_rate": self.max_rate, "samples": self.samples}
+                "max_rate": self.max_rate, "samples": self.samples,
+                "command_cutoff": self.command_cutoff}
 
     def memory_size(self, model: SymbolicModel) -> int:
-        """Internal state: [t, q_start (n), T, margin]."""
-        return model.n + 3
+        """Internal state: [t, q_start (n), T, margin] and the command filter's stages."""
+        return model.n + 3 + (FILTER_STAGES * model.m if self.command_cutoff else 0)
 
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
@@ -146,7 +157,11 @@ class SmoothReference:
         # loses rank at a sample) has no plan
         crosses = ca.sum1(ca.vertcat(*dets) * dets[0] <= 0) > 0
         chosen_margin = ca.if_else(crosses, -1.0, chosen_margin)
-        return ca.vertcat(0.0, q0, chosen_T, chosen_margin)
+        plan = ca.vertcat(0.0, q0, chosen_T, chosen_margin)
+        if not self.command_cutoff:
+            return plan
+        first = self._tracking(model, q0, ca.SX.zeros(model.n), q_goal, k, r_d, plan)[0].tau
+        return ca.vertcat(plan, *([first] * FILTER_STAGES))
 
     def _choose(self, robot: Robot, a: ca.SX, b: ca.SX, step: float) -> tuple[ca.SX, ca.SX]:
         """(T, margin) for a planned tension a + b / T^2 (stacked samples): the widest margin,
@@ -202,10 +217,19 @@ class SmoothReference:
 
     def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
              r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
+        """:meth:`_tracking`, its command filtered when ``command_cutoff`` is set."""
+        law, plan_next = self._tracking(model, q, dq, q_goal, k, r_d, memory, dt)
+        if not self.command_cutoff:
+            return law, plan_next
+        tau, stages = filter_command(law.tau, memory[model.n + 3:], self.command_cutoff, dt)
+        return law._replace(tau=tau), ca.vertcat(plan_next, stages)
+
+    def _tracking(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
+                  r_d: ca.SX, memory: ca.SX, dt: ca.SX = 0.0) -> tuple[ControlLaw, ca.SX]:
         """The tracking force at (q, dq) as tension: W^{-1} force, clipped (m = n), or the
         force distributed (m > n; the method the plan used, so plan and command agree
         along the reference), clipped where no tension in the box produces it; then beta
-        is the command's smallest distance to a bound, N."""
+        is the command's smallest distance to a bound, N. Returns the plan's next memory."""
         n = model.n
         t, q_start, T, margin = memory[0], memory[1: n + 1], memory[n + 1], memory[n + 2]
         u = ca.fmin(ca.fmax(t / T, 0.0), 1.0)
@@ -264,7 +288,26 @@ class VirtualReferenceIdaPbc:
     ``goal_stiffness`` (N/m) stiffens the well (delta = F / goal_stiffness); on the design
     study's pairs 600 N/m lifted the ±10 % mass cases from 0 % to ~45 % meeting the target
     but dropped the nominal case from 96 % to 69 %, so the default keeps ``delta``.
-    Memory: [xi (n), dxi (n), F, a, d0] with d0 = |goal - q0|.
+
+    Robust variant (``observer_rate`` = L, 1/s; ``ida-ref-obs``): a momentum observer estimates
+    the matched force d the model misses (M q'' + C dq + grad V = W tau + d, e.g. a mass
+    error's weight) and the command cancels it: W tau = ... - d_hat. With p = M(q) dq,
+    d_hat = L (p - z) and dz/dt = C^T dq - grad V + W tau + d_hat, z(0) = p(0); since
+    dp/dt = C^T dq - grad V + W tau + d (from dM/dt = C + C^T), d(d_hat)/dt = L (d - d_hat)
+    for any motion and any command: the estimate is d through a first-order lag. Stability
+    argument for a constant d (the weight error at rest): e = d - d_hat = e(0) exp(-L t),
+    the loop above plus the matched input e has dH_d/dt <= dq^T e
+    <= sqrt(2 H_d / lambda_min(M)) |e(0)| exp(-L t), so sqrt(H_d) stays below
+    sqrt(H_d(0)) + |e(0)| / (L sqrt(2 lambda_min(M))): bounded, and the perturbation dies
+    out, so the trajectory converges to the same equilibrium, now exact: at rest
+    d_hat = d, q = xi = goal, with no offset. A mass error also scales M, which enters d
+    as (M - M_plant) q'', not constant while moving; the study measures that part
+    (reports/robustness), the argument does not cover it. z is advanced by an explicit
+    Euler step at the control rate, so d_hat carries an O(dt) error on an exact model.
+    ``command_cutoff`` (Hz) filters the command as in :class:`SmoothReference`; the
+    observer then uses the filtered, applied command.
+    Memory: [xi (n), dxi (n), F, a, d0] with d0 = |goal - q0|, then z (n) with the
+    observer and the filter's stages (2 m) with the cutoff.
 
     Parameters
     ----------
@@ -284,6 +327,10 @@ class VirtualReferenceIdaPbc:
         Share of the full pull at the start, in (0, 1].
     plan : SmoothReference
         The planner whose duration T sets the acceleration.
+    observer_rate : float or None
+        L, 1/s: the disturbance observer's rate (None: no observer).
+    command_cutoff : float or None
+        Corner of the command filter, Hz (None: no filter).
 
     Rigid bodies: the particle lives in q-space with the scalar mass m for every coordinate
     (angles included, 1 m per rad); the H_d argument above holds unchanged.
@@ -297,6 +344,8 @@ class VirtualReferenceIdaPbc:
     ramp: float = 0.25
     start_share: float = 0.02
     plan: SmoothReference = SmoothReference()
+    observer_rate: float | None = None
+    command_cutoff: float | None = None
     name: ClassVar[str] = "ida-ref"
 
     def __post_init__(self) -> None:
@@ -313,6 +362,11 @@ class VirtualReferenceIdaPbc:
                               f"got {self.start_share}")
         if not self.lam >= 0:  # inf allowed: J_d = 0
             raise InvalidCase("lam", f"expected a regularisation >= 0, got {self.lam}")
+        if self.observer_rate is not None and not (np.isfinite(self.observer_rate)
+                                                   and self.observer_rate > 0):
+            raise InvalidCase("observer_rate", f"expected a positive rate in 1/s or None, "
+                              f"got {self.observer_rate}")
+        check_cutoff("command_cutoff", self.command_cutoff)
         if self.goal_stiffness is not None and not (np.isfinite(self.goal_stiffness)
                                                     and self.goal_stiffness > 0):
             raise InvalidCase("goal_stiffness", f"expected a positive stiffness in N/m or "
@@ -322,11 +376,14 @@ class VirtualReferenceIdaPbc:
         return {"delta": self.delta, "goal_stiffness": self.goal_stiffness, "lam": self.lam,
                 "boost": self.boost, "brake": self.brake,
                 "ramp": self.ramp, "start_share": self.start_share,
-                "plan": self.plan.options()}
+                "plan": self.plan.options(), "observer_rate": self.observer_rate,
+                "command_cutoff": self.command_cutoff}
 
     def memory_size(self, model: SymbolicModel) -> int:
-        """Internal state: [xi (n), dxi (n), F, a, d0]."""
-        return 2 * model.n + 3
+        """Internal state: [xi (n), dxi (n), F, a, d0], the observer's z (n) and the command
+        filter's stages (2 m) when those are on."""
+        return (2 * model.n + 3 + (model.n if self.observer_rate else 0)
+                + (FILTER_STAGES * model.m if self.command_cutoff else 0))
 
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
@@ -334,7 +391,10 @@ class VirtualReferenceIdaPbc:
         T = self.plan.initial_memory(model, q0, q_goal, k, r_d)[n + 1]
         distance = ca.norm_2(q_goal - q0)
         accel = self.boost * 5.77 * distance / T**2
-        return ca.vertcat(q0, ca.SX.zeros(n), 2 * model.robot.mass * accel, accel, distance)
+        momentum = ca.SX.zeros(n if self.observer_rate else 0)  # at rest: z = p = 0
+        stages = [model.static_tension(q0)] * (FILTER_STAGES if self.command_cutoff else 0)
+        return ca.vertcat(q0, ca.SX.zeros(n), 2 * model.robot.mass * accel, accel, distance,
+                          momentum, *stages)
 
     def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
              r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
@@ -343,7 +403,13 @@ class VirtualReferenceIdaPbc:
         force, accel, start_distance = memory[2 * n], memory[2 * n + 1], memory[2 * n + 2]
         parts = tension_parts(model, q, dq, q_goal, k, r_d)
         coupling = k * (q - xi) + r_d * (dq - dxi)
-        tau_pd = parts.W_inv @ (model.grad_potential(q) - coupling)
+        observer_end = 2 * n + 3 + (n if self.observer_rate else 0)
+        if self.observer_rate:
+            integrated = memory[2 * n + 3: observer_end]
+            estimate = self.observer_rate * (model.mass_matrix(q) @ dq - integrated)
+        else:
+            estimate = 0
+        tau_pd = parts.W_inv @ (model.grad_potential(q) - estimate - coupling)
         A = parts.W_inv @ model.p_matrix(dq)
         if np.isfinite(self.lam):
             j = -ca.solve(A.T @ A + self.lam * ca.DM.eye(model.n_j),
@@ -351,6 +417,11 @@ class VirtualReferenceIdaPbc:
         else:
             j = ca.SX.zeros(model.n_j)
         tau = tau_pd + A @ j
+        if self.command_cutoff:
+            tau, stages_next = filter_command(tau, memory[observer_end:], self.command_cutoff,
+                                              dt)
+        else:
+            stages_next = ca.SX.zeros(0)
         offset = xi - q_goal
         distance = ca.norm_2(offset)
         delta = self.spring_length(force)
@@ -365,7 +436,14 @@ class VirtualReferenceIdaPbc:
         xi_next = xi + dt * dxi_next
         flags = flag_if(parts.singular, FLAG_SINGULAR)
         law = ControlLaw(tau, ca.SX(1.0), beta_margin(model, parts.tau_1), j, flags)
-        return law, ca.vertcat(xi_next, dxi_next, force, accel, start_distance)
+        if self.observer_rate:  # d/dt integrated = C^T dq - grad V + W tau + estimate
+            integrated_next = integrated + dt * (
+                model.coriolis_matrix(q, dq).T @ dq - model.grad_potential(q)
+                + parts.W @ tau + estimate)
+        else:
+            integrated_next = ca.SX.zeros(0)
+        return law, ca.vertcat(xi_next, dxi_next, force, accel, start_distance,
+                               integrated_next, stages_next)
 
     def spring_length(self, force):
         """delta: the radius of the linear well, ``force / goal_stiffness`` when that is set."""

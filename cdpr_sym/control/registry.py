@@ -11,6 +11,13 @@ from cdpr_sym.control.interface import Controller
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.errors import InvalidCase, UnknownName
 
+#: The ``ida-ref-obs`` observer's rate, 1/s: 20 ms to learn a weight error, well above the
+#: loop's own ~3 Hz and 50 times below the 1 kHz control rate (L dt = 0.02).
+OBSERVER_RATE = 50.0
+#: The ``smooth-lp`` command filter's corner, Hz: 5 times above the loop's ~3 Hz and about
+#: 5 times below the cable-drum mode of the default winch (~75 Hz on 4 m cables).
+COMMAND_CUTOFF = 15.0
+
 #: Every design under its command-line name, with its default options. ``l2`` is the
 #: paper's; ``smooth`` is the recommended one (see reports/designs).
 CONTROLLERS: dict[str, Controller] = {
@@ -22,6 +29,8 @@ CONTROLLERS: dict[str, Controller] = {
     "box": BoxDesign(),
     "smooth": SmoothReference(),
     "ida-ref": VirtualReferenceIdaPbc(),
+    "ida-ref-obs": VirtualReferenceIdaPbc(observer_rate=OBSERVER_RATE),
+    "smooth-lp": SmoothReference(command_cutoff=COMMAND_CUTOFF),
     "pd-td": DistributedPD(),
 }
 
@@ -36,6 +45,9 @@ DESCRIPTIONS = {
     "box": "exact tension box, largest alpha, smallest J_d tension",
     "smooth": "recommended: minimum-jerk plan + feed-forward + PD; feasible, fast and smooth",
     "ida-ref": "IDA-PBC with a virtual reference particle (H_d never increases)",
+    "ida-ref-obs": "ida-ref with a momentum observer cancelling the matched force the model "
+               "misses (mass error)",
+    "smooth-lp": "smooth with its command low-passed at 15 Hz, for elastic cables on winches",
     "pd-td": "PD + gravity compensation + tension distribution; any m >= n cables",
 }
 
