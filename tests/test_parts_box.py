@@ -78,4 +78,5 @@ def test_an_unknown_controller_lists_every_registered_name():
     with pytest.raises(UnknownName) as raised:
         controller_by_name("nope")
     assert str(raised.value) == ("unknown controller 'nope'; expected one of pd, pd-sat, l2, "
-                                 "l2-minnorm, linf, box, smooth, ida-ref, pd-td")
+                                 "l2-minnorm, linf, box, smooth, ida-ref, ida-ref-obs, "
+                                 "smooth-lp, pd-td")

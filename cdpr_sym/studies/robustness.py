@@ -33,8 +33,9 @@ from cdpr_sym.robot import Robot
 from cdpr_sym.studies.outline import read_study, write_study
 from cdpr_sym.workspace import sample_static_workspace
 
-#: The designs compared: the paper's l2, its clipped PD baseline and the two smooth ones.
-DESIGNS = ("pd-sat", "l2", "smooth", "ida-ref")
+#: The designs compared: the paper's l2, its clipped PD baseline, the two smooth ones and
+#: their variants for the robot as built (a weight observer; a command filter).
+DESIGNS = ("pd-sat", "l2", "smooth", "ida-ref", "ida-ref-obs", "smooth-lp")
 #: Run length and control period, s (the target asks for 1 cm within 5 s).
 DURATION, DT = 6.0, 1e-3
 #: Mass error (fraction), anchor error (m) and command delay (periods) of the spec.
@@ -275,9 +276,15 @@ def _findings(study: dict[str, Any], table: dict[str, Any]) -> list[str]:
                   "platform's state while the winches drive it through elastic cables, so "
                   "the drum-cable mode (about 75 Hz for 4 m cables with the default drum) "
                   "sits inside their loop, behind the sample-and-hold and the torque loop, "
-                  "and its damping decides whether the loop is stable at all. With encoders "
-                  "(\"as built\") the controller reads the drums, not the platform, through "
-                  "a filter and a delay, which a lightly damped mode tolerates even less."]
+                  "and its damping decides whether the loop is stable at all. `smooth-lp` "
+                  "low-passes its command (two stages at 15 Hz), so its loop gain at the "
+                  "mode is small, and passes whatever the damping. With encoders "
+                  "(\"as built\") the controller reads the drums, not the platform: its "
+                  "feedback then acts on the mode itself, through its own filter, the "
+                  "velocity filter, the delay and the torque loop, lagging by more than "
+                  "half a period at the mode, which a lightly damped mode does not "
+                  "tolerate; `ida-ref-obs` also fails with encoders alone, as its "
+                  "observer differentiates the quantised readings into the command."]
     return lines
 
 
