@@ -71,6 +71,35 @@ def test_the_plant_holds_its_weight_on_its_own_anchors(aras3, rng, build_options
     assert np.max(np.abs(simulator.true_static_tension(aras3.start, plant) - nominal)) > 0.5
 
 
+def test_the_read_offset_is_where_model_anchors_place_the_stretched_lengths(
+        aras3, rng, build_options):
+    """At rest at q the cables carry the true static tension, stretched to it; the encoders
+    read the unstretched lengths, which the model's anchors explain at another pose."""
+    offsets = rng.uniform(-0.005, 0.005, size=(3, 3))
+    drive = Actuation()
+    plant = Plant(mass_scale=1.05, as_built=AsBuilt(actuation=drive, sensing=Sensing(
+        resolution=0.0), anchor_offsets=offsets))
+    simulator = get_simulator(aras3, controller_by_name("smooth"), build_options=build_options,
+                              as_built=plant.as_built.structure())
+    true_anchors = np.asarray(aras3.anchors) + offsets
+    for q in (aras3.start, aras3.goal):
+        tension = reference.static_tension(q, true_anchors, 1.05 * aras3.mass, aras3.gravity)
+        reading = reference.cable_lengths(q, true_anchors) / (1 + tension
+                                                              / drive.cable_stiffness)
+        pose = q.copy()
+        for _ in range(20):  # Newton on the model's lengths, in numpy
+            pose = pose - np.linalg.solve(reference.jacobian_ja(pose, aras3.anchors),
+                                          reference.cable_lengths(pose, aras3.anchors)
+                                          - reading)
+        offset = simulator.read_offset(q, plant)
+        np.testing.assert_allclose(offset, pose - q, rtol=0, atol=1e-9)
+        assert np.linalg.norm(offset) > 1e-3
+    ideal = Plant(as_built=AsBuilt(sensing=Sensing()))
+    assert np.linalg.norm(get_simulator(
+        aras3, controller_by_name("smooth"), build_options=build_options,
+        as_built=ideal.as_built.structure()).read_offset(aras3.goal, ideal)) < 1e-5
+
+
 def test_encoders_forward_kinematics_and_filter_read_what_numpy_says(aras3, build_options):
     resolution, cutoff, dt = 1e-4, 40.0, 1e-3
     plant = Plant(as_built=AsBuilt(sensing=Sensing(resolution=resolution,

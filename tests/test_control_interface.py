@@ -63,6 +63,7 @@ def test_controller_is_documented(name):
     (VirtualReferenceIdaPbc, "lam", float("nan")),
     (VirtualReferenceIdaPbc, "goal_stiffness", 0.0), (VirtualReferenceIdaPbc, "plan", 3),
     (SmoothReference, "command_cutoff", 0.0), (SmoothReference, "command_cutoff", "15"),
+    (SmoothReference, "guard", -1.0), (SmoothReference, "guard", float("nan")),
     (VirtualReferenceIdaPbc, "observer_rate", -1.0),
     (VirtualReferenceIdaPbc, "command_cutoff", float("inf"))])
 def test_bad_option_is_refused_naming_it(cls, field, value):

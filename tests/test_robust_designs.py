@@ -1,10 +1,10 @@
 """The designs made for the robot as built: ``ida-ref-obs`` (a momentum observer cancelling the
-matched force the model misses) and the command filter of ``smooth-lp``.
+matched force the model misses) and the command filter and guard band of ``smooth-lp``.
 
 The observer is checked against its documented law, d(d_hat)/dt = L (d - d_hat), on a plant
 integrated in numpy (the point mass of ``reference``, the rigid body of ``rigid_reference``)
 whose winches deliver a known offset on every cable; the filter against the frequency
-response of two first-order stages.
+response of first-order stages; the guard against the box it promises.
 """
 
 from __future__ import annotations
@@ -17,10 +17,11 @@ import pytest
 import reference as ref
 import rigid_reference as rigid
 
-from cdpr_sym import SymbolicModel, simulate
+from cdpr_sym import SymbolicModel, preset, simulate
 from cdpr_sym.control import CONTROLLERS, law_function, tension
 from cdpr_sym.control.evaluate import initial_memory_function
-from cdpr_sym.control.parts import filter_command
+from cdpr_sym.control.flags import FLAG_SATURATED
+from cdpr_sym.control.parts import FILTER_STAGES, filter_command
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 
 DT = 1e-3
@@ -120,21 +121,22 @@ def test_ida_ref_obs_settles_on_the_goal_whatever_the_mass(aras3, scale, build_o
     assert errors["ida-ref-obs"] < 1e-4
 
 
-def test_filter_gain_is_that_of_two_first_order_stages():
-    """A sine through the filter comes out with |H|^2 = 1 / (1 + (f / f_c)^2)^2 (the exact
-    held-input discretisation matches the continuous stages for f << 1 / dt)."""
+def test_filter_gain_is_that_of_first_order_stages():
+    """A sine through the filter's N stages comes out with |H| = (1 + (f / f_c)^2)^(-N/2)
+    (the held-input discretisation matches the continuous stages for f << 1 / dt)."""
     cutoff = 15.0
-    tau, stages, dt = ca.SX.sym("tau", 1), ca.SX.sym("stages", 2), ca.SX.sym("dt")
+    tau, dt = ca.SX.sym("tau", 1), ca.SX.sym("dt")
+    stages = ca.SX.sym("stages", FILTER_STAGES)
     step = ca.Function("f", [tau, stages, dt], list(filter_command(tau, stages, cutoff, dt)))
     times = np.arange(0.0, 2.0, 1e-4)
     for frequency in (3.0, 15.0, 75.0):
-        state, out = np.zeros(2), []
+        state, out = np.zeros(FILTER_STAGES), []
         for t in times:
             y, state = step(np.sin(2 * np.pi * frequency * t), state, 1e-4)
             state = np.array(state).ravel()
             out.append(float(y))
         amplitude = np.abs(np.array(out)[times > 1.0]).max()
-        expected = 1 / (1 + (frequency / cutoff) ** 2)
+        expected = (1 + (frequency / cutoff) ** 2) ** (-FILTER_STAGES / 2)
         assert amplitude == pytest.approx(expected, rel=0.02), frequency
 
 
@@ -148,9 +150,10 @@ def test_first_command_at_rest_is_the_static_tension(aras3, aras3_model, name):
 
 def test_filtered_command_stays_in_the_box(aras3, rng):
     """Every stage is a convex combination of values in [T_min, T_max]."""
-    tau, stages, dt = ca.SX.sym("tau", 3), ca.SX.sym("stages", 6), ca.SX.sym("dt")
+    tau, dt = ca.SX.sym("tau", 3), ca.SX.sym("dt")
+    stages = ca.SX.sym("stages", 3 * FILTER_STAGES)
     step = ca.Function("f", [tau, stages, dt], list(filter_command(tau, stages, 15.0, dt)))
-    state = np.full(6, aras3.t_min)
+    state = np.full(3 * FILTER_STAGES, aras3.t_min)
     for _ in range(500):
         command = rng.choice([aras3.t_min, aras3.t_max], 3)
         y, state = step(command, state, rng.uniform(1e-4, 0.1))
@@ -167,3 +170,50 @@ def test_smooth_lp_first_plan_is_smooth(aras3):
     filtered = initial_memory_function(model, SmoothReference(command_cutoff=15.0))(
         aras3.start, aras3.goal, aras3.k, aras3.r_d)
     np.testing.assert_array_equal(np.array(filtered)[: aras3.n + 3], np.array(plain))
+
+
+def test_guard_never_clips_past_the_static_tension(aras3, aras3_model):
+    """A start whose static tension is within the guard of T_min: the guarded design's first
+    command is still that static tension (no start jump), and the box holds it."""
+    design = SmoothReference(guard=3.0)
+    q = np.array([0.04, -0.21, 2.16])  # under the middle of the frame: cable 2 holds 3.2 N
+    static = ref.static_tension(q, aras3.anchors, aras3.mass, aras3.gravity)
+    assert aras3.t_min < static.min() < aras3.t_min + design.guard
+    out = tension(aras3_model, design, q, np.zeros(3), q_goal=aras3.goal)
+    np.testing.assert_allclose(out.tau, static, atol=1e-9)
+
+
+def test_a_redundant_robot_distributes_inside_the_guard_where_it_can(rng):
+    """m > n: the guarded command produces the unguarded one's force, from tensions 2 N
+    inside the box, or is the unguarded command itself where the shrunk box cannot; on
+    fast states the guard moves tensions the unguarded distribution left near T_min."""
+    planar4, guard = preset("planar4"), 2.0
+    model = SymbolicModel(planar4)
+    design = SmoothReference(guard=guard)
+    moved = 0
+    for _ in range(60):
+        q = planar4.start + rng.uniform(-0.1, 0.1, planar4.n)
+        dq = rng.uniform(-1.5, 1.5, planar4.n)
+        out = tension(model, design, q, dq, q_goal=planar4.goal)
+        plain = tension(model, SmoothReference(), q, dq, q_goal=planar4.goal)
+        if out.tau.min() >= planar4.t_min + guard - 1e-9:
+            W = np.array(model.functions["structure_matrix"](q))
+            np.testing.assert_allclose(W @ out.tau, W @ plain.tau, atol=1e-6)
+            moved += plain.tau.min() < planar4.t_min + guard - 1e-6
+        else:
+            np.testing.assert_allclose(out.tau, plain.tau, atol=1e-12)
+    assert moved > 0
+
+
+def test_guard_keeps_the_command_inside_the_shrunk_box(aras3, aras3_model):
+    """Far from the reference the tracking force asks for tensions beyond the box; the
+    guarded design clips them guard N inside it (and flags the saturation)."""
+    design = SmoothReference(guard=1.0)
+    q = aras3.start + np.array([0.0, 0.0, -0.3])
+    out = tension(aras3_model, design, q, np.array([0.0, 0.0, -2.0]))
+    plain = tension(aras3_model, SmoothReference(), q, np.array([0.0, 0.0, -2.0]))
+    assert plain.tau.max() == pytest.approx(aras3.t_max) or plain.tau.min() == pytest.approx(
+        aras3.t_min)
+    assert out.tau.min() >= aras3.t_min + 1.0 - 1e-12
+    assert out.tau.max() <= aras3.t_max - 1.0 + 1e-12
+    assert out.flags & FLAG_SATURATED

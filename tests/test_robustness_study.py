@@ -40,6 +40,23 @@ def test_shares_count_held_pairs_only_and_name_the_first_miss():
                                "start jump > 1 N": 1}
 
 
+def test_pairs_misread_by_a_centimetre_leave_the_readable_share():
+    rows = [{**_row("as built", "a", meets=True), "read_error": 0.002},
+            {**_row("as built", "a"), "read_error": 0.0099},
+            {**_row("as built", "a"), "read_error": 0.010},  # the target's 1 cm: out
+            {**_row("as built", "a"), "read_error": float("nan")},  # no pose: out
+            {**_row("as built", "a", held=False, meets=True), "read_error": 0.0},
+            _row("ideal", "a", meets=True)]  # stored before read errors: all readable
+    table = robustness.summary(rows)
+    assert table["as built"]["a"]["readable"] == 2
+    assert table["as built"]["a"]["meets_target_readable"] == 0.5
+    assert table["as built"]["a"]["meets_target"] == 0.25
+    assert table["ideal"]["a"]["readable"] == table["ideal"]["a"]["held"] == 1
+    text = "\n".join(robustness._readable_table(table, ["a"]))
+    assert "| a | 50.0 % |" in text and "| pairs read within 1 cm | 2 / 4 |" in text
+    assert "ideal" not in text
+
+
 def test_an_effect_with_no_held_pair_has_no_share():
     table = robustness.summary([_row("winches", "a", held=False)])
     assert table["winches"]["a"]["meets_target"] is None

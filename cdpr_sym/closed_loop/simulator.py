@@ -200,6 +200,25 @@ class Simulator:
         _, held = self._true_static(q, plant.mass_scale, _anchor_offsets(self.robot, plant))
         return bool(float(held) > 0.5)
 
+    def read_offset(self, q: np.ndarray, plant: Plant) -> np.ndarray:
+        """Where the encoders place the as-built ``plant`` held at rest at ``q``, minus ``q``
+        (m; rad for angles): the error that anchor offsets and cable stretch leave in the
+        pose a controller reads, which no feedback on that reading can remove. Zero
+        without sensing; NaN where no pose explains the reading."""
+        self.check_plant(plant)
+        spec = plant.as_built
+        if spec is None or spec.sensing is None:
+            return np.zeros(self.robot.n)
+        lengths, _ = self._true_geometry(q, _anchor_offsets(self.robot, plant))
+        reading = np.array(lengths).ravel()
+        if spec.actuation is not None:  # the cables carry the true static tension
+            reading = reading / (1 + self.true_static_tension(q, plant)
+                                 / spec.actuation.cable_stiffness)
+        read = self._read_pose(reading, q, spec.sensing)
+        if read is q:  # no pose explains the reading
+            return np.full(self.robot.n, np.nan)
+        return read - q
+
     def _as_built_start(self, start: np.ndarray, dq0: np.ndarray, plant: Plant
                         ) -> dict[str, object]:
         """The as-built plant's own state fields at the start of a move."""

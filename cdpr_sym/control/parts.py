@@ -53,11 +53,22 @@ def tension_parts(model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX,
                         singular=model.singularity_measure(W) < SINGULAR_DET)
 
 
-def clip_to_box(model: SymbolicModel, tau: ca.SX) -> tuple[ca.SX, ca.SX]:
-    """Tension clipped to the robot's box, and whether any entry was clipped."""
-    t_min, t_max = model.robot.t_min, model.robot.t_max
+def clip_to_box(model: SymbolicModel, tau: ca.SX, bounds: tuple[ca.SX, ca.SX] | None = None
+                ) -> tuple[ca.SX, ca.SX]:
+    """Tension clipped to the robot's box (or to ``bounds``, (lower, upper) N), and whether
+    any entry was clipped."""
+    t_min, t_max = bounds if bounds is not None else (model.robot.t_min, model.robot.t_max)
     clipped = ca.fmin(ca.fmax(tau, t_min), t_max)
     return clipped, ca.sum1(tau < t_min) + ca.sum1(tau > t_max) > 0
+
+
+def guarded_box(model: SymbolicModel, tau_static: ca.SX, guard: float
+                ) -> tuple[ca.SX, ca.SX]:
+    """The box shrunk by ``guard`` N on each side, but never past the static tension
+    ``tau_static`` (N, per cable): (lower, upper), N. A pose the box holds stays holdable,
+    and a start at rest keeps its static tension as the first command."""
+    robot = model.robot
+    return (ca.fmin(robot.t_min + guard, tau_static), ca.fmax(robot.t_max - guard, tau_static))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,10 +85,16 @@ class DistributedCommand:
 
 
 def distributed_command(model: SymbolicModel, W: ca.SX, force: ca.SX,
-                        method: str = AUTO) -> DistributedCommand:
-    """The tension producing ``force`` (N, N m) by the distribution ``method``, clipped."""
+                        method: str = AUTO, guard: float = 0.0) -> DistributedCommand:
+    """The tension producing ``force`` (N, N m) by the distribution ``method``, clipped.
+
+    With a ``guard`` (N) the force is first distributed in the box shrunk by it on each
+    side, and in the full box where the shrunk one cannot produce it."""
     robot = model.robot
     tau, feasible = distribute(method, W, force, robot.t_min, robot.t_max)
+    if guard:
+        inside, fits = distribute(method, W, force, robot.t_min + guard, robot.t_max - guard)
+        tau = ca.if_else(fits > 0.5, inside, tau)
     tau, clipped = clip_to_box(model, tau)
     infeasible = feasible < 0.5
     return DistributedCommand(
@@ -170,16 +187,17 @@ def alpha_interval(s0: ca.SX, s1: ca.SX, lower: ca.SX, upper: ca.SX, *,
     return ca.fmax(low, within[0]), ca.fmin(high, within[1])
 
 
-#: First-order stages of the command filter (two: -40 dB per decade above the cutoff).
-FILTER_STAGES = 2
+#: First-order stages of the command filter (three: -60 dB per decade above the corner;
+#: on the robustness study's as-built pairs two stages left the cable-drum mode unstable).
+FILTER_STAGES = 3
 
 
-def check_cutoff(field: str, value: float | None) -> None:
+def check_positive(field: str, value: float | None, what: str) -> None:
     """Raise :class:`~cdpr_sym.errors.InvalidCase` (``field``) unless ``value`` is None or
-    a positive finite frequency, Hz."""
-    if value is not None and not (isinstance(value, (int, float)) and np.isfinite(value)
-                                  and value > 0):
-        raise InvalidCase(field, f"expected a positive frequency in Hz or None, got {value!r}")
+    a positive finite number (``what`` names it in the message, e.g. "a frequency in Hz")."""
+    if value is not None and (isinstance(value, bool) or not (
+            isinstance(value, (int, float)) and np.isfinite(value) and value > 0)):
+        raise InvalidCase(field, f"expected {what} (> 0) or None, got {value!r}")
 
 
 def filter_command(tau: ca.SX, stages: ca.SX, cutoff: float, dt: ca.SX) -> tuple[ca.SX, ca.SX]:

@@ -25,11 +25,12 @@ from cdpr_sym.control.parts import (
     FILTER_STAGES,
     alpha_interval,
     beta_margin,
-    check_cutoff,
+    check_positive,
     clip_to_box,
     distributed_command,
     filter_command,
     flag_if,
+    guarded_box,
     tension_parts,
 )
 from cdpr_sym.distribution.interval import BIG, feasible_interval
@@ -62,9 +63,17 @@ class SmoothReference:
     samples : int
         Points along the path where the plan is checked.
     command_cutoff : float or None
-        Hz; set, the command passes two first-order low-pass stages of this corner (see
+        Hz; set, the command passes first-order low-pass stages of this corner (see
         :func:`~cdpr_sym.control.parts.filter_command`), which keep the loop's gain low at
         the drive's cable–drum mode on elastic cables (``smooth-lp``; reports/robustness).
+    guard : float
+        N, >= 0: the command is kept in [T_min + guard, T_max - guard], room for a drive
+        whose true tension lags or overshoots its command (elastic cables on winches), but
+        never clipped past the static tension at the current pose, so every pose the box
+        holds stays holdable and a start at rest starts at its static tension (m = n; with
+        m > n the force is distributed in the shrunk box where that can produce it, else in
+        the full box, and the first command can differ from the static tension by up to
+        the guard). The plan's margins count from the full box.
 
     Notes
     -----
@@ -84,7 +93,8 @@ class SmoothReference:
     (linear in the force, so the same interval test applies) and the improved closed form
     in the command (equal to it wherever it is in the box).
     Memory: [t, q_start (n), T, margin] and, with ``command_cutoff``, the filter's stages
-    (2 m), which start at the first command so that the filter adds no start jump.
+    (FILTER_STAGES m), which start at the first command so that the filter adds no start
+    jump.
     """
 
     durations: tuple[float, ...] = tuple(np.round(np.arange(1.0, 4.01, 0.25), 2))
@@ -92,6 +102,7 @@ class SmoothReference:
     max_rate: float = 600.0
     samples: int = 33
     command_cutoff: float | None = None
+    guard: float = 0.0
     name: ClassVar[str] = "smooth"
     #: Runs on robots with more cables than degrees of freedom (tension distribution).
     redundant: ClassVar[bool] = True
@@ -108,12 +119,15 @@ class SmoothReference:
         if isinstance(self.samples, bool) or not isinstance(self.samples, int) \
                 or self.samples < 3:
             raise InvalidCase("samples", f"expected at least 3 samples, got {self.samples}")
-        check_cutoff("command_cutoff", self.command_cutoff)
+        check_positive("command_cutoff", self.command_cutoff, "a frequency in Hz")
+        if isinstance(self.guard, bool) or not (isinstance(self.guard, (int, float))
+                                                and 0 <= self.guard < float("inf")):
+            raise InvalidCase("guard", f"expected a guard band >= 0 N, got {self.guard!r}")
 
     def options(self) -> dict[str, Any]:
         return {"durations": list(self.durations), "margins": list(self.margins),
                 "max_rate": self.max_rate, "samples": self.samples,
-                "command_cutoff": self.command_cutoff}
+                "command_cutoff": self.command_cutoff, "guard": self.guard}
 
     def memory_size(self, model: SymbolicModel) -> int:
         """Internal state: [t, q_start (n), T, margin] and the command filter's stages."""
@@ -191,14 +205,14 @@ class SmoothReference:
         interval of s; the plan needs that interval non-empty in the shrunk box, and the
         command (the minimum norm in the full box) slow enough."""
         m = robot.m
+        lower, upper = ca.DM.ones(m) * robot.t_min, ca.DM.ones(m) * robot.t_max
         chosen_T, chosen_margin = ca.SX(max(self.durations)), ca.SX(-1.0)
         slow_enough = {}
         for T in self.durations:
             taus = []
             for p0, p1, h in segments:
                 tau_p = p0 + p1 / T**2
-                low, high = feasible_interval(tau_p, h, ca.DM.ones(m) * robot.t_min,
-                                              ca.DM.ones(m) * robot.t_max)
+                low, high = feasible_interval(tau_p, h, lower, upper)
                 taus.append(tau_p + ca.fmin(ca.fmax(0.0, low), high) * h)
             rates = ca.vertcat(*[ca.fabs(b - a) for a, b in itertools.pairwise(taus)])
             slow_enough[T] = ca.mmax(rates) / (T * step) <= self.max_rate
@@ -206,9 +220,8 @@ class SmoothReference:
             for T in sorted(self.durations, reverse=True):
                 inside = ca.SX(1.0)
                 for p0, p1, h in segments:
-                    low, high = feasible_interval(p0 + p1 / T**2, h,
-                                                  ca.DM.ones(m) * (robot.t_min + margin),
-                                                  ca.DM.ones(m) * (robot.t_max - margin))
+                    low, high = feasible_interval(p0 + p1 / T**2, h, lower + margin,
+                                                  upper - margin)
                     inside = inside * (low <= high)
                 ok = ca.logic_and(inside > 0.5, slow_enough[T])
                 chosen_T = ca.if_else(ok, T, chosen_T)
@@ -239,12 +252,14 @@ class SmoothReference:
         force = (model.mass_matrix(q) @ ddq_r + model.coriolis_matrix(q, dq) @ dq_r
                  + model.grad_potential(q) - k * (q - q_r) - r_d * (dq - dq_r))
         if model.m > model.n:
-            command = distributed_command(model, model.structure_matrix(q), force)
+            command = distributed_command(model, model.structure_matrix(q), force,
+                                          guard=self.guard)
             tau, saturated, singular, beta = (command.tau, command.saturated,
                                               command.singular, command.margin)
         else:
             parts = tension_parts(model, q, dq, q_goal, k, r_d)
-            tau, saturated = clip_to_box(model, parts.W_inv @ force)
+            bounds = guarded_box(model, parts.tau_1, self.guard) if self.guard else None
+            tau, saturated = clip_to_box(model, parts.W_inv @ force, bounds)
             singular, beta = parts.singular, beta_margin(model, parts.tau_1)
         flags = (flag_if(saturated, FLAG_SATURATED) + flag_if(margin < 0, FLAG_INFEASIBLE)
                  + flag_if(singular, FLAG_SINGULAR))
@@ -307,7 +322,9 @@ class VirtualReferenceIdaPbc:
     ``command_cutoff`` (Hz) filters the command as in :class:`SmoothReference`; the
     observer then uses the filtered, applied command.
     Memory: [xi (n), dxi (n), F, a, d0] with d0 = |goal - q0|, then z (n) with the
-    observer and the filter's stages (2 m) with the cutoff.
+    observer and the filter's stages (FILTER_STAGES m) with the cutoff. The observer
+    assumes a start at rest (z(0) = 0): started with a velocity dq0 its first estimate is
+    L M dq0 off and decays at the rate L.
 
     Parameters
     ----------
@@ -362,11 +379,8 @@ class VirtualReferenceIdaPbc:
                               f"got {self.start_share}")
         if not self.lam >= 0:  # inf allowed: J_d = 0
             raise InvalidCase("lam", f"expected a regularisation >= 0, got {self.lam}")
-        if self.observer_rate is not None and not (np.isfinite(self.observer_rate)
-                                                   and self.observer_rate > 0):
-            raise InvalidCase("observer_rate", f"expected a positive rate in 1/s or None, "
-                              f"got {self.observer_rate}")
-        check_cutoff("command_cutoff", self.command_cutoff)
+        check_positive("observer_rate", self.observer_rate, "a rate in 1/s")
+        check_positive("command_cutoff", self.command_cutoff, "a frequency in Hz")
         if self.goal_stiffness is not None and not (np.isfinite(self.goal_stiffness)
                                                     and self.goal_stiffness > 0):
             raise InvalidCase("goal_stiffness", f"expected a positive stiffness in N/m or "
@@ -381,7 +395,7 @@ class VirtualReferenceIdaPbc:
 
     def memory_size(self, model: SymbolicModel) -> int:
         """Internal state: [xi (n), dxi (n), F, a, d0], the observer's z (n) and the command
-        filter's stages (2 m) when those are on."""
+        filter's stages (FILTER_STAGES m) when those are on."""
         return (2 * model.n + 3 + (model.n if self.observer_rate else 0)
                 + (FILTER_STAGES * model.m if self.command_cutoff else 0))
 

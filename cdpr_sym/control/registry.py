@@ -11,12 +11,15 @@ from cdpr_sym.control.interface import Controller
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.errors import InvalidCase, UnknownName
 
-#: The ``ida-ref-obs`` observer's rate, 1/s: 20 ms to learn a weight error, well above the
-#: loop's own ~3 Hz and 50 times below the 1 kHz control rate (L dt = 0.02).
+#: The ``ida-ref-obs`` observer's rate L, 1/s: a 20 ms time constant (8 Hz), faster than
+#: the loop's ~3 Hz; L dt = 0.05 at 1 kHz (its Euler step needs L dt < 2).
 OBSERVER_RATE = 50.0
 #: The ``smooth-lp`` command filter's corner, Hz: 5 times above the loop's ~3 Hz and about
 #: 5 times below the cable-drum mode of the default winch (~75 Hz on 4 m cables).
 COMMAND_CUTOFF = 15.0
+#: The ``smooth-lp`` guard band, N: room for the true tension of elastic cables on winches
+#: to lag or overshoot a command at the box's edge (0.2-0.5 N measured with 0 N of guard).
+GUARD = 1.0
 
 #: Every design under its command-line name, with its default options. ``l2`` is the
 #: paper's; ``smooth`` is the recommended one (see reports/designs).
@@ -30,7 +33,7 @@ CONTROLLERS: dict[str, Controller] = {
     "smooth": SmoothReference(),
     "ida-ref": VirtualReferenceIdaPbc(),
     "ida-ref-obs": VirtualReferenceIdaPbc(observer_rate=OBSERVER_RATE),
-    "smooth-lp": SmoothReference(command_cutoff=COMMAND_CUTOFF),
+    "smooth-lp": SmoothReference(command_cutoff=COMMAND_CUTOFF, guard=GUARD),
     "pd-td": DistributedPD(),
 }
 
@@ -47,7 +50,7 @@ DESCRIPTIONS = {
     "ida-ref": "IDA-PBC with a virtual reference particle (H_d never increases)",
     "ida-ref-obs": "ida-ref with a momentum observer cancelling the matched force the model "
                "misses (mass error)",
-    "smooth-lp": "smooth with its command low-passed at 15 Hz, for elastic cables on winches",
+    "smooth-lp": "smooth, command low-passed at 15 Hz and kept 1 N inside the box: for winches",
     "pd-td": "PD + gravity compensation + tension distribution; any m >= n cables",
 }
 
