@@ -8,6 +8,7 @@ never in the user's cache.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -56,8 +57,15 @@ def planar2_model(planar2: Robot) -> SymbolicModel:
 
 @pytest.fixture(scope="session", autouse=True)
 def private_cache_home(tmp_path_factory: pytest.TempPathFactory):
-    """``XDG_CACHE_HOME`` of the whole session: a temporary folder, restored afterwards."""
-    home = tmp_path_factory.mktemp("cache_home")
+    """``XDG_CACHE_HOME`` of the whole session: a temporary folder, restored afterwards.
+
+    Parallel workers (pytest-xdist) share one: builds lock their folder and publish by an
+    atomic rename, so each library is still compiled once per run."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        home = tmp_path_factory.getbasetemp().parent / "cache_home"
+        home.mkdir(exist_ok=True)
+    else:
+        home = tmp_path_factory.mktemp("cache_home")
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("XDG_CACHE_HOME", str(home))
         yield home

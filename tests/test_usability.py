@@ -162,7 +162,8 @@ def _public_functions():
             if inspect.isfunction(getattr(cdpr_sym, name))]
 
 
-@pytest.mark.parametrize(("name", "function"), _public_functions(), ids=lambda v: str(v))
+@pytest.mark.parametrize(("name", "function"), _public_functions(),
+                         ids=lambda v: v if isinstance(v, str) else "")
 def test_public_function_has_numpydoc_sections_naming_every_argument(name, function):
     import inspect
 
