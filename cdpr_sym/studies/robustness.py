@@ -300,9 +300,10 @@ def _findings(study: dict[str, Any], table: dict[str, Any]) -> list[str]:
                   "gain at the mode is small, and keeps it 1 N inside the box, room for the "
                   "true tension to lag or overshoot (never past the static tension, so every "
                   "goal stays holdable); it passes whatever the damping, at a small price "
-                  "on the ideal plant (the filter's lag). With encoders the unfiltered designs fail even on rigid "
-                  "cables: the quantised readings, differentiated, reach the command as "
-                  "tension steps (`ida-ref-obs` doubly so, through its observer)."]
+                  "on the ideal plant (the filter's lag). With encoders the unfiltered "
+                  "designs fail even on rigid cables: the quantised readings, "
+                  "differentiated, reach the command as tension steps (`ida-ref-obs` "
+                  "doubly so, through its observer)."]
     return lines
 
 
