@@ -17,9 +17,10 @@ from pathlib import Path
 from benchmarks.peers.timing import pin_to_one_core
 from benchmarks.tables import best_seconds, one_core_run, publish
 from cdpr_sym import preset
-from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
+from cdpr_sym.as_built import AsBuilt, Sensing
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.control import controller_by_name
+from cdpr_sym.studies.robustness import winch_drive
 
 ROBOTS = ("aras3", "planar3", "spatial6", "ipanema8")
 DURATION, DT = 5.0, 1e-3
@@ -28,7 +29,7 @@ OUT = Path(__file__).resolve().parents[1] / "reports" / "bench" / "as_built.md"
 
 def plants(robot) -> dict[str, AsBuilt | None]:
     """The plants timed, by column name (None: the ideal plant's own step)."""
-    drive = Actuation(torque_limit=1.5 * robot.t_max * Actuation().drum_radius)
+    drive = winch_drive(robot)  # the robustness study's: torque limit 1.5 r T_max
     return {"ideal": None, "sensing": AsBuilt(sensing=Sensing()),
             "winches": AsBuilt(actuation=drive),
             "as built": AsBuilt(actuation=drive, sensing=Sensing(), delay=1)}

@@ -97,7 +97,7 @@ def test_a_small_study_stores_what_its_report_says(aras3, tmp_path):
     plant = Plant(mass_scale=study["effects"]["as built"]["plants"][2]["mass_scale"],
                   as_built=AsBuilt(delay=spec["delay"], substeps=spec["substeps"],
                                    anchor_offsets=np.array(spec["anchor_offsets"]),
-                                   actuation=robustness._winches(aras3),
+                                   actuation=robustness.winch_drive(aras3),
                                    sensing=robustness.Sensing()))
     simulator = get_simulator(aras3, controller_by_name("smooth"),
                               as_built=plant.as_built.structure())

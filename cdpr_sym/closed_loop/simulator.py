@@ -215,9 +215,7 @@ class Simulator:
             reading = reading / (1 + self.true_static_tension(q, plant)
                                  / spec.actuation.cable_stiffness)
         read = self._read_pose(reading, q, spec.sensing)
-        if read is q:  # no pose explains the reading
-            return np.full(self.robot.n, np.nan)
-        return read - q
+        return np.full(self.robot.n, np.nan) if read is None else read - q
 
     def _as_built_start(self, start: np.ndarray, dq0: np.ndarray, plant: Plant
                         ) -> dict[str, object]:
@@ -236,20 +234,21 @@ class Simulator:
         if structure.sensing:
             # what the encoders read before the move, so the first velocity estimate
             # compares like with like (the estimate is off by stretch and anchor errors)
-            fields.update(q_read=self._read_pose(reading, start, spec.sensing), dq_read=dq0)
+            # (no pose fits: the start itself, and the first step flags it)
+            read = self._read_pose(reading, start, spec.sensing)
+            fields.update(q_read=start if read is None else read, dq_read=dq0)
         return fields
 
     def _read_pose(self, reading: np.ndarray, start: np.ndarray, sensing: Sensing
-                   ) -> np.ndarray:
+                   ) -> np.ndarray | None:
         """The pose forward kinematics gives for encoder ``reading`` (m), rounded to the
-        resolution, from ``start``; ``start`` itself when no pose fits (the first step then
-        flags it)."""
+        resolution, from ``start``; None when no pose fits."""
         if sensing.resolution > 0:
             reading = sensing.resolution * np.floor(reading / sensing.resolution + 0.5)
         q, ok, residual = self._forward_kinematics(reading, start)
         bound = reading_bound(self.robot.n, self.robot.m, sensing.resolution,
                               sensing.consistency)
-        return np.array(q).ravel() if float(ok) > 0.5 and float(residual) <= bound else start
+        return np.array(q).ravel() if float(ok) > 0.5 and float(residual) <= bound else None
 
     def rollout(self, x0: np.ndarray, p: np.ndarray, n_steps: int
                 ) -> tuple[np.ndarray, np.ndarray]:

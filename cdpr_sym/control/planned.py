@@ -381,10 +381,7 @@ class VirtualReferenceIdaPbc:
             raise InvalidCase("lam", f"expected a regularisation >= 0, got {self.lam}")
         check_positive("observer_rate", self.observer_rate, "a rate in 1/s")
         check_positive("command_cutoff", self.command_cutoff, "a frequency in Hz")
-        if self.goal_stiffness is not None and not (np.isfinite(self.goal_stiffness)
-                                                    and self.goal_stiffness > 0):
-            raise InvalidCase("goal_stiffness", f"expected a positive stiffness in N/m or "
-                              f"None, got {self.goal_stiffness}")
+        check_positive("goal_stiffness", self.goal_stiffness, "a stiffness in N/m")
 
     def options(self) -> dict[str, Any]:
         return {"delta": self.delta, "goal_stiffness": self.goal_stiffness, "lam": self.lam,
@@ -396,8 +393,13 @@ class VirtualReferenceIdaPbc:
     def memory_size(self, model: SymbolicModel) -> int:
         """Internal state: [xi (n), dxi (n), F, a, d0], the observer's z (n) and the command
         filter's stages (FILTER_STAGES m) when those are on."""
-        return (2 * model.n + 3 + (model.n if self.observer_rate else 0)
+        return (self._filter_start(model)
                 + (FILTER_STAGES * model.m if self.command_cutoff else 0))
+
+    def _filter_start(self, model: SymbolicModel) -> int:
+        """Where the filter's stages start in the memory: after the particle, the move's
+        constants and the observer's z."""
+        return 2 * model.n + 3 + (model.n if self.observer_rate else 0)
 
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
@@ -417,13 +419,14 @@ class VirtualReferenceIdaPbc:
         force, accel, start_distance = memory[2 * n], memory[2 * n + 1], memory[2 * n + 2]
         parts = tension_parts(model, q, dq, q_goal, k, r_d)
         coupling = k * (q - xi) + r_d * (dq - dxi)
-        observer_end = 2 * n + 3 + (n if self.observer_rate else 0)
+        grad_v = model.grad_potential(q)
+        filter_start = self._filter_start(model)
         if self.observer_rate:
-            integrated = memory[2 * n + 3: observer_end]
+            integrated = memory[2 * n + 3: filter_start]
             estimate = self.observer_rate * (model.mass_matrix(q) @ dq - integrated)
         else:
             estimate = 0
-        tau_pd = parts.W_inv @ (model.grad_potential(q) - estimate - coupling)
+        tau_pd = parts.W_inv @ (grad_v - estimate - coupling)
         A = parts.W_inv @ model.p_matrix(dq)
         if np.isfinite(self.lam):
             j = -ca.solve(A.T @ A + self.lam * ca.DM.eye(model.n_j),
@@ -432,7 +435,7 @@ class VirtualReferenceIdaPbc:
             j = ca.SX.zeros(model.n_j)
         tau = tau_pd + A @ j
         if self.command_cutoff:
-            tau, stages_next = filter_command(tau, memory[observer_end:], self.command_cutoff,
+            tau, stages_next = filter_command(tau, memory[filter_start:], self.command_cutoff,
                                               dt)
         else:
             stages_next = ca.SX.zeros(0)
@@ -452,8 +455,7 @@ class VirtualReferenceIdaPbc:
         law = ControlLaw(tau, ca.SX(1.0), beta_margin(model, parts.tau_1), j, flags)
         if self.observer_rate:  # d/dt integrated = C^T dq - grad V + W tau + estimate
             integrated_next = integrated + dt * (
-                model.coriolis_matrix(q, dq).T @ dq - model.grad_potential(q)
-                + parts.W @ tau + estimate)
+                model.coriolis_matrix(q, dq).T @ dq - grad_v + parts.W @ tau + estimate)
         else:
             integrated_next = ca.SX.zeros(0)
         return law, ca.vertcat(xi_next, dxi_next, force, accel, start_distance,

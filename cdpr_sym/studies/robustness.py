@@ -59,7 +59,8 @@ class Effect:
     draw: Callable[[np.random.Generator, Robot], Plant]
 
 
-def _winches(robot: Robot) -> Actuation:
+def winch_drive(robot: Robot) -> Actuation:
+    """The default winch with a torque limit of :data:`TORQUE_MARGIN` r T_max."""
     return Actuation(torque_limit=TORQUE_MARGIN * robot.t_max * Actuation().drum_radius)
 
 
@@ -68,7 +69,7 @@ def _offsets(rng: np.random.Generator, robot: Robot) -> np.ndarray:
 
 
 def _as_built(rng: np.random.Generator, robot: Robot, damping: float | None = None) -> Plant:
-    drive = _winches(robot)
+    drive = winch_drive(robot)
     if damping is not None:
         drive = dataclasses.replace(drive, cable_damping=damping)
     return Plant(mass_scale=float(rng.uniform(1 - MASS_ERROR, 1 + MASS_ERROR)),
@@ -95,7 +96,7 @@ EFFECTS = (
     Effect("sensing", "pose from 1e-5 m encoders by forward kinematics, 50 Hz velocity filter",
            lambda rng, robot: Plant(as_built=AsBuilt(sensing=Sensing()))),
     Effect("winches", "elastic cables on winches: EA 1e5 N, 500 Hz torque loop, torque limit",
-           lambda rng, robot: Plant(as_built=AsBuilt(actuation=_winches(robot)))),
+           lambda rng, robot: Plant(as_built=AsBuilt(actuation=winch_drive(robot)))),
     Effect("as built", "all of the above, mass uniform in +-10 %, anchors drawn per pair",
            _as_built),
     Effect("as built, damped", f"as built with cables damped {DAMPED:g} N s instead of the "
@@ -146,7 +147,7 @@ def _damping_scan(robot: Robot, starts: np.ndarray, goals: np.ndarray, progress:
             print(f"robustness: winch damping scan / {design}", file=sys.stderr, flush=True)
         shares = []
         for damping in DAMPING_SCAN:
-            drive = dataclasses.replace(_winches(robot), cable_damping=damping)
+            drive = dataclasses.replace(winch_drive(robot), cable_damping=damping)
             plants = [Plant(as_built=AsBuilt(actuation=drive))] * len(starts)
             rows = _effect_rows(robot, design, "scan", plants, starts, goals)
             shares.append(summary(rows)["scan"][design]["meets_target"])
