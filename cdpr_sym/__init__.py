@@ -16,6 +16,7 @@ from cdpr_sym.control import (
     Controller,
     L2Design,
     LinfDesign,
+    Nmpc,
     SaturatedPD,
     SmoothReference,
     VirtualReferenceIdaPbc,
@@ -38,7 +39,7 @@ from cdpr_sym.version import __version__
 __all__ = [
     "CONTROLLERS", "PD", "Actuation", "AsBuilt", "BoxDesign", "BuildOptions", "Case", "CdprError",
     "CompilationFailed", "CompilerNotFound", "Controller", "InvalidCase", "InvalidRobot",
-    "L2Design", "LinfDesign", "Plant", "Robot", "SaturatedPD", "Sensing", "Simulator",
+    "L2Design", "LinfDesign", "Nmpc", "Plant", "Robot", "SaturatedPD", "Sensing", "Simulator",
     "SmoothReference", "SweepResults", "SymbolicModel", "Trajectory", "UnknownName",
     "VirtualReferenceIdaPbc", "__version__", "controller_by_name", "forward_kinematics",
     "get_simulator", "load_robot", "load_sweep", "preset", "resolve_robot", "simulate",

@@ -100,7 +100,8 @@ def batch_rollout(simulator: Simulator, build_options: BuildOptions = BuildOptio
     """The batched rollout of ``simulator`` (built once per simulator), or None where its
     step runs in CasADi's virtual machine or cannot be written for lanes."""
     if simulator not in _BATCHES:
-        usable = simulator.backend == "c" and not unsupported_operations(simulator.step)
+        usable = (simulator.backend == "c" and simulator.sampled is None
+                  and not unsupported_operations(simulator.step))
         _BATCHES[simulator] = BatchRollout(simulator, build_options) if usable else None
     return _BATCHES[simulator]
 

@@ -31,6 +31,7 @@ from cdpr_sym.closed_loop.as_built_step import (
 from cdpr_sym.closed_loop.case import Case, check_timing, minimal_values_per_step
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
+from cdpr_sym.closed_loop.sampled import SampledSolver
 from cdpr_sym.closed_loop.step import STOP_REASONS, chunk_function, step_function, step_layout
 from cdpr_sym.codegen import (
     BuildOptions,
@@ -156,6 +157,16 @@ class Simulator:
             self._static_native = native.casadi_function("static_tension")
         else:
             self._chunk_function = chunk_function(self.step, chunk)
+        #: The solver of a controller that optimises at its own rate (NMPC), else None.
+        self.sampled: SampledSolver | None = None
+        if getattr(controller, "sampled", False):
+            if as_built is not None:
+                raise InvalidCase("plant", f"{controller.name} runs on the ideal plant; the "
+                                  f"as-built plant's sensed state is not yet passed to its "
+                                  f"solver")
+            self.sampled = SampledSolver(self.model, controller, backend=self.backend,
+                                         build_options=build_options,
+                                         library_name=self.library_name)
 
     @property
     def values_per_step(self) -> int:
@@ -258,23 +269,49 @@ class Simulator:
         virtual machine runs whole chunks, so its arrays are padded to a multiple of
         ``chunk`` steps; read the first n_steps (+ 1) rows.
         """
-        states, logs, _, _ = self._rollout_with_static_tension(x0, p, n_steps)
+        states, logs, _, _, _ = self._rollout_with_static_tension(x0, p, n_steps)
         return states, logs
 
     def _rollout_with_static_tension(self, x0: np.ndarray, p: np.ndarray, n_steps: int
-                                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int | None]:
-        """:meth:`rollout`'s arrays, the static tension at x0's pose (N) and the steps the
-        compiled loop took (None from the virtual machine)."""
+                                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                int | None, dict[str, Any] | None]:
+        """:meth:`rollout`'s arrays, the static tension at x0's pose (N), the steps the
+        compiled loop took (None from the virtual machine) and a sampled controller's
+        solver record (else None)."""
         padded = n_steps if self.backend == "c" else -(-n_steps // self.chunk) * self.chunk
         states = np.zeros((padded + 1, self.layout.x.size))
         logs = np.zeros((padded, self.layout.log.size))
         states[0] = x0
+        if self.sampled is not None:
+            static = self._static_tension(x0[: self.robot.n])
+            dt = float(self.layout.p.split(p)["dt"][0])
+            taken, record = self.sampled.run(states, logs, p, n_steps, dt, self.layout,
+                                             self._advance(p))
+            return states, logs, static, taken, record
         if self.backend == "c":
             # the compiled loop evaluates the static tension too: one C call per run
             static = np.empty(self.robot.m)
-            return states, logs, static, self._rollout(states, logs, p, n_steps, static)
+            return states, logs, static, self._rollout(states, logs, p, n_steps, static), None
         self._run_virtual_machine(states, logs, p, n_steps)
-        return states, logs, self._static_tension(states[0, : self.robot.n]), None
+        return states, logs, self._static_tension(states[0, : self.robot.n]), None, None
+
+    def _advance(self, p: np.ndarray):
+        """advance(states, logs, n_steps) -> steps taken: the step from states[0], in C or
+        one virtual-machine call per step."""
+        scratch = np.empty(self.robot.m)
+
+        def compiled(states: np.ndarray, logs: np.ndarray, n_steps: int) -> int:
+            return self._rollout(states, logs, p, n_steps, scratch)
+
+        def virtual(states: np.ndarray, logs: np.ndarray, n_steps: int) -> int:
+            for index in range(n_steps):
+                x_next, log = self.step(states[index], p)
+                states[index + 1] = np.array(x_next).ravel()
+                logs[index] = np.array(log).ravel()
+                if states[index + 1, self.layout.status_index] != 0:
+                    return index + 1
+            return n_steps
+        return compiled if self.backend == "c" else virtual
 
     def run(self, start: np.ndarray, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, *,
             duration: float, dt: float, plant: Plant, dq0: np.ndarray | None = None
@@ -286,11 +323,11 @@ class Simulator:
         :func:`~cdpr_sym.closed_loop.case.trajectory_budget` bytes."""
         self.check_plant(plant)
         n_steps = check_timing(duration, dt, values_per_step=self.values_per_step)
-        states, logs, static, taken = self._rollout_with_static_tension(
+        states, logs, static, taken, record = self._rollout_with_static_tension(
             self.initial_state(start, goal, k, r_d, dq0=dq0, plant=plant),
             self.parameters(goal, k, r_d, dt, plant), n_steps)
         return self.trajectory(states, logs, n_steps, dt, goal, k, r_d, plant,
-                               static_tension=static, taken=taken)
+                               static_tension=static, taken=taken, solver_record=record)
 
     def check_plant(self, plant: Plant) -> None:
         """Raise :class:`InvalidCase` (``plant``) when ``plant`` needs another step: a
@@ -334,11 +371,12 @@ class Simulator:
 
     def trajectory(self, states: np.ndarray, logs: np.ndarray, n_steps: int, dt: float,
                    goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, plant: Plant, *,
-                   static_tension: np.ndarray | None = None, taken: int | None = None
-                   ) -> Trajectory:
+                   static_tension: np.ndarray | None = None, taken: int | None = None,
+                   solver_record: dict[str, Any] | None = None) -> Trajectory:
         """The :class:`Trajectory` of one rollout's ``states`` and ``logs`` rows, ending at
         its first stop status; ``static_tension`` (N) at the start and the steps ``taken``
-        (the compiled loop returns them: it ends at a stop) when already known."""
+        (the compiled loop returns them: it ends at a stop) when already known, and a
+        sampled controller's ``solver_record`` (kept in ``info["solver"]``)."""
         last, reason = self._end(states, n_steps, taken)
         # views into the run's buffer, not copies: copying the strided columns was a third
         # of a run's Python time
@@ -352,7 +390,8 @@ class Simulator:
             q_goal=np.array(goal, dtype=float), t_min=self.robot.t_min,
             t_max=self.robot.t_max, stop_reason=reason,
             info=run_info(self.robot, self.controller, dt, k, r_d, plant,
-                          integrator="rk4-sampled", backend=self.backend),
+                          integrator="rk4-sampled", backend=self.backend,
+                          **({} if solver_record is None else {"solver": solver_record})),
             memory=x["memory"],
             static_tension=(self._static_tension(states[0, : self.robot.n])
                             if static_tension is None else static_tension),

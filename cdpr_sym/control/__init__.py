@@ -28,6 +28,7 @@ from cdpr_sym.control.interface import (
     ControlOutput,
     StatelessLaw,
 )
+from cdpr_sym.control.nmpc import Nmpc, NmpcProblem
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.control.registry import (
     CONTROLLERS,
@@ -41,6 +42,7 @@ __all__ = [
     "CONTROLLERS", "DESCRIPTIONS", "FALLBACK_FLAGS", "FLAG_ALPHA", "FLAG_BETA", "FLAG_INFEASIBLE",
     "FLAG_LOW_SPEED", "FLAG_NAMES", "FLAG_SATURATED", "FLAG_SINGULAR", "PD", "BoxDesign",
     "ControlLaw", "ControlOutput", "Controller", "DistributedPD", "L2Design", "LinfDesign",
+    "Nmpc", "NmpcProblem",
     "SaturatedPD", "SmoothReference", "StatelessLaw", "VirtualReferenceIdaPbc", "check_cables",
     "controller_by_name", "controller_from_options", "initial_memory_function", "law_function",
     "tension",

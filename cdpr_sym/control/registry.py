@@ -8,6 +8,7 @@ from cdpr_sym.control.distributed import DistributedPD
 from cdpr_sym.control.exact_box import BoxDesign, LinfDesign
 from cdpr_sym.control.ida_pbc import PD, L2Design, SaturatedPD
 from cdpr_sym.control.interface import Controller
+from cdpr_sym.control.nmpc import Nmpc
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.errors import InvalidCase, UnknownName
 
@@ -35,6 +36,9 @@ CONTROLLERS: dict[str, Controller] = {
     "ida-ref-obs": VirtualReferenceIdaPbc(observer_rate=OBSERVER_RATE),
     "smooth-lp": SmoothReference(command_cutoff=COMMAND_CUTOFF, guard=GUARD),
     "pd-td": DistributedPD(),
+    "nmpc": Nmpc(),
+    "nmpc-sqp": Nmpc(solver="sqp"),
+    "nmpc-ipopt": Nmpc(solver="ipopt"),
 }
 
 
@@ -52,6 +56,10 @@ DESCRIPTIONS = {
                "misses (mass error)",
     "smooth-lp": "smooth, command low-passed at 15 Hz and kept 1 N inside the box: for winches",
     "pd-td": "PD + gravity compensation + tension distribution; any m >= n cables",
+    "nmpc": "NMPC, hard tension and rate bounds, 50 Hz, 0.5 s horizon, one SQP step per "
+            "sample (real-time iteration, generated C); any m >= n cables",
+    "nmpc-sqp": "the same NMPC solved to convergence by CasADi's sqpmethod at every sample",
+    "nmpc-ipopt": "the same NMPC solved to convergence by IPOPT (the reference)",
 }
 
 

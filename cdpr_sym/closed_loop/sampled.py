@@ -1,0 +1,145 @@
+"""The time loop of a controller that optimises at its own rate (NMPC).
+
+Every ``1 / rate`` s the solver takes the state and the last command, solves the NMPC
+problem (warm-started from the previous solution shifted by one interval) and writes the
+planned rate of change of the tension into the controller's memory; the compiled step then
+plays it back for the period's control steps, in one C call. A failed solve is replaced by
+the problem's safe command and flagged. Each solve is timed (wall clock, the call included)
+and the run records the median, the worst and the failures.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.closed_loop.layout import StepLayout
+from cdpr_sym.codegen import BuildOptions, build
+from cdpr_sym.control.flags import FLAG_INFEASIBLE
+from cdpr_sym.control.nmpc import Nmpc, NmpcProblem
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SymbolicModel
+
+#: advance(states, logs, n_steps) -> steps taken: the compiled step from states[0].
+Advance = Callable[[np.ndarray, np.ndarray, int], int]
+
+
+def steps_per_sample(design: Nmpc, dt: float) -> int:
+    """Control steps of ``dt`` s per solve; raise :class:`InvalidCase` (``dt``) unless they
+    divide the design's period."""
+    ratio = round(design.period / dt)
+    if ratio < 1 or abs(ratio * dt - design.period) > 1e-9 * design.period:
+        raise InvalidCase("dt", f"the NMPC solves every {design.period:g} s; dt = {dt:g} s "
+                          f"must divide it")
+    return ratio
+
+
+class SampledSolver:
+    """The solver of one NMPC design on one model: the real-time iteration compiled to C
+    (or in CasADi's virtual machine for ``backend="casadi"``), or ``nlpsol`` to convergence.
+    """
+
+    def __init__(self, model: SymbolicModel, design: Nmpc, *, backend: str,
+                 build_options: BuildOptions, library_name: str) -> None:
+        self.design = design
+        self.problem = NmpcProblem(model, design)
+        self._lower, self._upper = self.problem.bounds()
+        fallback = self.problem.fallback_function()
+        self._goal_tension = model.functions["static_tension"]
+        self._rti: Any = None
+        self._nlp: ca.Function | None = None
+        if design.solver == "rti":
+            rti = self.problem.rti_function()
+            if backend == "c":
+                native = build([rti], f"{library_name}_nmpc", options=build_options).native()
+                self._rti = native.casadi_function("nmpc_rti")
+            else:
+                self._rti = rti
+        else:
+            self._nlp = self.problem.nlp_solver()
+        self._fallback = fallback
+
+    def solve(self, z0: np.ndarray, guess: np.ndarray, q_goal: np.ndarray,
+              tau_goal: np.ndarray) -> np.ndarray | None:
+        """The solution v from the state ``z0`` and ``guess``, or None when the solve
+        failed (see :meth:`NmpcProblem.checked`)."""
+        if self._nlp is not None:
+            result = self._nlp(x0=guess, p=np.r_[z0, q_goal, tau_goal], lbx=self._lower,
+                               ubx=self._upper, lbg=0, ubg=0)
+            v = np.array(result["x"]).ravel()
+            solved = bool(self._nlp.stats()["success"])
+            residual = float(np.max(np.abs(np.array(result["g"]))))
+            return v if solved and self.problem.checked(v, residual) else None
+        if isinstance(self._rti, ca.Function):
+            try:
+                v_dm, residual_dm = self._rti(z0, guess, q_goal, tau_goal)
+            except RuntimeError:
+                return None
+            v, residual = np.array(v_dm).ravel(), float(residual_dm)
+        else:
+            v, residual_out = np.empty(self.problem.size), np.empty(1)
+            try:
+                self._rti.evaluate([z0, guess, q_goal, tau_goal], [v, residual_out])
+            except RuntimeError:
+                return None
+            residual = float(residual_out[0])
+        return v if self.problem.checked(v, residual) else None
+
+    def fallback(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, r_d: np.ndarray
+                 ) -> np.ndarray:
+        """The safe command's rate, N/s (see :meth:`NmpcProblem.fallback_function`)."""
+        return np.array(self._fallback(q, dq, tau, r_d)).ravel()
+
+    def goal_tension(self, q_goal: np.ndarray) -> np.ndarray:
+        """The static tension at the goal, N: the cost's tension target."""
+        return np.array(self._goal_tension(q_goal)).ravel()
+
+    def run(self, states: np.ndarray, logs: np.ndarray, p: np.ndarray, n_steps: int,
+            dt: float, layout: StepLayout, advance: Advance) -> tuple[int, dict[str, Any]]:
+        """Fill ``states`` (row 0 the start) and ``logs`` for ``n_steps`` steps, solving at
+        every sample; the steps taken and the run's solver record."""
+        ratio = steps_per_sample(self.design, dt)
+        par = layout.p.split(p)
+        q_goal, r_d = np.array(par["q_goal"]), np.array(par["r_d"])
+        tau_goal = self.goal_tension(q_goal)
+        fields = layout.x
+        n, m = layout.n, layout.cables
+        memory = fields.offset("memory")
+        guess: np.ndarray | None = None
+        seconds: list[float] = []
+        failed = 0
+        first = 0
+        while first < n_steps:
+            x = states[first]
+            q, dq, tau = x[:n], x[n: 2 * n], x[memory: memory + m]
+            z0 = np.r_[q, dq, tau]
+            start = time.perf_counter()
+            v = self.solve(z0, self.problem.hold(z0) if guess is None else guess, q_goal,
+                           tau_goal)
+            if v is None:
+                rate, flags, guess = self.fallback(q, dq, tau, r_d), FLAG_INFEASIBLE, None
+                failed += 1
+            else:
+                rate, flags, guess = self.problem.first_rate(v), 0, self.problem.shifted(v)
+            seconds.append(time.perf_counter() - start)
+            x[memory + m: memory + 2 * m] = rate
+            x[memory + 2 * m] = flags
+            segment = min(ratio, n_steps - first)
+            taken = advance(states[first:], logs[first:], segment)
+            if taken < segment:
+                return first + taken, _record(self.design, seconds, failed)
+            first += segment
+        return n_steps, _record(self.design, seconds, failed)
+
+
+def _record(design: Nmpc, seconds: list[float], failed: int) -> dict[str, Any]:
+    """What a run keeps about its solves: their number, the median and worst wall-clock
+    time per solve (s) and the failed ones."""
+    times = np.array(seconds) if seconds else np.zeros(1)
+    return {"solver": design.solver, "samples": len(seconds),
+            "solve_time_median": float(np.median(times)),
+            "solve_time_max": float(np.max(times)), "failed_samples": failed}

@@ -1,0 +1,213 @@
+"""The NMPC optimal control problem on the symbolic model, and its three solvers.
+
+Variables, stage by stage, v = (u_0, z_1, u_1, z_2, ..., u_{N-1}, z_N) with z = (q, dq, tau)
+and u = d tau/dt; z_0 is the measured state and the last command. The cost is a sum of
+squares, so its Hessian is a constant diagonal and the Gauss-Newton SQP step is a QP with
+that Hessian and the dynamics linearised about the guess::
+
+    z_{k+1} - A_k z_k - B_k u_k = F(zbar_k, ubar_k) - A_k zbar_k - B_k ubar_k
+
+(A_k, B_k the Jacobians of one interval's RK4 transition F). :meth:`NmpcProblem.rti_function`
+is that step as one CasADi function, the QP solved by CasADi's ``qrqp``, so it generates to
+self-contained C; :meth:`NmpcProblem.nlp` is the nonlinear problem itself for ``sqpmethod``
+and ``ipopt``. Bounds are bounds on v, so any solution the QP solver returns as solved lies
+in the box.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.control.nmpc.design import Nmpc
+from cdpr_sym.control.parts import clip_to_box
+from cdpr_sym.model import SymbolicModel
+
+#: |A v - c| and bound violations up to this (m, m/s, N) still count as solved.
+RESIDUAL_TOLERANCE = 1e-6
+
+
+class NmpcProblem:
+    """The problem of :class:`Nmpc` ``design`` on ``model`` (see the module docstring)."""
+
+    def __init__(self, model: SymbolicModel, design: Nmpc) -> None:
+        self.model, self.design = model, design
+        self.n, self.m = model.n, model.m
+        #: Length of z = (q, dq, tau).
+        self.nz = 2 * model.n + model.m
+        #: Sample intervals in the horizon.
+        self.intervals = design.intervals
+        #: Length of one stage (u_k, z_{k+1}) of v.
+        self.stage = self.m + self.nz
+        #: Length of v.
+        self.size = self.intervals * self.stage
+
+    # -- dynamics -----------------------------------------------------------------------
+    def _rhs(self, z: ca.SX, u: ca.SX) -> ca.SX:
+        n = self.n
+        q, dq, tau = z[:n], z[n: 2 * n], z[2 * n:]
+        return ca.vertcat(dq, self.model.acceleration(q, dq, tau), u)
+
+    @functools.cached_property
+    def transition(self) -> ca.Function:
+        """One sample interval: (z, u) -> (z_next, A = dz_next/dz, B = dz_next/du)."""
+        z, u = ca.SX.sym("z", self.nz), ca.SX.sym("u", self.m)
+        h = self.design.period / self.design.substeps
+        z_next = z
+        for _ in range(self.design.substeps):
+            k1 = self._rhs(z_next, u)
+            k2 = self._rhs(z_next + 0.5 * h * k1, u)
+            k3 = self._rhs(z_next + 0.5 * h * k2, u)
+            k4 = self._rhs(z_next + h * k3, u)
+            z_next = z_next + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return ca.Function("nmpc_transition", [z, u],
+                           [z_next, ca.jacobian(z_next, z), ca.jacobian(z_next, u)],
+                           ["z", "u"], ["z_next", "A", "B"], {"cse": True})
+
+    # -- cost and bounds ------------------------------------------------------------------
+    def hessian_diagonal(self) -> np.ndarray:
+        """The cost's (constant, diagonal) Hessian on v."""
+        design, n = self.design, self.n
+        diagonal = np.zeros(self.size)
+        for k in range(self.intervals):
+            first = k * self.stage
+            terminal = design.terminal_factor if k == self.intervals - 1 else 1.0
+            diagonal[first: first + self.m] = 2 * design.rate_weight
+            z = first + self.m
+            diagonal[z: z + n] = 2 * terminal * design.position_weight
+            diagonal[z + n: z + 2 * n] = 2 * terminal * design.velocity_weight
+            diagonal[z + 2 * n: z + self.nz] = 2 * design.tension_weight
+        return diagonal
+
+    def gradient(self, q_goal, tau_goal):
+        """The cost's linear term on v for the goal pose (m, rad) and tension (N); works on
+        numpy arrays and CasADi symbols alike."""
+        design = self.design
+        parts = []
+        for k in range(self.intervals):
+            terminal = design.terminal_factor if k == self.intervals - 1 else 1.0
+            parts += [0 * tau_goal, -2 * terminal * design.position_weight * q_goal,
+                      0 * q_goal, -2 * design.tension_weight * tau_goal]
+        if isinstance(q_goal, np.ndarray):
+            return np.concatenate(parts)
+        return ca.vertcat(*parts)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds on v: rates within +-max_rate, poses in the frame,
+        tensions in [T_min, T_max], velocities free."""
+        robot, rate = self.model.robot, self.design.max_rate
+        free = np.full(self.n, np.inf)
+        lower = np.r_[np.full(self.m, -rate), robot.frame_lower, -free,
+                      np.full(self.m, robot.t_min)]
+        upper = np.r_[np.full(self.m, rate), robot.frame_upper, free,
+                      np.full(self.m, robot.t_max)]
+        return np.tile(lower, self.intervals), np.tile(upper, self.intervals)
+
+    # -- guesses -----------------------------------------------------------------------
+    def hold(self, z0: np.ndarray) -> np.ndarray:
+        """The guess that holds z0 (at rest or not) at zero rate over the horizon."""
+        return np.tile(np.r_[np.zeros(self.m), z0], self.intervals)
+
+    def shifted(self, v: np.ndarray) -> np.ndarray:
+        """The warm start of the next sample: v one interval on, its last stage repeated
+        with zero rate."""
+        last = np.r_[np.zeros(self.m), v[-self.nz:]]
+        return np.r_[v[self.stage:], last]
+
+    def first_rate(self, v: np.ndarray) -> np.ndarray:
+        """u_0, N/s: the rate the next interval plays back."""
+        return v[: self.m]
+
+    def checked(self, v: np.ndarray, residual: float) -> bool:
+        """Whether v is finite, inside its bounds and meets the dynamics it was solved for,
+        within :data:`RESIDUAL_TOLERANCE`."""
+        lower, upper = self.bounds()
+        return bool(np.all(np.isfinite(v)) and residual <= RESIDUAL_TOLERANCE
+                    and np.all(v >= lower - RESIDUAL_TOLERANCE)
+                    and np.all(v <= upper + RESIDUAL_TOLERANCE))
+
+    # -- the real-time iteration -------------------------------------------------------
+    def rti_function(self) -> ca.Function:
+        """``nmpc_rti``: (z0, guess, q_goal, tau_goal) -> (v, residual): one Gauss-Newton SQP
+        step from ``guess``, the QP solved by ``qrqp``; ``residual`` = max |A v - c|."""
+        N, m, nz, stage = self.intervals, self.m, self.nz, self.stage
+        z0, guess = ca.MX.sym("z0", self.nz), ca.MX.sym("guess", self.size)
+        q_goal, tau_goal = ca.MX.sym("q_goal", self.n), ca.MX.sym("tau_goal", self.m)
+        rates = ca.horzcat(*[guess[k * stage: k * stage + m] for k in range(N)])
+        states = ca.horzcat(z0, *[guess[k * stage + m: (k + 1) * stage] for k in range(N - 1)])
+        f, a, b = self.transition.map(N)(states, rates)
+        # row block k: [-B_k, I] on (u_k, z_{k+1}), and -A_k on z_k (k >= 1)
+        eye = ca.MX(ca.DM.eye(nz))
+        constraint = ca.diagcat(*[ca.horzcat(-b[:, k * m: (k + 1) * m], eye)
+                                  for k in range(N)])
+        if N > 1:
+            coupling = ca.diagcat(*[ca.horzcat(ca.MX(nz, m), -a[:, k * nz: (k + 1) * nz])
+                                    for k in range(1, N)])
+            constraint = constraint + ca.vertcat(
+                ca.MX(nz, self.size), ca.horzcat(coupling, ca.MX((N - 1) * nz, stage)))
+        offsets = [f[:, k] - a[:, k * nz: (k + 1) * nz] @ states[:, k]
+                   - b[:, k * m: (k + 1) * m] @ rates[:, k] for k in range(N)]
+        offsets[0] = offsets[0] + a[:, :nz] @ z0  # z_0 is data, not a variable
+        right = ca.vertcat(*offsets)
+        hessian = ca.DM(ca.Sparsity.diag(self.size), self.hessian_diagonal())
+        solver = ca.conic("nmpc_qp", "qrqp", {"h": hessian.sparsity(),
+                                              "a": constraint.sparsity()},
+                          {"print_iter": False, "print_header": False, "print_info": False,
+                           "error_on_fail": False})
+        lower, upper = self.bounds()
+        solution = solver(h=hessian, g=self.gradient(q_goal, tau_goal), a=constraint,
+                          lba=right, uba=right, lbx=lower, ubx=upper, x0=guess)
+        v = solution["x"]
+        residual = ca.mmax(ca.fabs(constraint @ v - right))
+        return ca.Function("nmpc_rti", [z0, guess, q_goal, tau_goal], [v, residual],
+                           ["z0", "guess", "q_goal", "tau_goal"], ["v", "residual"])
+
+    # -- the converged problem ---------------------------------------------------------
+    def nlp(self) -> dict[str, ca.MX]:
+        """The nonlinear problem for ``nlpsol``: x = v, p = (z0, q_goal, tau_goal), the
+        dynamics as equality constraints g = 0."""
+        N, m, stage = self.intervals, self.m, self.stage
+        v = ca.MX.sym("v", self.size)
+        p = ca.MX.sym("p", self.nz + self.n + self.m)
+        z0, q_goal, tau_goal = (p[: self.nz], p[self.nz: self.nz + self.n],
+                                p[self.nz + self.n:])
+        rates = ca.horzcat(*[v[k * stage: k * stage + m] for k in range(N)])
+        ends = ca.horzcat(*[v[k * stage + m: (k + 1) * stage] for k in range(N)])
+        starts = ca.horzcat(z0, ends[:, : N - 1])
+        predicted = self.transition.map(N)(starts, rates)[0]
+        diagonal = ca.DM(self.hessian_diagonal())
+        cost = 0.5 * ca.dot(diagonal, v * v) + ca.dot(self.gradient(q_goal, tau_goal), v)
+        return {"x": v, "p": p, "f": cost, "g": ca.vec(predicted - ends)}
+
+    def nlp_solver(self) -> ca.Function:
+        """``sqpmethod`` (with ``qrqp``) or ``ipopt`` on :meth:`nlp`, quiet, never raising on
+        a failed solve (its status is read from ``stats()``)."""
+        quiet = {"print_time": False, "error_on_fail": False, "expand": True}
+        if self.design.solver == "ipopt":
+            options = {**quiet, "ipopt": {"print_level": 0, "sb": "yes", "max_iter": 200,
+                                          "tol": 1e-10, "bound_relax_factor": 0.0,
+                                          "warm_start_init_point": "yes"}}
+            return ca.nlpsol("nmpc_nlp", "ipopt", self.nlp(), options)
+        options = {**quiet, "qpsol": "qrqp", "max_iter": 50, "print_header": False,
+                   "print_iteration": False, "print_status": False,
+                   "qpsol_options": {"print_iter": False, "print_header": False,
+                                     "print_info": False, "error_on_fail": False}}
+        return ca.nlpsol("nmpc_nlp", "sqpmethod", self.nlp(), options)
+
+    # -- the safe command -------------------------------------------------------------
+    def fallback_function(self) -> ca.Function:
+        """``nmpc_fallback``: (q, dq, tau, r_d) -> rate (N/s): towards gravity compensation
+        plus damping, W^+ (grad V - R_d dq) (m > n: the static distribution plus the
+        minimum-norm damping tension), clipped to the box, at most ``max_rate``."""
+        model, n = self.model, self.n
+        q, dq = ca.SX.sym("q", n), ca.SX.sym("dq", n)
+        tau, r_d = ca.SX.sym("tau", self.m), ca.SX.sym("r_d", n)
+        W = model.structure_matrix(q)
+        damping = W.T @ ca.solve(W @ W.T, -r_d * dq)
+        target, _ = clip_to_box(model, model.static_tension(q) + damping)
+        limit = self.design.max_rate
+        rate = ca.fmin(ca.fmax((target - tau) / self.design.period, -limit), limit)
+        return ca.Function("nmpc_fallback", [q, dq, tau, r_d], [rate],
+                           ["q", "dq", "tau", "r_d"], ["rate"])

@@ -1,0 +1,180 @@
+"""NMPC: the prediction against a numpy integration, the real-time iteration against IPOPT,
+hard bounds on every solved step, and a failed solve flagged and replaced."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import reference
+
+from cdpr_sym import Nmpc, Plant, preset, simulate
+from cdpr_sym.closed_loop import get_simulator
+from cdpr_sym.closed_loop.sampled import SampledSolver, steps_per_sample
+from cdpr_sym.control import FLAG_INFEASIBLE, NmpcProblem
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SymbolicModel
+
+
+def _numpy_transition(robot, z, u, period, substeps):
+    """One interval of the point mass with the tension ramping at u: RK4 in numpy on the
+    reference structure matrix (W tau - m g e_z = m ddq)."""
+    n, anchors = robot.n, np.array(robot.anchors)
+    weight = reference.grad_potential(robot.mass, robot.gravity, n)
+
+    def rhs(x):
+        q, dq, tau = x[:n], x[n: 2 * n], x[2 * n:]
+        force = reference.structure_matrix(q, anchors) @ tau - weight
+        return np.r_[dq, force / robot.mass, u]
+
+    h = period / substeps
+    for _ in range(substeps):
+        k1 = rhs(z)
+        k2 = rhs(z + 0.5 * h * k1)
+        k3 = rhs(z + 0.5 * h * k2)
+        k4 = rhs(z + h * k3)
+        z = z + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return z
+
+
+def _held_pairs(robot, model, rng, count):
+    """Random start/goal poses in the frame that the box holds at rest."""
+    held = model.static_distribution_function
+    poses = []
+    while len(poses) < 2 * count:
+        q = rng.uniform(robot.frame_lower, robot.frame_upper)
+        if float(held(q)[1]) > 0.5:
+            poses.append(q)
+    return poses[:count], poses[count:]
+
+
+def test_prediction_matches_a_numpy_integration(aras3, aras3_model, rng):
+    problem = NmpcProblem(aras3_model, Nmpc())
+    for _ in range(5):
+        q = rng.uniform(aras3.frame_lower, aras3.frame_upper) * 0.5
+        z = np.r_[q, rng.normal(0, 0.3, 3), rng.uniform(5, 40, 3)]
+        u = rng.uniform(-500, 500, 3)
+        z_next, a, b = problem.transition(z, u)
+        expected = _numpy_transition(aras3, z, u, problem.design.period, 2)
+        np.testing.assert_allclose(np.array(z_next).ravel(), expected, rtol=0, atol=1e-12)
+        step = 1e-6  # the Jacobians against central differences of the numpy integration
+        fd = np.array([(_numpy_transition(aras3, z + step * e, u, 0.02, 2)
+                        - _numpy_transition(aras3, z - step * e, u, 0.02, 2)) / (2 * step)
+                       for e in np.eye(9)]).T
+        np.testing.assert_allclose(np.array(a), fd, atol=1e-6)
+        fd_u = np.array([(_numpy_transition(aras3, z, u + step * e, 0.02, 2)
+                          - _numpy_transition(aras3, z, u - step * e, 0.02, 2)) / (2 * step)
+                         for e in np.eye(3)]).T
+        np.testing.assert_allclose(np.array(b), fd_u, atol=1e-6)
+
+
+def test_real_time_iteration_converges_to_the_ipopt_solution(aras3, aras3_model):
+    """Repeated at one state, the Gauss-Newton step built by hand (constraint matrix,
+    right-hand side, gradient) must reach the optimum IPOPT finds on the nonlinear
+    problem stated separately (multiple shooting with equality constraints)."""
+    design = Nmpc()
+    problem = NmpcProblem(aras3_model, design)
+    static = aras3_model.functions["static_tension"]
+    start, goal = np.array(aras3.start), np.array(aras3.goal)
+    z0 = np.r_[start, np.zeros(3), np.array(static(start)).ravel()]
+    tau_goal = np.array(static(goal)).ravel()
+    rti = problem.rti_function()
+    v = problem.hold(z0)
+    for _ in range(15):
+        v_next, residual = rti(z0, v, goal, tau_goal)
+        v = np.array(v_next).ravel()
+    assert float(residual) < 1e-9
+    ipopt = NmpcProblem(aras3_model, Nmpc(solver="ipopt")).nlp_solver()
+    lower, upper = problem.bounds()
+    result = ipopt(x0=problem.hold(z0), p=np.r_[z0, goal, tau_goal], lbx=lower, ubx=upper,
+                   lbg=0, ubg=0)
+    assert ipopt.stats()["success"]
+    reference_v = np.array(result["x"]).ravel()
+    # rates (N/s) to 1e-3 of their 800 N/s range, states closer
+    np.testing.assert_allclose(v, reference_v, atol=0.5, rtol=0)
+    np.testing.assert_allclose(problem.first_rate(v), problem.first_rate(reference_v),
+                               atol=0.5)
+    states = np.s_[3:]
+    np.testing.assert_allclose(v.reshape(-1, 12)[:, states], reference_v.reshape(-1, 12)
+                               [:, states], atol=2e-4)
+
+
+@pytest.mark.parametrize("name", ["aras3", "planar4"])
+def test_every_solved_step_keeps_the_box_and_the_rate(name, rng, build_options):
+    robot = preset(name)
+    model = SymbolicModel(robot)
+    design = Nmpc()
+    simulator = get_simulator(robot, design, build_options=build_options)
+    for start, goal in zip(*_held_pairs(robot, model, rng, 3), strict=True):
+        run = simulator.run(start, goal, robot.k, robot.r_d, duration=2.0, dt=1e-3,
+                            plant=Plant())
+        solved = (run.flags & FLAG_INFEASIBLE) == 0
+        assert solved.any()
+        tau = run.tau[solved]
+        assert tau.min() >= robot.t_min - 1e-9 and tau.max() <= robot.t_max + 1e-9
+        steps = np.abs(np.diff(np.vstack([run.static_tension, run.tau]), axis=0))
+        assert steps.max() <= design.max_rate * 1e-3 + 1e-9
+        assert run.info["solver"]["samples"] == 100
+
+
+def test_compiled_step_equals_the_virtual_machine(aras3, aras3_model, build_options):
+    problem = NmpcProblem(aras3_model, Nmpc())
+    compiled = SampledSolver(aras3_model, Nmpc(), backend="c", build_options=build_options,
+                             library_name="test_nmpc")
+    static = aras3_model.functions["static_tension"]
+    start, goal = np.array(aras3.start), np.array(aras3.goal)
+    z0 = np.r_[start, np.zeros(3), np.array(static(start)).ravel()]
+    tau_goal = np.array(static(goal)).ravel()
+    v_c = compiled.solve(z0, problem.hold(z0), goal, tau_goal)
+    v_vm = np.array(problem.rti_function()(z0, problem.hold(z0), goal, tau_goal)[0]).ravel()
+    np.testing.assert_allclose(v_c, v_vm, atol=1e-9)
+
+
+def test_an_infeasible_problem_is_reported_not_hidden(aras3, aras3_model, build_options):
+    """Moving out of the frame at 5 m/s from 1 mm inside it, no plan keeps the next
+    sample's pose in the frame: the solve must say so."""
+    solver = SampledSolver(aras3_model, Nmpc(), backend="c", build_options=build_options,
+                           library_name="test_nmpc")
+    static = aras3_model.functions["static_tension"]
+    q = np.array([aras3.frame_upper[0] - 1e-3, 0.0, 1.0])
+    z0 = np.r_[q, [5.0, 0, 0], np.array(static(q)).ravel()]
+    goal = np.array(aras3.goal)
+    assert solver.solve(z0, solver.problem.hold(z0), goal, np.array(static(goal)).ravel()) \
+        is None
+
+
+def test_a_failed_solve_falls_back_flagged_and_bounded(aras3, build_options, monkeypatch):
+    simulator = get_simulator(aras3, Nmpc(), build_options=build_options)
+    real_solve = simulator.sampled.solve
+    calls = {"count": 0}
+
+    def every_third_fails(*args):
+        calls["count"] += 1
+        return None if calls["count"] % 3 == 0 else real_solve(*args)
+
+    monkeypatch.setattr(simulator.sampled, "solve", every_third_fails)
+    run = simulator.run(np.array(aras3.start), np.array(aras3.goal), aras3.k, aras3.r_d,
+                        duration=1.0, dt=1e-3, plant=Plant())
+    assert run.stop_reason is None
+    assert run.info["solver"]["failed_samples"] == 50 // 3
+    flagged = (run.flags & FLAG_INFEASIBLE) != 0
+    assert flagged.sum() == 20 * (50 // 3)
+    assert run.tau.min() >= aras3.t_min and run.tau.max() <= aras3.t_max
+    assert np.abs(np.diff(run.tau, axis=0)).max() <= 0.8 + 1e-9
+
+
+def test_it_reaches_the_papers_goal_smoothly(build_options):
+    run = simulate("aras3", "nmpc", duration=5.0, build_options=build_options)
+    metrics = run.metrics()
+    assert metrics["converged"] and metrics["tension_feasible"]
+    assert metrics["settle_time"] < 5.0 and metrics["max_tension_step"] <= 1.0
+
+
+def test_bad_options_name_their_field():
+    for field, value in [("rate", 0.0), ("horizon", -1.0), ("solver", "osqp"),
+                         ("substeps", 0), ("tension_weight", -1.0), ("max_rate", float("nan"))]:
+        with pytest.raises(InvalidCase) as error:
+            Nmpc(**{field: value})
+        assert error.value.field == field
+    with pytest.raises(InvalidCase) as error:
+        steps_per_sample(Nmpc(rate=30.0), 1e-3)
+    assert error.value.field == "dt"
