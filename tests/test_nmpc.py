@@ -102,7 +102,7 @@ def test_real_time_iteration_converges_to_the_ipopt_solution(aras3, aras3_model)
 def test_every_solved_step_keeps_the_box_and_the_rate(name, rng, build_options):
     robot = preset(name)
     model = SymbolicModel(robot)
-    design = Nmpc()
+    design = Nmpc(max_rate=200.0)  # low enough to bind on every move
     simulator = get_simulator(robot, design, build_options=build_options)
     for start, goal in zip(*_held_pairs(robot, model, rng, 3), strict=True):
         run = simulator.run(start, goal, robot.k, robot.r_d, duration=2.0, dt=1e-3,
@@ -178,3 +178,31 @@ def test_bad_options_name_their_field():
     with pytest.raises(InvalidCase) as error:
         steps_per_sample(Nmpc(rate=30.0), 1e-3)
     assert error.value.field == "dt"
+
+
+def test_cost_is_the_stated_sum_of_squares(aras3_model, rng):
+    """0.5 v'Hv + g'v differs from the documented sum of squares by a constant."""
+    design = Nmpc(position_weight=3.0, velocity_weight=0.7, rate_weight=0.01,
+                  tension_weight=0.2, terminal_factor=5.0, horizon=0.1)
+    problem = NmpcProblem(aras3_model, design)
+    q_goal, tau_goal = rng.normal(size=3), rng.uniform(5, 40, 3)
+
+    def stated(v):
+        total = 0.0
+        stages = v.reshape(design.intervals, 12)
+        for k, stage in enumerate(stages):
+            u, q, dq, tau = stage[:3], stage[3:6], stage[6:9], stage[9:]
+            end = design.terminal_factor if k == design.intervals - 1 else 1.0
+            total += (end * design.position_weight * np.sum((q - q_goal) ** 2)
+                      + end * design.velocity_weight * np.sum(dq ** 2)
+                      + design.rate_weight * np.sum(u ** 2)
+                      + design.tension_weight * np.sum((tau - tau_goal) ** 2))
+        return total
+
+    def quadratic(v):
+        return (0.5 * v @ (problem.hessian_diagonal() * v)
+                + problem.gradient(q_goal, tau_goal) @ v)
+
+    values = [rng.normal(size=problem.size) * 10 for _ in range(4)]
+    offsets = [stated(v) - quadratic(v) for v in values]
+    np.testing.assert_allclose(offsets, offsets[0], rtol=1e-12, atol=1e-9)
