@@ -8,6 +8,7 @@ import pytest
 import reference
 
 from cdpr_sym import Nmpc, Plant, preset, simulate
+from cdpr_sym.cli import main
 from cdpr_sym.closed_loop import get_simulator
 from cdpr_sym.closed_loop.sampled import SampledSolver, steps_per_sample
 from cdpr_sym.control import FLAG_INFEASIBLE, NmpcProblem
@@ -206,3 +207,10 @@ def test_cost_is_the_stated_sum_of_squares(aras3_model, rng):
     values = [rng.normal(size=problem.size) * 10 for _ in range(4)]
     offsets = [stated(v) - quadratic(v) for v in values]
     np.testing.assert_allclose(offsets, offsets[0], rtol=1e-12, atol=1e-9)
+
+
+def test_a_period_that_does_not_divide_is_one_line_before_building(capsys):
+    assert main(["simulate", "--robot", "aras3", "--controller", "nmpc", "--dt", "0.003",
+                 "--duration", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("cdpr-sym: error: dt:")

@@ -31,7 +31,7 @@ from cdpr_sym.closed_loop.as_built_step import (
 from cdpr_sym.closed_loop.case import Case, check_timing, minimal_values_per_step
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
-from cdpr_sym.closed_loop.sampled import SampledSolver
+from cdpr_sym.closed_loop.sampled import SampledSolver, steps_per_sample
 from cdpr_sym.closed_loop.step import STOP_REASONS, chunk_function, step_function, step_layout
 from cdpr_sym.codegen import (
     BuildOptions,
@@ -550,6 +550,8 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=N
     robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
     check_timing(duration, dt, values_per_step=minimal_values_per_step(robot))
+    if getattr(controller, "sampled", False):
+        steps_per_sample(controller, dt)  # before building: dt must divide its period
     simulator = get_simulator(robot, controller, build_options=build_options,
                               rate_limited=plant.rate_limited,
                               as_built=None if plant.as_built is None
