@@ -214,3 +214,12 @@ def test_a_period_that_does_not_divide_is_one_line_before_building(capsys):
                  "--duration", "1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("cdpr-sym: error: dt:")
+
+
+def test_export_c_refuses_nmpc_in_one_line_before_writing(tmp_path, capsys):
+    out = tmp_path / "package"
+    assert main(["export-c", "--robot", "aras3", "--controller", "nmpc", "--out",
+                 str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("cdpr-sym: error: controller:")
+    assert not out.exists()

@@ -349,7 +349,8 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
         nor an earlier export (without ``overwrite``), ``prefix`` is unusable (see
         :func:`prefix_problem`), or the robot has more cables than degrees of freedom and
         the controller inverts W (field ``controller``, see
-        :func:`cdpr_sym.control.check_cables`).
+        :func:`cdpr_sym.control.check_cables`), or the controller optimises at its own rate
+        (NMPC, field ``controller``).
 
     Notes
     -----
@@ -371,6 +372,10 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     label = controller if isinstance(controller, str) else controller.name
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
     check_cables(controller, robot.n, robot.m)
+    if getattr(controller, "sampled", False):
+        raise InvalidCase("controller", f"{controller.name} optimises outside the control step "
+                          f"and export-c does not package its solver yet; export a closed-form "
+                          f"design")
     prefix = prefix if prefix is not None else c_identifier(f"cdpr_{robot.name}_{label}")
     problem = prefix_problem(prefix)
     if problem:

@@ -57,6 +57,8 @@ def bench_controllers(robot: Robot, *, duration: float = 5.0, dt: float = 1e-3,
     for name, controller in CONTROLLERS.items():
         if robot.m > robot.n and not getattr(controller, "redundant", False):
             continue  # it inverts W: refused on a robot with more cables than DOF
+        if getattr(controller, "sampled", False):
+            continue  # NMPC: its cost is per solve (python -m benchmarks.nmpc)
         simulator = get_simulator(robot, controller, build_options=build_options)
 
         def run(simulator=simulator):

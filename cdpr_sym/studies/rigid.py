@@ -35,6 +35,11 @@ from cdpr_sym.workspace import WorkspaceEvaluator, frame_shares, interior_box
 ROBOTS = ("planar3", "spatial6")
 SHOWN = ("l2", "pd-sat", "smooth", "ida-ref")
 
+#: Every closed-form design; NMPC's generated real-time iteration of the 6-DOF platform does
+#: not compile within the build limit yet, so the rigid study leaves it out.
+CLOSED_FORM = tuple(name for name, design in CONTROLLERS.items()
+                    if not getattr(design, "sampled", False))
+
 
 def run_rigid_study(out_dir: Path, *, pairs: int = 200, seed: int = 0,
                     robots: tuple[str | Path, ...] = ROBOTS, progress: bool = True
@@ -52,8 +57,8 @@ def compute_rigid_study(out_dir: Path, *, pairs: int = 200, seed: int = 0,
     measured = {}
     for spec in robots:
         robot, source = robot_reference(spec)
-        save_runs(case_runs(robot, CONTROLLERS), out_dir / robot.name)
-        config = SweepConfig(robot=source, controllers=tuple(CONTROLLERS), pairs=pairs,
+        save_runs(case_runs(robot, CLOSED_FORM), out_dir / robot.name)
+        config = SweepConfig(robot=source, controllers=CLOSED_FORM, pairs=pairs,
                              seed=seed)
         study_sweep(config, out_dir / f"{robot.name}_sweep.csv", progress=progress)
         measured[robot.name] = {
