@@ -226,8 +226,7 @@ def test_law_overflow_gives_the_safe_command(built, controller, label, q, dq, ba
 
 # smooth's Python law plans each of the 65 states (about 30 s): left to the slow suite
 @pytest.mark.parametrize("controller", [pytest.param(name, marks=pytest.mark.slow)
-                                        if name == "smooth" else name for name in CONTROLLERS
-                                        if not getattr(CONTROLLERS[name], "sampled", False)])
+                                        if name == "smooth" else name for name in CONTROLLERS])
 def test_finite_states_keep_status_ok_and_the_python_law(built, controller, rng,
                                                          random_states, tmp_path):
     """Ordinary states (moving, at rest, at the goal, case and other gains): status
