@@ -19,6 +19,7 @@ Model and conventions
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -574,11 +575,15 @@ def rk4_step(
     numpy.ndarray, shape (2 n,)
         State after ``dt``.
     """
-    x = _vec(x)
-    k1 = closed_loop_rhs(x, tau, anchors, m, g)
-    k2 = closed_loop_rhs(x + 0.5 * dt * k1, tau, anchors, m, g)
-    k3 = closed_loop_rhs(x + 0.5 * dt * k2, tau, anchors, m, g)
-    k4 = closed_loop_rhs(x + dt * k3, tau, anchors, m, g)
+    return rk4(lambda state: closed_loop_rhs(state, tau, anchors, m, g), _vec(x), dt)
+
+
+def rk4(rhs: Callable[[FloatArray], FloatArray], x: FloatArray, dt: float) -> FloatArray:
+    """One classic fourth-order Runge-Kutta step of dx/dt = rhs(x) with step ``dt``."""
+    k1 = rhs(x)
+    k2 = rhs(x + 0.5 * dt * k1)
+    k3 = rhs(x + 0.5 * dt * k2)
+    k4 = rhs(x + dt * k3)
     return x + (dt / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
 

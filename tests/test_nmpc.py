@@ -27,13 +27,8 @@ def _numpy_transition(robot, z, u, period, substeps):
         force = reference.structure_matrix(q, anchors) @ tau - weight
         return np.r_[dq, force / robot.mass, u]
 
-    h = period / substeps
     for _ in range(substeps):
-        k1 = rhs(z)
-        k2 = rhs(z + 0.5 * h * k1)
-        k3 = rhs(z + 0.5 * h * k2)
-        k4 = rhs(z + h * k3)
-        z = z + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        z = reference.rk4(rhs, z, period / substeps)
     return z
 
 
@@ -223,3 +218,14 @@ def test_export_c_refuses_nmpc_in_one_line_before_writing(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("cdpr-sym: error: controller:")
     assert not out.exists()
+
+
+def test_the_as_built_plant_is_refused_before_anything_is_built(aras3, tmp_path):
+    from cdpr_sym import AsBuilt, BuildOptions, Sensing
+    from cdpr_sym.closed_loop import Simulator
+    cache = tmp_path / "cache"
+    with pytest.raises(InvalidCase) as error:
+        Simulator(aras3, Nmpc(), as_built=AsBuilt(sensing=Sensing()).structure(),
+                  build_options=BuildOptions(cache_dir=cache))
+    assert error.value.field == "plant"
+    assert not cache.exists()

@@ -9,6 +9,7 @@ from functools import cache
 import numpy as np
 import numpy.typing as npt
 import pytest
+from reference import rk4
 from rigid_reference import (
     RigidGeometry,
     acceleration,
@@ -51,11 +52,7 @@ def _rk4(rhs: Callable[[FloatArray], FloatArray], state: FloatArray, steps: int)
     """Classical RK4 with step ``DT``; returns every state, shape (steps + 1, len(state))."""
     out = [state]
     for _ in range(steps):
-        k1 = rhs(state)
-        k2 = rhs(state + 0.5 * DT * k1)
-        k3 = rhs(state + 0.5 * DT * k2)
-        k4 = rhs(state + DT * k3)
-        state = state + DT / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+        state = rk4(rhs, state, DT)
         out.append(state)
     return np.array(out)
 

@@ -99,11 +99,11 @@ class SampledSolver:
         return np.array(self._goal_tension(q_goal)).ravel()
 
     def run(self, states: np.ndarray, logs: np.ndarray, p: np.ndarray, n_steps: int,
-            dt: float, layout: StepLayout, advance: Advance) -> tuple[int, dict[str, Any]]:
+            layout: StepLayout, advance: Advance) -> tuple[int, dict[str, Any]]:
         """Fill ``states`` (row 0 the start) and ``logs`` for ``n_steps`` steps, solving at
         every sample; the steps taken and the run's solver record."""
-        ratio = steps_per_sample(self.design, dt)
         par = layout.p.split(p)
+        ratio = steps_per_sample(self.design, float(par["dt"][0]))
         q_goal, r_d = np.array(par["q_goal"]), np.array(par["r_d"])
         tau_goal = self.goal_tension(q_goal)
         fields = layout.x

@@ -122,6 +122,10 @@ class Simulator:
                  rate_limited: bool = False, as_built: AsBuiltStructure | None = None
                  ) -> None:
         check_cables(controller, robot.n, robot.m)
+        if getattr(controller, "sampled", False) and as_built is not None:
+            # before anything is generated or compiled
+            raise InvalidCase("plant", f"{controller.name} runs on the ideal plant; the "
+                              f"as-built plant's sensed state is not yet passed to its solver")
         self.robot = robot
         self.controller = controller
         self.model = SymbolicModel(robot)
@@ -160,10 +164,6 @@ class Simulator:
         #: The solver of a controller that optimises at its own rate (NMPC), else None.
         self.sampled: SampledSolver | None = None
         if getattr(controller, "sampled", False):
-            if as_built is not None:
-                raise InvalidCase("plant", f"{controller.name} runs on the ideal plant; the "
-                                  f"as-built plant's sensed state is not yet passed to its "
-                                  f"solver")
             self.sampled = SampledSolver(self.model, controller, backend=self.backend,
                                          build_options=build_options,
                                          library_name=self.library_name)
@@ -284,8 +284,7 @@ class Simulator:
         states[0] = x0
         if self.sampled is not None:
             static = self._static_tension(x0[: self.robot.n])
-            dt = float(self.layout.p.split(p)["dt"][0])
-            taken, record = self.sampled.run(states, logs, p, n_steps, dt, self.layout,
+            taken, record = self.sampled.run(states, logs, p, n_steps, self.layout,
                                              self._advance(p))
             return states, logs, static, taken, record
         if self.backend == "c":

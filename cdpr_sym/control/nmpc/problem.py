@@ -96,7 +96,13 @@ class NmpcProblem:
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds on v: rates within +-max_rate, poses in the frame,
-        tensions in [T_min, T_max], velocities free."""
+        tensions in [T_min, T_max], velocities free (copies)."""
+        lower, upper = self._bounds
+        return lower.copy(), upper.copy()
+
+    @functools.cached_property
+    def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`bounds`, computed once: :meth:`checked` reads them at every sample."""
         robot, rate = self.model.robot, self.design.max_rate
         free = np.full(self.n, np.inf)
         lower = np.r_[np.full(self.m, -rate), robot.frame_lower, -free,
@@ -123,7 +129,7 @@ class NmpcProblem:
     def checked(self, v: np.ndarray, residual: float) -> bool:
         """Whether v is finite, inside its bounds and meets the dynamics it was solved for,
         within :data:`RESIDUAL_TOLERANCE`."""
-        lower, upper = self.bounds()
+        lower, upper = self._bounds
         return bool(np.all(np.isfinite(v)) and residual <= RESIDUAL_TOLERANCE
                     and np.all(v >= lower - RESIDUAL_TOLERANCE)
                     and np.all(v <= upper + RESIDUAL_TOLERANCE))
