@@ -30,10 +30,7 @@ from cdpr_sym import Plant, preset
 from cdpr_sym.closed_loop import get_simulator
 from cdpr_sym.control import controller_by_name
 
-#: The 6-DOF platforms are left out: gcc -O2 did not finish their generated real-time
-#: iteration (the RK4 transition's Jacobians of a rigid body, 25 intervals) within the
-#: build's 300 s limit.
-ROBOTS = ("aras3", "planar3", "planar4")
+ROBOTS = ("aras3", "planar3", "planar4", "spatial6", "ipanema8")
 CLOSED_FORM = ("smooth", "pd-td")
 DURATION, DT = 5.0, 1e-3
 SWEEP_PAIRS = 200

@@ -23,7 +23,7 @@ DOCUMENTED = {"min_tension": (float,), "max_tension": (float,),
               "min_alpha": (float,), "tension_feasible": (bool,), "converged": (bool,)}
 PNG = b"\x89PNG\r\n\x1a\n"
 
-#: The designs that compute their command in the step (bench and the rigid study).
+#: The designs that compute their command in the step (bench).
 CLOSED_FORM = {name for name, design in CONTROLLERS.items()
                if not getattr(design, "sampled", False)}
 
@@ -285,7 +285,8 @@ def test_rigid_study_writes_its_report_for_both_rigid_presets(capsys, tmp_path):
     assert "## `spatial6` (spatial body, n = 6)" in report
     summary = json.loads((tmp_path / "rigid" / "summary.json").read_text())
     assert summary["spatial6"]["n_j"] == 15
-    assert set(summary["planar3"]["sweep"]) == CLOSED_FORM
+    assert set(summary["planar3"]["sweep"]) == CLOSED_FORM | {"nmpc"}
+    assert summary["spatial6"]["sweep"]["nmpc"]["runs"] == 2
     assert (tmp_path / "rigid" / "spatial6_case.png").read_bytes()[:8] == PNG
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import reference
+import rigid_reference
 
 from cdpr_sym import Nmpc, Plant, preset, simulate
 from cdpr_sym.cli import main
@@ -26,6 +27,20 @@ def _numpy_transition(robot, z, u, period, substeps):
         q, dq, tau = x[:n], x[n: 2 * n], x[2 * n:]
         force = reference.structure_matrix(q, anchors) @ tau - weight
         return np.r_[dq, force / robot.mass, u]
+
+    for _ in range(substeps):
+        z = reference.rk4(rhs, z, period / substeps)
+    return z
+
+
+def _numpy_rigid_transition(robot, z, u, period, substeps):
+    """One interval of the rigid body with the tension ramping at u: RK4 in numpy on the
+    Newton-Euler reference."""
+    n, geometry = robot.n, rigid_reference.geometry_of(robot)
+
+    def rhs(x):
+        q, dq, tau = x[:n], x[n: 2 * n], x[2 * n:]
+        return np.r_[dq, rigid_reference.acceleration(geometry, q, dq, tau), u]
 
     for _ in range(substeps):
         z = reference.rk4(rhs, z, period / substeps)
@@ -63,6 +78,32 @@ def test_prediction_matches_a_numpy_integration(aras3, aras3_model, rng):
         np.testing.assert_allclose(np.array(b), fd_u, atol=1e-6)
 
 
+def test_rigid_body_prediction_and_sensitivities_match_numpy(spatial6, rng):
+    """The 6-DOF transition is assembled from generated pieces (the right-hand side and
+    the acceleration's Jacobian) with its sensitivities carried through RK4 by hand: its
+    state against numpy's Newton-Euler RK4, A and B against central differences of it."""
+    problem = NmpcProblem(SymbolicModel(spatial6), Nmpc())
+    n, m, nz = spatial6.n, spatial6.m, problem.nz
+    for _ in range(3):
+        q = np.array(spatial6.start) + rng.uniform(-0.05, 0.05, n)
+        z = np.r_[q, rng.uniform(-0.3, 0.3, n), rng.uniform(20.0, 80.0, m)]
+        u = rng.uniform(-300.0, 300.0, m)
+        z_next, a, b = (np.array(out) for out in problem.transition(z, u))
+        np.testing.assert_allclose(
+            z_next.ravel(), _numpy_rigid_transition(spatial6, z, u, 0.02, 2), atol=1e-10)
+        np.testing.assert_allclose(problem.prediction(z, u).full().ravel(), z_next.ravel(),
+                                   atol=1e-12)
+        step = 1e-6
+        fd_z = np.array([(_numpy_rigid_transition(spatial6, z + step * e, u, 0.02, 2)
+                          - _numpy_rigid_transition(spatial6, z - step * e, u, 0.02, 2))
+                         / (2 * step) for e in np.eye(nz)]).T
+        np.testing.assert_allclose(a, fd_z, atol=1e-6)
+        fd_u = np.array([(_numpy_rigid_transition(spatial6, z, u + step * e, 0.02, 2)
+                          - _numpy_rigid_transition(spatial6, z, u - step * e, 0.02, 2))
+                         / (2 * step) for e in np.eye(m)]).T
+        np.testing.assert_allclose(b, fd_u, atol=1e-6)
+
+
 def test_real_time_iteration_converges_to_the_ipopt_solution(aras3, aras3_model):
     """Repeated at one state, the Gauss-Newton step built by hand (constraint matrix,
     right-hand side, gradient) must reach the optimum IPOPT finds on the nonlinear
@@ -74,9 +115,9 @@ def test_real_time_iteration_converges_to_the_ipopt_solution(aras3, aras3_model)
     z0 = np.r_[start, np.zeros(3), np.array(static(start)).ravel()]
     tau_goal = np.array(static(goal)).ravel()
     rti = problem.rti_function()
-    v = problem.hold(z0)
+    v, multipliers = problem.hold(z0), np.zeros(problem.multiplier_size)
     for _ in range(15):
-        v_next, residual = rti(z0, v, goal, tau_goal)
+        v_next, residual, multipliers = rti(z0, v, multipliers, goal, tau_goal)
         v = np.array(v_next).ravel()
     assert float(residual) < 1e-9
     ipopt = NmpcProblem(aras3_model, Nmpc(solver="ipopt")).nlp_solver()
@@ -120,8 +161,17 @@ def test_compiled_step_equals_the_virtual_machine(aras3, aras3_model, build_opti
     start, goal = np.array(aras3.start), np.array(aras3.goal)
     z0 = np.r_[start, np.zeros(3), np.array(static(start)).ravel()]
     tau_goal = np.array(static(goal)).ravel()
-    v_c = compiled.solve(z0, problem.hold(z0), goal, tau_goal)
-    v_vm = np.array(problem.rti_function()(z0, problem.hold(z0), goal, tau_goal)[0]).ravel()
+    cold = np.zeros(problem.multiplier_size)
+    v_c, duals_c = compiled.solve(z0, problem.hold(z0), cold, goal, tau_goal)
+    rti = problem.rti_function()
+    v_vm, _, duals_vm = (np.array(out).ravel()
+                         for out in rti(z0, problem.hold(z0), cold, goal, tau_goal))
+    np.testing.assert_allclose(v_c, v_vm, atol=1e-9)
+    np.testing.assert_allclose(duals_c, duals_vm, atol=1e-6)
+    # warm-started from its own shifted solution and multipliers, as in the loop
+    warm = (problem.shifted(v_c), problem.shifted_multipliers(duals_c))
+    v_c, _ = compiled.solve(z0, *warm, goal, tau_goal)
+    v_vm = np.array(rti(z0, *warm, goal, tau_goal)[0]).ravel()
     np.testing.assert_allclose(v_c, v_vm, atol=1e-9)
 
 
@@ -134,7 +184,9 @@ def test_an_infeasible_problem_is_reported_not_hidden(aras3, aras3_model, build_
     q = np.array([aras3.frame_upper[0] - 1e-3, 0.0, 1.0])
     z0 = np.r_[q, [5.0, 0, 0], np.array(static(q)).ravel()]
     goal = np.array(aras3.goal)
-    assert solver.solve(z0, solver.problem.hold(z0), goal, np.array(static(goal)).ravel()) \
+    cold = np.zeros(solver.problem.multiplier_size)
+    assert solver.solve(z0, solver.problem.hold(z0), cold, goal,
+                        np.array(static(goal)).ravel()) \
         is None
 
 

@@ -63,31 +63,41 @@ class SampledSolver:
             self._nlp = self.problem.nlp_solver()
         self._fallback = fallback
 
-    def solve(self, z0: np.ndarray, guess: np.ndarray, q_goal: np.ndarray,
-              tau_goal: np.ndarray) -> np.ndarray | None:
-        """The solution v from the state ``z0`` and ``guess``, or None when the solve
-        failed (see :meth:`NmpcProblem.checked`)."""
+    def solve(self, z0: np.ndarray, guess: np.ndarray, multipliers: np.ndarray,
+              q_goal: np.ndarray, tau_goal: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The solution v and its multipliers from the state ``z0``, warm-started from
+        ``guess`` and ``multipliers``, or None when the solve failed (see
+        :meth:`NmpcProblem.checked`)."""
+        problem = self.problem
         if self._nlp is not None:
-            result = self._nlp(x0=guess, p=np.r_[z0, q_goal, tau_goal], lbx=self._lower,
+            result = self._nlp(x0=guess, lam_x0=multipliers[: problem.size],
+                               lam_g0=multipliers[problem.size:],
+                               p=np.r_[z0, q_goal, tau_goal], lbx=self._lower,
                                ubx=self._upper, lbg=0, ubg=0)
             v = np.array(result["x"]).ravel()
             solved = bool(self._nlp.stats()["success"])
             residual = float(np.max(np.abs(np.array(result["g"]))))
-            return v if solved and self.problem.checked(v, residual) else None
-        if isinstance(self._rti, ca.Function):
+            duals = np.r_[np.array(result["lam_x"]).ravel(), np.array(result["lam_g"]).ravel()]
+        elif isinstance(self._rti, ca.Function):
             try:
-                v_dm, residual_dm = self._rti(z0, guess, q_goal, tau_goal)
+                v_dm, residual_dm, duals_dm = self._rti(z0, guess, multipliers, q_goal,
+                                                        tau_goal)
             except RuntimeError:
                 return None
-            v, residual = np.array(v_dm).ravel(), float(residual_dm)
+            solved = True
+            v, residual, duals = (np.array(v_dm).ravel(), float(residual_dm),
+                                  np.array(duals_dm).ravel())
         else:
-            v, residual_out = np.empty(self.problem.size), np.empty(1)
+            v, residual_out = np.empty(problem.size), np.empty(1)
+            duals = np.empty(problem.multiplier_size)
             try:
-                self._rti.evaluate([z0, guess, q_goal, tau_goal], [v, residual_out])
+                self._rti.evaluate([z0, guess, multipliers, q_goal, tau_goal],
+                                   [v, residual_out, duals])
             except RuntimeError:
                 return None
-            residual = float(residual_out[0])
-        return v if self.problem.checked(v, residual) else None
+            solved, residual = True, float(residual_out[0])
+        return (v, duals) if solved and problem.checked(v, residual) else None
 
     def fallback(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, r_d: np.ndarray
                  ) -> np.ndarray:
@@ -110,6 +120,7 @@ class SampledSolver:
         n, m = layout.n, layout.cables
         memory = fields.offset("memory")
         guess: np.ndarray | None = None
+        multipliers = np.zeros(self.problem.multiplier_size)
         seconds: list[float] = []
         failed = 0
         first = 0
@@ -118,13 +129,16 @@ class SampledSolver:
             q, dq, tau = x[:n], x[n: 2 * n], x[memory: memory + m]
             z0 = np.r_[q, dq, tau]
             start = time.perf_counter()
-            v = self.solve(z0, self.problem.hold(z0) if guess is None else guess, q_goal,
-                           tau_goal)
-            if v is None:
+            solution = self.solve(z0, self.problem.hold(z0) if guess is None else guess,
+                                  multipliers, q_goal, tau_goal)
+            if solution is None:
                 rate, flags, guess = self.fallback(q, dq, tau, r_d), FLAG_INFEASIBLE, None
+                multipliers = np.zeros(self.problem.multiplier_size)
                 failed += 1
             else:
+                v, duals = solution
                 rate, flags, guess = self.problem.first_rate(v), 0, self.problem.shifted(v)
+                multipliers = self.problem.shifted_multipliers(duals)
             seconds.append(time.perf_counter() - start)
             x[memory + m: memory + 2 * m] = rate
             x[memory + 2 * m] = flags
