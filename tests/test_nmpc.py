@@ -210,6 +210,30 @@ def test_a_failed_solve_falls_back_flagged_and_bounded(aras3, build_options, mon
     assert np.abs(np.diff(run.tau, axis=0)).max() <= 0.8 + 1e-9
 
 
+def test_a_wrong_success_is_retried_with_the_other_scaling(aras3, build_options):
+    """The first real-time iteration is made to return a point 1 N above the tension box
+    with a "success": the check must reject it and the unscaled retry solve the sample,
+    counted, with no flag."""
+    simulator = get_simulator(aras3, Nmpc(), build_options=build_options)
+    solver = simulator.sampled
+    first = solver._rti[0]
+
+    class Wrong:
+        def evaluate(self, inputs, outputs):
+            first.evaluate(inputs, outputs)
+            outputs[0][-1] = aras3.t_max + 1.0  # the last stage's last tension
+
+    solver._rti[0] = Wrong()
+    try:
+        run = simulator.run(np.array(aras3.start), np.array(aras3.goal), aras3.k, aras3.r_d,
+                            duration=1.0, dt=1e-3, plant=Plant())
+    finally:
+        solver._rti[0] = first  # the simulator is cached for the other tests
+    record = run.info["solver"]
+    assert record["failed_samples"] == 0 and record["retried_samples"] == 50
+    assert not np.any(run.flags & FLAG_INFEASIBLE)
+
+
 def test_it_reaches_the_papers_goal_smoothly(build_options):
     run = simulate("aras3", "nmpc", duration=5.0, build_options=build_options)
     metrics = run.metrics()

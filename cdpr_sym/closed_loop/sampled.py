@@ -50,15 +50,20 @@ class SampledSolver:
         self._lower, self._upper = self.problem.bounds()
         fallback = self.problem.fallback_function()
         self._goal_tension = model.functions["static_tension"]
-        self._rti: Any = None
+        #: The real-time iterations, tried in turn until one passes the check: the QP in
+        #: scaled variables, then unscaled (see :meth:`NmpcProblem.rti_function`).
+        self._rti: list[Any] = []
         self._nlp: ca.Function | None = None
+        #: Samples whose first real-time iteration failed the check and a retry passed.
+        self.retried = 0
         if design.solver == "rti":
-            rti = self.problem.rti_function()
+            functions = [self.problem.rti_function(scaled) for scaled in (True, False)]
             if backend == "c":
-                native = build([rti], f"{library_name}_nmpc", options=build_options).native()
-                self._rti = native.casadi_function("nmpc_rti")
+                native = build(functions, f"{library_name}_nmpc",
+                               options=build_options).native()
+                self._rti = [native.casadi_function(f.name()) for f in functions]
             else:
-                self._rti = rti
+                self._rti = functions
         else:
             self._nlp = self.problem.nlp_solver()
         self._fallback = fallback
@@ -69,35 +74,45 @@ class SampledSolver:
         """The solution v and its multipliers from the state ``z0``, warm-started from
         ``guess`` and ``multipliers``, or None when the solve failed (see
         :meth:`NmpcProblem.checked`)."""
+        if self._nlp is None:
+            for attempt, rti in enumerate(self._rti):
+                solution = self._iterate(rti, z0, guess, multipliers, q_goal, tau_goal)
+                if solution is not None:
+                    self.retried += attempt > 0
+                    return solution
+            return None
         problem = self.problem
-        if self._nlp is not None:
-            result = self._nlp(x0=guess, lam_x0=multipliers[: problem.size],
-                               lam_g0=multipliers[problem.size:],
-                               p=np.r_[z0, q_goal, tau_goal], lbx=self._lower,
-                               ubx=self._upper, lbg=0, ubg=0)
-            v = np.array(result["x"]).ravel()
-            solved = bool(self._nlp.stats()["success"])
-            residual = float(np.max(np.abs(np.array(result["g"]))))
-            duals = np.r_[np.array(result["lam_x"]).ravel(), np.array(result["lam_g"]).ravel()]
-        elif isinstance(self._rti, ca.Function):
+        result = self._nlp(x0=guess, lam_x0=multipliers[: problem.size],
+                           lam_g0=multipliers[problem.size:], p=np.r_[z0, q_goal, tau_goal],
+                           lbx=self._lower, ubx=self._upper, lbg=0, ubg=0)
+        v = np.array(result["x"]).ravel()
+        residual = float(np.max(np.abs(np.array(result["g"]))))
+        duals = np.r_[np.array(result["lam_x"]).ravel(), np.array(result["lam_g"]).ravel()]
+        solved = bool(self._nlp.stats()["success"])
+        return (v, duals) if solved and problem.checked(v, residual) else None
+
+    def _iterate(self, rti: Any, z0: np.ndarray, guess: np.ndarray, multipliers: np.ndarray,
+                 q_goal: np.ndarray, tau_goal: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray] | None:
+        """One real-time iteration (compiled or CasADi), or None if it fails the check."""
+        problem = self.problem
+        if isinstance(rti, ca.Function):
             try:
-                v_dm, residual_dm, duals_dm = self._rti(z0, guess, multipliers, q_goal,
-                                                        tau_goal)
+                v_dm, residual_dm, duals_dm = rti(z0, guess, multipliers, q_goal, tau_goal)
             except RuntimeError:
                 return None
-            solved = True
             v, residual, duals = (np.array(v_dm).ravel(), float(residual_dm),
                                   np.array(duals_dm).ravel())
         else:
             v, residual_out = np.empty(problem.size), np.empty(1)
             duals = np.empty(problem.multiplier_size)
             try:
-                self._rti.evaluate([z0, guess, multipliers, q_goal, tau_goal],
-                                   [v, residual_out, duals])
+                rti.evaluate([z0, guess, multipliers, q_goal, tau_goal],
+                             [v, residual_out, duals])
             except RuntimeError:
                 return None
-            solved, residual = True, float(residual_out[0])
-        return (v, duals) if solved and problem.checked(v, residual) else None
+            residual = float(residual_out[0])
+        return (v, duals) if problem.checked(v, residual) else None
 
     def fallback(self, q: np.ndarray, dq: np.ndarray, tau: np.ndarray, r_d: np.ndarray
                  ) -> np.ndarray:
@@ -123,7 +138,7 @@ class SampledSolver:
         multipliers = np.zeros(self.problem.multiplier_size)
         seconds: list[float] = []
         failed = 0
-        first = 0
+        first, retried_before = 0, self.retried
         while first < n_steps:
             x = states[first]
             q, dq, tau = x[:n], x[n: 2 * n], x[memory: memory + m]
@@ -145,15 +160,18 @@ class SampledSolver:
             segment = min(ratio, n_steps - first)
             taken = advance(states[first:], logs[first:], segment)
             if taken < segment:
-                return first + taken, _record(self.design, seconds, failed)
+                return first + taken, _record(self.design, seconds, failed,
+                                               self.retried - retried_before)
             first += segment
-        return n_steps, _record(self.design, seconds, failed)
+        return n_steps, _record(self.design, seconds, failed, self.retried - retried_before)
 
 
-def _record(design: Nmpc, seconds: list[float], failed: int) -> dict[str, Any]:
+def _record(design: Nmpc, seconds: list[float], failed: int, retried: int
+            ) -> dict[str, Any]:
     """What a run keeps about its solves: their number, the median and worst wall-clock
-    time per solve (s) and the failed ones."""
+    time per solve (s, retries included), the failed ones and those a retry solved."""
     times = np.array(seconds) if seconds else np.zeros(1)
     return {"solver": design.solver, "samples": len(seconds),
             "solve_time_median": float(np.median(times)),
-            "solve_time_max": float(np.max(times)), "failed_samples": failed}
+            "solve_time_max": float(np.max(times)), "failed_samples": failed,
+            "retried_samples": retried}

@@ -137,6 +137,12 @@ class NmpcProblem:
             return np.concatenate(parts)
         return ca.vertcat(*parts)
 
+    def variable_scale(self) -> np.ndarray:
+        """The unit of each entry of v in the QP: ``max_rate`` for rates (so they lie in
+        [-1, 1]), 1 for states."""
+        stage = np.r_[np.full(self.m, self.design.max_rate), np.ones(self.nz)]
+        return np.tile(stage, self.intervals)
+
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds on v: rates within +-max_rate, poses in the frame,
         tensions in [T_min, T_max], velocities free (copies)."""
@@ -190,12 +196,18 @@ class NmpcProblem:
                     and np.all(v <= upper + RESIDUAL_TOLERANCE))
 
     # -- the real-time iteration -------------------------------------------------------
-    def rti_function(self) -> ca.Function:
-        """``nmpc_rti``: (z0, guess, multipliers, q_goal, tau_goal) -> (v, residual,
-        multipliers_out): one Gauss-Newton SQP step from ``guess``, the QP solved by ``qrqp``
-        warm-started from ``multipliers`` (its active set; zeros for none), ``residual`` =
-        max |A v - c|. Warm-starting the active set saves about a tenth of the solve on the
-        6-DOF platform."""
+    def rti_function(self, scaled: bool = True) -> ca.Function:
+        """``nmpc_rti`` (``nmpc_rti_unscaled``): (z0, guess, multipliers, q_goal, tau_goal)
+        -> (v, residual, multipliers_out): one Gauss-Newton SQP step from ``guess``, the QP
+        solved by ``qrqp`` warm-started from ``multipliers`` (its active set; zeros for
+        none), ``residual`` = max |A v - c|. Warm-starting the active set saves about a
+        tenth of the solve on the 6-DOF platform.
+
+        ``scaled``: the QP is solved in the variable v / :meth:`variable_scale` (rates in
+        units of ``max_rate``), else in v itself. ``qrqp`` can return "success" with a
+        point outside the bounds (cold, from the hold guess: 5 of 60 random aras3 pairs
+        scaled, 2 unscaled, none both); :meth:`checked` catches it, and the loop retries
+        with the other scaling."""
         N, m, nz, stage = self.intervals, self.m, self.nz, self.stage
         z0, guess = ca.MX.sym("z0", self.nz), ca.MX.sym("guess", self.size)
         multipliers = ca.MX.sym("multipliers", self.multiplier_size)
@@ -216,19 +228,26 @@ class NmpcProblem:
                    - b[:, k * m: (k + 1) * m] @ rates[:, k] for k in range(N)]
         offsets[0] = offsets[0] + a[:, :nz] @ z0  # z_0 is data, not a variable
         right = ca.vertcat(*offsets)
-        hessian = ca.DM(ca.Sparsity.diag(self.size), self.hessian_diagonal())
+        scale = self.variable_scale() if scaled else np.ones(self.size)
+        scaling = ca.DM(ca.Sparsity.diag(self.size), scale)
+        hessian = ca.DM(ca.Sparsity.diag(self.size), self.hessian_diagonal() * scale**2)
+        scaled_constraint = constraint @ scaling
         solver = ca.conic("nmpc_qp", "qrqp", {"h": hessian.sparsity(),
-                                              "a": constraint.sparsity()},
+                                              "a": scaled_constraint.sparsity()},
                           {"print_iter": False, "print_header": False, "print_info": False,
                            "error_on_fail": False})
         lower, upper = self.bounds()
-        solution = solver(h=hessian, g=self.gradient(q_goal, tau_goal), a=constraint,
-                          lba=right, uba=right, lbx=lower, ubx=upper, x0=guess,
-                          lam_x0=multipliers[: self.size], lam_a0=multipliers[self.size:])
-        v = solution["x"]
+        solution = solver(h=hessian, g=self.gradient(q_goal, tau_goal) * scale,
+                          a=scaled_constraint, lba=right, uba=right, lbx=lower / scale,
+                          ubx=upper / scale, x0=guess / scale,
+                          lam_x0=multipliers[: self.size] * scale,
+                          lam_a0=multipliers[self.size:])
+        v = solution["x"] * scale
         residual = ca.mmax(ca.fabs(constraint @ v - right))
-        return ca.Function("nmpc_rti", [z0, guess, multipliers, q_goal, tau_goal],
-                           [v, residual, ca.vertcat(solution["lam_x"], solution["lam_a"])],
+        name = "nmpc_rti" if scaled else "nmpc_rti_unscaled"
+        return ca.Function(name, [z0, guess, multipliers, q_goal, tau_goal],
+                           [v, residual, ca.vertcat(solution["lam_x"] / scale,
+                                                    solution["lam_a"])],
                            ["z0", "guess", "multipliers", "q_goal", "tau_goal"],
                            ["v", "residual", "multipliers_out"])
 
