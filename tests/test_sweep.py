@@ -232,6 +232,26 @@ def test_resume_keeps_the_sidecar_and_refuses_a_changed_identity(tmp_path):
         run_sweep(config, out, workers=1, progress=False)
 
 
+def test_rows_of_other_code_are_never_resumed_into(tmp_path, monkeypatch):
+    """Same configuration and version number, other sources: a resume refuses in one line
+    and a study's own sweep starts over, rather than mixing rows of two versions."""
+    import cdpr_sym.version
+    from cdpr_sym.studies.outline import study_sweep
+
+    config = SweepConfig(robot="planar2", controllers=("pd-sat",), pairs=1, seed=0,
+                         duration=0.2)
+    out = run_sweep(config, tmp_path / "rows.csv", workers=1, progress=False)
+    recorded = json.loads(sidecar_path(out).read_text())["identity"]["versions"]
+    assert recorded["cdpr_sym_source"] == cdpr_sym.version.source_digest()
+    monkeypatch.setattr(cdpr_sym.version, "source_digest", lambda: "edited-code")
+    with pytest.raises(InvalidCase, match="versions"):
+        run_sweep(config, out, workers=1, progress=False)
+    study_sweep(config, out, progress=False)
+    versions = json.loads(sidecar_path(out).read_text())["identity"]["versions"]
+    assert versions["cdpr_sym_source"] == "edited-code"
+    assert len(_read(out)) == 1
+
+
 def test_sweep_maps_are_labelled_with_the_robots_coordinates(local_sweep):
     rows, _ = load_table(local_sweep)
     fig = maps_figure(rows, axes=(0, 1), names=("x", "z"))
@@ -240,3 +260,19 @@ def test_sweep_maps_are_labelled_with_the_robots_coordinates(local_sweep):
         assert fig.axes[0].get_ylabel() == "z [m]"
     finally:
         plt.close(fig)
+
+
+def test_an_nmpc_sweep_of_a_redundant_robot_on_dask_equals_the_local_one(tmp_path):
+    """The sampled design (its solver in Python between compiled segments) and a robot
+    with more cables than DOF, through a real scheduler: the same rows as one process."""
+    distributed = pytest.importorskip("dask.distributed")
+    config = SweepConfig(robot="planar4", controllers=("nmpc", "pd-td"), pairs=3, seed=5,
+                         duration=2.0)
+    local, remote = tmp_path / "local.csv", tmp_path / "dask.csv"
+    run_sweep(config, local, workers=1, progress=False)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        run_sweep(config, remote, dask_address=cluster.scheduler_address, progress=False)
+    rows = _keyed(_read(local))
+    assert len(rows) == 6 and {row["status"] for row in rows.values()} == {"ok"}
+    assert _keyed(_read(remote)) == rows

@@ -133,12 +133,12 @@ def run_items(config_dict: dict[str, Any], items: Sequence[tuple[int, str, list,
 def _versions() -> dict[str, str]:
     import casadi
 
-    from cdpr_sym.version import __version__
+    from cdpr_sym.version import __version__, source_digest
     # cvxpy's version from its metadata: importing it only to read the number took 1.7 s,
     # half the time of a 2,000-pair sweep
     return {"python": platform.python_version(), "numpy": np.__version__,
             "casadi": casadi.__version__, "cvxpy": importlib.metadata.version("cvxpy"),
-            "cdpr_sym": __version__}
+            "cdpr_sym": __version__, "cdpr_sym_source": source_digest()}
 
 
 def _identity(config: SweepConfig, robot: Robot) -> dict[str, Any]:
