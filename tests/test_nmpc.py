@@ -296,12 +296,29 @@ def test_export_c_refuses_nmpc_in_one_line_before_writing(tmp_path, capsys):
     assert not out.exists()
 
 
-def test_the_as_built_plant_is_refused_before_anything_is_built(aras3, tmp_path):
-    from cdpr_sym import AsBuilt, BuildOptions, Sensing
-    from cdpr_sym.closed_loop import Simulator
-    cache = tmp_path / "cache"
-    with pytest.raises(InvalidCase) as error:
-        Simulator(aras3, Nmpc(), as_built=AsBuilt(sensing=Sensing()).structure(),
-                  build_options=BuildOptions(cache_dir=cache))
-    assert error.value.field == "plant"
-    assert not cache.exists()
+def test_on_the_as_built_plant_the_solver_sees_the_encoders(aras3, build_options):
+    """With 1 mm encoders the pose the solver starts from is the forward kinematics of the
+    rounded lengths: within a few mm of the true pose but not equal to it."""
+    from cdpr_sym import AsBuilt, Sensing
+    plant = Plant(as_built=AsBuilt(sensing=Sensing(resolution=1e-3)))
+    simulator = get_simulator(aras3, Nmpc(), build_options=build_options,
+                              as_built=plant.as_built.structure())
+    seen = []
+    real_solve = simulator.sampled.solve
+
+    def recording(z0, *args):
+        seen.append(z0.copy())
+        return real_solve(z0, *args)
+
+    simulator.sampled.solve = recording
+    try:
+        run = simulator.run(np.array(aras3.start), np.array(aras3.goal), aras3.k,
+                            aras3.r_d, duration=1.0, dt=1e-3, plant=plant)
+    finally:
+        del simulator.sampled.solve  # the simulator is cached for the other tests
+    assert run.stop_reason is None and len(seen) == 50
+    read = np.array([z0[:3] for z0 in seen])
+    true = run.q[::20][:50]
+    gap = np.abs(read - true).max(axis=1)
+    assert gap.max() < 5e-3 and np.count_nonzero(gap > 1e-6) >= 45
+    assert run.info["solver"]["failed_samples"] == 0

@@ -1,6 +1,8 @@
 """The time loop of a controller that optimises at its own rate (NMPC).
 
-Every ``1 / rate`` s the solver takes the state and the last command, solves the NMPC
+Every ``1 / rate`` s the solver takes the state (on an as-built plant with sensing, the
+encoders' last reading of it: forward kinematics and the filtered velocity, one control step
+old) and the last command, solves the NMPC
 problem (warm-started from the previous solution shifted by one interval) and writes the
 planned rate of change of the tension into the controller's memory; the compiled step then
 plays it back for the period's control steps, in one C call. A failed solve is replaced by
@@ -134,6 +136,11 @@ class SampledSolver:
         fields = layout.x
         n, m = layout.n, layout.cables
         memory = fields.offset("memory")
+        # what the controller knows of the pose: the encoders' last reading on an as-built
+        # plant with sensing (one control step old), else the state itself
+        sensed = "q_read" in fields.names
+        pose = fields.offset("q_read" if sensed else "q")
+        speed = fields.offset("dq_read" if sensed else "dq")
         guess: np.ndarray | None = None
         multipliers = np.zeros(self.problem.multiplier_size)
         seconds: list[float] = []
@@ -141,7 +148,8 @@ class SampledSolver:
         first, retried_before = 0, self.retried
         while first < n_steps:
             x = states[first]
-            q, dq, tau = x[:n], x[n: 2 * n], x[memory: memory + m]
+            q, dq = x[pose: pose + n], x[speed: speed + n]
+            tau = x[memory: memory + m]
             z0 = np.r_[q, dq, tau]
             start = time.perf_counter()
             solution = self.solve(z0, self.problem.hold(z0) if guess is None else guess,

@@ -122,10 +122,6 @@ class Simulator:
                  rate_limited: bool = False, as_built: AsBuiltStructure | None = None
                  ) -> None:
         check_cables(controller, robot.n, robot.m)
-        if getattr(controller, "sampled", False) and as_built is not None:
-            # before anything is generated or compiled
-            raise InvalidCase("plant", f"{controller.name} runs on the ideal plant; the "
-                              f"as-built plant's sensed state is not yet passed to its solver")
         self.robot = robot
         self.controller = controller
         self.model = SymbolicModel(robot)

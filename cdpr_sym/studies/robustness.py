@@ -36,7 +36,7 @@ from cdpr_sym.workspace import sample_static_workspace
 
 #: The designs compared: the paper's l2, its clipped PD baseline, the two smooth ones and
 #: their variants for the robot as built (a weight observer; a command filter).
-DESIGNS = ("pd-sat", "l2", "smooth", "ida-ref", "ida-ref-obs", "smooth-lp")
+DESIGNS = ("pd-sat", "l2", "smooth", "ida-ref", "ida-ref-obs", "smooth-lp", "nmpc")
 #: Run length and control period, s (the target asks for 1 cm within 5 s).
 DURATION, DT = 6.0, 1e-3
 #: Mass error (fraction), anchor error (m) and command delay (periods) of the spec.
