@@ -73,10 +73,13 @@ class Nmpc:
 
     Notes
     -----
-    A sample whose solve fails (the solver's error, a non-finite result, or a result that
-    leaves the box or misses the linearised dynamics by more than 1e-6) falls back to a
-    safe command: gravity compensation plus damping R_d at the current state, clipped to
-    the box, approached at ``max_rate``; that sample's steps carry
+    A result counts only if it is finite, inside its bounds and meets the linearised
+    dynamics to 1e-6, whatever the solver reports: CasADi's ``qrqp`` can report success
+    on a point outside the bounds, so the real-time iteration solves its QP with the rates
+    scaled to [-1, 1] and retries unscaled when that result fails the check. A sample
+    whose solves all fail falls back to a safe command: gravity compensation plus damping
+    R_d at the current state, clipped to the box, approached at ``max_rate``; that
+    sample's steps carry
     :data:`~cdpr_sym.control.flags.FLAG_INFEASIBLE`.
     """
 
