@@ -137,7 +137,20 @@ def test_the_sidecar_names_the_versions_that_wrote_the_rows(tmp_path):
     versions = json.loads(sidecar_path(out).read_text())["versions"]
     assert versions == {"python": platform.python_version(), "numpy": np.__version__,
                         "casadi": casadi.__version__,
-                        "cvxpy": cvxpy.__version__, "cdpr_sym": cdpr_sym.__version__}
+                        "cvxpy": cvxpy.__version__, "cdpr_sym": cdpr_sym.__version__,
+                        "cdpr_sym_source": _digest_of_the_sources()}
+
+
+def _digest_of_the_sources() -> str:
+    """SHA-256 of the package's sources, restated here: path, then bytes, in path order."""
+    import hashlib
+    from pathlib import Path
+    root = Path(cdpr_sym.__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*")):
+        if path.is_file() and path.suffix in {".py", ".c", ".h", ".j2", ".toml"}:
+            digest.update(path.relative_to(root).as_posix().encode() + path.read_bytes())
+    return digest.hexdigest()[:12]
 
 
 def _started_processes(monkeypatch) -> list:
