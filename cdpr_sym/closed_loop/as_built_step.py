@@ -29,10 +29,9 @@ from cdpr_sym.as_built import actuation
 from cdpr_sym.as_built.geometry import true_geometry_function
 from cdpr_sym.as_built.spec import ACTUATION_PARAMETERS, SENSING_PARAMETERS, AsBuiltStructure
 from cdpr_sym.closed_loop.layout import StepLayout
-from cdpr_sym.closed_loop.plant import rk4
 from cdpr_sym.closed_loop.step import stop_status
 from cdpr_sym.control import Controller
-from cdpr_sym.model import SymbolicModel
+from cdpr_sym.model import SymbolicModel, rk4
 from cdpr_sym.model.forward_kinematics import FK_TOLERANCE, forward_kinematics_expression
 
 #: The winch states of an as-built plant with actuation: payout r theta (m), drum speed

@@ -68,15 +68,6 @@ class Plant:
                 "as_built": self.as_built.as_dict() if self.as_built else None}
 
 
-def rk4(rhs: Callable[[ca.SX], ca.SX], x: ca.SX, h: ca.SX) -> ca.SX:
-    """One classic Runge-Kutta 4 step of dx/dt = rhs(x) with step h."""
-    k1 = rhs(x)
-    k2 = rhs(x + 0.5 * h * k1)
-    k3 = rhs(x + 0.5 * h * k2)
-    k4 = rhs(x + h * k3)
-    return x + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-
-
 def applied_tension(tau: ca.SX, slack: ca.SX) -> ca.SX:
     """The tension the plant applies: max(tau, 0) for a slack-cable plant (slack = 1)."""
     return ca.if_else(slack > 0.5, ca.fmax(tau, 0), tau)

@@ -12,9 +12,9 @@ from __future__ import annotations
 import casadi as ca
 
 from cdpr_sym.closed_loop.layout import StepLayout
-from cdpr_sym.closed_loop.plant import applied_tension, plant_rhs, rk4
+from cdpr_sym.closed_loop.plant import applied_tension, plant_rhs
 from cdpr_sym.control import FLAG_SINGULAR, Controller
-from cdpr_sym.model import SINGULAR_DET, SymbolicModel
+from cdpr_sym.model import SINGULAR_DET, SymbolicModel, rk4
 
 STOP_REASONS = {1: "singular", 2: "non_finite", 3: "left_frame"}
 STOP_CODES = {name: code for code, name in STOP_REASONS.items()}

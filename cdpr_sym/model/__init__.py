@@ -2,7 +2,8 @@
 
 :mod:`~cdpr_sym.model.kinematics` places the end-effector and its cables;
 :class:`SymbolicModel` builds l, W, J_a, M, C, V, P, A, H, H_d and law (3) on it;
-:mod:`~cdpr_sym.model.forward_kinematics` finds the pose from measured cable lengths.
+:mod:`~cdpr_sym.model.forward_kinematics` finds the pose from measured cable lengths;
+:func:`~cdpr_sym.model.integration.rk4` steps its dynamics.
 """
 
 from cdpr_sym.model.forward_kinematics import (
@@ -15,10 +16,11 @@ from cdpr_sym.model.forward_kinematics import (
     forward_kinematics_function,
     quantisation_tolerance,
 )
+from cdpr_sym.model.integration import rk4
 from cdpr_sym.model.kinematics import SINGULAR_DET
 from cdpr_sym.model.symbolic import SymbolicModel
 
 __all__ = ["FK_ITERATIONS", "FK_STEP_TOLERANCE", "FK_TOLERANCE", "SINGULAR_DET",
            "ForwardKinematicsResult", "SymbolicModel", "forward_kinematics",
            "forward_kinematics_expression", "forward_kinematics_function",
-           "quantisation_tolerance"]
+           "quantisation_tolerance", "rk4"]

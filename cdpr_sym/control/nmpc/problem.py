@@ -23,7 +23,7 @@ import numpy as np
 
 from cdpr_sym.control.nmpc.design import Nmpc
 from cdpr_sym.control.parts import clip_to_box
-from cdpr_sym.model import SymbolicModel
+from cdpr_sym.model import SymbolicModel, rk4
 
 #: |A v - c| and bound violations up to this (m, m/s, N) still count as solved.
 RESIDUAL_TOLERANCE = 1e-6
@@ -81,6 +81,8 @@ class NmpcProblem:
                                        jacobian(point, u) @ sensitivity, rate_rows)
             return rhs(point, u), d_sensitivity
 
+        # RK4 written out for the pair (z, S): stacked into one vector for model.rk4, the
+        # slices and reshapes made the 6-DOF solve 60 % slower (4.6 -> 7.3-8.4 ms)
         h = self.design.period / self.design.substeps
         z_next, s = z, ca.MX(ca.horzcat(ca.DM.eye(nz), ca.DM(nz, m)))
         for _ in range(self.design.substeps):
@@ -101,11 +103,7 @@ class NmpcProblem:
         h = self.design.period / self.design.substeps
         z_next = z
         for _ in range(self.design.substeps):
-            k1 = self._rhs(z_next, u)
-            k2 = self._rhs(z_next + 0.5 * h * k1, u)
-            k3 = self._rhs(z_next + 0.5 * h * k2, u)
-            k4 = self._rhs(z_next + h * k3, u)
-            z_next = z_next + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+            z_next = rk4(lambda point: self._rhs(point, u), z_next, h)
         return ca.Function("nmpc_prediction", [z, u], [z_next], ["z", "u"], ["z_next"],
                            {"cse": True})
 
