@@ -287,15 +287,6 @@ def test_a_period_that_does_not_divide_is_one_line_before_building(capsys):
     assert len(err) == 1 and err[0].startswith("cdpr-sym: error: dt:")
 
 
-def test_export_c_refuses_nmpc_in_one_line_before_writing(tmp_path, capsys):
-    out = tmp_path / "package"
-    assert main(["export-c", "--robot", "aras3", "--controller", "nmpc", "--out",
-                 str(out)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("cdpr-sym: error: controller:")
-    assert not out.exists()
-
-
 def test_on_the_as_built_plant_the_solver_sees_the_encoders(aras3, build_options):
     """With 1 mm encoders the pose the solver starts from is the forward kinematics of the
     rounded lengths: within a few mm of the true pose but not equal to it."""

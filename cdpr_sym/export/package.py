@@ -13,6 +13,8 @@ controller and a hash of every file. One package is one folder:
 * ``<prefix>_plan.c`` and ``<prefix>_plan_generated.inc``, only for a controller with
   internal state: ``<prefix>_initial_memory``, run once per move (built without
   optimisation: it is large, and optimising it takes the compiler tens of seconds);
+* ``<prefix>_nmpc.c`` and ``<prefix>_nmpc_generated.inc``, only for an NMPC: its real-time
+  iteration with the result check, the retry and the safe command (:mod:`.nmpc`);
 * ``main.c``: the example, the closed loop from the case's start to its goal;
 * ``Makefile`` and ``CMakeLists.txt``: a static library ``lib<prefix>.a`` and ``example``
   (CMake: Release by default, and ``cmake --install`` writes the library, the header and a
@@ -64,6 +66,12 @@ from cdpr_sym.control import (
     law_function,
 )
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.export.nmpc import (
+    check_exportable,
+    solver_description,
+    solver_functions,
+    solver_source,
+)
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.model.forward_kinematics import (
     FK_ITERATIONS,
@@ -285,6 +293,8 @@ class ExportResult:
         The files written (see the module docstring).
     plan_source, plan_generated : Path or None
         The planner's files, for a controller with internal state (else None).
+    nmpc_source, nmpc_generated : Path or None
+        The NMPC solver's files, for a sampled controller (else None).
     """
 
     out_dir: Path
@@ -299,6 +309,8 @@ class ExportResult:
     manifest: Path
     plan_source: Path | None = None
     plan_generated: Path | None = None
+    nmpc_source: Path | None = None
+    nmpc_generated: Path | None = None
 
     @property
     def paths(self) -> tuple[Path, ...]:
@@ -349,8 +361,9 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
         nor an earlier export (without ``overwrite``), ``prefix`` is unusable (see
         :func:`prefix_problem`), or the robot has more cables than degrees of freedom and
         the controller inverts W (field ``controller``, see
-        :func:`cdpr_sym.control.check_cables`), or the controller optimises at its own rate
-        (NMPC, field ``controller``).
+        :func:`cdpr_sym.control.check_cables`), or the controller is an NMPC whose solver
+        is not the real-time iteration (field ``solver``, see
+        :func:`cdpr_sym.export.nmpc.check_exportable`).
 
     Notes
     -----
@@ -372,10 +385,9 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     label = controller if isinstance(controller, str) else controller.name
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
     check_cables(controller, robot.n, robot.m)
-    if getattr(controller, "sampled", False):
-        raise InvalidCase("controller", f"{controller.name} optimises outside the control step "
-                          f"and export-c does not package its solver yet; export a closed-form "
-                          f"design")
+    sampled = getattr(controller, "sampled", False)
+    if sampled:
+        check_exportable(controller)
     prefix = prefix if prefix is not None else c_identifier(f"cdpr_{robot.name}_{label}")
     problem = prefix_problem(prefix)
     if problem:
@@ -387,15 +399,22 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     realtime = [entry for entry in entries if entry.name != "initial_memory"]
     plan = [entry for entry in entries if entry.name == "initial_memory"]
     description = _description(robot, controller, prefix, entries, layout, avoid_stack)
+    solver = solver_functions(model, controller, prefix) if sampled else []
+    description["nmpc"] = (solver_description(model, controller, solver, prefix) if solver
+                           else None)
     templates = {f"{prefix}.h": "header.h.j2", f"{prefix}.c": "source.c.j2",
                  "main.c": "main.c.j2", "Makefile": "Makefile.j2",
                  "CMakeLists.txt": "CMakeLists.txt.j2", "README.md": "README.md.j2"}
     if plan:
         templates[f"{prefix}_plan.c"] = "plan.c.j2"
+    if solver:
+        templates[f"{prefix}_nmpc.c"] = "nmpc.c.j2"
     texts = {f"{prefix}_generated.inc": _generated(realtime, prefix, f"{prefix}_", avoid_stack)}
     if plan:
         texts[f"{prefix}_plan_generated.inc"] = _generated(plan, prefix, f"{prefix}_plan_",
                                                            avoid_stack)
+    if solver:
+        texts[f"{prefix}_nmpc_generated.inc"] = solver_source(solver, prefix, avoid_stack)
     texts.update({name: render("cdpr_sym.export", template, **description)
                   for name, template in templates.items()})
     for name, text in texts.items():
@@ -405,7 +424,9 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
                 "controller": {"name": controller.name, "options": controller.options()},
                 "casadi_version": ca.__version__, "avoid_stack": avoid_stack,
                 "functions": {e.name: {"operations": e.function.n_instructions(),
-                                       "work_doubles": e.function.sz_w()} for e in entries},
+                                       "work_doubles": e.function.sz_w()} for e in entries}
+                | {f.name(): {"operations": f.n_instructions(), "work_doubles": f.sz_w()}
+                   for f in solver},
                 "sha256": {name: hashlib.sha256(text.encode()).hexdigest()
                            for name, text in texts.items()}}
     (out / "manifest.json").write_text(json.dumps(manifest, indent=2) + "\n")
@@ -415,7 +436,9 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
         makefile=out / "Makefile", cmake=out / "CMakeLists.txt", readme=out / "README.md",
         manifest=out / "manifest.json",
         plan_source=out / f"{prefix}_plan.c" if plan else None,
-        plan_generated=out / f"{prefix}_plan_generated.inc" if plan else None)
+        plan_generated=out / f"{prefix}_plan_generated.inc" if plan else None,
+        nmpc_source=out / f"{prefix}_nmpc.c" if solver else None,
+        nmpc_generated=out / f"{prefix}_nmpc_generated.inc" if solver else None)
 
 
 def prefix_problem(prefix: str) -> str | None:
