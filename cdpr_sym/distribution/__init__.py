@@ -3,8 +3,10 @@ wrench, when W (n x m) leaves a null space of internal tension that moves nothin
 
 :mod:`~cdpr_sym.distribution.closed_form` holds Pott's closed-form method and its improved
 variant (any redundancy), :mod:`~cdpr_sym.distribution.one_dimensional` the exact
-minimum-norm and centroid tensions for m = n + 1, :mod:`~cdpr_sym.distribution.reference`
-the cvxpy + Clarabel programs they are checked against.
+minimum-norm and centroid tensions for m = n + 1,
+:mod:`~cdpr_sym.distribution.two_dimensional` the exact minimum-norm tension for m = n + 2,
+:mod:`~cdpr_sym.distribution.reference` the cvxpy + Clarabel programs they are checked
+against.
 """
 
 from cdpr_sym.distribution.methods import (

@@ -6,7 +6,7 @@ from collections.abc import Callable
 
 import casadi as ca
 
-from cdpr_sym.distribution import closed_form, one_dimensional
+from cdpr_sym.distribution import closed_form, one_dimensional, two_dimensional
 from cdpr_sym.errors import InvalidCase
 
 Method = Callable[[ca.SX, ca.SX, float, float], tuple[ca.SX, ca.SX]]
@@ -17,6 +17,7 @@ METHODS: dict[str, tuple[Method, int | None]] = {
     "closed_form": (closed_form.closed_form, None),
     "min_norm": (one_dimensional.min_norm, 1),
     "centroid": (one_dimensional.centroid, 1),
+    "min_norm_2d": (two_dimensional.min_norm, 2),
 }
 #: The method for any redundancy: the standard real-time choice.
 DEFAULT_METHOD = "improved_closed_form"
