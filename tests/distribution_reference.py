@@ -54,3 +54,31 @@ def segment(W: np.ndarray, w: np.ndarray, lo: float, hi: float
         a, b = (lo - p_i) / h_i, (hi - p_i) / h_i
         s_low, s_high = max(s_low, min(a, b)), min(s_high, max(a, b))
     return tau_p, h, s_low, s_high
+
+
+def min_norm_by_active_sets(W: np.ndarray, w: np.ndarray, lo: float, hi: float,
+                            tolerance: float = 1e-9) -> np.ndarray | None:
+    """m = n + 2: the minimum-2-norm tension in the box, or None when there is none, by
+    enumerating every set of at most two cables held at a bound.
+
+    The optimum is the least-norm solution of W tau = w with its active cables fixed, and
+    (conic Caratheodory) a linearly independent subset of them, at most two, fixes it as
+    well; each such least-norm solution comes from ``lstsq`` on the stacked system. The
+    least-norm candidate inside the box (``tolerance``, N) wins.
+    """
+    m = W.shape[1]
+    sets: list[tuple[tuple[int, float], ...]] = [()]
+    sets += [((i, b),) for i in range(m) for b in (lo, hi)]
+    sets += [((i, a), (j, b)) for i in range(m) for j in range(i + 1, m)
+             for a in (lo, hi) for b in (lo, hi)]
+    best = None
+    for fixed in sets:
+        rows = np.vstack([W] + [np.eye(m)[i] for i, _ in fixed])
+        values = np.concatenate([w, [b for _, b in fixed]])
+        tau, *_ = np.linalg.lstsq(rows, values, rcond=None)
+        if np.max(np.abs(rows @ tau - values)) > 1e-8 * (1.0 + np.max(np.abs(values))):
+            continue  # the fixed cables contradict W tau = w
+        if np.all(tau >= lo - tolerance) and np.all(tau <= hi + tolerance) and (
+                best is None or tau @ tau < best @ best):
+            best = tau
+    return best
