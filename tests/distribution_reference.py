@@ -82,3 +82,35 @@ def min_norm_by_active_sets(W: np.ndarray, w: np.ndarray, lo: float, hi: float,
                 best is None or tau @ tau < best @ best):
             best = tau
     return best
+
+
+def centroid_of_vertices(W: np.ndarray, w: np.ndarray, lo: float, hi: float
+                         ) -> np.ndarray | None:
+    """m = n + 2: the tension at the area centroid of the feasible polygon, or None when
+    it has fewer than three vertices: every pairwise intersection of the 2m bound lines in
+    the SVD's null-space coordinates kept when in the box, ordered by angle about their
+    mean, and the shoelace formula."""
+    tau_p = np.linalg.pinv(W) @ w
+    N = np.linalg.svd(W)[2][-2:].T
+    lines = [(N[i], b - tau_p[i]) for i in range(W.shape[1]) for b in (lo, hi)]
+    vertices = []
+    for first in range(len(lines)):
+        for second in range(first + 1, len(lines)):
+            A = np.array([lines[first][0], lines[second][0]])
+            if abs(np.linalg.det(A)) < 1e-12:
+                continue
+            x = np.linalg.solve(A, [lines[first][1], lines[second][1]])
+            tau = tau_p + N @ x
+            if np.all(tau >= lo - 1e-9) and np.all(tau <= hi + 1e-9):
+                vertices.append(x)
+    if len(vertices) < 3:
+        return None
+    V = np.array(vertices)
+    centre = V.mean(axis=0)
+    V = V[np.argsort(np.arctan2(V[:, 1] - centre[1], V[:, 0] - centre[0]))]
+    x, y = V[:, 0], V[:, 1]
+    x_next, y_next = np.roll(x, -1), np.roll(y, -1)
+    cross = x * y_next - x_next * y
+    area = cross.sum() / 2
+    middle = np.array([((x + x_next) * cross).sum(), ((y + y_next) * cross).sum()]) / (6 * area)
+    return tau_p + N @ middle

@@ -127,6 +127,23 @@ def test_equals_an_enumeration_of_active_sets(rng, n):
     assert held > 10
 
 
+@pytest.mark.parametrize("n", [2, 6])
+def test_centroid_is_the_centroid_of_the_vertices(rng, n):
+    """Against the vertices (pairwise intersections of the lines, kept in the box, SVD
+    basis) ordered by angle and the shoelace formula; infeasible exactly where min_norm_2d
+    is."""
+    checked = 0
+    for W, w in _random_problems(rng, n, 40):
+        tau, feasible = _evaluate(W, w, name="centroid_2d")
+        assert feasible == _evaluate(W, w)[1]
+        expected = dref.centroid_of_vertices(W, w, LO, HI)
+        if expected is not None:
+            assert feasible
+            np.testing.assert_allclose(tau, expected, atol=1e-8)
+            checked += 1
+    assert checked > 10
+
+
 def test_finds_every_ipanema8_pose_the_improved_closed_form_holds(rng, random_states):
     """Both find a tension in the box there, and the exact one is never longer (but for
     round-off: the improved closed form solves the normal equations, off by up to ~2e-8 N
@@ -189,10 +206,11 @@ def test_verdicts_hold_just_inside_and_just_outside_the_boundary(rng):
             assert _evaluate(W, weight + scale * force, robot.t_min, robot.t_max)[1] == expected
 
 
-@pytest.mark.parametrize("n", [2, 6])
-def test_generated_c_matches_casadi(rng, build_options, n):
-    function = distribution_function("min_norm_2d", n, n + 2, LO, HI)
-    compiled = build([function], f"distribution_min_norm_2d_{n}",
+@pytest.mark.parametrize(("name", "n"), [("min_norm_2d", 2), ("min_norm_2d", 6),
+                                       ("centroid_2d", 6)])
+def test_generated_c_matches_casadi(rng, build_options, name, n):
+    function = distribution_function(name, n, n + 2, LO, HI)
+    compiled = build([function], f"distribution_{name}_{n}",
                      options=build_options).function(function.name())
     verdicts = set()
     for W, w in _random_problems(rng, n, 40):
@@ -204,7 +222,8 @@ def test_generated_c_matches_casadi(rng, build_options, n):
 
 
 def test_is_selected_by_name_and_never_by_default():
-    with pytest.raises(InvalidCase, match="m = n \\+ 2"):
-        distribution_function("min_norm_2d", 3, 4, LO, HI)
+    for name in ("min_norm_2d", "centroid_2d"):
+        with pytest.raises(InvalidCase, match="m = n \\+ 2"):
+            distribution_function(name, 3, 4, LO, HI)
     assert DistributedPD(method="min_norm_2d").method == "min_norm_2d"
     assert preferred_method(6, 8) == "improved_closed_form"

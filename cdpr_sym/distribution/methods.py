@@ -18,6 +18,7 @@ METHODS: dict[str, tuple[Method, int | None]] = {
     "min_norm": (one_dimensional.min_norm, 1),
     "centroid": (one_dimensional.centroid, 1),
     "min_norm_2d": (two_dimensional.min_norm, 2),
+    "centroid_2d": (two_dimensional.centroid, 2),
 }
 #: The method for any redundancy: the standard real-time choice.
 DEFAULT_METHOD = "improved_closed_form"
