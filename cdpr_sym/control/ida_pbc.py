@@ -153,29 +153,31 @@ class L2Design(StatelessLaw):
         speed = ca.norm_2(dq)
         direction = dq / ca.fmax(speed, self.low_speed)
         tau_23, residual, j_unit = self._least_squares(model, parts, direction)
-        alpha_ls = ca.if_else(residual < beta, 1.0, beta / ca.fmax(residual, 1e-300))
+        # (24): alpha = 1 where the residual fits the margin, else beta / residual; one fmin
+        # gives both (beta > 0 wherever the result is used)
+        alpha_ls = ca.fmin(1.0, beta / ca.fmax(residual, 1e-300))
         tau_ls = parts.tau_1 + alpha_ls * tau_23
         j_ls = alpha_ls * j_unit / ca.fmax(speed, self.low_speed)
 
         slow = speed < self.low_speed
         no_margin = beta <= 0
-        tau_pd = parts.tau_1 + parts.tau_2_full
-        tau_sat, clipped = clip_to_box(model, tau_pd)
+        fallback = ca.logic_or(slow, no_margin)
+        tau_sat, clipped = clip_to_box(model, parts.tau_1 + parts.tau_2_full)
         if self.fallback == "scale":
             alpha_slow = ca.fmin(1.0, beta / ca.fmax(ca.norm_2(parts.tau_2_full), 1e-300))
-            tau_slow = ca.if_else(no_margin, tau_sat, parts.tau_1 + alpha_slow * parts.tau_2_full)
-            alpha_slow = ca.if_else(no_margin, 1.0, alpha_slow)
-            clipped_slow = ca.logic_and(no_margin, clipped)
-        else:
-            tau_slow, alpha_slow, clipped_slow = tau_sat, ca.SX(1.0), clipped
-        fallback = ca.logic_or(slow, no_margin)
-        tau = ca.if_else(no_margin, tau_sat, ca.if_else(slow, tau_slow, tau_ls))
-        alpha = ca.if_else(no_margin, 1.0, ca.if_else(slow, alpha_slow, alpha_ls))
+            tau_slow = parts.tau_1 + alpha_slow * parts.tau_2_full
+            tau_fallback = ca.if_else(no_margin, tau_sat, tau_slow)
+            alpha_fallback = ca.if_else(no_margin, 1.0, alpha_slow)
+            saturated = ca.logic_and(no_margin, clipped)
+        else:  # both fallbacks saturate: one selection per output
+            tau_fallback, alpha_fallback = tau_sat, ca.SX(1.0)
+            saturated = ca.logic_and(fallback, clipped)
+        tau = ca.if_else(fallback, tau_fallback, tau_ls)
+        alpha = ca.if_else(fallback, alpha_fallback, alpha_ls)
         j = ca.if_else(fallback, ca.SX.zeros(model.n_j), j_ls)
         flags = (flag_if(slow, FLAG_LOW_SPEED) + flag_if(no_margin, FLAG_BETA)
-                 + flag_if(ca.if_else(no_margin, clipped,
-                                    ca.if_else(slow, clipped_slow, 0)), FLAG_SATURATED)
-                 + flag_if(alpha < 1, FLAG_ALPHA) + flag_if(parts.singular, FLAG_SINGULAR))
+                 + flag_if(saturated, FLAG_SATURATED) + flag_if(alpha < 1, FLAG_ALPHA)
+                 + flag_if(parts.singular, FLAG_SINGULAR))
         return ControlLaw(tau, alpha, beta, j, flags)
 
     def _least_squares(self, model: SymbolicModel, parts: TensionParts, direction: ca.SX
