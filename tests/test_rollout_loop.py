@@ -77,3 +77,25 @@ def test_generated_fmax_and_fmin_follow_the_c99_nan_rule(build_options):
         high, low = (float(value) for value in compiled(a, b))
         np.testing.assert_equal([high, low], [np.fmax(a, b), np.fmin(a, b)],
                                 err_msg=f"fmax / fmin of {a}, {b}")
+
+
+def test_runs_of_one_length_share_their_sample_times_read_only(aras3, build_options):
+    simulator = get_simulator(aras3, PD(), build_options=build_options)
+    first, second = (simulator.run(aras3.start, aras3.goal, aras3.k, aras3.r_d,
+                                   duration=0.05, dt=DT, plant=Plant()) for _ in range(2))
+    np.testing.assert_array_equal(first.t, np.arange(51) * DT)
+    assert second.t is first.t
+    with pytest.raises(ValueError, match="read-only"):
+        first.t[0] = 1.0  # one run cannot move another's clock
+
+
+def test_a_run_on_a_strided_parameter_vector_reads_its_values(aras3, build_options):
+    simulator = get_simulator(aras3, PD(), build_options=build_options)
+    plant = Plant()
+    x0 = simulator.initial_state(aras3.start, aras3.goal, aras3.k, aras3.r_d, plant=plant)
+    p = simulator.parameters(aras3.goal, aras3.k, aras3.r_d, DT, plant)
+    strided = np.zeros((p.size, 2))
+    strided[:, 0] = p  # every other entry: not contiguous
+    expected, _ = simulator.rollout(x0, p, 30)
+    states, _ = simulator.rollout(x0, strided[:, 0], 30)
+    np.testing.assert_array_equal(states, expected)

@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
+import functools
 import hashlib
 import json
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -65,18 +67,32 @@ class _Rollout:
         sizes = [native.work_sizes(name) for name in _ROLLOUT_CALLS]
         self._n_iw, self._n_w = (max(size[i] for size in sizes) for i in (2, 3))
         self._native = native
+        self._local = threading.local()
 
     def __call__(self, states: np.ndarray, logs: np.ndarray, p: np.ndarray, n_steps: int,
                  static_tension: np.ndarray) -> int:
         """Run from ``states[0]``; writes the rows taken and the start's static tension."""
-        # work memory per call: threads sharing a simulator (a Dask worker's) never share it
-        iw = np.empty(max(self._n_iw, 1), dtype=np.int64)
-        w = np.empty(max(self._n_w, 1))
-        taken = self._call(states.ctypes.data, logs.ctypes.data, p.ctypes.data, n_steps,
-                           iw.ctypes.data, w.ctypes.data, static_tension.ctypes.data)
+        return self.at(states.ctypes.data, logs.ctypes.data, p.ctypes.data, n_steps,
+                       static_tension.ctypes.data)
+
+    def at(self, states: int, logs: int, p: int, n_steps: int, static_tension: int) -> int:
+        """:meth:`__call__` on the addresses of C-contiguous float64 arrays (each
+        ``ndarray.ctypes.data`` lookup costs about a microsecond)."""
+        iw, w = self._work_addresses()
+        taken = self._call(states, logs, p, n_steps, iw, w, static_tension)
         if taken < 0:
             raise RuntimeError("a generated function of the rollout reported an error")
         return int(taken)
+
+    def _work_addresses(self) -> tuple[int, int]:
+        """This thread's work memory (iw, w), allocated on its first run: threads sharing a
+        simulator (a Dask worker's) never share it."""
+        work = getattr(self._local, "work", None)
+        if work is None:
+            iw = np.empty(max(self._n_iw, 1), dtype=np.int64)
+            w = np.empty(max(self._n_w, 1))
+            work = self._local.work = (iw, w, iw.ctypes.data, w.ctypes.data)
+        return work[2], work[3]
 
 
 #: Every stop status a run can end with: the ideal step's and the as-built plant's.
@@ -137,6 +153,8 @@ class Simulator:
             self._true_geometry = true_geometry_function(robot)
             self._forward_kinematics = forward_kinematics_function(self.model, tolerance=1.0)
         self.law = law_function(self.model, controller)
+        #: The robot and controller part of every run's record, built once.
+        self._described = described(robot, controller)
         self.initial_memory = initial_memory_function(self.model, controller)
         self.backend = build_options.resolved_backend()
         self.library: CompiledLibrary | None = None
@@ -274,6 +292,8 @@ class Simulator:
         """:meth:`rollout`'s arrays, the static tension at x0's pose (N), the steps the
         compiled loop took (None from the virtual machine) and a sampled controller's
         solver record (else None)."""
+        if self.backend == "c" and self.sampled is None:
+            return self._compiled_rollout(x0, p, n_steps)
         padded = n_steps if self.backend == "c" else -(-n_steps // self.chunk) * self.chunk
         states = np.zeros((padded + 1, self.layout.x.size))
         logs = np.zeros((padded, self.layout.log.size))
@@ -283,12 +303,28 @@ class Simulator:
             taken, record = self.sampled.run(states, logs, p, n_steps, self.layout,
                                              self._advance(p))
             return states, logs, static, taken, record
-        if self.backend == "c":
-            # the compiled loop evaluates the static tension too: one C call per run
-            static = np.empty(self.robot.m)
-            return states, logs, static, self._rollout(states, logs, p, n_steps, static), None
         self._run_virtual_machine(states, logs, p, n_steps)
         return states, logs, self._static_tension(states[0, : self.robot.n]), None, None
+
+    def _compiled_rollout(self, x0: np.ndarray, p: np.ndarray, n_steps: int
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, None]:
+        """One C call for the whole run, which also evaluates the static tension at x0.
+
+        States, logs and the static tension share one zeroed block, so the call needs the
+        address of two arrays (the block and p) rather than four."""
+        n_x, n_log, m = self.layout.x.size, self.layout.log.size, self.robot.m
+        logs_at = (n_steps + 1) * n_x
+        static_at = logs_at + n_steps * n_log
+        block = np.zeros(static_at + m)
+        states = block[:logs_at].reshape(n_steps + 1, n_x)
+        logs = block[logs_at:static_at].reshape(n_steps, n_log)
+        static = block[static_at:]
+        states[0] = x0
+        p = np.ascontiguousarray(p, dtype=float)  # kept alive until the call returns
+        base, size = block.ctypes.data, block.itemsize
+        taken = self._rollout.at(base, base + logs_at * size, p.ctypes.data, n_steps,
+                                 base + static_at * size)
+        return states, logs, static, taken, None
 
     def _advance(self, p: np.ndarray):
         """advance(states, logs, n_steps) -> steps taken: the step from states[0], in C or
@@ -381,12 +417,13 @@ class Simulator:
             log["command"] = log["tau"]
             log["tau"] = self.layout.log.split(logs[:last])["tension"]
         return Trajectory(
-            t=np.arange(last + 1) * dt, q=x["q"], dq=x["dq"],
+            t=sample_times(last + 1, dt), q=x["q"], dq=x["dq"],
             q_goal=np.array(goal, dtype=float), t_min=self.robot.t_min,
             t_max=self.robot.t_max, stop_reason=reason,
             info=run_info(self.robot, self.controller, dt, k, r_d, plant,
                           integrator="rk4-sampled", backend=self.backend,
-                          **({} if solver_record is None else {"solver": solver_record})),
+                          **({} if solver_record is None else {"solver": solver_record}),
+                          _described=self._described),
             memory=x["memory"],
             static_tension=(self._static_tension(states[0, : self.robot.n])
                             if static_tension is None else static_tension),
@@ -420,15 +457,34 @@ class Simulator:
 
 
 def run_info(robot: Robot, controller: Controller, dt: float, k, r_d, plant: Plant, *,
-             integrator: str, **extra: Any) -> dict[str, Any]:
-    """What a Trajectory records about how it was made."""
-    return {"robot": robot.name, "coordinates": list(robot.coordinate_names),
-            "units": list(robot.coordinate_units), "controller": controller.name,
-            "controller_options": controller.options(), "dt": dt,
+             integrator: str, _described: dict[str, Any] | None = None,
+             **extra: Any) -> dict[str, Any]:
+    """What a Trajectory records about how it was made (``_described``: the robot and
+    controller part, :func:`described`, when the caller keeps it)."""
+    fixed = described(robot, controller) if _described is None else _described
+    return {"robot": fixed["robot"], "coordinates": list(fixed["coordinates"]),
+            "units": list(fixed["units"]), "controller": fixed["controller"],
+            "controller_options": dict(fixed["controller_options"]), "dt": dt,
             "k": np.asarray(k).tolist(), "r_d": np.asarray(r_d).tolist(),
             # the plant's fields are numbers: asdict's deep copy took 20 us per run
             "plant": plant.record(),
             "integrator": integrator, **extra}
+
+
+def described(robot: Robot, controller: Controller) -> dict[str, Any]:
+    """The part of :func:`run_info` that depends on the robot and controller only."""
+    return {"robot": robot.name, "coordinates": tuple(robot.coordinate_names),
+            "units": tuple(robot.coordinate_units), "controller": controller.name,
+            "controller_options": controller.options()}
+
+
+@functools.lru_cache(maxsize=8)
+def sample_times(samples: int, dt: float) -> np.ndarray:
+    """t_k = k dt for k < ``samples``, s: one read-only array shared by the runs of the
+    same length and period (building it was a tenth of a run's Python time)."""
+    times = np.arange(samples) * dt
+    times.setflags(write=False)
+    return times
 
 
 def _anchor_offsets(robot: Robot, plant: Plant) -> np.ndarray:
