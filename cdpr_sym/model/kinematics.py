@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import casadi as ca
 
+from cdpr_sym.model.gram import gram_determinant, weighted_gram
 from cdpr_sym.robot import Robot
 
 #: |det W| / prod |w_i| (w_i the columns of W) below this is a singular configuration. For
@@ -144,15 +145,18 @@ def singularity_measure(robot: Robot, W: ca.SX) -> ca.SX:
     Point-mass columns are unit vectors, so there it is |det W| itself. With m > n cables
     it is sqrt(det(V V^T)) / (m / n)^(n / 2), V = W with unit columns: the same number
     when m = n, in [0, 1] by the AM-GM inequality on V V^T's eigenvalues (trace m), and 0
-    exactly where W loses row rank.
+    exactly where W loses row rank. V V^T = W diag(1 / |w_i|^2) W^T is positive
+    semi-definite, so its determinant is the product of its LDL^T pivots
+    (:mod:`cdpr_sym.model.gram`: a few hundred operations where expanding by minors takes
+    thousands); a NaN in W gives a NaN measure, which no threshold test calls singular.
     """
     n, m = W.shape
-    norms = None if robot.kind == "point" else [ca.norm_2(W[:, i]) for i in range(m)]
     if m == n:
-        return ca.fabs(ca.det(W)) if norms is None else ca.fabs(ca.det(W)) / _product(norms)
-    if norms is not None:
-        W = W @ ca.diag(1.0 / ca.vertcat(*norms))
-    return ca.sqrt(ca.fmax(ca.det(W @ W.T), 0.0)) / (m / n) ** (n / 2)
+        if robot.kind == "point":
+            return ca.fabs(ca.det(W))
+        return ca.fabs(ca.det(W)) / _product([ca.norm_2(W[:, i]) for i in range(m)])
+    weights = None if robot.kind == "point" else [1.0 / ca.sumsqr(W[:, i]) for i in range(m)]
+    return ca.sqrt(gram_determinant(weighted_gram(W, weights))) / (m / n) ** (n / 2)
 
 
 def _product(values: list[ca.SX]) -> ca.SX:

@@ -24,6 +24,7 @@ import numpy as np
 
 from cdpr_sym.distribution import AUTO, distribute
 from cdpr_sym.model import kinematics
+from cdpr_sym.model.gram import gram_determinant, weighted_gram
 from cdpr_sym.robot import Robot
 
 
@@ -337,7 +338,8 @@ class SymbolicModel:
                 for name, args, arg_names, expr, out_name in specs}
 
     def _signed_volume(self, W: ca.SX) -> ca.SX:
-        """det W, or sqrt(det(W W^T)) >= 0 with m > n cables (no orientation then)."""
+        """det W, or sqrt(det(W W^T)) >= 0 with m > n cables (no orientation then; the
+        determinant from the LDL^T pivots of W W^T)."""
         if self.m == self.n:
             return ca.det(W)
-        return ca.sqrt(ca.fmax(ca.det(W @ W.T), 0.0))
+        return ca.sqrt(gram_determinant(weighted_gram(W)))
