@@ -18,7 +18,7 @@ import ctypes
 import os
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -69,6 +69,31 @@ def best_rate(call: Callable[[], Any], *, min_seconds: float = 1.0, rounds: int 
             repeats += 1
         best = max(best, repeats / (time.perf_counter() - start))
     return best
+
+
+def best_rates(calls: Mapping[str, Callable[[], Any]], *, min_seconds: float = 1.0,
+               rounds: int = 5) -> dict[str, float]:
+    """Calls per second of each of ``calls``: the best of ``rounds`` rounds of >=
+    ``min_seconds`` s each, the implementations taking turns round by round (after one
+    warm-up call each), so a change in the machine's load between rounds reaches every
+    implementation alike instead of whichever was timed first."""
+    for call in calls.values():
+        call()
+    best = dict.fromkeys(calls, 0.0)
+    for _ in range(rounds):
+        for name, call in calls.items():
+            repeats, start = 0, time.perf_counter()
+            while repeats == 0 or time.perf_counter() - start < min_seconds:
+                call()
+                repeats += 1
+            best[name] = max(best[name], repeats / (time.perf_counter() - start))
+    return best
+
+
+def single_run(peer: str, controller: str) -> Callable[[], Any]:
+    """One paper-case run of ``peer`` ("floor", "numba", "jax"), as a call."""
+    run, robot = _runner(peer), ARAS3
+    return lambda: run(controller, robot.start, robot.goal, robot.k, robot.r_d, DT, N_STEPS)
 
 
 def _runner(peer: str) -> Callable[..., Any]:
