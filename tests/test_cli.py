@@ -328,3 +328,18 @@ def test_sweep_of_a_relative_robot_file_resumes_from_another_folder(capsys, tmp_
     status, _, err = _run(capsys, *argv, "--robot", "a/bot.toml")
     assert status == 0 and err == ""  # the same configuration: resumed, nothing added
     assert len(list(csv.DictReader(out.open()))) == 2
+
+
+@pytest.mark.parametrize(("robot", "meaning"), [
+    ("planar2", "T_m ≤ W⁻¹∇V ≤ T_M"),
+    ("planar4", "some T_m ≤ τ ≤ T_M with W τ = ∇V"),
+])
+def test_the_workspace_report_says_what_feasible_means_for_the_cables(capsys, tmp_path, robot,
+                                                                      meaning):
+    status, _, _ = _run(capsys, "workspace", "--robot", robot, "--resolution", "5",
+                        "--out", str(tmp_path / "ws"))
+    assert status == 0
+    text = (tmp_path / "ws" / "workspace.md").read_text()
+    assert f"Feasible ({meaning}" in text
+    # a redundant robot has no W⁻¹: its report must not claim one
+    assert ("W⁻¹" in text) == (preset(robot).m == preset(robot).n)

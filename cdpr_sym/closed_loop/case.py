@@ -19,8 +19,8 @@ class Case:
 
     Missing entries default to the robot's case. Start and goal must be regular poses
     (|det W| / prod |w_i| >= ``SINGULAR_DET``), and the goal must lie in the static
-    (wrench-feasible) workspace, T_min <= W^{-1} grad V <= T_max, or no controller can hold
-    the robot there.
+    workspace (T_min <= W^{-1} grad V <= T_max; with m > n cables, some tension in the box
+    holding the weight), or no controller can hold the robot there.
     """
 
     start: np.ndarray

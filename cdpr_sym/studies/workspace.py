@@ -192,6 +192,14 @@ def _panel(ax, first, second, feasible, ball, wrench, xlabel, ylabel, title) -> 
     ax.set_aspect("equal")
 
 
+def _held_by(robot: Robot) -> str:
+    """What "feasible" means for the robot's cables: the one holding tension in the box
+    (m = n), or some tension in the box holding the weight (m > n)."""
+    if robot.m == robot.n:
+        return "T_m ≤ W⁻¹∇V ≤ T_M"
+    return "some T_m ≤ τ ≤ T_M with W τ = ∇V, by the tension distribution"
+
+
 def _markdown(summary: dict[str, Any], figures: list[str], robot: Robot) -> str:
     held = ""
     if robot.kind != "point":
@@ -201,8 +209,8 @@ def _markdown(summary: dict[str, Any], figures: list[str], robot: Robot) -> str:
             zip(names, summary["orientation_rad"], strict=True)) + ". ")
     lines = [f"# Static workspace of `{summary['robot']}`", "", held +
              f"{summary['points']} grid poses classified in generated C (`cdpr-sym workspace` "
-             "prints the rate; `cdpr-sym bench` times it). Feasible (T_m ≤ W⁻¹∇V ≤ "
-             f"T_M): {100 * summary['feasible_share']:.1f} % of the frame; ball condition (13): "
+             f"prints the rate; `cdpr-sym bench` times it). Feasible ({_held_by(robot)}): "
+             f"{100 * summary['feasible_share']:.1f} % of the frame; ball condition (13): "
              f"{100 * summary['ball_share']:.1f} %.", "",
              "Wrench-feasible (every external wrench of the box, beside the weight, held with "
              "tensions in the box; hyperplane shifting, exact also where m > n): "
