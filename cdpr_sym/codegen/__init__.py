@@ -18,12 +18,18 @@ from cdpr_sym.codegen.build import (
     run_command,
 )
 from cdpr_sym.codegen.generate import generate_c
-from cdpr_sym.codegen.lanes import lanes_preamble, lanes_source, unsupported_operations
+from cdpr_sym.codegen.lanes import (
+    VECTOR_FLAGS,
+    lanes_preamble,
+    lanes_source,
+    native_lanes,
+    unsupported_operations,
+)
 from cdpr_sym.codegen.names import c_identifier, is_c_identifier, plain_text
 from cdpr_sym.codegen.native import NativeFunction, NativeLibrary
 from cdpr_sym.codegen.templates import render
 
-__all__ = ["BACKENDS", "BuildOptions", "CompiledLibrary", "NativeFunction", "NativeLibrary",
-           "build", "c_identifier", "default_cache_dir", "find_compiler", "generate_c",
-           "is_c_identifier", "lanes_preamble", "lanes_source", "plain_text", "render",
-           "require_compiler", "run_command", "unsupported_operations"]
+__all__ = ["BACKENDS", "VECTOR_FLAGS", "BuildOptions", "CompiledLibrary", "NativeFunction",
+           "NativeLibrary", "build", "c_identifier", "default_cache_dir", "find_compiler",
+           "generate_c", "is_c_identifier", "lanes_preamble", "lanes_source", "native_lanes",
+           "plain_text", "render", "require_compiler", "run_command", "unsupported_operations"]

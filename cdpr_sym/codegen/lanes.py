@@ -11,11 +11,18 @@ failed on the l2 step: GCC 12 gave up on the whole loop and ran it scalar.)
 
 from __future__ import annotations
 
+import functools
 import math
 
 import casadi as ca
 
+from cdpr_sym.codegen.build import run_command
 from cdpr_sym.codegen.names import is_c_identifier
+from cdpr_sym.errors import CompilationFailed
+
+#: Compiler flags added for lane code: this machine's vector instructions, and no fused
+#: multiply-add, so that every lane rounds as CasADi's scalar C does.
+VECTOR_FLAGS = ("-O3", "-march=native", "-ffp-contract=off")
 
 # Each operation on whole vectors of lanes (GCC/Clang vector extensions). A comparison of
 # two vectors gives a mask of -1 or 0 per lane, turned into 1.0 or 0.0 by L_BOOL; a lane
@@ -46,6 +53,30 @@ _BINARY = {
 _NAMES = {getattr(ca, name): name for name in dir(ca) if name.startswith("OP_")}
 _UNARY_IDS = {getattr(ca, name): text for name, text in _UNARY.items() if hasattr(ca, name)}
 _BINARY_IDS = {getattr(ca, name): text for name, text in _BINARY.items() if hasattr(ca, name)}
+
+
+#: Doubles per vector register, by the widest instruction set the compiler's ``-march=native``
+#: predefines (the first found); 2 (SSE2, NEON) otherwise.
+_REGISTER_DOUBLES = (("__AVX512F__", 8), ("__AVX__", 4))
+
+
+@functools.lru_cache(maxsize=8)
+def native_lanes(compiler: str) -> int:
+    """Doubles in one vector register of this machine, as ``compiler -march=native`` sees
+    it: 8 (AVX-512), 4 (AVX, AVX2) or 2.
+
+    Lane code is fastest with one register per vector: on a wider vector (8 lanes on AVX2)
+    GCC 12 splits the arithmetic into registers but compares lane by lane in scalar code,
+    which made the 8-cable platform's workspace classifiers 2-3x slower than with 4 lanes.
+    A compiler that cannot be asked gives 2.
+    """
+    try:
+        macros = run_command([compiler, *VECTOR_FLAGS, "-dM", "-E", "-x", "c", "/dev/null"],
+                             timeout=60)
+    except (CompilationFailed, OSError):
+        return 2
+    defined = {line.split()[1] for line in macros.splitlines() if line.startswith("#define ")}
+    return next((doubles for macro, doubles in _REGISTER_DOUBLES if macro in defined), 2)
 
 
 def unsupported_operations(function: ca.Function) -> set[str]:

@@ -1,5 +1,6 @@
 """Workspaces: poses where the weight (static) or a box of wrenches (wrench-feasible) can be
-held with tensions in the box, and wrench closure; classified in generated C."""
+held with tensions in the box, and wrench closure; classified in generated C, several poses
+at once in SIMD lanes."""
 
 from cdpr_sym.workspace.classify import (
     MAX_GRID_POSES,
@@ -12,6 +13,7 @@ from cdpr_sym.workspace.classify import (
     sample_static_workspace,
 )
 from cdpr_sym.workspace.mapped import BLOCK, MappedEvaluator
+from cdpr_sym.workspace.vectorised import LaneEvaluator, pose_evaluator
 from cdpr_sym.workspace.wrench import (
     WrenchClassification,
     WrenchEvaluator,
@@ -19,7 +21,7 @@ from cdpr_sym.workspace.wrench import (
     wrench_function,
 )
 
-__all__ = ["BLOCK", "MAX_GRID_POSES", "MAX_SAMPLE_POSES", "Classification", "MappedEvaluator",
-           "WorkspaceEvaluator", "WrenchClassification", "WrenchEvaluator",
+__all__ = ["BLOCK", "MAX_GRID_POSES", "MAX_SAMPLE_POSES", "Classification", "LaneEvaluator",
+           "MappedEvaluator", "WorkspaceEvaluator", "WrenchClassification", "WrenchEvaluator",
            "classification_function", "facet_normals", "frame_shares", "interior_box",
-           "sample_static_workspace", "wrench_function"]
+           "pose_evaluator", "sample_static_workspace", "wrench_function"]

@@ -16,7 +16,7 @@ from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
-from cdpr_sym.workspace.mapped import MappedEvaluator
+from cdpr_sym.workspace.vectorised import pose_evaluator
 
 #: Most grid poses a workspace map classifies (125 points per axis in 3-D, 1414 in 2-D);
 #: the poses and their results take about 10 x 8 x n bytes each.
@@ -52,13 +52,14 @@ class Classification:
 
 
 class WorkspaceEvaluator:
-    """Classifies many poses at once with a generated, mapped C function."""
+    """Classifies many poses at once with a generated C function, vectorised across poses
+    where it can be (:func:`~cdpr_sym.workspace.vectorised.pose_evaluator`)."""
 
     def __init__(self, robot: Robot, *, build_options: BuildOptions = BuildOptions()) -> None:
         self.robot = robot
         self.model = SymbolicModel(robot)
-        self._mapped = MappedEvaluator(robot, classification_function(self.model), "workspace",
-                                       build_options=build_options)
+        self._mapped = pose_evaluator(robot, classification_function(self.model), "workspace",
+                                      build_options=build_options)
 
     def classify(self, points: np.ndarray) -> Classification:
         """Classify poses ``points`` of shape (N, n), m."""

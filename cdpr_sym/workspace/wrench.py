@@ -37,7 +37,7 @@ from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
-from cdpr_sym.workspace.mapped import MappedEvaluator
+from cdpr_sym.workspace.vectorised import pose_evaluator
 
 #: A facet normal shorter than this (relative to the product of its column norms) comes from
 #: dependent columns; it bounds nothing and is left out.
@@ -122,13 +122,14 @@ class WrenchClassification:
 
 
 class WrenchEvaluator:
-    """Classifies many poses at once, wrench feasibility and closure, in generated C."""
+    """Classifies many poses at once, wrench feasibility and closure, in generated C
+    (vectorised across poses where it can be)."""
 
     def __init__(self, robot: Robot, *, build_options: BuildOptions = BuildOptions()) -> None:
         """The default box is the robot's (``external_force``, ``external_moment``)."""
         self.robot = robot
         single = wrench_function(SymbolicModel(robot))
-        self._mapped = MappedEvaluator(robot, single, "wrench", build_options=build_options)
+        self._mapped = pose_evaluator(robot, single, "wrench", build_options=build_options)
 
     def classify(self, points: np.ndarray, half_widths: np.ndarray | None = None
                  ) -> WrenchClassification:
