@@ -230,3 +230,22 @@ def test_a_wrench_box_leaves_the_identity_of_a_sweep_unchanged():
     boxed = preset("aras3").with_case(external_force=[1.0, 1.0, 1.0])
     assert _identity(config, boxed) == _identity(config, preset("aras3"))
     assert _identity(config, boxed.with_case(mass=5.0)) != _identity(config, preset("aras3"))
+
+
+@pytest.mark.parametrize("shape", [(2, 2), (2, 4), (3, 3), (3, 5), (6, 6), (6, 8)])
+def test_shared_determinants_are_every_facets_projections(shape, rng):
+    """facet_projections takes c . w_j from one determinant per n columns, with the sign of
+    where j sits among the facet's columns: equal to the dot products facet by facet."""
+    import casadi as ca
+
+    from cdpr_sym.workspace import facet_normals, facet_projections
+
+    W = rng.normal(size=shape)
+    normals = facet_normals(ca.SX(W))
+    for (columns, c), projections in zip(normals, facet_projections(ca.SX(W), normals),
+                                         strict=True):
+        c = np.array(ca.evalf(c)).ravel()
+        others = [j for j in range(shape[1]) if j not in columns]
+        np.testing.assert_allclose(np.array(ca.evalf(projections)).ravel(), c @ W[:, others],
+                                   rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(c @ W[:, list(columns)], 0, atol=1e-12)

@@ -18,10 +18,11 @@ from cdpr_sym.workspace.wrench import (
     WrenchClassification,
     WrenchEvaluator,
     facet_normals,
+    facet_projections,
     wrench_function,
 )
 
 __all__ = ["BLOCK", "MAX_GRID_POSES", "MAX_SAMPLE_POSES", "Classification", "LaneEvaluator",
            "MappedEvaluator", "WorkspaceEvaluator", "WrenchClassification", "WrenchEvaluator",
-           "classification_function", "facet_normals", "frame_shares", "interior_box",
-           "pose_evaluator", "sample_static_workspace", "wrench_function"]
+           "classification_function", "facet_normals", "facet_projections", "frame_shares",
+           "interior_box", "pose_evaluator", "sample_static_workspace", "wrench_function"]
