@@ -27,9 +27,11 @@ AUTO = "auto"
 
 
 def preferred_method(n: int, m: int) -> str:
-    """The exact, continuous ``min_norm`` for m = n + 1 (its tension moves continuously with
-    the wrench), else :data:`DEFAULT_METHOD` (whose repairs can switch cables abruptly)."""
-    return "min_norm" if m == n + 1 else DEFAULT_METHOD
+    """The exact, continuous minimum-norm tension where the null space is a line or a plane
+    (``min_norm`` for m = n + 1, ``min_norm_2d`` for m = n + 2: it moves continuously with the
+    wrench and finds every tension that exists), else :data:`DEFAULT_METHOD` (whose repairs
+    can switch cables abruptly and can miss a feasible tension)."""
+    return {n + 1: "min_norm", n + 2: "min_norm_2d"}.get(m, DEFAULT_METHOD)
 
 
 def check_method(name: str, n: int, m: int) -> str:
@@ -45,7 +47,7 @@ def check_method(name: str, n: int, m: int) -> str:
     if redundancy is not None and m - n != redundancy:
         raise InvalidCase("distribution", f"{name} needs m = n + {redundancy} cables (a "
                           f"{redundancy}-D null space), got n = {n}, m = {m}; use "
-                          f"{DEFAULT_METHOD}")
+                          f"{preferred_method(n, m)}")
     return name
 
 
