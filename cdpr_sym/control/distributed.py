@@ -30,8 +30,9 @@ class DistributedPD(StatelessLaw):
     ----------
     method : str
         The distribution (see :data:`cdpr_sym.distribution.METHODS`); ``"auto"`` (default):
-        the exact minimum-norm tension for m = n + 1 and m = n + 2, else the improved
-        closed-form method (:func:`cdpr_sym.distribution.preferred_method`).
+        the exact minimum-norm tension for m = n + 1, else the improved closed-form method
+        (:func:`cdpr_sym.distribution.preferred_method`; ``"min_norm_2d"`` is the exact one
+        for m = n + 2).
 
     Notes
     -----

@@ -27,11 +27,20 @@ AUTO = "auto"
 
 
 def preferred_method(n: int, m: int) -> str:
-    """The exact, continuous minimum-norm tension where the null space is a line or a plane
-    (``min_norm`` for m = n + 1, ``min_norm_2d`` for m = n + 2: it moves continuously with the
-    wrench and finds every tension that exists), else :data:`DEFAULT_METHOD` (whose repairs
-    can switch cables abruptly and can miss a feasible tension)."""
-    return {n + 1: "min_norm", n + 2: "min_norm_2d"}.get(m, DEFAULT_METHOD)
+    """The exact, continuous ``min_norm`` for m = n + 1 (its tension moves continuously with
+    the wrench), else :data:`DEFAULT_METHOD` (whose repairs can switch cables abruptly).
+
+    For m = n + 2 the exact ``min_norm_2d`` is opt-in: as ``smooth``'s command on ipanema8
+    it met the redundant study's target on 84.0 % of pairs against 94.5 % with the improved
+    closed form (31 runs with a tension step above 1 N against 11: near a thin feasible
+    polygon the minimum-norm tension moves fast with the wrench)."""
+    return "min_norm" if m == n + 1 else DEFAULT_METHOD
+
+
+def fitting_methods(n: int, m: int) -> tuple[str, ...]:
+    """The methods that run with n degrees of freedom and m >= n cables."""
+    return tuple(name for name, (_, redundancy) in METHODS.items()
+                 if redundancy is None or redundancy == m - n)
 
 
 def check_method(name: str, n: int, m: int) -> str:
@@ -46,8 +55,8 @@ def check_method(name: str, n: int, m: int) -> str:
     redundancy = METHODS[name][1]
     if redundancy is not None and m - n != redundancy:
         raise InvalidCase("distribution", f"{name} needs m = n + {redundancy} cables (a "
-                          f"{redundancy}-D null space), got n = {n}, m = {m}; use "
-                          f"{preferred_method(n, m)}")
+                          f"{redundancy}-D null space), got n = {n}, m = {m}; use one of "
+                          f"{', '.join(fitting_methods(n, m))}")
     return name
 
 

@@ -178,7 +178,7 @@ class SymbolicModel:
         """tau_1 = W^{-1} grad V, N: the tension holding the end-effector at rest at q.
 
         With m > n cables, the tension distribution of grad V: the exact minimum-norm one in
-        the box for m = n + 1 and m = n + 2, else the improved closed-form method's
+        the box for m = n + 1, else the improved closed-form method's
         (:data:`~cdpr_sym.distribution.DEFAULT_METHOD`, which can miss a feasible tension);
         outside the box where the method finds none in it.
         """

@@ -239,8 +239,8 @@ def _markdown(summary: dict[str, Any]) -> str:
                      f"{share(w['wrench_feasible'])} | {share(w['closure'])} |")
     lines += [
         "", "Where *holdable* exceeds the distribution's share, the distribution misses "
-        "tensions that exist (Pott's improved closed form for m - n >= 3; the exact "
-        "minimum-norm methods for m - n <= 2 miss none).", "",
+        "tensions that exist (Pott's improved closed form, the default for m - n >= 2; "
+        "the exact `min_norm_2d` misses none for m - n = 2).", "",
         "## What the paper's J_d buys", "",
         "Over states of each robot's static workspace, moving at "
         f"{summary['interconnection'][redundant]['speed']:g} m/s (rad/s) in a random "
