@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from cdpr_sym.closed_loop import Plant, get_simulator
-from cdpr_sym.closed_loop.batch import LANES, batch_rollout, run_many
+from cdpr_sym.closed_loop.batch import batch_rollout, run_many
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import CONTROLLERS
 from cdpr_sym.errors import InvalidCase
@@ -38,7 +38,8 @@ def _assert_same_runs(batched, single):
 def test_batched_runs_equal_single_runs(robot_name, controller, request, rng, build_options):
     robot = request.getfixturevalue(robot_name)
     simulator = get_simulator(robot, CONTROLLERS[controller], build_options=build_options)
-    starts, goals = _pairs(robot, rng, LANES + 3)  # a full block and a partial one
+    lanes = batch_rollout(simulator, build_options).lanes
+    starts, goals = _pairs(robot, rng, lanes + 3)  # a full block and a partial one
     runs = dict(duration=0.4, dt=1e-3, plant=Plant(mass_scale=1.1))
     batched = run_many(simulator, starts, goals, robot.k, robot.r_d, **runs,
                        build_options=build_options)

@@ -1,11 +1,12 @@
 """Batched closed-loop rollouts: many runs of one simulator advanced by one compiled call.
 
-The step is written for :data:`LANES` runs at once (:mod:`cdpr_sym.codegen.lanes`) and
-compiled with the host's vector instructions; a rollout loop (``templates/
-rollout_lanes.c.j2``) feeds it blocks of runs and stores each run's states and logs in its
-own rows, exactly as single runs do. Sweeps and studies go through :func:`run_many`, which
-falls back to one run at a time where no batch can be built (CasADi's virtual machine, an
-operation without a C form for lanes).
+The step is written for several runs at once (:mod:`cdpr_sym.codegen.lanes`), as many as
+one of this machine's vector registers holds doubles (:func:`~cdpr_sym.codegen.native_lanes`:
+4 with AVX2, 8 with AVX-512), and compiled with the host's vector instructions; a rollout
+loop (``templates/rollout_lanes.c.j2``) feeds it blocks of runs and stores each run's states
+and logs in their own rows, exactly as single runs do. Sweeps and studies go through
+:func:`run_many`, which falls back to one run at a time where no batch can be built
+(CasADi's virtual machine, an operation without a C form for lanes).
 """
 
 from __future__ import annotations
@@ -21,30 +22,30 @@ from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.simulator import Simulator
 from cdpr_sym.closed_loop.summaries import run_summary, summary_fields, summary_source
 from cdpr_sym.codegen import (
+    VECTOR_FLAGS,
     BuildOptions,
     build,
     lanes_preamble,
     lanes_source,
+    native_lanes,
     render,
+    require_compiler,
     unsupported_operations,
 )
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results import SETTLE_TOLERANCE, RunSummary, Trajectory
 
-#: Runs advanced together by one call of the vectorised step (8 doubles = one AVX-512
-#: register, two AVX2 ones).
-LANES = 8
 #: Runs per call of the compiled loop: bounds the states and logs held at once.
 RUNS_PER_CALL = 64
-#: Added to the build flags of the vectorised step: vector instructions of this machine.
-VECTOR_FLAGS = ("-O3", "-march=native", "-ffp-contract=off")
 
 
 class BatchRollout:
-    """The compiled batched rollout of a :class:`Simulator`'s step."""
+    """The compiled batched rollout of a :class:`Simulator`'s step, ``lanes`` runs per call
+    of the vectorised step (default: :func:`~cdpr_sym.codegen.native_lanes`)."""
 
     def __init__(self, simulator: Simulator, build_options: BuildOptions = BuildOptions(),
-                 lanes: int = LANES) -> None:
+                 lanes: int | None = None) -> None:
+        lanes = _lanes(lanes, build_options)
         layout = simulator.layout
         self.layout, self.lanes = layout, lanes
         source = lanes_preamble(lanes) + lanes_source(simulator.step, "step_lanes", lanes) + render(
@@ -90,32 +91,41 @@ class BatchRollout:
         return rows
 
 
-#: Each simulator's batched rollout (None: none can be built), kept while it lives.
-_BATCHES: weakref.WeakKeyDictionary[Simulator, BatchRollout | None] = (
+#: Each simulator's batched rollouts by lane count (None: none can be built), kept while it
+#: lives.
+_BATCHES: weakref.WeakKeyDictionary[Simulator, dict[int, BatchRollout] | None] = (
     weakref.WeakKeyDictionary())
 
 
-def batch_rollout(simulator: Simulator, build_options: BuildOptions = BuildOptions()
-                  ) -> BatchRollout | None:
-    """The batched rollout of ``simulator`` (built once per simulator), or None where its
-    step runs in CasADi's virtual machine or cannot be written for lanes."""
+def batch_rollout(simulator: Simulator, build_options: BuildOptions = BuildOptions(),
+                  lanes: int | None = None) -> BatchRollout | None:
+    """The batched rollout of ``simulator`` on ``lanes`` runs per vector (default:
+    :func:`~cdpr_sym.codegen.native_lanes`; built once per simulator and lane count), or
+    None where its step runs in CasADi's virtual machine or cannot be written for lanes."""
     if simulator not in _BATCHES:
         usable = (simulator.backend == "c" and simulator.sampled is None
                   and not unsupported_operations(simulator.step))
-        _BATCHES[simulator] = BatchRollout(simulator, build_options) if usable else None
-    return _BATCHES[simulator]
+        _BATCHES[simulator] = {} if usable else None
+    built = _BATCHES[simulator]
+    if built is None:
+        return None
+    lanes = _lanes(lanes, build_options)
+    if lanes not in built:
+        built[lanes] = BatchRollout(simulator, build_options, lanes)
+    return built[lanes]
 
 
 def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndarray,
              r_d: np.ndarray, *, duration: float, dt: float, plant: Plant = Plant(),
-             build_options: BuildOptions = BuildOptions()) -> list[Trajectory]:
+             build_options: BuildOptions = BuildOptions(), lanes: int | None = None
+             ) -> list[Trajectory]:
     """Simulate every (start, goal) pair with the same gains, plant and timing.
 
     ``[simulator.run(s, g, k, r_d, ...) for s, g in zip(starts, goals)]``, advanced
-    :data:`LANES` runs at a time in vectorised compiled code. Lanes are independent, so a
-    run's result does not depend on the others in its block; against ``simulator.run`` it
-    agrees to round-off (the vector code re-associates differently), which chattering
-    designs amplify.
+    ``lanes`` runs at a time in vectorised compiled code. Lanes are independent, so a
+    run's result does not depend on the others in its block; against ``simulator.run``, or
+    on another lane count, it agrees to round-off (the vector code re-associates
+    differently), which chattering designs amplify.
 
     Parameters
     ----------
@@ -129,6 +139,9 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
     plant : Plant
     build_options : BuildOptions
         Cache folder and compiler of the batched library.
+    lanes : int, optional
+        Runs per vector of the compiled step, a power of two; default: the doubles one
+        vector register of this machine holds (:func:`~cdpr_sym.codegen.native_lanes`).
 
     Raises
     ------
@@ -137,7 +150,7 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
         does not match the simulator.
     """
     starts, goals, n_steps = _checked(simulator, starts, goals, duration, dt, plant)
-    batch = batch_rollout(simulator, build_options)
+    batch = batch_rollout(simulator, build_options, lanes)
     if batch is None:
         return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=plant)
                 for s, g in zip(starts, goals, strict=True)]
@@ -153,7 +166,8 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
 
 def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndarray,
                    r_d: np.ndarray, *, duration: float, dt: float, plant: Plant = Plant(),
-                   build_options: BuildOptions = BuildOptions()) -> list[RunSummary]:
+                   build_options: BuildOptions = BuildOptions(), lanes: int | None = None
+                   ) -> list[RunSummary]:
     """``[run.summary() for run in run_many(...)]`` without storing the runs.
 
     The batched loop keeps each run's running extremes and counts as it advances, so a
@@ -162,7 +176,7 @@ def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: n
     order rather than pairwise). Same parameters and errors as :func:`run_many`.
     """
     starts, goals, n_steps = _checked(simulator, starts, goals, duration, dt, plant)
-    batch = batch_rollout(simulator, build_options)
+    batch = batch_rollout(simulator, build_options, lanes)
     if batch is None:
         return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=plant).summary()
                 for s, g in zip(starts, goals, strict=True)]
@@ -173,6 +187,12 @@ def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: n
     return [run_summary(row, simulator.layout, goal, dt, static_tension=tension,
                         t_min=robot.t_min, t_max=robot.t_max)
             for row, goal, tension in zip(rows, goals, static, strict=True)]
+
+
+def _lanes(lanes: int | None, build_options: BuildOptions) -> int:
+    """``lanes``, or by default the doubles one vector register holds on this machine, as
+    the build's compiler sees it."""
+    return lanes or native_lanes(require_compiler(build_options.compiler))
 
 
 def _inputs(simulator: Simulator, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,
