@@ -15,8 +15,8 @@ from cdpr_sym import get_simulator
 from cdpr_sym.closed_loop.step import STOP_REASONS
 from cdpr_sym.codegen import build
 from cdpr_sym.control import DistributedPD
+from cdpr_sym.linalg import gram_determinant
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
-from cdpr_sym.model.gram import gram_determinant
 from cdpr_sym.model.kinematics import singularity_measure
 from cdpr_sym.robot import preset
 

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import casadi as ca
 
+from cdpr_sym.linalg import ldl_solve
+
 #: Largest residual |W tau - w|_inf, relative to 1 + |w|_inf, of a tension called feasible.
 RESIDUAL = 1e-9
 
@@ -66,7 +68,10 @@ def _nearest_to_middle(W: ca.SX, w: ca.SX, free: ca.SX, fixed: ca.SX, t_min: flo
     middle = 0.5 * (t_min + t_max)
     W_free = W @ ca.diag(free)
     rest = w - W @ fixed - W_free @ (middle * free)
-    correction = W_free.T @ ca.solve(W_free @ W_free.T, rest)
+    # W_f W_f^T is symmetric positive (semi-)definite: LDL^T, a fifth of a symbolic QR's
+    # operations; where the free cables stop spanning the wrench space the residual test
+    # of the caller decides
+    correction = W_free.T @ ldl_solve(W_free @ W_free.T, rest)
     return fixed + free * middle + correction
 
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from cdpr_sym.model.gram import gram_determinant, weighted_gram
+from cdpr_sym.linalg import gram_determinant, weighted_gram
 from cdpr_sym.robot import Robot
 
 #: |det W| / prod |w_i| (w_i the columns of W) below this is a singular configuration. For

@@ -23,8 +23,8 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.distribution import AUTO, distribute
+from cdpr_sym.linalg import gram_determinant, weighted_gram
 from cdpr_sym.model import kinematics
-from cdpr_sym.model.gram import gram_determinant, weighted_gram
 from cdpr_sym.model.newton_euler import rigid_acceleration
 from cdpr_sym.robot import Robot
 

@@ -1,11 +1,14 @@
-"""The determinant of a Gram matrix as the product of its LDL^T pivots, in CasADi.
+"""Gram matrices in CasADi: their determinant and linear solves by LDL^T, branch-free.
 
 A symmetric positive semi-definite G (n x n) factors as G = L D L^T with L unit lower
-triangular and D = diag(d_1, ..., d_n) >= 0, so det G = d_1 d_2 ... d_n. Elimination takes
-about n^3 / 3 multiply-adds; CasADi's ``det`` expands by minors instead (about 2,000
-operations for n = 6; the shorter code only up to n = 3). The factorisation here is
-branch-free (straight-line C) and keeps NaN: a non-finite entry gives a NaN determinant,
-never a finite one.
+triangular and D = diag(d_1, ..., d_n) >= 0, so det G = d_1 d_2 ... d_n, and G x = b is two
+triangular solves and a division. Elimination takes about n^3 / 3 multiply-adds; CasADi's
+``det`` expands by minors instead (about 2,000 operations for n = 6; the shorter code only
+up to n = 3) and its ``solve`` of a symbolic matrix is a QR factorisation. The factorisation
+here is straight-line C and keeps NaN: a non-finite entry gives NaN, never a finite number.
+
+The bottom of the package (beside the robot description): the model's singularity measure
+and the tension distribution both use it.
 """
 
 from __future__ import annotations
@@ -21,8 +24,8 @@ PIVOT_FLOOR = 1e-30
 PIVOT_FLOOR_ABSOLUTE = 1e-300
 
 
-def ldl_pivots(G: ca.SX) -> list[ca.SX]:
-    """The pivots d_1, ..., d_n of G = L D L^T for a symmetric positive semi-definite G.
+def ldl_factors(G: ca.SX) -> tuple[list[list[ca.SX]], list[ca.SX], ca.SX]:
+    """The factors of G = L D L^T for a symmetric positive semi-definite G (n x n).
 
     Parameters
     ----------
@@ -32,23 +35,64 @@ def ldl_pivots(G: ca.SX) -> list[ca.SX]:
 
     Returns
     -------
-    list of ca.SX
-        n scalar pivots, each >= 0 (rounding that leaves one negative is clamped to 0), or
+    factors : list of list of ca.SX
+        Row i holds L's strict lower triangle, L[i, 0..i-1].
+    pivots : list of ca.SX
+        d_1, ..., d_n, each >= 0 (rounding that leaves one negative is clamped to 0), or
         NaN where an entry of G is NaN.
+    floor : ca.SX
+        What the elimination added to every pivot before dividing by it
+        (:data:`PIVOT_FLOOR` trace G + :data:`PIVOT_FLOOR_ABSOLUTE`): a singular G gives
+        finite factors instead of a division by zero.
     """
     n = G.shape[0]
     floor = PIVOT_FLOOR * ca.trace(G) + PIVOT_FLOOR_ABSOLUTE
     lower = [[G[i, j] for j in range(i + 1)] for i in range(n)]
+    factors: list[list[ca.SX]] = [[] for _ in range(n)]
     pivots = []
     for k in range(n):
-        pivot = _clamped(lower[k][k])
-        pivots.append(pivot)
-        inverse = 1.0 / (pivot + floor)
+        pivots.append(_clamped(lower[k][k]))
+        inverse = 1.0 / (pivots[k] + floor)
         for i in range(k + 1, n):
-            factor = lower[i][k] * inverse
+            factors[i].append(lower[i][k] * inverse)
             for j in range(k + 1, i + 1):
-                lower[i][j] = lower[i][j] - factor * lower[j][k]
-    return pivots
+                lower[i][j] = lower[i][j] - factors[i][k] * lower[j][k]
+    return factors, pivots, floor
+
+
+def ldl_pivots(G: ca.SX) -> list[ca.SX]:
+    """The pivots d_1, ..., d_n of G = L D L^T (see :func:`ldl_factors`)."""
+    return ldl_factors(G)[1]
+
+
+def ldl_solve(G: ca.SX, b: ca.SX) -> ca.SX:
+    """x with G x = b for a symmetric positive definite G (n x n) and b (n,), by LDL^T.
+
+    Parameters
+    ----------
+    G : ca.SX, shape (n, n)
+        Symmetric positive definite (lower triangle read); its pivots are floored as in
+        :func:`ldl_factors`, so a singular G returns finite numbers that do not solve it
+        (callers that can meet one check the residual).
+    b : ca.SX, shape (n,)
+        Right-hand side, any unit.
+
+    Returns
+    -------
+    ca.SX, shape (n,)
+        The solution, in b's unit over G's.
+    """
+    n = G.shape[0]
+    factors, pivots, floor = ldl_factors(G)
+    y = [b[i] for i in range(n)]
+    for i in range(n):  # L y = b
+        for j, factor in enumerate(factors[i]):
+            y[i] = y[i] - factor * y[j]
+    x = [y[i] / (pivots[i] + floor) for i in range(n)]
+    for i in reversed(range(n)):  # L^T x = D^-1 y
+        for k in range(i + 1, n):
+            x[i] = x[i] - factors[k][i] * x[k]
+    return ca.vertcat(*x)
 
 
 #: Up to this size CasADi's expansion by minors is the shorter code (25 operations against
