@@ -1,0 +1,71 @@
+"""Batched runs at every lane count: each run is its pair's run alone, whatever the block.
+
+A batch is cut into blocks of ``lanes`` runs, the last one partial (its spare lanes repeat
+the last run); the lanes are independent, so the block a run lands in may not change its
+numbers. The lane count may, by round-off: the default build flags let the compiler
+re-associate, and it does so differently on vectors of different widths.
+"""
+
+import numpy as np
+import pytest
+
+from cdpr_sym.closed_loop import Plant, get_simulator, run_many, summarise_many
+from cdpr_sym.closed_loop.batch import batch_rollout
+from cdpr_sym.codegen import native_lanes, require_compiler
+from cdpr_sym.control import CONTROLLERS
+
+#: Doubles of every vector register in use: SSE2/NEON, AVX/AVX2, AVX-512.
+LANE_COUNTS = (2, 4, 8)
+RUNS = dict(duration=0.4, dt=1e-3)
+TRAJECTORY_ARRAYS = ("t", "q", "dq", "tau", "alpha", "beta", "j", "flags")
+
+
+def _pairs(robot, rng, count):
+    """Random start/goal pairs near the robot's case; the last goal is out of the frame, so
+    a PD run there (the partial block's last, which its spare lanes repeat) stops early."""
+    span = robot.frame_upper - robot.frame_lower
+    starts = robot.start + rng.uniform(-0.05, 0.05, (count, robot.n)) * span
+    goals = robot.goal + rng.uniform(-0.05, 0.05, (count, robot.n)) * span
+    goals[-1] = robot.frame_upper + 0.5 * span
+    return starts, goals
+
+
+def test_the_default_lane_count_is_the_machines_register(aras3, build_options):
+    simulator = get_simulator(aras3, CONTROLLERS["pd"], build_options=build_options)
+    lanes = batch_rollout(simulator, build_options).lanes
+    assert lanes == native_lanes(require_compiler()) and lanes in LANE_COUNTS
+
+
+@pytest.mark.parametrize("controller", ["pd", "l2"])
+@pytest.mark.parametrize("lanes", LANE_COUNTS)
+def test_a_partial_block_repeats_each_pair_alone(lanes, controller, aras3, rng,
+                                                 build_options):
+    simulator = get_simulator(aras3, CONTROLLERS[controller], build_options=build_options)
+    count = 2 * lanes + 1  # two full blocks and one run alone in the last
+    starts, goals = _pairs(aras3, rng, count)
+    gains = (aras3.k, aras3.r_d)
+    batched = run_many(simulator, starts, goals, *gains, **RUNS, build_options=build_options,
+                       lanes=lanes)
+    summaries = summarise_many(simulator, starts, goals, *gains, **RUNS,
+                               build_options=build_options, lanes=lanes)
+    assert batch_rollout(simulator, build_options, lanes).lanes == lanes
+    assert len(batched) == len(summaries) == count
+    if controller == "pd":  # the bounded l2 design needs longer to leave the frame
+        assert batched[-1].stop_reason == "left_frame"
+    for start, goal, together, summary in zip(starts, goals, batched, summaries,
+                                              strict=True):
+        [alone] = run_many(simulator, [start], [goal], *gains, **RUNS,
+                           build_options=build_options, lanes=lanes)
+        [alone_summary] = summarise_many(simulator, [start], [goal], *gains, **RUNS,
+                                         build_options=build_options, lanes=lanes)
+        assert together.stop_reason == alone.stop_reason
+        for name in TRAJECTORY_ARRAYS:  # the same code on the same lane: equal to the bit
+            np.testing.assert_array_equal(getattr(together, name), getattr(alone, name),
+                                          err_msg=name)
+        assert summary == alone_summary
+        single = simulator.run(start, goal, *gains, **RUNS, plant=Plant())
+        assert together.stop_reason == single.stop_reason
+        assert len(together.t) == len(single.t)
+        np.testing.assert_allclose(together.q, single.q, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(together.tau, single.tau, rtol=1e-12, atol=1e-9)
+        np.testing.assert_array_equal(together.flags, single.flags)
