@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from cdpr_sym.linalg import ldl_solve
+from cdpr_sym.linalg import ldl_solve, weighted_gram
 
 #: Largest residual |W tau - w|_inf, relative to 1 + |w|_inf, of a tension called feasible.
 RESIDUAL = 1e-9
@@ -29,7 +29,7 @@ def closed_form(W: ca.SX, w: ca.SX, t_min: float, t_max: float) -> tuple[ca.SX, 
     entry is inside [t_min, t_max], else 0 (tau is then returned as computed, unclipped)."""
     m = W.shape[1]
     free = ca.DM.ones(m)
-    tau = _nearest_to_middle(W, w, free, ca.SX.zeros(m), t_min, t_max)
+    tau = _nearest_to_middle(W, weighted_gram(W), w, free, ca.SX.zeros(m), t_min, t_max)
     return tau, _inside(tau, t_min, t_max)
 
 
@@ -45,7 +45,8 @@ def improved_closed_form(W: ca.SX, w: ca.SX, t_min: float, t_max: float
     n, m = W.shape
     free = ca.SX.ones(m)  # 1 for a cable still to be solved for
     fixed = ca.SX.zeros(m)  # the tension of the fixed cables (0 for the free ones), N
-    tau = _nearest_to_middle(W, w, free, fixed, t_min, t_max)
+    gram = weighted_gram(W)  # W_f W_f^T of the free cables
+    tau = _nearest_to_middle(W, gram, w, free, fixed, t_min, t_max)
     for _ in range(m - n):
         violation = free * ca.fmax(ca.fmax(tau - t_max, t_min - tau), 0.0)
         worst = _first_largest(violation)
@@ -54,25 +55,26 @@ def improved_closed_form(W: ca.SX, w: ca.SX, t_min: float, t_max: float
         chosen = repair * worst
         fixed = fixed + chosen * bound
         free = free - chosen
-        tau = ca.if_else(repair, _nearest_to_middle(W, w, free, fixed, t_min, t_max), tau)
+        column = W @ chosen  # the fixed cable's column (0 without a repair)
+        gram = gram - column @ column.T  # its term leaves W_f W_f^T: no new product
+        tau = ca.if_else(repair, _nearest_to_middle(W, gram, w, free, fixed, t_min, t_max),
+                         tau)
     # the repairs can leave free cables that no longer span the wrench space (on lines where
     # cables align): the solve then returns numbers in the box that do not produce w
     produces = ca.norm_inf(W @ tau - w) <= RESIDUAL * (1.0 + ca.norm_inf(w))
     return tau, _inside(tau, t_min, t_max) * ca.if_else(produces, 1.0, 0.0)
 
 
-def _nearest_to_middle(W: ca.SX, w: ca.SX, free: ca.SX, fixed: ca.SX, t_min: float,
-                       t_max: float) -> ca.SX:
+def _nearest_to_middle(W: ca.SX, gram: ca.SX, w: ca.SX, free: ca.SX, fixed: ca.SX,
+                       t_min: float, t_max: float) -> ca.SX:
     """The free cables' tension nearest the box's middle with W tau = w, the fixed ones at
-    ``fixed``: tau_f = mid + W_f^T (W_f W_f^T)^{-1} (w - W fixed - W_f mid)."""
-    middle = 0.5 * (t_min + t_max)
-    W_free = W @ ca.diag(free)
-    rest = w - W @ fixed - W_free @ (middle * free)
+    ``fixed``: tau_f = mid + W_f^T (W_f W_f^T)^{-1} (w - W (fixed + mid free)), with
+    ``gram`` = W_f W_f^T and W_f = W diag(free) applied as a mask on vectors."""
+    start = fixed + (0.5 * (t_min + t_max)) * free
     # W_f W_f^T is symmetric positive (semi-)definite: LDL^T, a fifth of a symbolic QR's
     # operations; where the free cables stop spanning the wrench space the residual test
     # of the caller decides
-    correction = W_free.T @ ldl_solve(W_free @ W_free.T, rest)
-    return fixed + free * middle + correction
+    return start + free * (W.T @ ldl_solve(gram, w - W @ start))
 
 
 def _first_largest(values: ca.SX) -> ca.SX:
