@@ -66,8 +66,9 @@ def main(argv: list[str] | None = None) -> int:
              + f" One {DURATION:g} s run at {1 / DT:g} Hz of each preset's case with "
              "`smooth-lp` through `Simulator.run` (best of 5 after a warm-up), on the ideal "
              "plant and with each effect: encoders with forward kinematics and the velocity "
-             "filter (sensing), elastic cables on winches with a 500 Hz torque loop and 4 "
-             "RK4 substeps per period (winches), and both with a 1-period delay (as built). "
+             "filter (sensing), elastic cables on winches with a 500 Hz torque loop and "
+             f"{AsBuilt().substeps} RK4 substeps per period (winches), and both with a "
+             "1-period delay (as built). "
              "Ratios are to the ideal run of the same robot; the target is at most 5.", "",
              "| robot | n | cables | " + " | ".join(f"{c} [ms]" for c in columns)
              + " | " + " | ".join(f"{c} / ideal" for c in columns[1:]) + " |",

@@ -4,10 +4,11 @@ The plant's energy E = T + V (platform, with the plant's mass) + sum 1/2 J omega
 + sum 1/2 EA s+^2 / l0 (stretched cables) changes only by what the motors put in and what
 friction, cable damping and the payout of stretched cable take out:
 
-    dE/dt = -sum tau_i omega_i - sum (b omega_i + tau_c tanh(omega_i / w_f)) omega_i
+    dE/dt = -sum tau_i omega_i - sum (b omega_i + tau_c sgn(omega_i / w_f)) omega_i
             + sum (T_s,i - T_i) ds_i/dt - sum 1/2 T_s,i (s_i / l0_i) r omega_i,
 
-with T_s = EA s+ / l0 the spring part of the tension (the last term: the stiffness EA / l0
+with sgn(x) = x / sqrt(1 + x^2) the smooth sign of the friction, T_s = EA s+ / l0 the spring
+part of the tension (the last term: the stiffness EA / l0
 changes as cable is paid out). Everything here is computed from the states in numpy: lengths
 and their rates from the reference geometry (anchors moved by the plant's offsets), energies
 from the reference rigid body, the tension from the cable law; the balance is integrated
@@ -95,7 +96,8 @@ def test_energy_balance_closes(name, request, rng, build_options):
         taut.append(stretch.min())
         spring = ea * np.maximum(stretch, 0) / payout
         tension = np.maximum(spring + c_ea * stretch_rate / payout, 0) * (stretch > 0)
-        friction = drive.viscous * speed + drive.coulomb * np.tanh(speed / FRICTION_SPEED)
+        turn = speed / FRICTION_SPEED
+        friction = drive.viscous * speed + drive.coulomb * turn / np.sqrt(1 + turn**2)
         energy.append(platform_energy(q, dq) + 0.5 * drive.inertia * speed @ speed
                       + 0.5 * ea * np.sum(np.maximum(stretch, 0) ** 2 / payout))
         power.append(-torque @ speed - friction @ speed + (spring - tension) @ stretch_rate

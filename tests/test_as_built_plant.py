@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import reference
 
-from cdpr_sym import simulate
+from cdpr_sym import preset, simulate
 from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.control import controller_by_name
@@ -137,14 +137,16 @@ def test_a_pose_that_cannot_be_read_stops_the_run(aras3, build_options):
 
 
 @pytest.mark.slow
-def test_four_substeps_agree_with_sixty_four(aras3, build_options):
-    drive = Actuation(cable_damping=40.0)
-    runs = [simulate(aras3, "smooth", duration=1.0, build_options=build_options,
-                     plant=Plant(as_built=AsBuilt(actuation=drive, substeps=substeps)))
-            for substeps in (4, 64)]
+@pytest.mark.parametrize("name", ["aras3", "planar3"])
+def test_the_default_substeps_agree_with_sixty_four(name, build_options):
+    robot = preset(name)
+    drive = Actuation(torque_limit=1.5 * robot.t_max * Actuation().drum_radius)  # the study's
+    runs = [simulate(robot, "smooth-lp", duration=1.0, build_options=build_options,
+                     plant=Plant(as_built=AsBuilt(actuation=drive, **substeps)))
+            for substeps in ({}, {"substeps": 64})]
     assert all(run.stop_reason is None for run in runs)
-    np.testing.assert_allclose(runs[0].q, runs[1].q, rtol=0, atol=1e-7)
-    np.testing.assert_allclose(runs[0].tau, runs[1].tau, rtol=0, atol=1e-3)
+    np.testing.assert_allclose(runs[0].q, runs[1].q, rtol=0, atol=2e-7)
+    np.testing.assert_allclose(runs[0].tau, runs[1].tau, rtol=0, atol=3e-3)
 
 
 @pytest.mark.parametrize(("make", "field"), [

@@ -32,10 +32,12 @@ def cable_tension(lengths: ca.SX, rates: ca.SX, payout: ca.SX, payout_rate: ca.S
 
 
 def drum_acceleration(tension: ca.SX, speed: ca.SX, torque: ca.SX, parameters: ca.SX) -> ca.SX:
-    """d omega / dt of each drum, rad/s^2: (r T - tau - b omega - tau_c tanh(omega / w_f)) / J
-    (omega > 0 pays cable out; the motor torque tau > 0 reels it in)."""
+    """d omega / dt of each drum, rad/s^2: (r T - tau - b omega - tau_c sgn(omega / w_f)) / J
+    with the smooth sign sgn(x) = x / sqrt(1 + x^2) (omega > 0 pays cable out; the motor
+    torque tau > 0 reels it in)."""
     p = named(parameters)
-    friction = p["viscous"] * speed + p["coulomb"] * ca.tanh(speed / FRICTION_SPEED)
+    ratio = speed / FRICTION_SPEED
+    friction = p["viscous"] * speed + p["coulomb"] * ratio / ca.sqrt(1 + ratio * ratio)
     return (p["drum_radius"] * tension - torque - friction) / p["inertia"]
 
 

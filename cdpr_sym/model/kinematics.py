@@ -147,7 +147,7 @@ def singularity_measure(robot: Robot, W: ca.SX) -> ca.SX:
     when m = n, in [0, 1] by the AM-GM inequality on V V^T's eigenvalues (trace m), and 0
     exactly where W loses row rank. V V^T = W diag(1 / |w_i|^2) W^T is positive
     semi-definite, so its determinant is the product of its LDL^T pivots
-    (:mod:`cdpr_sym.model.gram`: a few hundred operations where expanding by minors takes
+    (:mod:`cdpr_sym.linalg`: a few hundred operations where expanding by minors takes
     thousands); a NaN in W gives a NaN measure, which no threshold test calls singular.
     """
     n, m = W.shape
