@@ -7,6 +7,9 @@ turns by I_c dw/dt + w x I_c w = mu_c (w the angular velocity, I_c the inertia a
 moment about the centre of mass), and ddq follows from dw/dt and the acceleration of the
 centre of mass. A fraction of the operations of forming M and C dq and solving with M
 (73 against 853 on ipanema8, 213 against 1,526 on spatial6, 33 against 141 on planar3).
+:func:`rigid_acceleration` takes the generalized force; :func:`wrench_acceleration` takes
+the force and the moment about the body origin themselves (the cables' wrench by statics,
+:mod:`~cdpr_sym.model.cable_wrench`), which skips the moment's round trip through E^T.
 
 Coordinates as in :mod:`cdpr_sym.model.kinematics`: planar q = (x, z, theta); spatial
 q = (x, y, z, phi, theta, psi), R = Rz(psi) Ry(theta) Rx(phi), whose world angular velocity
@@ -41,16 +44,45 @@ def rigid_acceleration(robot: Robot, q: ca.SX, dq: ca.SX, force: ca.SX) -> ca.SX
     ca.SX, shape (n, 1)
         m/s^2 (rad/s^2 for angles): M(q)^{-1} (force - C(q, dq) dq - grad V(q)).
     """
+    d = robot.dimension
     if robot.kind == "planar":
-        return _planar(robot, q, dq, force)
-    return _spatial(robot, q, dq, force)
+        moment = force[2]  # the generalized force on theta is the moment about the origin
+    else:
+        moment = _moment_from_generalized(_angle_trig(q), force[3:])
+    return wrench_acceleration(robot, q, dq, force[:d], moment)
 
 
-def _planar(robot: Robot, q: ca.SX, dq: ca.SX, force: ca.SX) -> ca.SX:
-    """Planar body: w = dtheta; the generalized torque is the moment about the origin."""
+def wrench_acceleration(robot: Robot, q: ca.SX, dq: ca.SX, force: ca.SX,
+                        moment: ca.SX) -> ca.SX:
+    """ddq of a rigid body under a wrench and gravity: :func:`rigid_acceleration` for the
+    force and moment themselves rather than their generalized force.
+
+    Parameters
+    ----------
+    robot : Robot
+        A planar or spatial body (its mass, inertia about the centre of mass, centre of mass).
+    q, dq : ca.SX, shape (n, 1)
+        Pose (m, rad) and its rate (m/s, rad/s).
+    force : ca.SX, shape (d, 1)
+        Resultant force on the body (gravity excluded), world axes, N.
+    moment : ca.SX, shape (1, 1) planar or (3, 1) spatial
+        Its moment about the body-frame origin p, world axes, N m. Both divided by the
+        plant's mass scale where the plant's mass and inertia differ from the model's.
+
+    Returns
+    -------
+    ca.SX, shape (n, 1)
+        m/s^2 (rad/s^2 for angles).
+    """
+    if robot.kind == "planar":
+        return _planar(robot, q, dq, force, moment)
+    return _spatial(robot, q, dq, force, moment)
+
+
+def _planar(robot: Robot, q: ca.SX, dq: ca.SX, f: ca.SX, moment: ca.SX) -> ca.SX:
+    """Planar body: w = dtheta; ``moment`` is about the origin."""
     offset = kinematics.rotation(robot, q) @ ca.DM(robot.center_of_mass)  # r = R c, m
-    f = force[:2]
-    moment = force[2] - (offset[0] * f[1] - offset[1] * f[0])  # about the centre of mass
+    moment = moment - (offset[0] * f[1] - offset[1] * f[0])  # about the centre of mass
     angular = moment / float(np.asarray(robot.inertia).reshape(-1)[0])
     turned = ca.vertcat(-offset[1], offset[0])  # e_y x r, so dw/dt x r = angular * turned
     linear = (f / robot.mass - ca.vertcat(0.0, robot.gravity) - angular * turned
@@ -58,14 +90,12 @@ def _planar(robot: Robot, q: ca.SX, dq: ca.SX, force: ca.SX) -> ca.SX:
     return ca.vertcat(linear, angular)
 
 
-def _spatial(robot: Robot, q: ca.SX, dq: ca.SX, force: ca.SX) -> ca.SX:
-    """Spatial body: the moment mu_o = E^{-T} f_angles, w = E dangles, then Newton-Euler."""
+def _spatial(robot: Robot, q: ca.SX, dq: ca.SX, f: ca.SX, moment: ca.SX) -> ca.SX:
+    """Spatial body: w = E dangles, Newton-Euler about the centre of mass, then ddq."""
     R = kinematics.rotation(robot, q)
     trig = _angle_trig(q)
     rates = dq[3:]
     spin = angle_rate_matrix_product(trig, rates)  # w, world axes, rad/s
-    f = force[:3]
-    moment = _moment_from_generalized(trig, force[3:])  # about the body origin, N m
     centre = np.asarray(robot.center_of_mass, dtype=float)
     offset = R @ ca.DM(centre) if np.any(centre) else None  # r = R c, world, m
     if offset is not None:
@@ -107,6 +137,15 @@ def _moment_from_generalized(trig: tuple[ca.SX, ...], torque: ca.SX) -> ca.SX:
     across = torque[1]  # -s_psi mu_x + c_psi mu_y
     return ca.vertcat(c_psi * along - s_psi * across, s_psi * along + c_psi * across,
                       torque[2])
+
+
+def generalized_torque(q: ca.SX, moment: ca.SX) -> ca.SX:
+    """E(q)^T mu: the generalized force (N m) on a spatial pose's angles of the moment
+    ``moment`` (world axes, N m), by virtual power mu . w = mu . E dangles."""
+    c_theta, s_theta, c_psi, s_psi = _angle_trig(q)
+    along = c_psi * moment[0] + s_psi * moment[1]
+    return ca.vertcat(c_theta * along - s_theta * moment[2],
+                      c_psi * moment[1] - s_psi * moment[0], moment[2])
 
 
 def _angle_rate_drift(trig: tuple[ca.SX, ...], rates: ca.SX) -> ca.SX:
