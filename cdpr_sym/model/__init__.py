@@ -3,6 +3,8 @@
 :mod:`~cdpr_sym.model.kinematics` places the end-effector and its cables;
 :class:`SymbolicModel` builds l, W, J_a, M, C, V, P, A, H, H_d and law (3) on it;
 :mod:`~cdpr_sym.model.newton_euler` gives a rigid body's acceleration without M and C;
+:mod:`~cdpr_sym.model.cable_wrench` gives the cables' force and moment on it (W tau
+without W);
 :mod:`cdpr_sym.linalg` gives the determinant of W W^T (the singularity measure, m > n);
 :mod:`~cdpr_sym.model.forward_kinematics` finds the pose from measured cable lengths;
 :func:`~cdpr_sym.model.integration.rk4` steps its dynamics.

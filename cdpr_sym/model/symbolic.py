@@ -25,7 +25,8 @@ import numpy as np
 from cdpr_sym.distribution import AUTO, distribute
 from cdpr_sym.linalg import gram_determinant, weighted_gram
 from cdpr_sym.model import kinematics
-from cdpr_sym.model.newton_euler import rigid_acceleration
+from cdpr_sym.model.cable_wrench import cable_wrench, generalized_cable_force
+from cdpr_sym.model.newton_euler import rigid_acceleration, wrench_acceleration
 from cdpr_sym.robot import Robot
 
 
@@ -203,13 +204,31 @@ class SymbolicModel:
         inside = ca.logic_and(ca.mmin(tau) >= robot.t_min, ca.mmax(tau) <= robot.t_max)
         return tau, ca.if_else(inside, 1.0, 0.0)
 
+    def cable_force(self, q: ca.SX, tau: ca.SX) -> ca.SX:
+        """W(q) tau, the cables' generalized force, N (N m for angles), shape (n, 1).
+
+        A rigid body's comes from statics (:mod:`~cdpr_sym.model.cable_wrench`: the force
+        and moment of the cables, without differentiating the lengths); a point mass's is
+        the product with its closed-form W.
+        """
+        if self.robot.kind == "point":
+            return self.structure_matrix(q) @ tau
+        return generalized_cable_force(self.robot, q, tau)
+
     def acceleration(self, q: ca.SX, dq: ca.SX, tau: ca.SX, mass_scale: ca.SX = 1.0) -> ca.SX:
         """ddq = M_plant^{-1} (W tau - C dq - grad V_plant), m/s^2 (rad/s^2 for angles).
 
         ``mass_scale`` multiplies the mass and inertia of the plant (and so its weight), to
-        simulate a plant that differs from the controller's model.
+        simulate a plant that differs from the controller's model. A rigid body passes the
+        cables' force and moment (:func:`~cdpr_sym.model.cable_wrench.cable_wrench`)
+        straight to the Newton-Euler equations: neither W nor the angle-rate matrix is formed.
         """
-        return self.acceleration_from_force(q, dq, self.structure_matrix(q) @ tau, mass_scale)
+        if self.robot.kind == "point":
+            return self.acceleration_from_force(q, dq, self.structure_matrix(q) @ tau,
+                                                mass_scale)
+        force, moment = cable_wrench(self.robot, q, tau)
+        scale = 1.0 / mass_scale
+        return wrench_acceleration(self.robot, q, dq, force * scale, moment * scale)
 
     def acceleration_from_force(self, q: ca.SX, dq: ca.SX, cable_force: ca.SX,
                                 mass_scale: ca.SX = 1.0) -> ca.SX:
