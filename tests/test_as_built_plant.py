@@ -212,3 +212,29 @@ def test_batched_and_continuous_time_runs_refuse_an_as_built_plant(aras3, build_
     with pytest.raises(InvalidCase) as raised:
         simulate_adaptive(aras3, "pd", duration=0.1, plant=plant)
     assert raised.value.field == "plant"
+
+
+def test_a_period_too_long_for_the_torque_loops_substeps_is_refused_naming_substeps(aras3):
+    drive = Actuation(torque_limit=1.5 * aras3.t_max * Actuation().drum_radius)
+    # 2 ms with the default 2 substeps: 2 pi 500 Hz 1 ms = 3.1 per substep, past RK4's 2.785
+    # (run anyway, it diverges: tensions of 5e4 N, stopped as 'singular')
+    with pytest.raises(InvalidCase, match=r"^substeps: expected at least 3 RK4 substeps"):
+        simulate(aras3, "smooth-lp", duration=0.1, dt=2e-3,
+                 plant=Plant(as_built=AsBuilt(actuation=drive)))
+    with pytest.raises(InvalidCase, match="substeps"):  # a faster loop at 1 ms
+        simulate(aras3, "smooth-lp", duration=0.1, dt=1e-3,
+                 plant=Plant(as_built=AsBuilt(actuation=Actuation(bandwidth=1000.0))))
+    run = simulate(aras3, "smooth-lp", duration=0.1, dt=2e-3,
+                   plant=Plant(as_built=AsBuilt(actuation=drive, substeps=4)))
+    assert run.stop_reason is None and run.metrics()["max_tension"] < aras3.t_max
+
+
+def test_too_few_substeps_are_refused_before_anything_is_built(aras3, monkeypatch):
+    import cdpr_sym.closed_loop.simulator as simulator_module
+
+    def never(*args, **kwargs):
+        raise AssertionError("a step was built for a refused run")
+    monkeypatch.setattr(simulator_module, "get_simulator", never)
+    with pytest.raises(InvalidCase, match=r"^substeps"):
+        simulate(aras3, "smooth-lp", duration=0.1, dt=2e-3,
+                 plant=Plant(as_built=AsBuilt(actuation=Actuation())))

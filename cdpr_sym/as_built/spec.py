@@ -28,10 +28,15 @@ import numpy as np
 
 from cdpr_sym.errors import InvalidCase
 
+#: Largest 2 pi bandwidth h of one RK4 substep of the torque loop: RK4's stability interval
+#: on the negative real axis ends at 2.785; kept clear of it.
+TORQUE_LOOP_STEP_LIMIT = 2.5
 #: Angular speed over which Coulomb friction turns over, rad/s: friction is
 #: tau_c x / sqrt(1 + x^2), x = omega / FRICTION_SPEED, a smooth sign that a fixed-step
 #: integrator can follow (algebraic rather than tanh: a square root is one instruction, tanh
-#: a library call, and the step evaluates it once per drum at every RK4 stage).
+#: a library call, and the step evaluates it once per drum at every RK4 stage). It nears +-1
+#: more slowly than tanh (0.95 tau_c at 3 FRICTION_SPEED, tanh 0.995); at a drum's working
+#: speeds (a 0.1 m/s cable on a 0.03 m drum turns it at 3.3 rad/s) both are within 0.5 %.
 FRICTION_SPEED = 0.1
 
 
@@ -206,7 +211,9 @@ class AsBuilt:
     substeps : int
         RK4 steps per control period; default 2 (h = 0.5 ms at 1 kHz: 500 Hz torque loop
         times h is 1.6, inside RK4's stability limit of 2.8; against 64 substeps the runs of
-        aras3 and planar3 agree to 2e-7 m and 3e-3 N, which a test checks).
+        aras3 and planar3 agree to 2e-7 m and 3e-3 N, which a test checks). A longer period
+        or a faster torque loop needs more: :meth:`check_period` refuses a run whose
+        substep would make the torque loop's RK4 step unstable.
     """
 
     actuation: Actuation | None = None
@@ -232,6 +239,20 @@ class AsBuilt:
                                   "array in m")
             offsets.setflags(write=False)
             object.__setattr__(self, "anchor_offsets", offsets)
+
+    def check_period(self, dt: float) -> None:
+        """Raise :class:`InvalidCase` (``substeps``) when, at the control period ``dt``
+        (s), one RK4 substep of the torque loop (a pole at -2 pi bandwidth) would leave
+        :data:`TORQUE_LOOP_STEP_LIMIT`: the run would diverge, not just lose accuracy."""
+        if self.actuation is None:
+            return
+        rate = 2 * math.pi * self.actuation.bandwidth  # 1/s
+        if rate * dt / self.substeps > TORQUE_LOOP_STEP_LIMIT:
+            needed = math.ceil(rate * dt / TORQUE_LOOP_STEP_LIMIT)
+            raise InvalidCase("substeps", f"expected at least {needed} RK4 substeps for a "
+                              f"{self.actuation.bandwidth:g} Hz torque loop at dt = {dt:g} s "
+                              f"(2 pi bandwidth dt / substeps <= {TORQUE_LOOP_STEP_LIMIT:g}), "
+                              f"got {self.substeps}")
 
     def structure(self) -> AsBuiltStructure:
         """What the generated step depends on (which effects are on, the delay and

@@ -381,6 +381,7 @@ class Simulator:
         values: dict[str, object] = {}
         spec = plant.as_built
         if spec is not None:
+            spec.check_period(dt)
             if spec.actuation is not None:
                 values["actuation"] = spec.actuation.parameters()
             if spec.sensing is not None:
@@ -603,6 +604,8 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=N
     check_timing(duration, dt, values_per_step=minimal_values_per_step(robot))
     if getattr(controller, "sampled", False):
         steps_per_sample(controller, dt)  # before building: dt must divide its period
+    if plant.as_built is not None:
+        plant.as_built.check_period(dt)  # before building: enough substeps for dt
     simulator = get_simulator(robot, controller, build_options=build_options,
                               rate_limited=plant.rate_limited,
                               as_built=None if plant.as_built is None
