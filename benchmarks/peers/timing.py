@@ -60,15 +60,7 @@ def pin_to_one_core(cpu: int = 0) -> None:
 def best_rate(call: Callable[[], Any], *, min_seconds: float = 1.0, rounds: int = 3) -> float:
     """Calls per second of ``call``: the best of ``rounds`` rounds of >= ``min_seconds`` s,
     after one warm-up call."""
-    call()
-    best = 0.0
-    for _ in range(rounds):
-        repeats, start = 0, time.perf_counter()
-        while repeats == 0 or time.perf_counter() - start < min_seconds:
-            call()
-            repeats += 1
-        best = max(best, repeats / (time.perf_counter() - start))
-    return best
+    return best_rates({"call": call}, min_seconds=min_seconds, rounds=rounds)["call"]
 
 
 def best_rates(calls: Mapping[str, Callable[[], Any]], *, min_seconds: float = 1.0,
@@ -90,10 +82,12 @@ def best_rates(calls: Mapping[str, Callable[[], Any]], *, min_seconds: float = 1
     return best
 
 
-def single_run(peer: str, controller: str) -> Callable[[], Any]:
-    """One paper-case run of ``peer`` ("floor", "numba", "jax"), as a call."""
+def single_run(peer: str, controller: str, **extra: Any) -> Callable[[], Any]:
+    """One paper-case run of ``peer`` ("floor", "numba", "jax"), as a call (``extra``: the
+    peer's keyword options, such as ``out``)."""
     run, robot = _runner(peer), ARAS3
-    return lambda: run(controller, robot.start, robot.goal, robot.k, robot.r_d, DT, N_STEPS)
+    return lambda: run(controller, robot.start, robot.goal, robot.k, robot.r_d, DT, N_STEPS,
+                       **extra)
 
 
 def _runner(peer: str) -> Callable[..., Any]:
@@ -115,11 +109,8 @@ def single_rate(peer: str, controller: str, *, reuse_buffers: bool = False,
     With ``reuse_buffers`` (floor and numba) every run writes into the same states and logs
     arrays instead of new ones (640 kB), which leaves out allocating and zeroing them."""
     pin_to_one_core(cpu)
-    run = _runner(peer)
-    robot = ARAS3
-    extra = {"out": buffers(robot.start, N_STEPS)} if reuse_buffers else {}
-    return best_rate(lambda: run(controller, robot.start, robot.goal, robot.k, robot.r_d, DT,
-                                 N_STEPS, **extra), min_seconds=min_seconds)
+    extra = {"out": buffers(ARAS3.start, N_STEPS)} if reuse_buffers else {}
+    return best_rate(single_run(peer, controller, **extra), min_seconds=min_seconds)
 
 
 def batch_rate(controller: str, *, pairs: int = 1024, seed: int = 0,

@@ -49,7 +49,7 @@ def cable_wrench(robot: Robot, q: ca.SX, tau: ca.SX) -> tuple[ca.SX, ca.SX]:
         arm = R @ ca.DM(attachment)  # R b, m
         pulls = ca.SX.zeros(robot.dimension)
         for i in cables:
-            towards = _point(robot.anchors[i]) - p - arm  # a_i - P_i = l_i u_i, m
+            towards = kinematics.as_point(robot.anchors[i]) - p - arm  # a_i - P_i = l_i u_i, m
             pulls += (tau[i] / ca.norm_2(towards)) * towards  # tau_i u_i, N
         force += pulls
         moment += _cross(arm, pulls)
@@ -79,12 +79,6 @@ def _cables_by_attachment(robot: Robot) -> dict[tuple[float, ...], list[int]]:
 def _moment_size(robot: Robot) -> int:
     """Components of a moment: 1 in the plane (about the normal), 3 in space."""
     return 1 if robot.dimension == 2 else 3
-
-
-def _point(value: object) -> ca.SX | ca.DM:
-    """A robot's point as a CasADi column (a symbolic one, as the as-built plant's moved
-    anchors, stays symbolic)."""
-    return value if isinstance(value, ca.SX) else ca.DM(value)
 
 
 def _cross(arm: ca.SX, pull: ca.SX) -> ca.SX:

@@ -29,7 +29,7 @@ from cdpr_sym.robot import Robot
 SINGULAR_DET = 1e-6
 
 
-def _vector(value: object) -> ca.SX | ca.DM:
+def as_point(value: object) -> ca.SX | ca.DM:
     """A robot's point as a CasADi column: numbers become constants, while a symbolic
     point (a plant whose anchors are parameters, :mod:`cdpr_sym.as_built`) stays symbolic."""
     return value if isinstance(value, ca.SX) else ca.DM(value)
@@ -69,7 +69,7 @@ def center_of_mass(robot: Robot, q: ca.SX) -> ca.SX:
     """World position of the centre of mass, m, shape (d, 1)."""
     if robot.kind == "point":
         return position(robot, q)
-    return position(robot, q) + rotation(robot, q) @ _vector(robot.center_of_mass)
+    return position(robot, q) + rotation(robot, q) @ as_point(robot.center_of_mass)
 
 
 def body_angular_velocity(robot: Robot, q: ca.SX, dq: ca.SX) -> ca.SX:
@@ -107,7 +107,7 @@ def wrench_jacobian(robot: Robot, q: ca.SX) -> ca.SX:
 def cable_lengths(robot: Robot, q: ca.SX) -> ca.SX:
     """l_i = |a_i - P_i(q)|, m, shape (m, 1) for m cables."""
     points = attachment_points(robot, q)
-    return ca.vertcat(*[ca.norm_2(points[i] - _vector(robot.anchors[i]))
+    return ca.vertcat(*[ca.norm_2(points[i] - as_point(robot.anchors[i]))
                         for i in range(robot.m)])
 
 
@@ -119,7 +119,7 @@ def structure_matrix(robot: Robot, q: ca.SX) -> ca.SX:
     """
     if robot.kind == "point":
         inverse_lengths = 1.0 / cable_lengths(robot, q)
-        return ca.horzcat(*[(_vector(robot.anchors[i]) - q) * inverse_lengths[i]
+        return ca.horzcat(*[(as_point(robot.anchors[i]) - q) * inverse_lengths[i]
                             for i in range(robot.m)])
     return -ca.jacobian(cable_lengths(robot, q), q).T
 
@@ -132,9 +132,9 @@ def scaled_structure_matrix(robot: Robot, q: ca.SX) -> ca.SX:
     ``SX``.
     """
     if robot.kind == "point":
-        return ca.horzcat(*[_vector(robot.anchors[i]) - q for i in range(robot.m)])
+        return ca.horzcat(*[as_point(robot.anchors[i]) - q for i in range(robot.m)])
     points = attachment_points(robot, q)
-    half_squares = ca.vertcat(*[0.5 * ca.sumsqr(points[i] - _vector(robot.anchors[i]))
+    half_squares = ca.vertcat(*[0.5 * ca.sumsqr(points[i] - as_point(robot.anchors[i]))
                                 for i in range(robot.m)])
     return -ca.jacobian(half_squares, q).T
 
