@@ -11,11 +11,15 @@ import pytest
 
 from cdpr_sym.closed_loop import Plant, get_simulator, run_many, summarise_many
 from cdpr_sym.closed_loop.batch import batch_rollout
-from cdpr_sym.codegen import native_lanes, require_compiler
+from cdpr_sym.codegen import BuildOptions, native_lanes, require_compiler
 from cdpr_sym.control import CONTROLLERS
+from cdpr_sym.errors import InvalidCase
 
 #: Doubles of every vector register in use: SSE2/NEON, AVX/AVX2, AVX-512.
 LANE_COUNTS = (2, 4, 8)
+#: Lane counts to refuse: not a power of two, negative, zero (no longer "the default"), a
+#: float and a bool that equal one, and a power of two above the bound.
+BAD_LANES = (3, -4, 0, 4.0, True, 128)
 RUNS = dict(duration=0.4, dt=1e-3)
 TRAJECTORY_ARRAYS = ("t", "q", "dq", "tau", "alpha", "beta", "j", "flags")
 
@@ -69,3 +73,19 @@ def test_a_partial_block_repeats_each_pair_alone(lanes, controller, aras3, rng,
         np.testing.assert_allclose(together.q, single.q, rtol=0, atol=1e-12)
         np.testing.assert_allclose(together.tau, single.tau, rtol=1e-12, atol=1e-9)
         np.testing.assert_array_equal(together.flags, single.flags)
+
+
+@pytest.mark.parametrize("backend", ["c", "casadi"])
+@pytest.mark.parametrize("batched", [run_many, summarise_many])
+@pytest.mark.parametrize("lanes", BAD_LANES)
+def test_a_bad_lane_count_is_named_before_anything_runs(lanes, batched, backend, aras3,
+                                                        build_options):
+    options = BuildOptions(backend=backend, cache_dir=build_options.cache_dir)
+    simulator = get_simulator(aras3, CONTROLLERS["pd"], build_options=options)
+    starts, goals = np.zeros((3, aras3.n)), np.zeros((2, aras3.n))  # bad too, checked later
+    with pytest.raises(InvalidCase) as raised:
+        batched(simulator, starts, goals, aras3.k, aras3.r_d, **RUNS, build_options=options,
+                lanes=lanes)
+    assert raised.value.field == "lanes"
+    message = str(raised.value)
+    assert message.startswith("lanes: ") and "\n" not in message and repr(lanes) in message

@@ -1,19 +1,27 @@
 """Generated lane (SIMD) code against CasADi's own scalar C, operation by operation."""
 
 import ctypes
+import platform
+import sys
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import pytest
 
 from cdpr_sym.codegen import (
+    MAX_LANES,
     VECTOR_FLAGS,
     build,
+    check_lanes,
     lanes_preamble,
     lanes_source,
+    native_lanes,
+    require_compiler,
     unsupported_operations,
 )
 from cdpr_sym.codegen.build import BuildOptions
+from cdpr_sym.errors import InvalidCase
 
 #: Lane counts of every vector register in use: SSE2/NEON, AVX/AVX2, AVX-512.
 LANE_COUNTS = (2, 4, 8)
@@ -82,3 +90,35 @@ def test_lane_code_refuses_what_it_cannot_write():
         lanes_source(ca.Function("h", [x], [x]), "h_lanes", 6)
     with pytest.raises(ValueError, match="C identifier"):
         lanes_source(ca.Function("h", [x], [x]), "h lanes", 8)
+
+
+def test_lane_counts_are_powers_of_two_up_to_the_bound():
+    assert MAX_LANES == 64
+    assert check_lanes(None) is None
+    for lanes in (1, 2, 4, 8, 16, 32, 64, np.int64(8)):
+        checked = check_lanes(lanes)
+        assert checked == lanes and type(checked) is int
+    for bad in (3, -4, 0, 4.0, True, 128, 6, "4", np.float64(4.0)):
+        with pytest.raises(InvalidCase, match=r"^lanes: expected .* got ") as raised:
+            check_lanes(bad)
+        assert raised.value.field == "lanes"
+    x = ca.SX.sym("x")
+    with pytest.raises(InvalidCase, match="lanes"):
+        lanes_source(ca.Function("f", [x], [2 * x]), "f_lanes", 3)
+
+
+def _cpuinfo_flags() -> set[str]:
+    """The CPU feature flags Linux lists for the first processor."""
+    for line in Path("/proc/cpuinfo").read_text().splitlines():
+        if line.startswith("flags"):
+            return set(line.partition(":")[2].split())
+    return set()
+
+
+@pytest.mark.skipif(sys.platform != "linux" or platform.machine() != "x86_64",
+                    reason="the reference is the x86-64 feature list in Linux's /proc/cpuinfo")
+def test_native_lanes_matches_the_cpu_flags_the_kernel_lists():
+    flags = _cpuinfo_flags()
+    assert flags, "no flags line in /proc/cpuinfo"
+    expected = 8 if "avx512f" in flags else 4 if "avx" in flags else 2
+    assert native_lanes(require_compiler()) == expected

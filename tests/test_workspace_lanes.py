@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cdpr_sym.codegen import BuildOptions, native_lanes, require_compiler
+from cdpr_sym.codegen import (
+    VECTOR_FLAGS,
+    BuildOptions,
+    native_lanes,
+    require_compiler,
+    resolve_lanes,
+    vector_build_options,
+)
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import PRESET_NAMES, preset
@@ -27,6 +34,9 @@ IN_ORDER = ("-O2",)
 #: minute (the slow suite).
 QUICK = [name for name in PRESET_NAMES if name not in ("spatial6", "ipanema8")]
 KINDS = {"static": classification_function, "wrench": wrench_function}
+#: Lane counts to refuse: not a power of two, negative, zero, a float and a bool that equal
+#: one, and a power of two above the bound.
+BAD_LANES = (3, -4, 0, 4.0, True, 128)
 
 
 def _poses(robot, rng: np.random.Generator, lanes: int) -> np.ndarray:
@@ -100,3 +110,27 @@ def test_lane_evaluator_refuses_a_shared_input_of_the_wrong_size(build_options):
 def test_native_lanes_is_a_register_of_doubles():
     assert native_lanes(require_compiler()) in (2, 4, 8)
     assert native_lanes("/nonexistent/cc") == 2
+
+
+@pytest.mark.parametrize("backend", ["c", "casadi"])
+@pytest.mark.parametrize("lanes", BAD_LANES)
+def test_lane_evaluator_names_a_bad_lane_count(lanes, backend, cache_dir):
+    robot = preset("aras3")
+    options = BuildOptions(backend=backend, cache_dir=cache_dir)
+    with pytest.raises(InvalidCase) as raised:
+        LaneEvaluator(robot, classification_function(SymbolicModel(robot)), "workspace",
+                      build_options=options, lanes=lanes)
+    assert raised.value.field == "lanes"
+    message = str(raised.value)
+    assert message.startswith("lanes: ") and "\n" not in message and repr(lanes) in message
+
+
+def test_lane_builds_add_the_vector_flags_and_keep_the_rest(cache_dir):
+    compiler = require_compiler()
+    options = BuildOptions(backend="casadi", cache_dir=cache_dir, compiler=compiler,
+                           flags=("-O1",), timeout=12.0)
+    vector = vector_build_options(options)
+    assert vector == BuildOptions(backend="c", cache_dir=cache_dir, compiler=compiler,
+                                  flags=("-O1", *VECTOR_FLAGS), timeout=12.0)
+    assert resolve_lanes(None, options) == native_lanes(compiler)
+    assert resolve_lanes(16, options) == 16

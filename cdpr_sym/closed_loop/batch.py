@@ -22,15 +22,15 @@ from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.simulator import Simulator
 from cdpr_sym.closed_loop.summaries import run_summary, summary_fields, summary_source
 from cdpr_sym.codegen import (
-    VECTOR_FLAGS,
     BuildOptions,
     build,
+    check_lanes,
     lanes_preamble,
     lanes_source,
-    native_lanes,
     render,
-    require_compiler,
+    resolve_lanes,
     unsupported_operations,
+    vector_build_options,
 )
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results import SETTLE_TOLERANCE, RunSummary, Trajectory
@@ -45,19 +45,16 @@ class BatchRollout:
 
     def __init__(self, simulator: Simulator, build_options: BuildOptions = BuildOptions(),
                  lanes: int | None = None) -> None:
-        lanes = _lanes(lanes, build_options)
+        lanes = resolve_lanes(lanes, build_options)
         layout = simulator.layout
         self.layout, self.lanes = layout, lanes
         source = lanes_preamble(lanes) + lanes_source(simulator.step, "step_lanes", lanes) + render(
             "cdpr_sym.closed_loop", "rollout_lanes.c.j2", step="step_lanes", lanes=lanes,
             n_x=layout.x.size, n_p=layout.p.size, n_log=layout.log.size,
             status=layout.status_index) + summary_source(layout, "step_lanes", lanes)
-        options = BuildOptions(backend="c", cache_dir=build_options.cache_dir,
-                               compiler=build_options.compiler,
-                               flags=(*build_options.flags, *VECTOR_FLAGS),
-                               timeout=build_options.timeout)
         name = simulator.library_name + "_lanes"
-        self.library = build([simulator.step], name, extra_source=source, options=options)
+        self.library = build([simulator.step], name, extra_source=source,
+                             options=vector_build_options(build_options))
         self._native = self.library.native()
         self._call = self._native.entry("rollout_lanes", None, [ctypes.c_void_p] * 4 + [
             ctypes.c_longlong] * 2 + [ctypes.c_void_p])
@@ -109,7 +106,7 @@ def batch_rollout(simulator: Simulator, build_options: BuildOptions = BuildOptio
     built = _BATCHES[simulator]
     if built is None:
         return None
-    lanes = _lanes(lanes, build_options)
+    lanes = resolve_lanes(lanes, build_options)
     if lanes not in built:
         built[lanes] = BatchRollout(simulator, build_options, lanes)
     return built[lanes]
@@ -140,15 +137,19 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
     build_options : BuildOptions
         Cache folder and compiler of the batched library.
     lanes : int, optional
-        Runs per vector of the compiled step, a power of two; default: the doubles one
-        vector register of this machine holds (:func:`~cdpr_sym.codegen.native_lanes`).
+        Runs per vector of the compiled step, a power of two up to
+        :data:`~cdpr_sym.codegen.MAX_LANES` (:func:`~cdpr_sym.codegen.check_lanes`);
+        default: the doubles one vector register of this machine holds
+        (:func:`~cdpr_sym.codegen.native_lanes`). Checked even where the runs go one at a
+        time (CasADi's virtual machine).
 
     Raises
     ------
     InvalidCase
         ``starts``/``goals`` of different lengths or shapes, bad timing, a plant that
-        does not match the simulator.
+        does not match the simulator, a bad ``lanes``.
     """
+    check_lanes(lanes)
     starts, goals, n_steps = _checked(simulator, starts, goals, duration, dt, plant)
     batch = batch_rollout(simulator, build_options, lanes)
     if batch is None:
@@ -175,6 +176,7 @@ def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: n
     :func:`run_many`'s trajectories (the total variation to round-off: it is summed in step
     order rather than pairwise). Same parameters and errors as :func:`run_many`.
     """
+    check_lanes(lanes)
     starts, goals, n_steps = _checked(simulator, starts, goals, duration, dt, plant)
     batch = batch_rollout(simulator, build_options, lanes)
     if batch is None:
@@ -187,12 +189,6 @@ def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: n
     return [run_summary(row, simulator.layout, goal, dt, static_tension=tension,
                         t_min=robot.t_min, t_max=robot.t_max)
             for row, goal, tension in zip(rows, goals, static, strict=True)]
-
-
-def _lanes(lanes: int | None, build_options: BuildOptions) -> int:
-    """``lanes``, or by default the doubles one vector register holds on this machine, as
-    the build's compiler sees it."""
-    return lanes or native_lanes(require_compiler(build_options.compiler))
 
 
 def _inputs(simulator: Simulator, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,

@@ -19,17 +19,23 @@ from cdpr_sym.codegen.build import (
 )
 from cdpr_sym.codegen.generate import generate_c
 from cdpr_sym.codegen.lanes import (
+    MAX_LANES,
     VECTOR_FLAGS,
+    check_lanes,
     lanes_preamble,
     lanes_source,
     native_lanes,
+    resolve_lanes,
     unsupported_operations,
+    vector_build_options,
 )
 from cdpr_sym.codegen.names import c_identifier, is_c_identifier, plain_text
 from cdpr_sym.codegen.native import NativeFunction, NativeLibrary
 from cdpr_sym.codegen.templates import render
 
-__all__ = ["BACKENDS", "VECTOR_FLAGS", "BuildOptions", "CompiledLibrary", "NativeFunction",
-           "NativeLibrary", "build", "c_identifier", "default_cache_dir", "find_compiler",
-           "generate_c", "is_c_identifier", "lanes_preamble", "lanes_source", "native_lanes",
-           "plain_text", "render", "require_compiler", "run_command", "unsupported_operations"]
+__all__ = ["BACKENDS", "MAX_LANES", "VECTOR_FLAGS", "BuildOptions", "CompiledLibrary",
+           "NativeFunction", "NativeLibrary", "build", "c_identifier", "check_lanes",
+           "default_cache_dir", "find_compiler", "generate_c", "is_c_identifier",
+           "lanes_preamble", "lanes_source", "native_lanes", "plain_text", "render",
+           "require_compiler", "resolve_lanes", "run_command", "unsupported_operations",
+           "vector_build_options"]

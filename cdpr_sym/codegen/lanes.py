@@ -4,25 +4,38 @@ CasADi's own C evaluates one input per call. :func:`lanes_source` walks the func
 instruction list and writes each instruction once, on vectors that hold one value per lane,
 with every input and output stored lane-minor (entry ``e`` of lane ``b`` at
 ``e * lanes + b``). SX code has no branch (``if_else`` is already arithmetic), so every
-instruction maps to SIMD instructions: 8 lanes are one AVX-512 register or two AVX2 ones.
+instruction maps to SIMD instructions. By default a vector is one of the host's registers
+(:func:`native_lanes`: 2 doubles with SSE2 or NEON, 4 with AVX or AVX2, 8 with AVX-512):
+on a vector of two registers (8 lanes on AVX2) GCC 12 still splits the arithmetic into
+register-wide instructions but compiles comparisons and selects lane by lane in scalar
+code, which made the classifiers and the batched steps slower than on one register.
+Other powers of two up to :data:`MAX_LANES` can be asked for (:func:`check_lanes`).
 (Writing the body inside a loop over lanes and leaving the vectorisation to the compiler
 failed on the l2 step: GCC 12 gave up on the whole loop and ran it scalar.)
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
+import numbers
 
 import casadi as ca
 
-from cdpr_sym.codegen.build import run_command
+from cdpr_sym.codegen.build import BuildOptions, require_compiler, run_command
 from cdpr_sym.codegen.names import is_c_identifier
-from cdpr_sym.errors import CompilationFailed
+from cdpr_sym.errors import CompilationFailed, InvalidCase
 
 #: Compiler flags added for lane code: this machine's vector instructions, and no fused
 #: multiply-add, so that every lane rounds as CasADi's scalar C does.
 VECTOR_FLAGS = ("-O3", "-march=native", "-ffp-contract=off")
+
+#: Most lanes a vector may hold. Each of a function's work variables is a local vector of
+#: ``8 * lanes`` bytes: at 64 lanes the 8-cable platform's wrench classifier (507 of them)
+#: keeps 260 kB on the C stack (Linux gives a thread 8 MB by default); 4096 lanes would
+#: need 16 MB.
+MAX_LANES = 64
 
 # Each operation on whole vectors of lanes (GCC/Clang vector extensions). A comparison of
 # two vectors gives a mask of -1 or 0 per lane, turned into 1.0 or 0.0 by L_BOOL; a lane
@@ -79,6 +92,63 @@ def native_lanes(compiler: str) -> int:
     return next((doubles for macro, doubles in _REGISTER_DOUBLES if macro in defined), 2)
 
 
+def check_lanes(lanes: int | None) -> int | None:
+    """``lanes`` checked: None (the host's register, :func:`native_lanes`) or a lane count.
+
+    Parameters
+    ----------
+    lanes : int or None
+        Inputs evaluated per vector (one per lane): a power of two in 1..:data:`MAX_LANES`.
+
+    Returns
+    -------
+    int or None
+        ``lanes`` as a Python int, or None.
+
+    Raises
+    ------
+    InvalidCase
+        (field ``lanes``) anything else, bools and whole floats included.
+    """
+    if lanes is None:
+        return None
+    if not _is_lane_count(lanes):
+        raise InvalidCase("lanes", f"expected None (this machine's register) or a power of "
+                          f"two in 1..{MAX_LANES}, got {lanes!r}")
+    return int(lanes)
+
+
+def resolve_lanes(lanes: int | None, build_options: BuildOptions) -> int:
+    """The lane count to build: ``lanes`` checked (:func:`check_lanes`), or by default the
+    doubles one vector register holds, as the build's compiler sees this machine.
+
+    Raises
+    ------
+    InvalidCase
+        A bad ``lanes``.
+    CompilerNotFound
+        ``lanes`` is None and no compiler is found.
+    """
+    checked = check_lanes(lanes)
+    if checked is not None:
+        return checked
+    return native_lanes(require_compiler(build_options.compiler))
+
+
+def vector_build_options(build_options: BuildOptions) -> BuildOptions:
+    """``build_options`` for lane code: compiled C, with :data:`VECTOR_FLAGS` after the
+    caller's flags (the same cache folder, compiler and timeout)."""
+    return dataclasses.replace(build_options, backend="c",
+                               flags=(*build_options.flags, *VECTOR_FLAGS))
+
+
+def _is_lane_count(lanes: object) -> bool:
+    """Whether ``lanes`` is an integer (not a bool) and a power of two in 1..MAX_LANES."""
+    if isinstance(lanes, bool) or not isinstance(lanes, numbers.Integral):
+        return False
+    return 1 <= lanes <= MAX_LANES and not lanes & (lanes - 1)
+
+
 def unsupported_operations(function: ca.Function) -> set[str]:
     """CasADi operation names in ``function`` that :func:`lanes_source` cannot write
     (empty when it can; a function that is not SX is reported as ``"not SX"``)."""
@@ -129,13 +199,16 @@ def lanes_source(function: ca.Function, name: str, lanes: int) -> str:
     Raises
     ------
     ValueError
-        ``name`` is not a C identifier, ``lanes`` is not a power of two, or the function
-        holds an operation listed by :func:`unsupported_operations`.
+        ``name`` is not a C identifier, or the function holds an operation listed by
+        :func:`unsupported_operations`.
+    InvalidCase
+        (a ValueError, field ``lanes``) ``lanes`` is not a power of two in
+        1..:data:`MAX_LANES`.
     """
     if not is_c_identifier(name):
         raise ValueError(f"not a C identifier: {name!r}")
-    if lanes < 1 or lanes & (lanes - 1):
-        raise ValueError(f"expected a power of two for lanes, got {lanes}")
+    if not _is_lane_count(lanes):
+        raise InvalidCase("lanes", f"expected a power of two in 1..{MAX_LANES}, got {lanes!r}")
     missing = unsupported_operations(function)
     if missing:
         raise ValueError(f"cannot write {function.name()} for lanes: {sorted(missing)}")

@@ -20,16 +20,15 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.codegen import (
-    VECTOR_FLAGS,
     BuildOptions,
     build,
     c_identifier,
     lanes_preamble,
     lanes_source,
-    native_lanes,
     render,
-    require_compiler,
+    resolve_lanes,
     unsupported_operations,
+    vector_build_options,
 )
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
@@ -45,6 +44,9 @@ class LaneEvaluator:
 
     Raises
     ------
+    InvalidCase
+        (field ``lanes``) ``lanes`` is neither None nor a power of two up to
+        :data:`~cdpr_sym.codegen.MAX_LANES` (:func:`~cdpr_sym.codegen.check_lanes`).
     ValueError
         ``single`` holds an operation that has no lane form
         (:func:`~cdpr_sym.codegen.unsupported_operations`).
@@ -53,7 +55,7 @@ class LaneEvaluator:
     def __init__(self, robot: Robot, single: ca.Function, name: str, *,
                  build_options: BuildOptions = BuildOptions(), lanes: int | None = None
                  ) -> None:
-        lanes = lanes or native_lanes(require_compiler(build_options.compiler))
+        lanes = resolve_lanes(lanes, build_options)  # checked before anything is built
         self.robot, self.lanes = robot, lanes
         self._sizes = [single.size1_out(i) for i in range(single.n_out())]
         self._n_shared = single.size1_in(1) if single.n_in() == 2 else 0
@@ -61,12 +63,8 @@ class LaneEvaluator:
         source = lanes_preamble(lanes) + lanes_source(single, kernel, lanes) + render(
             "cdpr_sym.workspace", "classify_lanes.c.j2", name=entry, kernel=kernel,
             lanes=lanes, n=robot.n, n_shared=self._n_shared, sizes=self._sizes)
-        options = BuildOptions(backend="c", cache_dir=build_options.cache_dir,
-                               compiler=build_options.compiler,
-                               flags=(*build_options.flags, *VECTOR_FLAGS),
-                               timeout=build_options.timeout)
         library = build([], f"{name}_{c_identifier(robot.name)}_lanes", extra_source=source,
-                        options=options)
+                        options=vector_build_options(build_options))
         self._native = library.native()
         self._call = self._native.entry(entry, None, [ctypes.c_void_p] * (2 + len(self._sizes))
                                         + [ctypes.c_longlong])
