@@ -122,3 +122,20 @@ def test_native_lanes_matches_the_cpu_flags_the_kernel_lists():
     assert flags, "no flags line in /proc/cpuinfo"
     expected = 8 if "avx512f" in flags else 4 if "avx" in flags else 2
     assert native_lanes(require_compiler()) == expected
+
+
+def test_the_machine_is_asked_for_its_register_once_per_compiler(monkeypatch):
+    import cdpr_sym.codegen.lanes as lanes_module
+
+    asked = []
+
+    def counting(command, **kwargs):
+        asked.append(command[0])
+        return "#define __AVX__ 1\n"
+    monkeypatch.setattr(lanes_module, "run_command", counting)
+    lanes_module.native_lanes.cache_clear()
+    try:
+        assert [lanes_module.native_lanes("some-cc") for _ in range(3)] == [4, 4, 4]
+        assert asked == ["some-cc"]  # a sweep asks at every batch: once must do
+    finally:
+        lanes_module.native_lanes.cache_clear()

@@ -74,9 +74,11 @@ _REGISTER_DOUBLES = (("__AVX512F__", 8), ("__AVX__", 4))
 
 
 @functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=8)
 def native_lanes(compiler: str) -> int:
     """Doubles in one vector register of this machine, as ``compiler -march=native`` sees
-    it: 8 (AVX-512), 4 (AVX, AVX2) or 2.
+    it: 8 (AVX-512), 4 (AVX, AVX2) or 2. Asked once per compiler and process (the question
+    runs the compiler, ~20 ms: a sweep asked it at every batch and ran at half its speed).
 
     Lane code is fastest with one register per vector: on a wider vector (8 lanes on AVX2)
     GCC 12 splits the arithmetic into registers but compares lane by lane in scalar code,
