@@ -41,7 +41,8 @@ def test_the_default_lane_count_is_the_machines_register(aras3, build_options):
 
 
 @pytest.mark.parametrize("controller", ["pd", "l2"])
-@pytest.mark.parametrize("lanes", LANE_COUNTS)
+@pytest.mark.parametrize("lanes", [pytest.param(2, marks=pytest.mark.slow), 4,
+                                   pytest.param(8, marks=pytest.mark.slow)])
 def test_a_partial_block_repeats_each_pair_alone(lanes, controller, aras3, rng,
                                                  build_options):
     simulator = get_simulator(aras3, CONTROLLERS[controller], build_options=build_options)

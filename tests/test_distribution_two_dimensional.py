@@ -105,7 +105,7 @@ def test_agrees_with_the_qp_on_ipanema8(rng, random_states):
     assert counts["feasible"] > 20 and counts["infeasible"] > 20  # both verdicts occurred
 
 
-@pytest.mark.parametrize("n", [2, 3])
+@pytest.mark.parametrize("n", [2, pytest.param(3, marks=pytest.mark.slow)])
 def test_agrees_with_the_qp_on_a_random_w(rng, n):
     counts = _compare_with_the_qp(_random_problems(rng, n, 150), LO, HI)
     assert counts["feasible"] > 50 and counts["infeasible"] > 5
@@ -207,7 +207,7 @@ def test_verdicts_hold_just_inside_and_just_outside_the_boundary(rng):
 
 
 @pytest.mark.parametrize(("name", "n"), [("min_norm_2d", 2), ("min_norm_2d", 6),
-                                       ("centroid_2d", 6)])
+                                       pytest.param("centroid_2d", 6, marks=pytest.mark.slow)])
 def test_generated_c_matches_casadi(rng, build_options, name, n):
     function = distribution_function(name, n, n + 2, LO, HI)
     compiled = build([function], f"distribution_{name}_{n}",

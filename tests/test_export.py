@@ -407,7 +407,8 @@ def test_every_controller_and_preset_builds_strict_and_reproduces_simulation(tmp
 
 
 @pytest.mark.parametrize(("robot_name", "controller"),
-                         [("aras3", "linf"), ("planar2", "l2"), ("planar2", "smooth")])
+                         [("aras3", "linf"), ("planar2", "l2"),
+                          pytest.param("planar2", "smooth", marks=pytest.mark.slow)])
 def test_other_designs_match_python_law(package, robot_name, controller, rng, random_states,
                                         tmp_path):
     robot = preset(robot_name)

@@ -177,6 +177,7 @@ def test_smooth_plans_the_shortest_admissible_move_of_a_redundant_robot(rng, ran
                            for d in controller.durations)
 
 
+@pytest.mark.slow  # over ~10 s on 2 cores: left to CI
 def test_smooth_on_a_redundant_robot_starts_without_a_jump_and_stays_in_the_box(
         build_options):
     """The first command is the static tension: the same distribution of the weight."""
@@ -282,6 +283,7 @@ def test_the_continuous_time_cross_check_refuses_a_design_that_inverts_w():
         simulate_adaptive(preset("planar4"), CONTROLLERS["pd-sat"], duration=0.01)
 
 
+@pytest.mark.slow  # over ~10 s on 2 cores: left to CI
 def test_bench_and_the_redundant_report_run_on_redundant_robots(capsys, tmp_path):
     assert main(["bench", "--robot", "planar4", "--seconds", "0.05"]) == 0
     out = capsys.readouterr().out

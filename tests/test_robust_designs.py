@@ -93,7 +93,7 @@ def _observer_run(robot, design, seconds):
     return np.array(estimates), np.array(lags)
 
 
-@pytest.mark.parametrize("name", ["aras3", "planar3"])
+@pytest.mark.parametrize("name", ["aras3", pytest.param("planar3", marks=pytest.mark.slow)])
 def test_observer_estimate_is_the_matched_force_through_a_first_order_lag(name, request):
     """While the robot moves from start to goal, the estimate follows the lag of d = W
     offset to within the O(dt) of its Euler step, and ends equal to it."""

@@ -157,7 +157,8 @@ def test_measure_near_rank_loss_is_numpys_and_crosses_the_threshold_with_it(comp
         assert float(of_matrix(exact)) < (1e-14 if robot.m == robot.n else 0.1 * SINGULAR_DET)
 
 
-@pytest.mark.parametrize("name", ["planar4", "spatial4", "ipanema8"])
+@pytest.mark.parametrize("name", ["planar4", "spatial4",
+                                  pytest.param("ipanema8", marks=pytest.mark.slow)])
 @pytest.mark.parametrize("field", ["q", "dq"])
 def test_a_nan_state_stops_a_redundant_robot_as_non_finite_not_singular(name, field,
                                                                          build_options):

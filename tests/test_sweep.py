@@ -262,6 +262,7 @@ def test_sweep_maps_are_labelled_with_the_robots_coordinates(local_sweep):
         plt.close(fig)
 
 
+@pytest.mark.slow  # over ~10 s on 2 cores: left to CI
 def test_an_nmpc_sweep_of_a_redundant_robot_on_dask_equals_the_local_one(tmp_path):
     """The sampled design (its solver in Python between compiled segments) and a robot
     with more cables than DOF, through a real scheduler: the same rows as one process."""
