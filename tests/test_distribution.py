@@ -9,6 +9,7 @@ import casadi as ca
 import distribution_reference as dref
 import numpy as np
 import pytest
+from distribution_problems import preset_problems
 
 from cdpr_sym import preset
 from cdpr_sym.codegen import build
@@ -39,20 +40,6 @@ def _random_problems(rng: np.random.Generator, n: int, m: int, count: int
         W = rng.normal(size=(n, m))
         problems.append((W, W @ rng.uniform(LO - 20, HI + 20, size=m)))
     return problems
-
-
-def _robot_problems(name: str, rng: np.random.Generator, count: int, draw_states
-                    ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """W at random poses of a preset, and its weight plus a random force (N)."""
-    robot = preset(name)
-    model = SymbolicModel(robot)
-    poses, _ = draw_states(robot, rng, count)
-    out = []
-    for q in poses:
-        W = np.array(model.functions["structure_matrix"](q))
-        weight = np.array(model.functions["grad_potential"](q)).ravel()
-        out.append((W, weight + rng.normal(scale=30.0, size=robot.n)))
-    return out
 
 
 @pytest.mark.parametrize(("n", "m"), [(2, 2), (2, 3), (2, 4), (3, 4), (3, 6), (6, 8)])
@@ -87,7 +74,7 @@ def test_improved_closed_form_matches_a_set_based_derivation(rng, n, m):
 def test_improved_closed_form_is_sound_against_the_qp(rng, random_states, name):
     """A tension it calls feasible produces the wrench inside the box; where the QP finds no
     tension at all, it never calls one feasible."""
-    for W, w in _robot_problems(name, rng, 60, random_states):
+    for W, w in preset_problems(name, rng, 60, random_states, spread=30.0):
         tau, feasible = _evaluate("improved_closed_form", W, w)
         reference = min_norm_reference(W, w, LO, HI)
         if feasible:
@@ -107,7 +94,7 @@ def _margin(W: np.ndarray, w: np.ndarray) -> float:
 
 def test_one_dimensional_min_norm_agrees_with_the_qp(rng, random_states):
     checked = infeasible = 0
-    for W, w in _robot_problems("spatial4", rng, 150, random_states):
+    for W, w in preset_problems("spatial4", rng, 150, random_states, spread=30.0):
         if abs(_margin(W, w)) < 1e-6:
             continue  # on the boundary: either verdict is within round-off
         tau, feasible = _evaluate("min_norm", W, w)
@@ -127,7 +114,7 @@ def test_one_dimensional_centroid_is_the_middle_of_the_lp_segment(rng, random_st
     import cvxpy as cp
 
     checked = 0
-    for W, w in _robot_problems("spatial4", rng, 60, random_states):
+    for W, w in preset_problems("spatial4", rng, 60, random_states, spread=30.0):
         if _margin(W, w) < 1e-3:
             continue
         tau = cp.Variable(W.shape[1])
@@ -149,7 +136,7 @@ def test_linf_reference_keeps_the_largest_distance_to_the_middle_smallest(rng, r
     """Against the exact one-dimensional answer: on the segment, max_i |tau_i - mid| is
     convex piecewise linear, so a fine grid brackets its minimum."""
     middle = 0.5 * (LO + HI)
-    for W, w in _robot_problems("spatial4", rng, 20, random_states):
+    for W, w in preset_problems("spatial4", rng, 20, random_states, spread=30.0):
         tau_p, h, low, high = dref.segment(W, w, LO, HI)
         if high - low < 1e-3:
             continue

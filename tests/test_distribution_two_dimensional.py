@@ -11,6 +11,7 @@ import cvxpy as cp
 import distribution_reference as dref
 import numpy as np
 import pytest
+from distribution_problems import preset_problems
 
 from cdpr_sym import preset
 from cdpr_sym.codegen import build
@@ -53,20 +54,6 @@ def _random_problems(rng: np.random.Generator, n: int, count: int
     return problems
 
 
-def _ipanema8_problems(rng: np.random.Generator, count: int, draw_states
-                       ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """W at random poses of ipanema8, and its weight plus a random wrench (10 N, N m)."""
-    robot = preset("ipanema8")
-    model = SymbolicModel(robot)
-    poses, _ = draw_states(robot, rng, count)
-    out = []
-    for q in poses:
-        W = np.array(model.functions["structure_matrix"](q))
-        weight = np.array(model.functions["grad_potential"](q)).ravel()
-        out.append((W, weight + rng.normal(scale=10.0, size=robot.n)))
-    return out
-
-
 def _margin(W: np.ndarray, w: np.ndarray, lo: float, hi: float) -> float:
     """The signed distance to the feasibility boundary (N): the largest r such that some
     tension in [lo + r, hi - r] produces w (an LP over the tensions; negative: none)."""
@@ -100,8 +87,8 @@ def _compare_with_the_qp(problems, lo: float, hi: float) -> dict[str, float]:
 
 def test_agrees_with_the_qp_on_ipanema8(rng, random_states):
     robot = preset("ipanema8")
-    counts = _compare_with_the_qp(_ipanema8_problems(rng, 160, random_states), robot.t_min,
-                                  robot.t_max)
+    problems = preset_problems("ipanema8", rng, 160, random_states, spread=10.0)
+    counts = _compare_with_the_qp(problems, robot.t_min, robot.t_max)
     assert counts["feasible"] > 20 and counts["infeasible"] > 20  # both verdicts occurred
 
 
@@ -149,7 +136,7 @@ def test_finds_every_ipanema8_pose_the_improved_closed_form_holds(rng, random_st
     round-off: the improved closed form solves the normal equations, off by up to ~2e-8 N
     here where the enumeration of active sets agrees with min_norm_2d to 1e-11 N)."""
     robot = preset("ipanema8")
-    for W, w in _ipanema8_problems(rng, 400, random_states):
+    for W, w in preset_problems("ipanema8", rng, 400, random_states, spread=10.0):
         tau, feasible = _evaluate(W, w, robot.t_min, robot.t_max)
         other, other_feasible = _evaluate(W, w, robot.t_min, robot.t_max,
                                           "improved_closed_form")
