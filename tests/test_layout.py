@@ -29,8 +29,10 @@ def _stage(module: str) -> str:
 
 
 def _modules() -> list[tuple[str, Path]]:
+    """Every module's name and file; a package's stub (``__init__.pyi``, whose imports
+    lazy_loader performs on first use) counts as its ``__init__``."""
     out = []
-    for path in sorted(PACKAGE.rglob("*.py")):
+    for path in sorted([*PACKAGE.rglob("*.py"), *PACKAGE.rglob("*.pyi")]):
         relative = path.relative_to(PACKAGE.parent).with_suffix("")
         parts = list(relative.parts)
         if parts[-1] == "__init__" and len(parts) > 1:
@@ -54,7 +56,7 @@ def _imports(path: Path, package: str = "cdpr_sym.model") -> list[str]:
 
 
 def _package_of(module: str, path: Path) -> str:
-    return module if path.name == "__init__.py" and module.count(".") else \
+    return module if path.stem == "__init__" and module.count(".") else \
         module.rsplit(".", 1)[0]
 
 

@@ -5,17 +5,8 @@ anchor offsets), each off by default; :class:`~cdpr_sym.closed_loop.Plant` carri
 simulation, where :mod:`cdpr_sym.closed_loop.as_built_step` generates the step.
 """
 
-from cdpr_sym.as_built.spec import (
-    ACTUATION_PARAMETERS,
-    FRICTION_SPEED,
-    MAX_DELAY,
-    SENSING_PARAMETERS,
-    Actuation,
-    AsBuilt,
-    AsBuiltStructure,
-    Sensing,
-)
-from cdpr_sym.as_built.static import true_static_function
+import lazy_loader
 
-__all__ = ["ACTUATION_PARAMETERS", "FRICTION_SPEED", "MAX_DELAY", "SENSING_PARAMETERS",
-           "Actuation", "AsBuilt", "AsBuiltStructure", "Sensing", "true_static_function"]
+# Names are imported on first use, so a command loads only the stages it needs
+# (the stub beside this file lists them)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -7,15 +7,8 @@ runs at once in vectorised compiled code, and :func:`summarise_many` keeps only 
 metrics.
 """
 
-from cdpr_sym.closed_loop.adaptive import simulate_adaptive
-from cdpr_sym.closed_loop.batch import run_many, summarise_many
-from cdpr_sym.closed_loop.case import Case
-from cdpr_sym.closed_loop.layout import Fields, StepLayout
-from cdpr_sym.closed_loop.plant import Plant
-from cdpr_sym.closed_loop.simulator import Simulator, get_simulator, simulate
-from cdpr_sym.closed_loop.step import STOP_REASONS, step_function, step_layout
-from cdpr_sym.model import rk4  # re-exported: it lived here before the NMPC needed it
+import lazy_loader
 
-__all__ = ["STOP_REASONS", "Case", "Fields", "Plant", "Simulator", "StepLayout",
-           "get_simulator", "rk4", "run_many", "simulate", "simulate_adaptive", "step_function",
-           "step_layout", "summarise_many"]
+# Names are imported on first use, so a command loads only the stages it needs
+# (the stub beside this file lists them)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -29,7 +29,7 @@ from cdpr_sym.as_built import actuation
 from cdpr_sym.as_built.geometry import true_geometry_function
 from cdpr_sym.as_built.spec import ACTUATION_PARAMETERS, SENSING_PARAMETERS, AsBuiltStructure
 from cdpr_sym.closed_loop.layout import StepLayout
-from cdpr_sym.closed_loop.step import stop_status
+from cdpr_sym.closed_loop.step import ALL_STOP_REASONS, LOST_POSE, stop_status
 from cdpr_sym.control import Controller
 from cdpr_sym.model import SymbolicModel, rk4
 from cdpr_sym.model.forward_kinematics import FK_TOLERANCE, forward_kinematics_expression
@@ -37,10 +37,8 @@ from cdpr_sym.model.forward_kinematics import FK_TOLERANCE, forward_kinematics_e
 #: The winch states of an as-built plant with actuation: payout r theta (m), drum speed
 #: (rad/s), motor torque (N m), each per cable.
 DRIVE_FIELDS = ("payout", "drum_speed", "motor_torque")
-#: The stop status of a pose the encoders cannot give.
-LOST_POSE = 4
 #: Stop statuses only an as-built plant raises (beside :data:`STOP_REASONS`).
-PLANT_STOP_REASONS = {LOST_POSE: "lost_pose"}
+PLANT_STOP_REASONS = {LOST_POSE: ALL_STOP_REASONS[LOST_POSE]}
 
 
 def as_built_layout(model: SymbolicModel, controller: Controller,

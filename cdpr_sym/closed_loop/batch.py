@@ -20,7 +20,7 @@ import numpy as np
 from cdpr_sym.closed_loop.case import check_timing
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.simulator import Simulator
-from cdpr_sym.closed_loop.summaries import run_summary, summary_fields, summary_source
+from cdpr_sym.closed_loop.summaries import run_summaries, summary_fields, summary_source
 from cdpr_sym.codegen import (
     BuildOptions,
     build,
@@ -184,19 +184,20 @@ def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: n
                 for s, g in zip(starts, goals, strict=True)]
     rows = batch.summaries(*_inputs(simulator, starts, goals, k, r_d, dt, plant), n_steps,
                            SETTLE_TOLERANCE)
-    static = simulator.static_tensions(starts)
     robot = simulator.robot
-    return [run_summary(row, simulator.layout, goal, dt, static_tension=tension,
-                        t_min=robot.t_min, t_max=robot.t_max)
-            for row, goal, tension in zip(rows, goals, static, strict=True)]
+    return run_summaries(rows, simulator.layout, goals, dt,
+                         static_tensions=simulator.static_tensions(starts),
+                         t_min=robot.t_min, t_max=robot.t_max)
 
 
 def _inputs(simulator: Simulator, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,
             r_d: np.ndarray, dt: float, plant: Plant) -> tuple[np.ndarray, np.ndarray]:
-    """The runs' initial states x0 (runs, x size) and parameters p (runs, p size)."""
-    x0 = np.array([simulator.initial_state(s, g, k, r_d)
-                   for s, g in zip(starts, goals, strict=True)])
-    p = np.array([simulator.parameters(g, k, r_d, dt, plant) for g in goals])
+    """The runs' initial states x0 (runs, x size) and parameters p (runs, p size), equal
+    row by row to ``simulator.initial_state`` and ``simulator.parameters`` of each run
+    (the ideal plant: :func:`_checked` refuses an as-built one)."""
+    x0 = simulator.initial_states(starts, goals, k, r_d)
+    p = np.tile(simulator.parameters(goals[0], k, r_d, dt, plant), (len(goals), 1))
+    p[:, simulator.layout.p.slice("q_goal")] = goals  # the only field that differs by run
     return x0, p
 
 

@@ -17,24 +17,20 @@ import hashlib
 import json
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.as_built import AsBuiltStructure, Sensing, true_static_function
-from cdpr_sym.as_built.geometry import true_geometry_function
-from cdpr_sym.closed_loop.as_built_step import (
-    PLANT_STOP_REASONS,
-    as_built_layout,
-    as_built_step_function,
-    reading_bound,
-)
 from cdpr_sym.closed_loop.case import Case, check_timing, minimal_values_per_step
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
-from cdpr_sym.closed_loop.sampled import SampledSolver, steps_per_sample
-from cdpr_sym.closed_loop.step import STOP_REASONS, chunk_function, step_function, step_layout
+from cdpr_sym.closed_loop.step import (
+    ALL_STOP_REASONS,
+    chunk_function,
+    step_function,
+    step_layout,
+)
 from cdpr_sym.codegen import (
     BuildOptions,
     CompiledLibrary,
@@ -52,9 +48,12 @@ from cdpr_sym.control import (
 )
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
-from cdpr_sym.model.forward_kinematics import forward_kinematics_function
 from cdpr_sym.results import Trajectory
 from cdpr_sym.robot import Robot, resolve_robot, robot_key
+
+if TYPE_CHECKING:  # the as-built plant and NMPC's solver are imported where a run needs them
+    from cdpr_sym.as_built import AsBuiltStructure, Sensing
+    from cdpr_sym.closed_loop.sampled import SampledSolver
 
 
 class _Rollout:
@@ -66,6 +65,9 @@ class _Rollout:
                                   + [ctypes.c_void_p] * 3)
         sizes = [native.work_sizes(name) for name in _ROLLOUT_CALLS]
         self._n_iw, self._n_w = (max(size[i] for size in sizes) for i in (2, 3))
+        self._static_many = native.entry("static_tensions", ctypes.c_int,
+                                         [ctypes.c_void_p, ctypes.c_longlong]
+                                         + [ctypes.c_void_p] * 3)
         self._native = native
         self._local = threading.local()
 
@@ -84,6 +86,13 @@ class _Rollout:
             raise RuntimeError("a generated function of the rollout reported an error")
         return int(taken)
 
+    def static_tensions(self, poses: np.ndarray, out: np.ndarray) -> None:
+        """The static tension at each row of ``poses`` (runs, n) into ``out`` (runs, m),
+        both C-contiguous float64, in one call."""
+        iw, w = self._work_addresses()
+        if self._static_many(poses.ctypes.data, len(poses), iw, w, out.ctypes.data):
+            raise RuntimeError("the generated static tension reported an error")
+
     def _work_addresses(self) -> tuple[int, int]:
         """This thread's work memory (iw, w), allocated on its first run: threads sharing a
         simulator (a Dask worker's) never share it."""
@@ -95,9 +104,6 @@ class _Rollout:
         return work[2], work[3]
 
 
-#: Every stop status a run can end with: the ideal step's and the as-built plant's.
-ALL_STOP_REASONS = {**STOP_REASONS, **PLANT_STOP_REASONS}
-
 #: The generated functions the rollout loop calls.
 _ROLLOUT_CALLS = ("static_tension", "step")
 
@@ -107,7 +113,7 @@ def rollout_source(step: ca.Function, static_tension: ca.Function, layout: StepL
     evaluates ``static_tension`` at the start."""
     calls = (static_tension, step)
     return render("cdpr_sym.closed_loop", "rollout.c.j2", step=step.name(),
-                  static=static_tension.name(), n=layout.n,
+                  static=static_tension.name(), n=layout.n, m=layout.cables,
                   sz_arg=max(2, *(call.sz_arg() for call in calls)),
                   sz_res=max(2, *(call.sz_res() for call in calls)),
                   n_x=layout.x.size, n_log=layout.log.size, status=layout.status_index)
@@ -147,15 +153,13 @@ class Simulator:
             self.layout = step_layout(self.model, controller, rate_limited=rate_limited)
             self.step = step_function(self.model, controller, rate_limited=rate_limited)
         else:
-            self.layout = as_built_layout(self.model, controller, as_built)
-            self.step = as_built_step_function(self.model, controller, as_built)
-            self._true_static = true_static_function(self.model)
-            self._true_geometry = true_geometry_function(robot)
-            self._forward_kinematics = forward_kinematics_function(self.model, tolerance=1.0)
+            self._build_as_built(as_built)
         self.law = law_function(self.model, controller)
         #: The robot and controller part of every run's record, built once.
         self._described = described(robot, controller)
         self.initial_memory = initial_memory_function(self.model, controller)
+        #: initial_memory mapped over a number of runs, by that number (built on first use).
+        self._mapped_memory: dict[int, ca.Function] = {}
         self.backend = build_options.resolved_backend()
         self.library: CompiledLibrary | None = None
         suffix = "_rate" if rate_limited else _as_built_suffix(as_built)
@@ -178,9 +182,25 @@ class Simulator:
         #: The solver of a controller that optimises at its own rate (NMPC), else None.
         self.sampled: SampledSolver | None = None
         if getattr(controller, "sampled", False):
+            from cdpr_sym.closed_loop.sampled import SampledSolver
+
             self.sampled = SampledSolver(self.model, controller, backend=self.backend,
                                          build_options=build_options,
                                          library_name=self.library_name)
+
+    def _build_as_built(self, as_built: AsBuiltStructure) -> None:
+        """The step of an as-built plant with these effects, and the plant's own functions
+        (its true static tension and cable geometry, the encoders' forward kinematics)."""
+        from cdpr_sym.as_built import true_static_function
+        from cdpr_sym.as_built.geometry import true_geometry_function
+        from cdpr_sym.closed_loop.as_built_step import as_built_layout, as_built_step_function
+        from cdpr_sym.model.forward_kinematics import forward_kinematics_function
+
+        self.layout = as_built_layout(self.model, self.controller, as_built)
+        self.step = as_built_step_function(self.model, self.controller, as_built)
+        self._true_static = true_static_function(self.model)
+        self._true_geometry = true_geometry_function(self.robot)
+        self._forward_kinematics = forward_kinematics_function(self.model, tolerance=1.0)
 
     @property
     def values_per_step(self) -> int:
@@ -271,6 +291,8 @@ class Simulator:
         if sensing.resolution > 0:
             reading = sensing.resolution * np.floor(reading / sensing.resolution + 0.5)
         q, ok, residual = self._forward_kinematics(reading, start)
+        from cdpr_sym.closed_loop.as_built_step import reading_bound
+
         bound = reading_bound(self.robot.n, self.robot.m, sensing.resolution,
                               sensing.consistency)
         return np.array(q).ravel() if float(ok) > 0.5 and float(residual) <= bound else None
@@ -453,8 +475,43 @@ class Simulator:
 
     def static_tensions(self, poses: np.ndarray) -> np.ndarray:
         """W^{-1} grad V (m > n: its distribution) at each row of ``poses`` (runs, n), as
-        (runs, m) N, as each run records it."""
-        return np.array([self._static_tension(q) for q in poses]).reshape(-1, self.robot.m)
+        (runs, m) N, as each run records it (compiled: one C call for all rows)."""
+        poses = np.ascontiguousarray(poses, dtype=float).reshape(-1, self.robot.n)
+        if self.library is None:
+            return np.array([self._static_tension(q) for q in poses]).reshape(
+                -1, self.robot.m)
+        tensions = np.empty((len(poses), self.robot.m))
+        self._rollout.static_tensions(poses, tensions)
+        return tensions
+
+    def initial_states(self, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,
+                       r_d: np.ndarray) -> np.ndarray:
+        """x at the start of many moves from rest on the ideal plant, (runs, x size): row i
+        is ``initial_state(starts[i], goals[i], k, r_d)``, the controller's plans made in
+        one call of CasADi's virtual machine."""
+        starts = np.asarray(starts, dtype=float).reshape(-1, self.robot.n)
+        goals = np.asarray(goals, dtype=float).reshape(-1, self.robot.n)
+        fields = self.layout.x
+        states = np.zeros((len(starts), fields.size))
+        states[:, fields.slice("q")] = starts
+        if self.layout.n_memory and len(starts):
+            states[:, fields.slice("memory")] = self._initial_memories(starts, goals, k, r_d)
+        if self.layout.rate_limited:
+            states[:, fields.slice("applied")] = self.static_tensions(starts)
+        return states
+
+    def _initial_memories(self, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,
+                          r_d: np.ndarray) -> np.ndarray:
+        """The controller's memory at the start of each move, (runs, memory size): its
+        planning function mapped over the runs (one call, each run's the same instructions
+        as a call of its own; about half the time of a call per run)."""
+        runs = len(starts)
+        mapped = self._mapped_memory.get(runs)
+        if mapped is None:
+            mapped = self._mapped_memory[runs] = self.initial_memory.map(runs)
+        memory = mapped(starts.T, goals.T, np.asarray(k, dtype=float),
+                        np.asarray(r_d, dtype=float))
+        return np.array(memory).T
 
 
 def run_info(robot: Robot, controller: Controller, dt: float, k, r_d, plant: Plant, *,
@@ -603,6 +660,8 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=N
     controller = controller_by_name(controller) if isinstance(controller, str) else controller
     check_timing(duration, dt, values_per_step=minimal_values_per_step(robot))
     if getattr(controller, "sampled", False):
+        from cdpr_sym.closed_loop.sampled import steps_per_sample
+
         steps_per_sample(controller, dt)  # before building: dt must divide its period
     if plant.as_built is not None:
         plant.as_built.check_period(dt)  # before building: enough substeps for dt

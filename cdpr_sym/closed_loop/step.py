@@ -18,6 +18,11 @@ from cdpr_sym.model import SINGULAR_DET, SymbolicModel, rk4
 
 STOP_REASONS = {1: "singular", 2: "non_finite", 3: "left_frame"}
 STOP_CODES = {name: code for code, name in STOP_REASONS.items()}
+#: The stop status of a pose the encoders cannot give (an as-built plant with sensing).
+LOST_POSE = 4
+#: Every stop status a run can end with, the ideal plant's and the as-built plant's: one
+#: table, so no two codes collide.
+ALL_STOP_REASONS = {**STOP_REASONS, LOST_POSE: "lost_pose"}
 
 
 def step_layout(model: SymbolicModel, controller: Controller, *,

@@ -4,7 +4,8 @@ A sweep keeps one row of metrics per run, not the run. The batched loop of
 ``templates/summarise_lanes.c.j2`` advances the runs as the batched rollout does and keeps,
 per run, the running extremes and counts of a
 :class:`~cdpr_sym.results.summary.RunSummary` in one flat row laid out by
-:func:`summary_fields`; :func:`run_summary` reads such a row. The states and logs are never
+:func:`summary_fields`; :func:`run_summary` reads such a row, :func:`run_summaries`
+many rows at once. The states and logs are never
 stored, which is most of a batched run's memory traffic.
 """
 
@@ -73,3 +74,38 @@ def run_summary(row: np.ndarray, layout: StepLayout, goal: np.ndarray, dt: float
         start_jump=(float(np.max(np.abs(values["first_tau"] - static_tension)))
                     if static_tension is not None and commands else None),
         t_min=t_min, t_max=t_max)
+
+
+def run_summaries(rows: np.ndarray, layout: StepLayout, goals: np.ndarray, dt: float, *,
+                  static_tensions: np.ndarray, t_min: float, t_max: float
+                  ) -> list[RunSummary]:
+    """``[run_summary(row, layout, goal, dt, ...) for ...]`` over summary rows (runs, size)
+    towards ``goals`` (runs, n) m, with each run's static tension at its start
+    (runs, m) N: the numbers taken column by column, equal to :func:`run_summary`'s."""
+    values = summary_fields(layout).split(np.asarray(rows, dtype=float).reshape(
+        len(goals), -1))
+    commands = values["commands"][:, 0].astype(np.int64)
+    status = values["status"][:, 0].astype(np.int64)
+    last_outside = values["last_outside"][:, 0].astype(np.int64)
+    unsettled = (status != 0) | (last_outside == commands)
+    settle = np.where(last_outside >= 0, (last_outside + 1) * dt, 0.0)
+    q_last = layout.x.split(values["x_last"])["q"]
+    final_error = np.linalg.norm(q_last - np.asarray(goals, dtype=float), axis=1)
+    jumps = np.max(np.abs(values["first_tau"] - static_tensions), axis=1)
+    counts = values["flag_counts"].astype(np.int64).tolist()
+    names = list(FLAG_NAMES.values())
+    columns = zip(commands.tolist(), status.tolist(), unsettled.tolist(), settle.tolist(),
+                  final_error.tolist(), jumps.tolist(), counts,
+                  *(values[name][:, 0].tolist() for name in (
+                      "min_tension", "max_tension", "min_alpha", "variation", "max_step",
+                      "fallback")), strict=True)
+    return [RunSummary(
+        commands=n_commands, min_tension=low, max_tension=high, min_alpha=alpha,
+        settle_time=None if no_settle else settle_time, final_error=error,
+        total_variation=variation, max_step=step,
+        flag_counts=dict(zip(names, flag_counts, strict=True)),
+        fallback_steps=int(fallback), stop_reason=STOP_REASONS[code] if code else None,
+        duration=n_commands * dt, start_jump=jump if n_commands else None,
+        t_min=t_min, t_max=t_max)
+        for (n_commands, code, no_settle, settle_time, error, jump, flag_counts, low, high,
+             alpha, variation, step, fallback) in columns]

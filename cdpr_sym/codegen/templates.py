@@ -8,13 +8,16 @@ errors, so a template and its description cannot drift apart silently.
 from __future__ import annotations
 
 import functools
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import jinja2
+if TYPE_CHECKING:
+    import jinja2
 
 
 @functools.cache
 def _environment(package: str) -> jinja2.Environment:
+    import jinja2  # on first render: a run whose library is cached may never need it
+
     return jinja2.Environment(
         loader=jinja2.PackageLoader(package, "templates"), undefined=jinja2.StrictUndefined,
         keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True,

@@ -1,5 +1,7 @@
 """Export: a robot's controller, model and closed-loop step as a self-contained C99 package."""
 
-from cdpr_sym.export.package import REQUIRED_MODEL_TERMS, ExportResult, bench_export, export_c
+import lazy_loader
 
-__all__ = ["REQUIRED_MODEL_TERMS", "ExportResult", "bench_export", "export_c"]
+# Names are imported on first use, so a command loads only the stages it needs
+# (the stub beside this file lists them)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -10,21 +10,8 @@ without W);
 :func:`~cdpr_sym.model.integration.rk4` steps its dynamics.
 """
 
-from cdpr_sym.model.forward_kinematics import (
-    FK_ITERATIONS,
-    FK_STEP_TOLERANCE,
-    FK_TOLERANCE,
-    ForwardKinematicsResult,
-    forward_kinematics,
-    forward_kinematics_expression,
-    forward_kinematics_function,
-    quantisation_tolerance,
-)
-from cdpr_sym.model.integration import rk4
-from cdpr_sym.model.kinematics import SINGULAR_DET
-from cdpr_sym.model.symbolic import SymbolicModel
+import lazy_loader
 
-__all__ = ["FK_ITERATIONS", "FK_STEP_TOLERANCE", "FK_TOLERANCE", "SINGULAR_DET",
-           "ForwardKinematicsResult", "SymbolicModel", "forward_kinematics",
-           "forward_kinematics_expression", "forward_kinematics_function",
-           "quantisation_tolerance", "rk4"]
+# Names are imported on first use, so a command loads only the stages it needs
+# (the stub beside this file lists them)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -6,9 +6,8 @@ as CSV with a JSON sidecar, summaries as JSON); :mod:`~cdpr_sym.results.judging`
 into outcomes and shares.
 """
 
-from cdpr_sym.results.summary import SCALAR_METRICS, SETTLE_TOLERANCE, RunSummary
-from cdpr_sym.results.sweep_results import SweepResults, load_sweep
-from cdpr_sym.results.trajectory import Trajectory
+import lazy_loader
 
-__all__ = ["SCALAR_METRICS", "SETTLE_TOLERANCE", "RunSummary", "SweepResults", "Trajectory",
-           "load_sweep"]
+# Names are imported on first use, so a command loads only the stages it needs
+# (the stub beside this file lists them)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

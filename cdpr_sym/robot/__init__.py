@@ -4,14 +4,8 @@ This is the first room of the flow and knows no CasADi: :class:`Robot` validates
 with numpy, :func:`load_robot` reads the TOML layout, :func:`preset` the bundled robots.
 """
 
-from cdpr_sym.robot.description import (
-    COORDINATES,
-    PITCH_LIMIT,
-    WRENCH_FIELDS,
-    Robot,
-    robot_key,
-)
-from cdpr_sym.robot.files import PRESET_NAMES, load_robot, preset, resolve_robot, robot_from_dict
+import lazy_loader
 
-__all__ = ["COORDINATES", "PITCH_LIMIT", "PRESET_NAMES", "WRENCH_FIELDS", "Robot",
-           "load_robot", "preset", "resolve_robot", "robot_from_dict", "robot_key"]
+# Names are imported on first use, so a command loads only the stages it needs
+# (the stub beside this file lists them)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -1,7 +1,7 @@
 """Sweeps: many start/goal pairs, run locally or on Dask, written row by row, resumable."""
 
-from cdpr_sym.sweep.config import SweepConfig, columns, draw_pairs, robot_reference
-from cdpr_sym.sweep.runner import run_items, run_one, run_sweep
+import lazy_loader
 
-__all__ = ["SweepConfig", "columns", "draw_pairs", "robot_reference", "run_items", "run_one",
-           "run_sweep"]
+# Names are imported on first use, so a command loads only the stages it needs
+# (the stub beside this file lists them)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import importlib.metadata
 import math
 import os
 import platform
@@ -27,10 +26,9 @@ import shutil
 import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from tqdm import tqdm
 
 from cdpr_sym.closed_loop import Plant, get_simulator, summarise_many
 from cdpr_sym.control import CONTROLLERS, controller_by_name
@@ -54,6 +52,9 @@ from cdpr_sym.sweep.workers import (
     local_map,
     sigterm_interrupts,
 )
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 _RUN_FAILURES = (CdprError, RuntimeError, ValueError, FloatingPointError)
 #: Most rows per chunk of work on local processes: a chunk is the unit of progress and of
@@ -131,6 +132,8 @@ def run_items(config_dict: dict[str, Any], items: Sequence[tuple[int, str, list,
 
 
 def _versions() -> dict[str, str]:
+    import importlib.metadata
+
     import casadi
 
     from cdpr_sym.version import __version__, source_digest
@@ -165,9 +168,29 @@ def _remove_results(out: Path) -> None:
         out.unlink(missing_ok=True)
 
 
-def progress_bar(total: int, *, enabled: bool) -> tqdm:
+class _NoProgress:
+    """The bar of a sweep asked to show none: counts nothing, and needs no tqdm."""
+
+    disable = True
+
+    def __enter__(self) -> _NoProgress:
+        return self
+
+    def __exit__(self, *exception: object) -> None:
+        return None
+
+    def update(self, runs: int) -> None:
+        """Ignore ``runs`` finished runs."""
+
+
+def progress_bar(total: int, *, enabled: bool) -> tqdm | _NoProgress:
     """A progress bar of runs on stderr (tqdm); it hides itself when stderr is not a terminal
-    (log files get no carriage-return frames) and when ``enabled`` is False."""
+    (log files get no carriage-return frames), and is none at all when ``enabled`` is False
+    (tqdm is then not even imported)."""
+    if not enabled:
+        return _NoProgress()
+    from tqdm import tqdm
+
     return tqdm(total=total, unit="run", desc="sweep", disable=None if enabled else True,
                 file=sys.stderr, dynamic_ncols=True)
 

@@ -1,0 +1,17 @@
+# The names this package exports, read by type checkers and by lazy_loader at import
+# time: each is imported from its module on first use (see __init__.py).
+
+from .spec import (
+    ACTUATION_PARAMETERS,
+    FRICTION_SPEED,
+    MAX_DELAY,
+    SENSING_PARAMETERS,
+    Actuation,
+    AsBuilt,
+    AsBuiltStructure,
+    Sensing,
+)
+from .static import true_static_function
+
+__all__ = ["ACTUATION_PARAMETERS", "FRICTION_SPEED", "MAX_DELAY", "SENSING_PARAMETERS",
+           "Actuation", "AsBuilt", "AsBuiltStructure", "Sensing", "true_static_function"]

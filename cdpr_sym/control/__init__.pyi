@@ -1,0 +1,42 @@
+# The names this package exports, read by type checkers and by lazy_loader at import
+# time: each is imported from its module on first use (see __init__.py).
+
+from .distributed import DistributedPD
+from .evaluate import initial_memory_function, law_function, tension
+from .exact_box import BoxDesign, LinfDesign
+from .flags import (
+    FALLBACK_FLAGS,
+    FLAG_ALPHA,
+    FLAG_BETA,
+    FLAG_INFEASIBLE,
+    FLAG_LOW_SPEED,
+    FLAG_NAMES,
+    FLAG_SATURATED,
+    FLAG_SINGULAR,
+)
+from .ida_pbc import PD, L2Design, SaturatedPD
+from .interface import (
+    ControlLaw,
+    Controller,
+    ControlOutput,
+    StatelessLaw,
+)
+from .nmpc import Nmpc, NmpcProblem
+from .planned import SmoothReference, VirtualReferenceIdaPbc
+from .registry import (
+    CONTROLLERS,
+    DESCRIPTIONS,
+    check_cables,
+    controller_by_name,
+    controller_from_options,
+)
+
+__all__ = [
+    "CONTROLLERS", "DESCRIPTIONS", "FALLBACK_FLAGS", "FLAG_ALPHA", "FLAG_BETA", "FLAG_INFEASIBLE",
+    "FLAG_LOW_SPEED", "FLAG_NAMES", "FLAG_SATURATED", "FLAG_SINGULAR", "PD", "BoxDesign",
+    "ControlLaw", "ControlOutput", "Controller", "DistributedPD", "L2Design", "LinfDesign",
+    "Nmpc", "NmpcProblem",
+    "SaturatedPD", "SmoothReference", "StatelessLaw", "VirtualReferenceIdaPbc", "check_cables",
+    "controller_by_name", "controller_from_options", "initial_memory_function", "law_function",
+    "tension",
+]

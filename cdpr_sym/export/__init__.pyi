@@ -1,0 +1,6 @@
+# The names this package exports, read by type checkers and by lazy_loader at import
+# time: each is imported from its module on first use (see __init__.py).
+
+from .package import REQUIRED_MODEL_TERMS, ExportResult, bench_export, export_c
+
+__all__ = ["REQUIRED_MODEL_TERMS", "ExportResult", "bench_export", "export_c"]

@@ -1,0 +1,71 @@
+"""Packages import their names on first use: every exported name resolves, and a command
+loads only the stages it runs (a sweep's start-up is part of its speed)."""
+
+from __future__ import annotations
+
+import importlib
+import json
+import subprocess
+import sys
+import types
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).parents[1] / "cdpr_sym"
+#: Packages whose names lazy_loader serves from a stub beside ``__init__.py``.
+LAZY_PACKAGES = sorted(
+    ".".join(stub.relative_to(PACKAGE.parent).parent.parts)
+    for stub in PACKAGE.rglob("__init__.pyi"))
+
+
+def test_the_packages_with_stubs_are_found():
+    assert {"cdpr_sym", "cdpr_sym.closed_loop", "cdpr_sym.control",
+            "cdpr_sym.model"} <= set(LAZY_PACKAGES)
+
+
+@pytest.mark.parametrize("name", LAZY_PACKAGES)
+def test_every_exported_name_resolves_to_what_its_module_defines(name):
+    package = importlib.import_module(name)
+    assert package.__all__, name
+    for attribute in package.__all__:
+        value = getattr(package, attribute)
+        assert not isinstance(value, types.ModuleType), f"{name}.{attribute} is a module"
+        assert value is not None or attribute.isupper(), f"{name}.{attribute}"
+
+
+def test_a_misspelt_name_is_an_attribute_error():
+    import cdpr_sym
+
+    with pytest.raises(AttributeError):
+        cdpr_sym.simulte  # noqa: B018
+
+
+#: What a sweep of an ideal plant with a closed-form controller never runs.
+NOT_FOR_A_SWEEP = ("cdpr_sym.as_built.static", "cdpr_sym.closed_loop.adaptive",
+                   "cdpr_sym.closed_loop.as_built_step", "cdpr_sym.closed_loop.sampled",
+                   "cdpr_sym.export", "cdpr_sym.reporting", "cdpr_sym.studies.outline",
+                   "cvxpy", "matplotlib", "tqdm")
+
+_SWEEP_AND_LIST_MODULES = """
+import json, sys
+from cdpr_sym.cli.main import main
+status = main(sys.argv[1:])
+print(json.dumps({"status": status, "modules": sorted(sys.modules)}))
+"""
+
+
+def test_a_quiet_sweep_loads_neither_the_as_built_plant_nor_nmpc_nor_plots(tmp_path):
+    """The sweep runs in this process (one worker) and then lists every module loaded."""
+    out = tmp_path / "sweep.csv"
+    done = subprocess.run(
+        [sys.executable, "-c", _SWEEP_AND_LIST_MODULES, "sweep", "--robot", "aras3",
+         "--controllers", "pd", "--pairs", "2", "--duration", "0.05", "--workers", "1",
+         "--quiet", "--no-progress", "--out", str(out)],
+        capture_output=True, text=True, check=True)
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert report["status"] == 0
+    assert len(out.read_text().splitlines()) == 3  # header and two rows: it really ran
+    loaded = set(report["modules"])
+    assert "cdpr_sym.closed_loop.simulator" in loaded
+    assert sorted(loaded & set(NOT_FOR_A_SWEEP)) == []
