@@ -148,7 +148,7 @@ def _digest_of_the_sources() -> str:
     root = Path(cdpr_sym.__file__).resolve().parent
     digest = hashlib.sha256()
     for path in sorted(root.rglob("*")):
-        if path.is_file() and path.suffix in {".py", ".c", ".h", ".j2", ".toml"}:
+        if path.is_file() and path.suffix in {".py", ".pyi", ".c", ".h", ".j2", ".toml"}:
             digest.update(path.relative_to(root).as_posix().encode() + path.read_bytes())
     return digest.hexdigest()[:12]
 

@@ -23,7 +23,10 @@ from cdpr_sym.closed_loop.simulator import Simulator
 from cdpr_sym.closed_loop.summaries import run_summaries, summary_fields, summary_source
 from cdpr_sym.codegen import (
     BuildOptions,
+    CompiledLibrary,
     build,
+    build_recipe,
+    built_recipe,
     check_lanes,
     lanes_preamble,
     lanes_source,
@@ -46,15 +49,8 @@ class BatchRollout:
     def __init__(self, simulator: Simulator, build_options: BuildOptions = BuildOptions(),
                  lanes: int | None = None) -> None:
         lanes = resolve_lanes(lanes, build_options)
-        layout = simulator.layout
-        self.layout, self.lanes = layout, lanes
-        source = lanes_preamble(lanes) + lanes_source(simulator.step, "step_lanes", lanes) + render(
-            "cdpr_sym.closed_loop", "rollout_lanes.c.j2", step="step_lanes", lanes=lanes,
-            n_x=layout.x.size, n_p=layout.p.size, n_log=layout.log.size,
-            status=layout.status_index) + summary_source(layout, "step_lanes", lanes)
-        name = simulator.library_name + "_lanes"
-        self.library = build([simulator.step], name, extra_source=source,
-                             options=vector_build_options(build_options))
+        self.layout, self.lanes = simulator.layout, lanes
+        self.library = _lanes_library(simulator, build_options, lanes)
         self._native = self.library.native()
         self._call = self._native.entry("rollout_lanes", None, [ctypes.c_void_p] * 4 + [
             ctypes.c_longlong] * 2 + [ctypes.c_void_p])
@@ -88,9 +84,52 @@ class BatchRollout:
         return rows
 
 
+def _lanes_name(simulator: Simulator) -> str:
+    return simulator.library_name + "_lanes"
+
+
+def _lanes_recipe(simulator: Simulator, lanes: int) -> str | None:
+    """The recipe of the batched library: the simulator's, on ``lanes`` lanes."""
+    return None if simulator.recipe is None else f"{simulator.recipe}\0lanes={lanes}"
+
+
+def _lanes_library(simulator: Simulator, build_options: BuildOptions, lanes: int
+                   ) -> CompiledLibrary:
+    """The vectorised step, its rollout loop and its summarising loop, compiled with the
+    host's vector instructions (found by recipe when built before)."""
+    layout = simulator.layout
+
+    def generate() -> tuple[list, str]:
+        source = (lanes_preamble(lanes) + lanes_source(simulator.step, "step_lanes", lanes)
+                  + render("cdpr_sym.closed_loop", "rollout_lanes.c.j2", step="step_lanes",
+                           lanes=lanes, n_x=layout.x.size, n_p=layout.p.size,
+                           n_log=layout.log.size, status=layout.status_index)
+                  + summary_source(layout, "step_lanes", lanes))
+        return [simulator.step], source
+
+    options = vector_build_options(build_options)
+    recipe = _lanes_recipe(simulator, lanes)
+    if recipe is None:
+        functions, source = generate()
+        return build(functions, _lanes_name(simulator), extra_source=source, options=options)
+    return build_recipe(recipe, _lanes_name(simulator), generate, options=options)
+
+
+def _can_batch(simulator: Simulator, build_options: BuildOptions, lanes: int) -> bool:
+    """Whether the step of ``simulator`` runs compiled and can be written for lanes: a
+    library built by recipe before says so without generating the step."""
+    if simulator.backend != "c" or simulator.sampled is not None:
+        return False
+    recipe = _lanes_recipe(simulator, lanes)
+    if recipe is not None and built_recipe(recipe, _lanes_name(simulator),
+                                           options=vector_build_options(build_options)):
+        return True
+    return not unsupported_operations(simulator.step)
+
+
 #: Each simulator's batched rollouts by lane count (None: none can be built), kept while it
 #: lives.
-_BATCHES: weakref.WeakKeyDictionary[Simulator, dict[int, BatchRollout] | None] = (
+_BATCHES: weakref.WeakKeyDictionary[Simulator, dict[int, BatchRollout | None]] = (
     weakref.WeakKeyDictionary())
 
 
@@ -99,16 +138,11 @@ def batch_rollout(simulator: Simulator, build_options: BuildOptions = BuildOptio
     """The batched rollout of ``simulator`` on ``lanes`` runs per vector (default:
     :func:`~cdpr_sym.codegen.native_lanes`; built once per simulator and lane count), or
     None where its step runs in CasADi's virtual machine or cannot be written for lanes."""
-    if simulator not in _BATCHES:
-        usable = (simulator.backend == "c" and simulator.sampled is None
-                  and not unsupported_operations(simulator.step))
-        _BATCHES[simulator] = {} if usable else None
-    built = _BATCHES[simulator]
-    if built is None:
-        return None
+    built = _BATCHES.setdefault(simulator, {})
     lanes = resolve_lanes(lanes, build_options)
     if lanes not in built:
-        built[lanes] = BatchRollout(simulator, build_options, lanes)
+        built[lanes] = (BatchRollout(simulator, build_options, lanes)
+                        if _can_batch(simulator, build_options, lanes) else None)
     return built[lanes]
 
 

@@ -36,6 +36,7 @@ from cdpr_sym.codegen import (
     CompiledLibrary,
     NativeLibrary,
     build,
+    build_recipe,
     c_identifier,
     render,
 )
@@ -149,15 +150,13 @@ class Simulator:
         self.model = SymbolicModel(robot)
         self.as_built = as_built
         self.chunk = chunk
+        self.rate_limited = rate_limited
         if as_built is None:
             self.layout = step_layout(self.model, controller, rate_limited=rate_limited)
-            self.step = step_function(self.model, controller, rate_limited=rate_limited)
         else:
             self._build_as_built(as_built)
-        self.law = law_function(self.model, controller)
         #: The robot and controller part of every run's record, built once.
         self._described = described(robot, controller)
-        self.initial_memory = initial_memory_function(self.model, controller)
         #: initial_memory mapped over a number of runs, by that number (built on first use).
         self._mapped_memory: dict[int, ca.Function] = {}
         self.backend = build_options.resolved_backend()
@@ -167,13 +166,7 @@ class Simulator:
         self.library_name = (f"cdpr_{c_identifier(robot.name)}_"
                              f"{controller_identifier(controller)}{suffix}")
         if self.backend == "c":
-            # initial_memory runs once per run: CasADi's virtual machine is fast enough and
-            # keeps a large planning function out of the compiled library
-            functions = [*self.model.functions.values(), self.law, self.step]
-            loop = rollout_source(self.step, self.model.functions["static_tension"],
-                                  self.layout)
-            self.library = build(functions, self.library_name, extra_source=loop,
-                                 options=build_options)
+            self.library = self._compiled_library(build_options)
             native = self.library.native()
             self._rollout = _Rollout(native)
             self._static_native = native.casadi_function("static_tension")
@@ -187,6 +180,53 @@ class Simulator:
             self.sampled = SampledSolver(self.model, controller, backend=self.backend,
                                          build_options=build_options,
                                          library_name=self.library_name)
+
+    @functools.cached_property
+    def step(self) -> ca.Function:
+        """The closed loop's step (x, p) -> (x_next, log), generated on first use: a run
+        whose compiled library is found by its recipe never needs it."""
+        return step_function(self.model, self.controller, rate_limited=self.rate_limited)
+
+    @functools.cached_property
+    def law(self) -> ca.Function:
+        """The controller's law as a CasADi function (``law_<name>``)."""
+        return law_function(self.model, self.controller)
+
+    @functools.cached_property
+    def initial_memory(self) -> ca.Function:
+        """(start, goal, k, r_d) -> the controller's memory at the start of a move."""
+        return initial_memory_function(self.model, self.controller)
+
+    @functools.cached_property
+    def recipe(self) -> str | None:
+        """What this loop's generated C is made of besides the package's code (robot data,
+        controller, options, layout, as-built effects), as JSON; None for a controller
+        defined outside the package, whose code the build cache cannot fingerprint."""
+        controller_class = type(self.controller)
+        if not controller_class.__module__.startswith("cdpr_sym."):
+            return None
+        return json.dumps({
+            "robot": robot_key(self.robot), "controller": self.controller.name,
+            "class": f"{controller_class.__module__}.{controller_class.__qualname__}",
+            "options": self.controller.options(), "layout": dataclasses.asdict(self.layout),
+            "as_built": None if self.as_built is None else dataclasses.asdict(self.as_built),
+        }, sort_keys=True)
+
+    def _compiled_library(self, build_options: BuildOptions) -> CompiledLibrary:
+        """The model terms, the law, the step and the rollout loop, compiled; found by the
+        recipe without generating anything when this package built it before.
+        initial_memory stays out: it runs once per run, in CasADi's virtual machine, and
+        keeps a large planning function out of the compiled library."""
+        def generate() -> tuple[list[ca.Function], str]:
+            functions = [*self.model.functions.values(), self.law, self.step]
+            return functions, rollout_source(self.step, self.model.functions["static_tension"],
+                                             self.layout)
+
+        if self.recipe is None:
+            functions, loop = generate()
+            return build(functions, self.library_name, extra_source=loop,
+                         options=build_options)
+        return build_recipe(self.recipe, self.library_name, generate, options=build_options)
 
     def _build_as_built(self, as_built: AsBuiltStructure) -> None:
         """The step of an as-built plant with these effects, and the plant's own functions

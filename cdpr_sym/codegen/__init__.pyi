@@ -6,6 +6,8 @@ from .build import (
     BuildOptions,
     CompiledLibrary,
     build,
+    build_recipe,
+    built_recipe,
     default_cache_dir,
     find_compiler,
     require_compiler,
@@ -28,8 +30,8 @@ from .native import NativeFunction, NativeLibrary
 from .templates import render
 
 __all__ = ["BACKENDS", "MAX_LANES", "VECTOR_FLAGS", "BuildOptions", "CompiledLibrary",
-           "NativeFunction", "NativeLibrary", "build", "c_identifier", "check_lanes",
-           "default_cache_dir", "find_compiler", "generate_c", "is_c_identifier",
-           "lanes_preamble", "lanes_source", "native_lanes", "plain_text", "render",
-           "require_compiler", "resolve_lanes", "run_command", "unsupported_operations",
+           "NativeFunction", "NativeLibrary", "build", "build_recipe", "built_recipe",
+           "c_identifier", "check_lanes", "default_cache_dir", "find_compiler", "generate_c",
+           "is_c_identifier", "lanes_preamble", "lanes_source", "native_lanes", "plain_text",
+           "render", "require_compiler", "resolve_lanes", "run_command", "unsupported_operations",
            "vector_build_options"]

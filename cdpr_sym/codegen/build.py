@@ -23,6 +23,14 @@ is damaged, truncated, swapped for another one or has no record is deleted and r
 the lock: an unverified file is never handed out to be loaded. Hashing costs about 0.6 ms per
 MB of library here (70 us for a 70 kB one), small next to generating the C for the key.
 
+Recipes: generating the C only to find its key costs tens of milliseconds per library, most
+of a command's start-up once the library is built. :func:`build_recipe` names what the
+source is generated from (the caller's recipe: robot, controller and options), adds the
+package's own code (:func:`~cdpr_sym.version.source_digest`), the compiler, flags, CasADi
+version and host, and keeps in ``recipes/`` the key that recipe was built under. A later
+build of the same recipe finds the key there and loads the verified library without
+generating anything; a missing or unverified library falls back to :func:`build`.
+
 Failures: the compiler runs in its own process group, which is killed (the compiler and
 everything it started) when it outlives :attr:`BuildOptions.timeout` or when the build is
 interrupted, Ctrl-C included; the partial output is removed on any exit. A cache folder that
@@ -44,7 +52,7 @@ import signal
 import subprocess
 import tempfile
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -58,6 +66,7 @@ except ImportError:  # pragma: no cover - Windows
 from cdpr_sym.codegen.generate import generate_c
 from cdpr_sym.codegen.native import NativeLibrary
 from cdpr_sym.errors import CompilationFailed, CompilerNotFound, InvalidCase
+from cdpr_sym.version import source_digest
 
 BACKENDS = ("auto", "c", "casadi")
 # -Bsymbolic: calls between generated functions bind inside the library, never to a
@@ -302,6 +311,69 @@ def build(functions: Sequence[ca.Function], name: str, *, extra_source: str = ""
         except OSError as error:
             raise _unusable_cache(root, folder, error) from None
     return CompiledLibrary(library, source, key, compiled_now=True)
+
+
+#: What a recipe's generator returns: the functions and the C appended to them.
+Generated = tuple[Sequence[ca.Function], str]
+
+
+def build_recipe(recipe: str, name: str, generate: Callable[[], Generated], *,
+                 options: BuildOptions = BuildOptions()) -> CompiledLibrary:
+    """``build(*generate(), name)``, without calling ``generate`` when this ``recipe`` was
+    built before and its library is still in the cache, verified (:func:`built_recipe`).
+
+    ``recipe`` must determine the generated source together with the package's code: every
+    value the generator reads that is not in the package (robot data, controller, options,
+    layout switches). The package's own code, the compiler, flags, CasADi version and host
+    are added here.
+
+    Raises the errors of :func:`build`.
+    """
+    found = built_recipe(recipe, name, options=options)
+    if found is not None:
+        return found
+    functions, extra_source = generate()
+    built = build(functions, name, extra_source=extra_source, options=options)
+    entry = _recipe_entry(recipe, name, options)
+    try:
+        entry.parent.mkdir(exist_ok=True)
+        _write_atomically(entry, built.key)
+    except OSError as error:
+        raise _unusable_cache(entry.parent.parent, entry.parent, error) from None
+    return built
+
+
+def built_recipe(recipe: str, name: str, *, options: BuildOptions = BuildOptions()
+                 ) -> CompiledLibrary | None:
+    """The verified library :func:`build_recipe` made of ``recipe`` before, or None (never
+    built, built by other code or options, or its library gone or damaged)."""
+    entry = _recipe_entry(recipe, name, options)
+    try:
+        key = entry.read_text().strip()
+    except (OSError, UnicodeDecodeError):
+        return None
+    if len(key) != 20 or any(c not in "0123456789abcdef" for c in key):
+        return None
+    root = entry.parent.parent
+    folder = root / f"{name}-{key}"
+    if not folder.is_dir():
+        return None
+    library = folder / f"{name}.so"
+    with _locked_folder(root, folder):
+        if _verified(library):
+            return CompiledLibrary(library, folder / f"{name}.c", key, compiled_now=False)
+    return None
+
+
+def _recipe_entry(recipe: str, name: str, options: BuildOptions) -> Path:
+    """The file that records the cache key ``recipe`` was built under."""
+    compiler = require_compiler(options.compiler)
+    root = Path(options.cache_dir or default_cache_dir())
+    return root / "recipes" / f"{name}-{_recipe_key(recipe, compiler, options.flags)}"
+
+
+def _recipe_key(recipe: str, compiler: str, flags: Sequence[str]) -> str:
+    return _cache_key(f"{source_digest(full=True)}\0{recipe}", compiler, flags)
 
 
 def _cache_key(source_text: str, compiler: str, flags: Sequence[str]) -> str:

@@ -15,7 +15,7 @@ import numpy as np
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
-from cdpr_sym.robot import Robot
+from cdpr_sym.robot import Robot, robot_key
 from cdpr_sym.workspace.vectorised import pose_evaluator
 
 #: Most grid poses a workspace map classifies (125 points per axis in 3-D, 1414 in 2-D);
@@ -58,8 +58,10 @@ class WorkspaceEvaluator:
     def __init__(self, robot: Robot, *, build_options: BuildOptions = BuildOptions()) -> None:
         self.robot = robot
         self.model = SymbolicModel(robot)
-        self._mapped = pose_evaluator(robot, classification_function(self.model), "workspace",
-                                      build_options=build_options)
+        # the recipe: the classifier depends on the robot and the package's code alone
+        self._mapped = pose_evaluator(robot, lambda: classification_function(self.model),
+                                      "workspace", build_options=build_options,
+                                      recipe=robot_key(robot))
 
     def classify(self, points: np.ndarray) -> Classification:
         """Classify poses ``points`` of shape (N, n), m."""

@@ -36,7 +36,7 @@ import numpy as np
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
-from cdpr_sym.robot import Robot
+from cdpr_sym.robot import Robot, robot_key
 from cdpr_sym.workspace.vectorised import pose_evaluator
 
 #: A facet normal shorter than this (relative to the product of its column norms) comes from
@@ -154,8 +154,10 @@ class WrenchEvaluator:
     def __init__(self, robot: Robot, *, build_options: BuildOptions = BuildOptions()) -> None:
         """The default box is the robot's (``external_force``, ``external_moment``)."""
         self.robot = robot
-        single = wrench_function(SymbolicModel(robot))
-        self._mapped = pose_evaluator(robot, single, "wrench", build_options=build_options)
+        # the recipe: the classifier depends on the robot and the package's code alone
+        self._mapped = pose_evaluator(robot, lambda: wrench_function(SymbolicModel(robot)),
+                                      "wrench", build_options=build_options,
+                                      recipe=robot_key(robot))
 
     def classify(self, points: np.ndarray, half_widths: np.ndarray | None = None
                  ) -> WrenchClassification:
