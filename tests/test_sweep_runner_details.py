@@ -5,6 +5,7 @@ worker processes started."""
 from __future__ import annotations
 
 import csv
+import io
 import json
 import platform
 import shutil
@@ -207,3 +208,31 @@ def test_a_program_that_leaves_a_sweep_unfinished_still_exits():
                           timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() in ("[0]", "[1]")
+
+
+def test_rows_formatted_where_they_ran_equal_what_a_dict_writer_writes(monkeypatch):
+    """The CSV lines a worker sends back, against csv.DictWriter on the same rows, an error
+    row (a message with commas and quotes) included."""
+    config = SweepConfig(robot="aras3", controllers=("pd", "l2"), pairs=3, seed=2,
+                         duration=0.1)
+    robot = preset("aras3")
+    starts, goals = runner.draw_pairs(robot, config)
+    items = [(pair, name, starts[pair].tolist(), goals[pair].tolist())
+             for pair in range(3) for name in config.controllers]
+    rows = runner.run_items(config.as_dict(), items)
+    expected = io.StringIO()
+    csv.DictWriter(expected, fieldnames=runner.columns(3), extrasaction="ignore"
+                   ).writerows(rows)
+    chunk = runner.run_items_csv(config.as_dict(), items)
+    assert chunk.rows == len(items) and chunk.text == expected.getvalue()
+
+    def failing(*args, **kwargs):
+        raise ValueError('bad "pose", twice')
+
+    monkeypatch.setattr(runner, "summarise_many", failing)
+    monkeypatch.setattr(runner, "get_simulator", failing)
+    chunk = runner.run_items_csv(config.as_dict(), items[:1])
+    parsed = next(csv.DictReader([",".join(runner.columns(3)) + "\r\n", chunk.text]))
+    assert parsed["status"] == "error"
+    assert parsed["error"] == 'ValueError: bad "pose", twice'
+    assert float(parsed["start_1"]) == items[0][2][1]
