@@ -36,7 +36,7 @@ def generate_c(functions: Sequence[ca.Function], name: str, *, symbol_prefix: st
     generator = ca.CodeGenerator(f"{name}.c", options)
     for function in functions:
         generator.add(function)
-    return inline_min_max(generator.dump())
+    return reuse_qrqp_factorization(inline_min_max(generator.dump()))
 
 
 #: CasADi's C99 bodies of its fmax and fmin helpers, and the same rule as a select: C99's
@@ -55,4 +55,42 @@ def inline_min_max(source: str) -> str:
     """
     for library_call, select in _MIN_MAX_BODIES.items():
         source = source.replace(library_call, select)
+    return source
+
+
+#: CasADi's qrqp, as its C runtime writes it, and the same with the KKT matrix's QR skipped
+#: when the matrix is the one factorised last in this solve (see
+#: :func:`reuse_qrqp_factorization`); pairs of (CasADi's text, replacement).
+_QRQP_REUSE = (
+    ("void casadi_qrqp_kkt(struct casadi_qrqp_data* d) {\n  casadi_int i, k;\n",
+     "int casadi_qrqp_kkt(struct casadi_qrqp_data* d) {\n  casadi_int i, k;\n"
+     "  int changed = 0;\n"),
+    ("      d->nz_kkt[k] = d->w[kkt_row[k]];\n      d->w[kkt_row[k]] = 0;\n    }\n  }\n}\n",
+     "      changed |= d->nz_kkt[k] != d->w[kkt_row[k]];\n"
+     "      d->nz_kkt[k] = d->w[kkt_row[k]];\n      d->w[kkt_row[k]] = 0;\n    }\n  }\n"
+     "  return changed;\n}\n"),
+    ("  casadi_qrqp_kkt(d);\n  casadi_qr(p->sp_kkt, d->nz_kkt, d->w, p->sp_v, d->nz_v, p->sp_r,\n"
+     "            d->nz_r, d->beta, p->prinv, p->pc);\n",
+     "  if (casadi_qrqp_kkt(d) || d->iter == 0) {\n"
+     "    casadi_qr(p->sp_kkt, d->nz_kkt, d->w, p->sp_v, d->nz_v, p->sp_r,\n"
+     "              d->nz_r, d->beta, p->prinv, p->pc);\n  }\n"),
+)
+
+
+def reuse_qrqp_factorization(source: str) -> str:
+    """``source`` with CasADi's ``qrqp`` refactorising its KKT matrix only when it changed.
+
+    ``qrqp`` checks convergence after factorising the KKT matrix of the current active
+    set, so a solve whose first step keeps the active set (most warm-started NMPC samples)
+    factorises the same matrix twice; the sparse QR was about 2/3 of an NMPC solve. The
+    KKT matrix depends only on the QP's data and the active set, and only the QR writes
+    its factors, which every other step reads; so from a solve's second factorisation on,
+    a matrix equal entry by entry to the one held keeps its factors, and the results are
+    the same to the bit. Sources without ``qrqp``, or whose text differs (another CasADi
+    version), are left as they are.
+    """
+    if any(source.count(original) != 1 for original, _ in _QRQP_REUSE):
+        return source
+    for original, replacement in _QRQP_REUSE:
+        source = source.replace(original, replacement)
     return source
