@@ -6,8 +6,20 @@ The package follows the flow of the work, one folder a stage: ``robot`` (the des
 → ``reporting``, ``studies``, ``export`` → ``cli``.
 """
 
+import importlib
+import pkgutil
+
 import lazy_loader
 
 # Names are imported on first use, so a command loads only the stages it needs
 # (the stub beside this file lists them)
-__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)
+_exported, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)
+#: The stages (subpackages and modules), attributes of the package as before names were
+#: loaded on first use (``cdpr_sym.closed_loop.run_many`` after ``import cdpr_sym``).
+_STAGES = frozenset(module.name for module in pkgutil.iter_modules(__path__))
+
+
+def __getattr__(name: str):
+    if name in _STAGES:
+        return importlib.import_module(f"{__name__}.{name}")
+    return _exported(name)

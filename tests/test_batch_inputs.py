@@ -4,12 +4,10 @@ numbers made run by run (the single-run path each batched one replaces)."""
 import numpy as np
 import pytest
 
-from cdpr_sym.closed_loop import Plant, get_simulator
-from cdpr_sym.closed_loop.batch import _inputs, batch_rollout
-from cdpr_sym.closed_loop.summaries import run_summaries, run_summary
+from cdpr_sym.closed_loop import Plant, get_simulator, summarise_many
+from cdpr_sym.closed_loop.batch import _inputs
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import CONTROLLERS
-from cdpr_sym.results import SETTLE_TOLERANCE
 from cdpr_sym.robot import preset
 
 
@@ -57,24 +55,21 @@ def test_static_tensions_in_one_call_equal_one_pose_at_a_time(robot_name, rng, b
     assert simulator.static_tensions(poses[:0]).shape == (0, robot.m)
 
 
-def test_summaries_read_column_by_column_equal_row_by_row(aras3, build_options):
-    """Rows of real runs: settled, still moving, stopped out of the frame, started at the
-    goal (pd: an unbounded design leaves the frame fast)."""
+def test_an_empty_batch_summarises_to_nothing(aras3, build_options):
     simulator = get_simulator(aras3, CONTROLLERS["pd"], build_options=build_options)
-    span = aras3.frame_upper - aras3.frame_lower
-    starts = np.array([aras3.start, aras3.start, aras3.start, aras3.goal])
-    goals = np.array([aras3.goal, aras3.goal + 0.1 * span * np.sign(aras3.start - aras3.goal),
-                      aras3.frame_upper + 0.5 * span, aras3.goal])
-    x0, p = _inputs(simulator, starts, goals, aras3.k, aras3.r_d, 1e-3, Plant())
-    rows = batch_rollout(simulator, build_options).summaries(x0, p, 400, SETTLE_TOLERANCE)
-    static = simulator.static_tensions(starts)
-    bounds = dict(t_min=aras3.t_min, t_max=aras3.t_max)
-    together = run_summaries(rows, simulator.layout, goals, 1e-3, static_tensions=static,
-                             **bounds)
-    alone = [run_summary(row, simulator.layout, goal, 1e-3, static_tension=tension, **bounds)
-             for row, goal, tension in zip(rows, goals, static, strict=True)]
-    assert together == alone
-    assert {summary.stop_reason for summary in alone} == {None, "left_frame"}
-    assert any(summary.settle_time is None and summary.stop_reason is None
-               for summary in alone)
-    assert alone[3].settle_time == 0.0
+    empty = np.zeros((0, aras3.n))
+    assert summarise_many(simulator, empty, empty, aras3.k, aras3.r_d, duration=0.1,
+                          dt=1e-3, build_options=build_options) == []
+
+
+@pytest.mark.parametrize("robot_name,controller", [("planar4", "pd-td"),
+                                                   ("spatial6", "smooth")])
+def test_initial_states_of_other_robots_equal_each_runs_own(robot_name, controller, rng,
+                                                            build_options):
+    robot = preset(robot_name)
+    simulator = get_simulator(robot, CONTROLLERS[controller], build_options=build_options)
+    starts, goals = _poses(robot, rng, 3), _poses(robot, rng, 3)
+    together = simulator.initial_states(starts, goals, robot.k, robot.r_d)
+    alone = np.array([simulator.initial_state(s, g, robot.k, robot.r_d)
+                      for s, g in zip(starts, goals, strict=True)])
+    assert np.array_equal(together, alone)

@@ -148,3 +148,23 @@ def test_a_robot_of_the_same_name_with_other_data_is_generated_again(aras3, tmp_
     assert heavy.library.path != light.library.path
     tensions = [simulator.static_tensions(aras3.start[None]) for simulator in (light, heavy)]
     assert np.allclose(tensions[1], 1.5 * tensions[0], rtol=1e-12)
+
+
+def test_a_rate_limit_or_another_lane_count_is_another_recipe(aras3, tmp_path):
+    options = BuildOptions(cache_dir=tmp_path)
+    plain = Simulator(aras3, CONTROLLERS["pd"], build_options=options)
+    limited = Simulator(aras3, CONTROLLERS["pd"], build_options=options, rate_limited=True)
+    assert limited.recipe != plain.recipe and "step" in limited.__dict__
+    assert limited.library.path != plain.library.path
+    four = batch_rollout(plain, options, lanes=4)
+    again = Simulator(aras3, CONTROLLERS["pd"], build_options=options)
+    two = batch_rollout(again, options, lanes=2)  # not the 4-lane library
+    assert "step" in again.__dict__
+    assert two.library.path != four.library.path
+
+
+@pytest.mark.parametrize("name", sorted(CONTROLLERS))
+def test_every_controllers_recipe_is_the_same_in_every_process(name):
+    """A recipe holds the controller's repr: no field may print as an address (which
+    would differ between processes and make every build miss)."""
+    assert "0x" not in repr(CONTROLLERS[name])

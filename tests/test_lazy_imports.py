@@ -69,3 +69,38 @@ def test_a_quiet_sweep_loads_neither_the_as_built_plant_nor_nmpc_nor_plots(tmp_p
     loaded = set(report["modules"])
     assert "cdpr_sym.closed_loop.simulator" in loaded
     assert sorted(loaded & set(NOT_FOR_A_SWEEP)) == []
+
+
+_STAGES_AND_SHADOWS = """
+import cdpr_sym
+assert cdpr_sym.closed_loop.run_many.__name__ == "run_many"
+assert cdpr_sym.model.SymbolicModel.__name__ == "SymbolicModel"
+import cdpr_sym.codegen.build, cdpr_sym.model.forward_kinematics
+# a function named as the submodule that defines it stays the function
+assert callable(cdpr_sym.codegen.build) and cdpr_sym.codegen.build.__name__ == "build"
+assert cdpr_sym.model.forward_kinematics.__name__ == "forward_kinematics"
+assert callable(cdpr_sym.forward_kinematics)
+print("ok")
+"""
+
+
+def test_stages_are_attributes_and_functions_are_not_shadowed_by_their_modules():
+    """In a fresh interpreter: ``import cdpr_sym`` reaches every stage, and importing the
+    modules ``codegen.build`` and ``model.forward_kinematics`` leaves the package names
+    ``build`` and ``forward_kinematics`` the functions (lazy_loader before 0.6 did not)."""
+    done = subprocess.run([sys.executable, "-c", _STAGES_AND_SHADOWS], capture_output=True,
+                          text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "ok"
+
+
+@pytest.mark.parametrize("name", LAZY_PACKAGES)
+def test_each_stub_declares_the_names_its_package_exports(name):
+    """lazy_loader builds ``__all__`` from the stub's imports; the stub's own ``__all__``
+    (what type checkers read) must say the same."""
+    import ast
+
+    stub = PACKAGE.parent.joinpath(*name.split("."), "__init__.pyi")
+    declared = next(node.value for node in ast.parse(stub.read_text()).body
+                    if isinstance(node, ast.Assign) and node.targets[0].id == "__all__")
+    assert sorted(ast.literal_eval(declared)) == sorted(importlib.import_module(name).__all__)

@@ -24,7 +24,6 @@ from cdpr_sym.closed_loop.summaries import run_summaries, summary_fields, summar
 from cdpr_sym.codegen import (
     BuildOptions,
     CompiledLibrary,
-    build,
     build_recipe,
     built_recipe,
     check_lanes,
@@ -85,6 +84,7 @@ class BatchRollout:
 
 
 def _lanes_name(simulator: Simulator) -> str:
+    """The base name of the batched library of ``simulator``."""
     return simulator.library_name + "_lanes"
 
 
@@ -107,12 +107,8 @@ def _lanes_library(simulator: Simulator, build_options: BuildOptions, lanes: int
                   + summary_source(layout, "step_lanes", lanes))
         return [simulator.step], source
 
-    options = vector_build_options(build_options)
-    recipe = _lanes_recipe(simulator, lanes)
-    if recipe is None:
-        functions, source = generate()
-        return build(functions, _lanes_name(simulator), extra_source=source, options=options)
-    return build_recipe(recipe, _lanes_name(simulator), generate, options=options)
+    return build_recipe(_lanes_recipe(simulator, lanes), _lanes_name(simulator), generate,
+                        options=vector_build_options(build_options))
 
 
 def _can_batch(simulator: Simulator, build_options: BuildOptions, lanes: int) -> bool:
@@ -216,6 +212,8 @@ def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: n
     if batch is None:
         return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=plant).summary()
                 for s, g in zip(starts, goals, strict=True)]
+    if not len(starts):
+        return []
     rows = batch.summaries(*_inputs(simulator, starts, goals, k, r_d, dt, plant), n_steps,
                            SETTLE_TOLERANCE)
     robot = simulator.robot

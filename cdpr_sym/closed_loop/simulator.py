@@ -35,7 +35,6 @@ from cdpr_sym.codegen import (
     BuildOptions,
     CompiledLibrary,
     NativeLibrary,
-    build,
     build_recipe,
     c_identifier,
     render,
@@ -183,8 +182,9 @@ class Simulator:
 
     @functools.cached_property
     def step(self) -> ca.Function:
-        """The closed loop's step (x, p) -> (x_next, log), generated on first use: a run
-        whose compiled library is found by its recipe never needs it."""
+        """The closed loop's step (x, p) -> (x_next, log) of the ideal plant, generated on
+        first use: a run whose compiled library is found by its recipe never needs it (an
+        as-built plant's step is built with the simulator)."""
         return step_function(self.model, self.controller, rate_limited=self.rate_limited)
 
     @functools.cached_property
@@ -208,7 +208,9 @@ class Simulator:
         return json.dumps({
             "robot": robot_key(self.robot), "controller": self.controller.name,
             "class": f"{controller_class.__module__}.{controller_class.__qualname__}",
-            "options": self.controller.options(), "layout": dataclasses.asdict(self.layout),
+            # every field, nested classes included, beside the options it reports
+            "fields": repr(self.controller), "options": self.controller.options(),
+            "layout": dataclasses.asdict(self.layout),
             "as_built": None if self.as_built is None else dataclasses.asdict(self.as_built),
         }, sort_keys=True)
 
@@ -222,10 +224,6 @@ class Simulator:
             return functions, rollout_source(self.step, self.model.functions["static_tension"],
                                              self.layout)
 
-        if self.recipe is None:
-            functions, loop = generate()
-            return build(functions, self.library_name, extra_source=loop,
-                         options=build_options)
         return build_recipe(self.recipe, self.library_name, generate, options=build_options)
 
     def _build_as_built(self, as_built: AsBuiltStructure) -> None:
@@ -526,7 +524,8 @@ class Simulator:
 
     def initial_states(self, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,
                        r_d: np.ndarray) -> np.ndarray:
-        """x at the start of many moves from rest on the ideal plant, (runs, x size): row i
+        """x at the start of many moves from rest on the ideal plant, (runs, x size), from
+        ``starts`` and ``goals`` (runs, n) m and gains ``k`` (N/m), ``r_d`` (N s/m): row i
         is ``initial_state(starts[i], goals[i], k, r_d)``, the controller's plans made in
         one call of CasADi's virtual machine."""
         starts = np.asarray(starts, dtype=float).reshape(-1, self.robot.n)

@@ -4,9 +4,8 @@ A sweep keeps one row of metrics per run, not the run. The batched loop of
 ``templates/summarise_lanes.c.j2`` advances the runs as the batched rollout does and keeps,
 per run, the running extremes and counts of a
 :class:`~cdpr_sym.results.summary.RunSummary` in one flat row laid out by
-:func:`summary_fields`; :func:`run_summary` reads such a row, :func:`run_summaries`
-many rows at once. The states and logs are never
-stored, which is most of a batched run's memory traffic.
+:func:`summary_fields`; :func:`run_summaries` reads such rows, column by column. The states
+and logs are never stored, which is most of a batched run's memory traffic.
 """
 
 from __future__ import annotations
@@ -46,42 +45,12 @@ def summary_source(layout: StepLayout, step: str, lanes: int) -> str:
                   flag_bits=list(FLAG_NAMES), fallback_mask=FALLBACK_FLAGS)
 
 
-def run_summary(row: np.ndarray, layout: StepLayout, goal: np.ndarray, dt: float, *,
-                static_tension: np.ndarray | None, t_min: float, t_max: float
-                ) -> RunSummary:
-    """The :class:`RunSummary` of one summary row (see :func:`summary_fields`) of a run
-    towards ``goal`` (m) with period ``dt`` (s)."""
-    values = summary_fields(layout).split(row)
-    commands = int(values["commands"][0])
-    status = int(values["status"][0])
-    stop_reason = STOP_REASONS[status] if status else None
-    last_outside = int(values["last_outside"][0])
-    if stop_reason is not None or last_outside == commands:
-        settle_time = None
-    else:
-        settle_time = (last_outside + 1) * dt if last_outside >= 0 else 0.0
-    q_last = layout.x.split(values["x_last"])["q"]
-    counts = values["flag_counts"]
-    return RunSummary(
-        commands=commands, min_tension=float(values["min_tension"][0]),
-        max_tension=float(values["max_tension"][0]), min_alpha=float(values["min_alpha"][0]),
-        settle_time=settle_time, final_error=float(np.linalg.norm(q_last - goal)),
-        total_variation=float(values["variation"][0]), max_step=float(values["max_step"][0]),
-        flag_counts={name: int(count) for name, count in zip(FLAG_NAMES.values(), counts,
-                                                              strict=True)},
-        fallback_steps=int(values["fallback"][0]), stop_reason=stop_reason,
-        duration=commands * dt,
-        start_jump=(float(np.max(np.abs(values["first_tau"] - static_tension)))
-                    if static_tension is not None and commands else None),
-        t_min=t_min, t_max=t_max)
-
-
 def run_summaries(rows: np.ndarray, layout: StepLayout, goals: np.ndarray, dt: float, *,
-                  static_tensions: np.ndarray, t_min: float, t_max: float
+                  static_tensions: np.ndarray | None, t_min: float, t_max: float
                   ) -> list[RunSummary]:
-    """``[run_summary(row, layout, goal, dt, ...) for ...]`` over summary rows (runs, size)
-    towards ``goals`` (runs, n) m, with each run's static tension at its start
-    (runs, m) N: the numbers taken column by column, equal to :func:`run_summary`'s."""
+    """The :class:`RunSummary` of each summary row, ``rows`` (runs, size), of runs towards
+    ``goals`` (runs, n) m with period ``dt`` (s), the numbers read column by column;
+    ``static_tensions`` (runs, m) N at their starts, if known (else no ``start_jump``)."""
     values = summary_fields(layout).split(np.asarray(rows, dtype=float).reshape(
         len(goals), -1))
     commands = values["commands"][:, 0].astype(np.int64)
@@ -91,11 +60,12 @@ def run_summaries(rows: np.ndarray, layout: StepLayout, goals: np.ndarray, dt: f
     settle = np.where(last_outside >= 0, (last_outside + 1) * dt, 0.0)
     q_last = layout.x.split(values["x_last"])["q"]
     final_error = np.linalg.norm(q_last - np.asarray(goals, dtype=float), axis=1)
-    jumps = np.max(np.abs(values["first_tau"] - static_tensions), axis=1)
+    jumps = ([None] * len(goals) if static_tensions is None
+             else np.max(np.abs(values["first_tau"] - static_tensions), axis=1).tolist())
     counts = values["flag_counts"].astype(np.int64).tolist()
     names = list(FLAG_NAMES.values())
     columns = zip(commands.tolist(), status.tolist(), unsettled.tolist(), settle.tolist(),
-                  final_error.tolist(), jumps.tolist(), counts,
+                  final_error.tolist(), jumps, counts,
                   *(values[name][:, 0].tolist() for name in (
                       "min_tension", "max_tension", "min_alpha", "variation", "max_step",
                       "fallback")), strict=True)

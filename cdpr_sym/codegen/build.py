@@ -317,23 +317,27 @@ def build(functions: Sequence[ca.Function], name: str, *, extra_source: str = ""
 Generated = tuple[Sequence[ca.Function], str]
 
 
-def build_recipe(recipe: str, name: str, generate: Callable[[], Generated], *,
+def build_recipe(recipe: str | None, name: str, generate: Callable[[], Generated], *,
                  options: BuildOptions = BuildOptions()) -> CompiledLibrary:
     """``build(*generate(), name)``, without calling ``generate`` when this ``recipe`` was
-    built before and its library is still in the cache, verified (:func:`built_recipe`).
+    built before and its library is still in the cache, verified (:func:`built_recipe`);
+    with no recipe (None), always ``build(*generate(), name)``.
 
     ``recipe`` must determine the generated source together with the package's code: every
-    value the generator reads that is not in the package (robot data, controller, options,
-    layout switches). The package's own code, the compiler, flags, CasADi version and host
-    are added here.
+    value the generator reads that is not in the package (robot data, the controller's
+    fields, layout switches). The package's own code (its digest, taken once per process:
+    code reloaded into a running process is not seen), the compiler, flags, CasADi version
+    and host are added here. A module constant changed at run time is not seen either.
 
     Raises the errors of :func:`build`.
     """
-    found = built_recipe(recipe, name, options=options)
+    found = None if recipe is None else built_recipe(recipe, name, options=options)
     if found is not None:
         return found
     functions, extra_source = generate()
     built = build(functions, name, extra_source=extra_source, options=options)
+    if recipe is None:
+        return built
     entry = _recipe_entry(recipe, name, options)
     try:
         entry.parent.mkdir(exist_ok=True)

@@ -212,7 +212,7 @@ def progress_bar(total: int, *, enabled: bool) -> tqdm | _NoProgress:
         return _NoProgress()
     from tqdm import tqdm
 
-    return tqdm(total=total, unit="run", desc="sweep", disable=None if enabled else True,
+    return tqdm(total=total, unit="run", desc="sweep", disable=None,
                 file=sys.stderr, dynamic_ncols=True)
 
 

@@ -23,7 +23,6 @@ import numpy as np
 from cdpr_sym.codegen import (
     BuildOptions,
     NativeLibrary,
-    build,
     build_recipe,
     built_recipe,
     c_identifier,
@@ -72,18 +71,14 @@ class LaneEvaluator:
 
         def generate() -> tuple[list, str]:
             function = _function_of(single)
-            if unsupported_operations(function):
+            missing = unsupported_operations(function)
+            if missing:
                 raise ValueError(f"{function.name()} has operations without a lane form: "
-                                 f"{unsupported_operations(function)}")
+                                 f"{missing}")
             return [], _lanes_source(robot, function, name, lanes)
 
-        options, library_name = vector_build_options(build_options), _library_name(robot, name)
-        if recipe is None:
-            functions, source = generate()
-            library = build(functions, library_name, extra_source=source, options=options)
-        else:
-            library = build_recipe(f"{recipe}\0lanes={lanes}", library_name, generate,
-                                   options=options)
+        library = build_recipe(_lanes_recipe(recipe, lanes), _library_name(robot, name),
+                               generate, options=vector_build_options(build_options))
         self._attach(library.native(), f"{name}_poses")
 
     @classmethod
@@ -92,7 +87,7 @@ class LaneEvaluator:
         """The evaluator whose library ``recipe`` made before, found without generating
         anything, or None."""
         lanes = resolve_lanes(None, build_options)
-        library = built_recipe(f"{recipe}\0lanes={lanes}", _library_name(robot, name),
+        library = built_recipe(_lanes_recipe(recipe, lanes), _library_name(robot, name),
                                options=vector_build_options(build_options))
         if library is None:
             return None
@@ -161,6 +156,11 @@ def pose_evaluator(robot: Robot, single: PoseFunction, name: str, *,
 def _function_of(single: PoseFunction) -> ca.Function:
     """The pose function, made now if ``single`` is what makes it."""
     return single if isinstance(single, ca.Function) else single()
+
+
+def _lanes_recipe(recipe: str | None, lanes: int) -> str | None:
+    """The recipe of a pose function's recipe on ``lanes`` lanes."""
+    return None if recipe is None else f"{recipe}\0lanes={lanes}"
 
 
 def _library_name(robot: Robot, name: str) -> str:
