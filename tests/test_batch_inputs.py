@@ -63,7 +63,7 @@ def test_an_empty_batch_summarises_to_nothing(aras3, build_options):
 
 
 @pytest.mark.parametrize("robot_name,controller", [("planar4", "pd-td"),
-                                                   ("spatial6", "smooth")])
+                                                   ("planar3", "smooth")])
 def test_initial_states_of_other_robots_equal_each_runs_own(robot_name, controller, rng,
                                                             build_options):
     robot = preset(robot_name)

@@ -207,6 +207,8 @@ def test_every_cvxpy_problem_is_dpp(robot_and_model, name):
 
 
 @pytest.mark.filterwarnings("ignore:Solution may be inaccurate")
+@pytest.mark.parametrize("robot_and_model", [pytest.param("aras3", marks=pytest.mark.slow),
+                                             "planar2"], indirect=True)
 @pytest.mark.parametrize("name", sorted(DESIGNS))
 def test_fast_path_matches_cvxpy_clarabel_model(robot_and_model, name, rng, random_states):
     robot, model = robot_and_model

@@ -248,6 +248,7 @@ int main(void) {{
     assert _run([app / "build" / "app"]).strip() == "0"
 
 
+@pytest.mark.slow
 def test_cmake_and_make_optimise_by_default_and_keep_the_planner_at_o0(tmp_path):
     result = export_c("planar2", "smooth", tmp_path / "pkg")
     cmake, build = _tool("cmake"), tmp_path / "build"
@@ -471,6 +472,7 @@ def test_bench_export_measures_calls_per_second():
     assert bench_export("planar2", "pd", min_seconds=0.03) > 1e4
 
 
+@pytest.mark.slow
 def test_the_bench_of_a_planning_controller_times_code_built_with_o2(monkeypatch):
     from cdpr_sym.export import package
 

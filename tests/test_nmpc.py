@@ -135,7 +135,7 @@ def test_real_time_iteration_converges_to_the_ipopt_solution(aras3, aras3_model)
                                [:, states], atol=2e-4)
 
 
-@pytest.mark.parametrize("name", ["aras3", "planar4"])
+@pytest.mark.parametrize("name", [pytest.param("aras3", marks=pytest.mark.slow), "planar4"])
 def test_every_solved_step_keeps_the_box_and_the_rate(name, rng, build_options):
     robot = preset(name)
     model = SymbolicModel(robot)
@@ -190,6 +190,7 @@ def test_an_infeasible_problem_is_reported_not_hidden(aras3, aras3_model, build_
         is None
 
 
+@pytest.mark.slow
 def test_a_failed_solve_falls_back_flagged_and_bounded(aras3, build_options, monkeypatch):
     simulator = get_simulator(aras3, Nmpc(), build_options=build_options)
     real_solve = simulator.sampled.solve
@@ -287,6 +288,7 @@ def test_a_period_that_does_not_divide_is_one_line_before_building(capsys):
     assert len(err) == 1 and err[0].startswith("cdpr-sym: error: dt:")
 
 
+@pytest.mark.slow
 def test_on_the_as_built_plant_the_solver_sees_the_encoders(aras3, build_options):
     """With 1 mm encoders the pose the solver starts from is the forward kinematics of the
     rounded lengths: within a few mm of the true pose but not equal to it."""

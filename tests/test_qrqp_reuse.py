@@ -7,6 +7,7 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
+import pytest
 from tools import run, tool
 
 from cdpr_sym import Nmpc
@@ -40,6 +41,7 @@ def test_generated_solvers_carry_the_reuse(aras3_model):
     assert "if (casadi_qrqp_kkt(d) || d->iter == 0)" in generate_c([function], "rti")
 
 
+@pytest.mark.slow
 def test_reused_factors_give_casadis_results_to_the_bit(aras3, aras3_model, rng, tmp_path):
     """Closed-loop-like solves (warm-started from the shifted solution and multipliers, the
     state moved between samples, a cold start among them) give the same plan, residual and
