@@ -1,7 +1,5 @@
 """``python -m cdpr_sym``: the command line."""
 
-import sys
+from cdpr_sym.cli import run
 
-from cdpr_sym.cli import main
-
-sys.exit(main())
+run()

@@ -1,5 +1,6 @@
-"""Packages import their names on first use: every exported name resolves, and a command
-loads only the stages it runs (a sweep's start-up is part of its speed)."""
+"""What a command costs before and after its work (a sweep's start-up is part of its
+speed): packages import their names on first use, every exported name resolves, a command
+loads only the stages it runs, and the program freezes the collector before shutting down."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ import types
 from pathlib import Path
 
 import pytest
+
+from cdpr_sym.cli import main
 
 PACKAGE = Path(__file__).parents[1] / "cdpr_sym"
 #: Packages whose names lazy_loader serves from a stub beside ``__init__.py``.
@@ -104,3 +107,29 @@ def test_each_stub_declares_the_names_its_package_exports(name):
     declared = next(node.value for node in ast.parse(stub.read_text()).body
                     if isinstance(node, ast.Assign) and node.targets[0].id == "__all__")
     assert sorted(ast.literal_eval(declared)) == sorted(importlib.import_module(name).__all__)
+
+
+_RUN_THEN_REPORT_FREEZE = """
+import atexit, gc, sys
+from cdpr_sym.cli import run
+atexit.register(lambda: print("frozen", gc.get_freeze_count() > 0))
+sys.argv = ["cdpr-sym", "simulate", "--robot", "nope"]
+run()
+"""
+
+
+def test_the_program_freezes_the_collector_before_exit_and_keeps_its_status():
+    done = subprocess.run([sys.executable, "-c", _RUN_THEN_REPORT_FREEZE],
+                          capture_output=True, text=True)
+    assert done.returncode == 2
+    assert done.stdout.strip() == "frozen True"
+    assert done.stderr.startswith("cdpr-sym: error: unknown robot 'nope'")
+
+
+def test_main_called_from_python_leaves_the_collector_alone(capsys):
+    import gc
+
+    before = gc.get_freeze_count()
+    assert main(["simulate", "--robot", "nope"]) == 2
+    assert gc.get_freeze_count() == before
+    assert capsys.readouterr().err.startswith("cdpr-sym: error: unknown robot")

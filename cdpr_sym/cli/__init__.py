@@ -1,5 +1,5 @@
 """The ``cdpr-sym`` command line."""
 
-from cdpr_sym.cli.main import main
+from cdpr_sym.cli.main import main, run
 
-__all__ = ["main"]
+__all__ = ["main", "run"]

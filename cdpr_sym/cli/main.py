@@ -7,7 +7,9 @@ keeping what was finished.
 
 from __future__ import annotations
 
+import gc
 import sys
+from typing import NoReturn
 
 from cdpr_sym.cli.commands import HANDLERS
 from cdpr_sym.cli.output import Output
@@ -47,5 +49,19 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(_os_message(error), EXIT_SYSTEM)
 
 
+def run() -> NoReturn:
+    """The program (``cdpr-sym``, ``python -m cdpr_sym``): :func:`main`, then exit.
+
+    Before the interpreter shuts down, every object is frozen out of the cyclic garbage
+    collector (``gc.freeze``): shutting down still frees them, but its collections skip the
+    CasADi and numpy objects a command leaves, which took about 0.1 s, a tenth of a
+    2,000-pair sweep. Only the program does this; :func:`main` called from Python leaves
+    the collector as it was.
+    """
+    status = main()
+    gc.freeze()
+    sys.exit(status)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run()
