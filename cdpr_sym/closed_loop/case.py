@@ -65,7 +65,7 @@ class Case:
 
 def _check_regular(model: SymbolicModel, field: str, q: np.ndarray) -> None:
     """Refuse a pose where W is singular (also NaN: an attachment on its anchor)."""
-    measure = float(model.functions["singularity"](q)[1])
+    measure = float(model.singularity_function(q)[1])
     if not measure >= SINGULAR_DET:
         raise InvalidCase(field, f"the structure matrix W is singular at the {field} point "
                           f"{q.tolist()} (|det W| / prod |w_i| = {measure:.2e} < "

@@ -331,9 +331,7 @@ class SymbolicModel:
              self.hamiltonian_d(q, dq, q_goal, k), "H_d"),
             ("acceleration", [q, dq, tau], ["q", "dq", "tau"],
              self.acceleration(q, dq, tau), "ddq"),
-            ("singularity", [q], ["q"], ca.vertcat(self._signed_volume(W),
-                                                    self.singularity_measure(W)),
-             "det_W_and_measure"),
+            ("singularity", None, None, None, None),  # self.singularity_function
             ("kinetic_energy", [q, dq], ["q", "dq"], self.kinetic_energy(q, dq), "T"),
         ]
         if self.m == self.n:  # the terms that invert W
@@ -343,8 +341,19 @@ class SymbolicModel:
                  ["q", "momentum", "q_goal", "k", "r_d", "j", "alpha"],
                  self.ida_pbc_tension(q, p, q_goal, k, r_d, j, alpha), "tau"),
             ]
-        return {name: ca.Function(name, args, [expr], arg_names, [out_name])
+        return {name: self.singularity_function if expr is None
+                else ca.Function(name, args, [expr], arg_names, [out_name])
                 for name, args, arg_names, expr, out_name in specs}
+
+    @functools.cached_property
+    def singularity_function(self) -> ca.Function:
+        """``singularity``: q -> (det W, or sqrt(det(W W^T)) with m > n; |det W| / prod
+        ||w_i||), built on its own: checking a case's poses needs no other term."""
+        q = ca.SX.sym("q", self.n)
+        W = self.structure_matrix(q)
+        return ca.Function("singularity", [q], [ca.vertcat(self._signed_volume(W),
+                                                          self.singularity_measure(W))],
+                           ["q"], ["det_W_and_measure"])
 
     def _signed_volume(self, W: ca.SX) -> ca.SX:
         """det W, or sqrt(det(W W^T)) >= 0 with m > n cables (no orientation then; the
