@@ -8,8 +8,9 @@ It times, on one core (CPU 0), the paper case (aras3, 5 s at 1 kHz) for ``pd`` a
 the hand-written C loop (the floor), numba, JAX (single runs and a 1024-pair
 ``jit(vmap(scan))`` batch), and cdpr_sym's ``Simulator.run``, ``simulate()`` and batched
 ``run_many`` and ``summarise_many`` over the same 1024 pairs; then a 2,000-pair ``pd`` sweep
-through the command line on every core, start-up included, the 6-cable platform, and a
-100,000-pair sweep locally and on a Dask ``LocalCluster`` (``--dask-pairs``). It writes
+through the command line on every core, start-up included (the median of five), the 6-cable
+platform, and a 100,000-pair sweep locally and on a Dask ``LocalCluster`` taking turns for
+three rounds (``--dask-pairs``). It writes
 ``reports/bench/peers.json`` and ``reports/bench/peers.md``; every ratio in them comes from
 this one run.
 """
@@ -20,6 +21,7 @@ import argparse
 import json
 import os
 import platform
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -83,13 +85,21 @@ def cdpr_batch(robot_name: str, controller: str, seconds: float, pairs: Any = No
         min_seconds=seconds, rounds=2)
 
 
-def sweep_rate(pairs: int, workers: int, dask: str | None = None) -> dict[str, Any]:
+#: Timed runs of the 2,000-pair sweep (the median is reported) and rounds of the local and
+#: Dask sweeps: one sweep's time moves by 10-30 % from run to run on this kind of machine.
+SWEEP_ROUNDS, DASK_ROUNDS = 5, 3
+
+
+def sweep_rate(pairs: int, workers: int, dask: str | None = None,
+               rounds: int = 1) -> dict[str, Any]:
     """Wall-clock pairs per second of ``cdpr-sym sweep`` (pd, aras3, 5 s runs), start-up of
     the command included (its compiled libraries and Python's bytecode already cached, by a
-    16-pair warm-up), on local processes or on the Dask scheduler at ``dask``."""
+    16-pair warm-up), on local processes or on the Dask scheduler at ``dask``: the median of
+    ``rounds`` timed sweeps, each into a new file."""
     command = [sys.executable, "-m", "cdpr_sym", "sweep", "--controllers", "pd", "--duration",
                str(DURATION), "--quiet", "--no-progress", "--workers", str(workers),
                *(["--dask", dask] if dask else [])]
+    times = []
     with tempfile.TemporaryDirectory() as folder:
         # Python's own bytecode cache on (in a folder of its own), as on a user's machine:
         # where PYTHONDONTWRITEBYTECODE is set, every start compiles the package again
@@ -97,24 +107,33 @@ def sweep_rate(pairs: int, workers: int, dask: str | None = None) -> dict[str, A
                "PYTHONPYCACHEPREFIX": f"{folder}/pycache"}
         subprocess.run([*command, "--pairs", "16", "--out", f"{folder}/warm.csv"],
                        check=True, capture_output=True, env=env)
-        start = time.perf_counter()
-        subprocess.run([*command, "--pairs", str(pairs), "--out", f"{folder}/sweep.csv"],
-                       check=True, capture_output=True, env=env)
-        seconds = time.perf_counter() - start
-    return {"pairs": pairs, "workers": workers, "seconds": seconds,
+        for round_ in range(rounds):
+            start = time.perf_counter()
+            subprocess.run([*command, "--pairs", str(pairs), "--out",
+                            f"{folder}/sweep{round_}.csv"], check=True, capture_output=True,
+                           env=env)
+            times.append(time.perf_counter() - start)
+    seconds = statistics.median(times)
+    return {"pairs": pairs, "workers": workers, "seconds": seconds, "times": times,
             "pairs_per_s": pairs / seconds, "on": "dask" if dask else "local"}
 
 
-def dask_rates(pairs: int, workers: int) -> dict[str, Any]:
+def dask_rates(pairs: int, workers: int, rounds: int = DASK_ROUNDS) -> dict[str, Any]:
     """The same ``pairs``-pair sweep on local processes and on a Dask ``LocalCluster`` of
-    ``workers`` single-threaded worker processes (cluster start-up not timed)."""
+    ``workers`` single-threaded worker processes, taking turns for ``rounds`` rounds (a new
+    cluster each round, its start-up not timed); the medians of each."""
     from dask.distributed import LocalCluster
 
-    local = sweep_rate(pairs, workers)
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster:
-        distributed = sweep_rate(pairs, workers, dask=cluster.scheduler_address)
-    return {"local": local, "dask": distributed}
+    local, distributed = [], []
+    for _ in range(rounds):
+        local.append(sweep_rate(pairs, workers)["seconds"])
+        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                          dashboard_address=None) as cluster:
+            distributed.append(sweep_rate(pairs, workers,
+                                          dask=cluster.scheduler_address)["seconds"])
+    return {on: {"pairs": pairs, "workers": workers, "seconds": statistics.median(times),
+                 "times": times, "pairs_per_s": pairs / statistics.median(times), "on": on}
+            for on, times in (("local", local), ("dask", distributed))}
 
 
 def measure(seconds: float, dask_pairs: int) -> dict[str, Any]:
@@ -137,7 +156,7 @@ def measure(seconds: float, dask_pairs: int) -> dict[str, Any]:
     return {
         "machine": {"cpu": _cpu_name(), "cores": workers, "python": platform.python_version()},
         "aras3": rows,
-        "sweep": sweep_rate(SWEEP_PAIRS, workers),
+        "sweep": sweep_rate(SWEEP_PAIRS, workers, rounds=SWEEP_ROUNDS),
         "spatial6": _platform_rates("spatial6", "pd", seconds),
         "ipanema8": _platform_rates("ipanema8", "pd-td", seconds),
         **({"dask": dask_rates(dask_pairs, workers)} if dask_pairs else {}),
@@ -201,9 +220,10 @@ def report(figures: dict[str, Any]) -> str:
         ratio = aras3[name]["cdpr_batch"] / aras3[name]["jax_batch"]
         lines.append(f"| batched ≥ 2 × JAX batch, {name} | {ratio:.2f} | {_yes(ratio >= 2)} |")
     lines.append(f"| sweep ≥ 0.85 × cores × single-run rate ({sweep['pairs']:,} pd pairs, "
-                 f"{sweep['workers']} workers, start-up included) | {share:.2f} "
-                 f"({sweep['pairs_per_s']:,.0f} pairs/s in {sweep['seconds']:.2f} s) | "
-                 f"{_yes(share >= 0.85)} |")
+                 f"{sweep['workers']} workers, start-up included; median of "
+                 f"{len(sweep['times'])} sweeps) | {share:.2f} "
+                 f"({sweep['pairs_per_s']:,.0f} pairs/s in {sweep['seconds']:.2f} s; "
+                 f"{_range(sweep['times'])}) | {_yes(share >= 0.85)} |")
     platform_rates = figures["spatial6"]
     lines.append(f"| 6-cable platform ≥ 2 × 104 sims/s (pd) | run "
                  f"{platform_rates['cdpr_run']:,.0f}, batched {platform_rates['cdpr_batch']:,.0f}"
@@ -216,14 +236,20 @@ def report(figures: dict[str, Any]) -> str:
         local, distributed = figures["dask"]["local"], figures["dask"]["dask"]
         ratio = distributed["pairs_per_s"] / local["pairs_per_s"]
         lines.append(f"| {distributed['pairs']:,}-pair sweep on Dask `LocalCluster` "
-                     f"({distributed['workers']} single-threaded workers) ≥ 0.8 × local | "
+                     f"({distributed['workers']} single-threaded workers) ≥ 0.8 × local; "
+                     f"medians of {len(local['times'])} rounds taking turns | "
                      f"{ratio:.2f} ({distributed['pairs_per_s']:,.0f} against "
-                     f"{local['pairs_per_s']:,.0f} pairs/s; {distributed['seconds']:.1f} s "
-                     f"and {local['seconds']:.1f} s) | {_yes(ratio >= 0.8)} |")
+                     f"{local['pairs_per_s']:,.0f} pairs/s; Dask {_range(distributed['times'])}"
+                     f", local {_range(local['times'])}) | {_yes(ratio >= 0.8)} |")
     lines += ["", "`run_many` includes building each run's `Trajectory`. A sweep keeps no "
               "trajectory: its batched loop reduces each run to its metrics as it advances "
               "(`summarise_many`), and the command writes the rows.", ""]
     return "\n".join(lines)
+
+
+def _range(times: list[float]) -> str:
+    """The spread of timed runs, e.g. ``0.81-0.97 s``."""
+    return f"{min(times):.2f}-{max(times):.2f} s"
 
 
 def _yes(met: bool) -> str:
