@@ -209,7 +209,7 @@ def test_ctrl_c_during_a_compile_kills_the_compiler_and_removes_its_output(tmp_p
 
 
 def test_an_interrupt_while_writing_the_record_leaves_no_library(tmp_path, monkeypatch):
-    source_written = build_module._write_atomically
+    source_written = build_module.write_atomically
     calls = []
 
     def write_then_interrupt(path, text):
@@ -218,7 +218,7 @@ def test_an_interrupt_while_writing_the_record_leaves_no_library(tmp_path, monke
             raise KeyboardInterrupt
         source_written(path, text)
 
-    monkeypatch.setattr(build_module, "_write_atomically", write_then_interrupt)
+    monkeypatch.setattr(build_module, "write_atomically", write_then_interrupt)
     with pytest.raises(KeyboardInterrupt):
         _build(tmp_path)
     assert calls == ["tiny.c", "tiny.so.sha256"]
@@ -372,7 +372,7 @@ def test_a_library_built_for_this_cpu_is_not_shared_with_another(tmp_path, monke
     cache, native = tmp_path / "cache", ("-O2", "-march=native")
     here = _build(cache, flags=native)
     portable = _build(cache)
-    monkeypatch.setattr(build_module, "_host_cpu", lambda: "another processor")
+    monkeypatch.setattr(build_module, "host_cpu", lambda: "another processor")
     elsewhere = _build(cache, flags=native)
     assert elsewhere.compiled_now is True and elsewhere.key != here.key
     # a portable build does not depend on the processor

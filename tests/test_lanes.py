@@ -18,6 +18,7 @@ from cdpr_sym.codegen import (
     lanes_source,
     native_lanes,
     require_compiler,
+    resolve_lanes,
     unsupported_operations,
 )
 from cdpr_sym.codegen.build import BuildOptions
@@ -139,3 +140,38 @@ def test_the_machine_is_asked_for_its_register_once_per_compiler(monkeypatch):
         assert asked == ["some-cc"]  # a sweep asks at every batch: once must do
     finally:
         lanes_module.native_lanes.cache_clear()
+
+
+def test_the_register_is_remembered_in_the_cache_per_compiler_file_and_processor(
+        monkeypatch, tmp_path):
+    """A new process reads the answer from the build cache instead of running the compiler
+    (about 25 ms of every command's start); another processor, or a damaged record, asks."""
+    import cdpr_sym.codegen.lanes as lanes_module
+
+    asked = []
+
+    def counting(command, **kwargs):
+        asked.append(command[0])
+        return "#define __AVX__ 1\n"
+
+    def new_process():
+        lanes_module.native_lanes.cache_clear()
+        lanes_module._recorded_native_lanes.cache_clear()
+
+    compiler = require_compiler()
+    options = BuildOptions(cache_dir=tmp_path, compiler=compiler)
+    monkeypatch.setattr(lanes_module, "run_command", counting)
+    try:
+        new_process()
+        assert resolve_lanes(None, options) == 4 and len(asked) == 1
+        new_process()
+        assert resolve_lanes(None, options) == 4 and len(asked) == 1  # read, not asked
+        (record,) = (tmp_path / "lanes").iterdir()
+        record.write_text("not a count")
+        new_process()
+        assert resolve_lanes(None, options) == 4 and len(asked) == 2
+        monkeypatch.setattr(lanes_module, "host_cpu", lambda: "another processor")
+        new_process()
+        assert resolve_lanes(None, options) == 4 and len(asked) == 3
+    finally:
+        new_process()

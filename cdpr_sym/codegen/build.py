@@ -306,7 +306,7 @@ def build(functions: Sequence[ca.Function], name: str, *, extra_source: str = ""
             return CompiledLibrary(library, source, key, compiled_now=False)
         try:
             _discard(library)
-            _write_atomically(source, source_text)
+            write_atomically(source, source_text)
             _compile(compiler, options.flags, source, library, timeout=options.timeout)
         except OSError as error:
             raise _unusable_cache(root, folder, error) from None
@@ -341,7 +341,7 @@ def build_recipe(recipe: str | None, name: str, generate: Callable[[], Generated
     entry = _recipe_entry(recipe, name, options)
     try:
         entry.parent.mkdir(exist_ok=True)
-        _write_atomically(entry, built.key)
+        write_atomically(entry, built.key)
     except OSError as error:
         raise _unusable_cache(entry.parent.parent, entry.parent, error) from None
     return built
@@ -384,7 +384,7 @@ def _cache_key(source_text: str, compiler: str, flags: Sequence[str]) -> str:
     digest = hashlib.sha256()
     # a library built for this host's instruction set must not be loaded on another CPU
     # sharing the cache (illegal instruction)
-    host = _host_cpu() if any(flag.startswith(("-march=native", "-mcpu=native"))
+    host = host_cpu() if any(flag.startswith(("-march=native", "-mcpu=native"))
                               for flag in flags) else ""
     for part in (source_text, compiler, " ".join((*flags, *_LINK_FLAGS)), ca.__version__,
                  host):
@@ -394,7 +394,7 @@ def _cache_key(source_text: str, compiler: str, flags: Sequence[str]) -> str:
 
 
 @functools.lru_cache(maxsize=1)
-def _host_cpu() -> str:
+def host_cpu() -> str:
     """This machine's processor model and feature flags (Linux), else its architecture."""
     try:
         lines = Path("/proc/cpuinfo").read_text().splitlines()
@@ -490,7 +490,7 @@ def _discard(library: Path) -> None:
     library.unlink(missing_ok=True)
 
 
-def _write_atomically(path: Path, text: str) -> None:
+def write_atomically(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file and a rename (never partial)."""
     handle, name = tempfile.mkstemp(dir=path.parent, suffix=_TEMPORARY_SUFFIX)
     partial = Path(name)
@@ -516,7 +516,7 @@ def _compile(compiler: str, flags: Sequence[str], source: Path, library: Path, *
     try:
         run_command([compiler, *flags, *_LINK_FLAGS, str(source), "-o", str(partial), "-lm"],
                     timeout=timeout)
-        _write_atomically(_record_of(library), f"{_file_sha256(partial)}  {library.name}\n")
+        write_atomically(_record_of(library), f"{_file_sha256(partial)}  {library.name}\n")
         os.replace(partial, library)
     finally:
         partial.unlink(missing_ok=True)

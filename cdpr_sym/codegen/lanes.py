@@ -18,12 +18,23 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
 import math
 import numbers
+import os
+import shutil
+from pathlib import Path
 
 import casadi as ca
 
-from cdpr_sym.codegen.build import BuildOptions, require_compiler, run_command
+from cdpr_sym.codegen.build import (
+    BuildOptions,
+    default_cache_dir,
+    host_cpu,
+    require_compiler,
+    run_command,
+    write_atomically,
+)
 from cdpr_sym.codegen.names import is_c_identifier
 from cdpr_sym.errors import CompilationFailed, InvalidCase
 
@@ -73,7 +84,6 @@ _BINARY_IDS = {getattr(ca, name): text for name, text in _BINARY.items() if hasa
 _REGISTER_DOUBLES = (("__AVX512F__", 8), ("__AVX__", 4))
 
 
-@functools.lru_cache(maxsize=8)
 @functools.lru_cache(maxsize=8)
 def native_lanes(compiler: str) -> int:
     """Doubles in one vector register of this machine, as ``compiler -march=native`` sees
@@ -134,7 +144,46 @@ def resolve_lanes(lanes: int | None, build_options: BuildOptions) -> int:
     checked = check_lanes(lanes)
     if checked is not None:
         return checked
-    return native_lanes(require_compiler(build_options.compiler))
+    return _recorded_native_lanes(require_compiler(build_options.compiler),
+                                  str(build_options.cache_dir or default_cache_dir()))
+
+
+@functools.lru_cache(maxsize=8)
+def _recorded_native_lanes(compiler: str, cache_dir: str) -> int:
+    """:func:`native_lanes`, remembered in the build cache (``lanes/<key>``) for this
+    compiler's file and this processor: asking runs the compiler, about 25 ms of every
+    command's start-up. An unreadable record is asked again; an unwritable cache only
+    means asking next time."""
+    record = Path(cache_dir) / "lanes" / _compiler_on_host(compiler)
+    try:
+        known = int(record.read_text())
+    except (OSError, ValueError):
+        known = 0
+    if known in _KNOWN_LANES:
+        return known
+    lanes = native_lanes(compiler)
+    try:
+        record.parent.mkdir(parents=True, exist_ok=True)
+        write_atomically(record, str(lanes))
+    except OSError:
+        pass
+    return lanes
+
+
+#: The answers :func:`native_lanes` can give.
+_KNOWN_LANES = (2, 4, 8)
+
+
+def _compiler_on_host(compiler: str) -> str:
+    """A key for the compiler's file (its real path, size and time) on this processor."""
+    path = os.path.realpath(shutil.which(compiler) or compiler)
+    try:
+        status = os.stat(path)
+        stamp = f"{status.st_size}:{status.st_mtime_ns}"
+    except OSError:
+        stamp = "missing"
+    text = f"{path}\0{stamp}\0{host_cpu()}"
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
 def vector_build_options(build_options: BuildOptions) -> BuildOptions:
