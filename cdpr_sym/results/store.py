@@ -170,7 +170,24 @@ def load_table(table: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
 
     sidecar = sidecar_path(table)
     meta = read_json(sidecar) if sidecar.exists() else {}
-    return rows, meta
+    return _in_sweep_order(rows, meta), meta
+
+
+def _in_sweep_order(rows: list[dict[str, Any]], meta: dict[str, Any]
+                    ) -> list[dict[str, Any]]:
+    """The rows by pair, then by the controllers' order in the sweep's configuration: the
+    order the sweep defines, whichever worker finished first (reports list the designs in
+    the order they first appear)."""
+    configured = (meta.get("config") or {}).get("controllers") or []
+    position = {name: index for index, name in enumerate(configured)}
+
+    def key(row: dict[str, Any]) -> tuple:
+        pair = row.get("pair")
+        name = row.get("controller")
+        return (pair if isinstance(pair, (int, float)) else -1,
+                position.get(name, len(position)), str(name))
+
+    return sorted(rows, key=key)
 
 
 def parse_row(row: dict[str, str]) -> dict[str, Any]:
