@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.closed_loop import Plant, Simulator, get_simulator
 from cdpr_sym.closed_loop.batch import batch_rollout, run_many
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import CONTROLLERS
@@ -110,3 +110,14 @@ def test_sweep_items_are_run_in_groups_and_returned_in_their_order(aras3, rng):
         assert row["status"] == alone["status"] and row["stop_reason"] == alone["stop_reason"]
         assert row["final_error"] == pytest.approx(alone["final_error"], rel=1e-9)
         assert row["max_tension"] == pytest.approx(alone["max_tension"], rel=1e-9)
+
+
+def test_a_step_without_a_lane_form_falls_back_to_single_runs(aras3, tmp_path, monkeypatch):
+    """Its own cache, so nothing is found by recipe: the step is checked and refused."""
+    import cdpr_sym.closed_loop.batch as batch_module
+
+    options = BuildOptions(cache_dir=tmp_path)
+    simulator = Simulator(aras3, CONTROLLERS["pd"], build_options=options)
+    monkeypatch.setattr(batch_module, "unsupported_operations", lambda step: {"OP_ERF"})
+    assert batch_rollout(simulator, options) is None
+    assert not list(tmp_path.glob("*_lanes-*"))  # nothing was built for lanes

@@ -25,7 +25,6 @@ from cdpr_sym.codegen import (
     BuildOptions,
     CompiledLibrary,
     build_recipe,
-    built_recipe,
     check_lanes,
     lanes_preamble,
     lanes_source,
@@ -100,6 +99,8 @@ def _lanes_library(simulator: Simulator, build_options: BuildOptions, lanes: int
     layout = simulator.layout
 
     def generate() -> tuple[list, str]:
+        if unsupported_operations(simulator.step):
+            raise _NoLaneForm
         source = (lanes_preamble(lanes) + lanes_source(simulator.step, "step_lanes", lanes)
                   + render("cdpr_sym.closed_loop", "rollout_lanes.c.j2", step="step_lanes",
                            lanes=lanes, n_x=layout.x.size, n_p=layout.p.size,
@@ -111,16 +112,8 @@ def _lanes_library(simulator: Simulator, build_options: BuildOptions, lanes: int
                         options=vector_build_options(build_options))
 
 
-def _can_batch(simulator: Simulator, build_options: BuildOptions, lanes: int) -> bool:
-    """Whether the step of ``simulator`` runs compiled and can be written for lanes: a
-    library built by recipe before says so without generating the step."""
-    if simulator.backend != "c" or simulator.sampled is not None:
-        return False
-    recipe = _lanes_recipe(simulator, lanes)
-    if recipe is not None and built_recipe(recipe, _lanes_name(simulator),
-                                           options=vector_build_options(build_options)):
-        return True
-    return not unsupported_operations(simulator.step)
+class _NoLaneForm(Exception):
+    """The step holds an operation without a lane form: no batched library for it."""
 
 
 #: Each simulator's batched rollouts by lane count (None: none can be built), kept while it
@@ -137,9 +130,21 @@ def batch_rollout(simulator: Simulator, build_options: BuildOptions = BuildOptio
     built = _BATCHES.setdefault(simulator, {})
     lanes = resolve_lanes(lanes, build_options)
     if lanes not in built:
-        built[lanes] = (BatchRollout(simulator, build_options, lanes)
-                        if _can_batch(simulator, build_options, lanes) else None)
+        built[lanes] = _batch_or_none(simulator, build_options, lanes)
     return built[lanes]
+
+
+def _batch_or_none(simulator: Simulator, build_options: BuildOptions, lanes: int
+                   ) -> BatchRollout | None:
+    """The batched rollout, or None where the step runs in CasADi's virtual machine or has
+    an operation without a lane form (checked only when the library is generated: one
+    found by recipe was checked when it was built)."""
+    if simulator.backend != "c" or simulator.sampled is not None:
+        return None
+    try:
+        return BatchRollout(simulator, build_options, lanes)
+    except _NoLaneForm:
+        return None
 
 
 def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndarray,
