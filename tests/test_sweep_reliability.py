@@ -222,7 +222,7 @@ def test_too_little_disk_space_is_refused_before_any_run(reference, tmp_path, mo
     out = tmp_path / "rows.csv"
     monkeypatch.setattr(runner.shutil, "disk_usage",
                         lambda path: shutil._ntuple_diskusage(10**9, 10**9 - 2000, 2000))
-    monkeypatch.setattr(runner, "_warm_cache", lambda *args: pytest.fail("work started"))
+    monkeypatch.setattr(runner, "run_group", lambda *args, **kw: pytest.fail("work started"))
     with pytest.raises(InvalidCase, match="MB free") as error:
         run_sweep(SMALL, out, workers=1, progress=False)
     assert error.value.field == "out"
@@ -237,7 +237,7 @@ def test_an_unreachable_dask_scheduler_is_one_line_before_any_run(tmp_path, monk
     with socket.socket() as probe:  # a port nobody listens on
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    monkeypatch.setattr(runner, "_warm_cache", lambda *args: pytest.fail("work started"))
+    monkeypatch.setattr(runner, "run_group", lambda *args, **kw: pytest.fail("work started"))
     begun = time.monotonic()
     with pytest.raises(InvalidCase, match="no Dask scheduler answered") as error:
         run_sweep(SMALL, tmp_path / "rows.csv", dask_address=f"tcp://127.0.0.1:{port}",

@@ -1,4 +1,4 @@
-"""The sweep runner's parts one at a time: rows of one run, chunking, the progress bar,
+"""The sweep runner's parts one at a time: rows of one run, the progress bar,
 the disk-space message, what an interruption keeps, the versions in the sidecar and the
 worker processes started."""
 
@@ -43,13 +43,6 @@ def test_a_failed_run_is_an_error_row_naming_the_error():
     assert row["status"] == "error"
     assert row["error"] == "InvalidCase: mass_scale: expected a positive factor, got -1.0"
     assert set(row) == {"status", "error"}
-
-
-@pytest.mark.parametrize(("count", "size", "expected"), [
-    (7, 3, [[0, 1, 2], [3, 4, 5], [6]]), (6, 3, [[0, 1, 2], [3, 4, 5]]), (2, 5, [[0, 1]]),
-    (0, 4, [])])
-def test_chunks_cut_the_items_in_order_without_overlap(count, size, expected):
-    assert runner._chunks(list(range(count)), size) == expected
 
 
 def test_an_unknown_format_is_refused_naming_the_formats():

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import functools
 import io
-import math
 import os
 import platform
 import shutil
@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from cdpr_sym.closed_loop import Plant, get_simulator, summarise_many
+from cdpr_sym.closed_loop.batch import batch_rollout
 from cdpr_sym.control import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, Interrupted, InvalidCase
 from cdpr_sym.results import RunSummary, Trajectory
@@ -44,8 +45,10 @@ from cdpr_sym.results.store import (
 from cdpr_sym.robot import WRENCH_FIELDS, Robot, resolve_robot
 from cdpr_sym.sweep.config import FORMATS, SweepConfig, column_types, columns, draw_pairs
 from cdpr_sym.sweep.output import check_identity, done_rows, exclusive_output
+from cdpr_sym.sweep.runs import Runs, as_runs, chunk_sizes, chunks, pending_runs
 from cdpr_sym.sweep.workers import (
     DASK_TIMEOUT,
+    LocalWorkers,
     Terminated,
     WorkerLost,
     dask_client,
@@ -108,27 +111,34 @@ def _error_row(failure: BaseException) -> dict[str, Any]:
     return {"status": "error", "error": f"{type(failure).__name__}: {failure}"}
 
 
-def run_items(config_dict: dict[str, Any], items: Sequence[tuple[int, str, list, list]]
+def run_items(config_dict: dict[str, Any], work: Runs | Sequence[tuple[int, str, list, list]]
               ) -> list[dict[str, Any]]:
-    """Worker entry point: run (pair, controller, start, goal) items, return CSV rows in
-    the order of ``items`` (the runs of each controller advanced together)."""
-    config = SweepConfig(**{**config_dict, "controllers": tuple(config_dict["controllers"])})
-    robot = resolve_robot(config.robot)
-    by_controller: dict[str, list[int]] = {}
-    for index, (_, name, _, _) in enumerate(items):
-        by_controller.setdefault(name, []).append(index)
-    rows: list[dict[str, Any]] = [{} for _ in items]
-    for name, indices in by_controller.items():
-        group = run_group(robot, name, np.array([items[i][2] for i in indices], dtype=float),
-                          np.array([items[i][3] for i in indices], dtype=float),
-                          duration=config.duration, dt=config.dt,
-                          mass_scale=config.mass_scale)
-        for index, row in zip(indices, group, strict=True):
-            rows[index] = row
-    for row, (pair, name, start, goal) in zip(rows, items, strict=True):
+    """Worker entry point: run the :class:`~cdpr_sym.sweep.runs.Runs` of ``work`` (or
+    (pair, controller, start, goal) tuples), return CSV rows in their order (the runs of
+    each controller advanced together)."""
+    runs = as_runs(work)
+    rows = _run_rows(config_dict, runs)
+    starts, goals = runs.starts.tolist(), runs.goals.tolist()
+    for row, pair, name, start, goal in zip(rows, runs.pairs.tolist(), runs.controllers.tolist(),
+                                            starts, goals, strict=True):
         row.update(pair=pair, controller=name)
         row.update({f"start_{i}": value for i, value in enumerate(start)})
         row.update({f"goal_{i}": value for i, value in enumerate(goal)})
+    return rows
+
+
+def _run_rows(config_dict: dict[str, Any], runs: Runs) -> list[dict[str, Any]]:
+    """The metric rows of ``runs`` in their order, each controller's runs advanced together."""
+    config = SweepConfig(**{**config_dict, "controllers": tuple(config_dict["controllers"])})
+    robot = resolve_robot(config.robot)
+    rows: list[dict[str, Any]] = [{} for _ in range(len(runs))]
+    for name in dict.fromkeys(runs.controllers.tolist()):
+        indices = np.flatnonzero(runs.controllers == name)
+        group = run_group(robot, name, runs.starts[indices], runs.goals[indices],
+                          duration=config.duration, dt=config.dt,
+                          mass_scale=config.mass_scale)
+        for index, row in zip(indices.tolist(), group, strict=True):
+            rows[index] = row
     return rows
 
 
@@ -139,14 +149,15 @@ class CsvChunk(NamedTuple):
     text: str
 
 
-def run_items_csv(config_dict: dict[str, Any], items: Sequence[tuple[int, str, list, list]]
-                  ) -> CsvChunk:
+def run_items_csv(config_dict: dict[str, Any],
+                  work: Runs | Sequence[tuple[int, str, list, list]]) -> CsvChunk:
     """Worker entry point of a CSV sweep: :func:`run_items`, formatted as CSV lines where
     the runs ran. One string travels back instead of a dictionary per row (pickling and
     sending them cost a Dask sweep about 40 us a row) and the writing process only appends
     it; the lines equal what ``csv.DictWriter`` writes for the same rows."""
-    rows = run_items(config_dict, items)
-    names = columns(len(items[0][2])) if items else []
+    runs = as_runs(work)
+    rows = run_items(config_dict, runs)
+    names = columns(runs.starts.shape[1]) if len(runs) else []
     buffer = io.StringIO()
     csv.writer(buffer).writerows([[row.get(name, "") for name in names] for row in rows])
     return CsvChunk(len(rows), buffer.getvalue())
@@ -215,10 +226,6 @@ def progress_bar(total: int, *, enabled: bool) -> tqdm | _NoProgress:
                 file=sys.stderr, dynamic_ncols=True)
 
 
-def _chunks(items: list, size: int) -> list[list]:
-    return [items[i: i + size] for i in range(0, len(items), size)]
-
-
 def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
               dask_address: str | None = None, progress: bool = True,
               chunk_size: int | None = None, restart_if_stale: bool = False,
@@ -232,6 +239,10 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
     whole parts. Either way the sidecar is ``<out>.json`` and a resume skips the
     (pair, controller) rows already stored (see :mod:`cdpr_sym.sweep.output` for the lock,
     the checks and the repair of a damaged table).
+
+    Work goes out in chunks of at most ``chunk_size`` runs (by default
+    :data:`LOCAL_CHUNK_ROWS`, or :data:`DASK_CHUNK_ROWS` on Dask), shrinking towards the
+    end of the sweep so the workers finish together.
 
     Results written under another configuration or identity are refused, unless
     ``restart_if_stale`` (used by the studies, which own their files): then they are
@@ -249,30 +260,44 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
     _check_format(format)
     out = Path(out)
     robot = resolve_robot(config.robot)
-    with exclusive_output(out):
+    work = run_items_csv if format == "csv" else run_items
+    # local workers start first: their warm-up overlaps the checks and the pair draw
+    with _local_workers(config, work, 0 if dask_address else workers) as pool, \
+            exclusive_output(out):
         _check_output(config, robot, out, format, restart_if_stale)
         starts, goals = draw_pairs(robot, config)
         done = done_rows(config, out, format, starts, goals)
-        items = [(pair, name, starts[pair].tolist(), goals[pair].tolist())
-                 for pair in range(config.pairs) for name in config.controllers
-                 if (pair, name) not in done]
-        _check_disk_space(out, len(items), robot.n)
-        client = dask_client(dask_address, dask_timeout) if dask_address and items else None
+        runs = pending_runs(config.controllers, starts, goals, done)
+        _check_disk_space(out, len(runs), robot.n)
+        client = dask_client(dask_address, dask_timeout) if dask_address and len(runs) else None
         try:
-            if items and client is None:
-                _warm_cache(robot, config.controllers)
             workers = workers or (_cluster_threads(client) if client else os.cpu_count() or 1)
-            largest = DASK_CHUNK_ROWS if client else LOCAL_CHUNK_ROWS
-            size = chunk_size or max(1, min(largest, math.ceil(len(items) / (8 * workers))))
-            chunks = _chunks(items, size)
-            work = run_items_csv if format == "csv" else run_items
-            results = (dask_map(client, work, config.as_dict(), chunks) if client
-                       else local_map(work, config.as_dict(), chunks, workers))
-            _collect(results, out, format, robot.n, len(items), progress)
+            largest = chunk_size or (DASK_CHUNK_ROWS if client else LOCAL_CHUNK_ROWS)
+            # chunks shrink to a tenth of the largest at the end (each costs ~2.5 ms of Python)
+            parts = list(chunks(runs, chunk_sizes(len(runs), workers, largest,
+                                                  max(1, largest // 10))))
+            results = (dask_map(client, work, config.as_dict(), parts) if client
+                       else pool.map(parts) if pool is not None
+                       else local_map(work, config.as_dict(), parts, 1))
+            _collect(results, out, format, robot.n, len(runs), progress)
         finally:
             if client is not None:
                 client.close()
     return out
+
+
+def _local_workers(config: SweepConfig, work: Callable[..., Any], workers: int | None
+                   ) -> contextlib.AbstractContextManager[LocalWorkers | None]:
+    """``workers`` local processes (None: one per processor) warming up for ``config``, or
+    None where the runs go on Dask (``workers`` 0) or in this process (one worker)."""
+    count = (os.cpu_count() or 1) if workers is None else workers
+    if count <= 1:
+        return contextlib.nullcontext()
+    from cdpr_sym.version import source_digest
+
+    source_digest()  # taken once here rather than in each worker (libraries' recipes use it)
+    return LocalWorkers(work, config.as_dict(), count,
+                        warm=functools.partial(warm_worker, config.as_dict()))
 
 
 def _cluster_threads(client: Any) -> int:
@@ -358,7 +383,10 @@ def _row_sink(out: Path, format: str, n: int
         yield append_rows
 
 
-def _warm_cache(robot: Robot, names: Sequence[str]) -> None:
-    """Compile each controller once in this process so workers only load the library."""
-    for name in names:
-        get_simulator(robot, CONTROLLERS[name])
+def warm_worker(config_dict: dict[str, Any]) -> None:
+    """Load (or build) each controller's compiled simulator and batched rollout, so a
+    worker's first chunk runs at full speed."""
+    config = SweepConfig(**{**config_dict, "controllers": tuple(config_dict["controllers"])})
+    robot = resolve_robot(config.robot)
+    for name in config.controllers:
+        batch_rollout(get_simulator(robot, CONTROLLERS[name]))
