@@ -216,6 +216,25 @@ def test_restart_if_stale_starts_over_from_a_stale_sidecar_with_or_without_its_t
     assert _keyed(out) == _keyed(reference)
 
 
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_library_that_cannot_be_built_stops_the_sweep_in_one_line(workers, tmp_path,
+                                                                     monkeypatch):
+    """No compiler: the sweep stops with the build's error before any row, on one worker
+    or on forked ones (whose own warm-up swallows the error), instead of writing an error
+    row for every run."""
+    import cdpr_sym.sweep.runner as runner
+    from cdpr_sym.errors import CompilerNotFound
+
+    def no_compiler(*args, **kwargs):
+        raise CompilerNotFound("no C compiler found (set CC)")
+
+    monkeypatch.setattr(runner, "get_simulator", no_compiler)
+    out = tmp_path / "rows.csv"
+    with pytest.raises(CompilerNotFound, match="no C compiler"):
+        run_sweep(SMALL, out, workers=workers, progress=False)
+    assert not out.exists() or out.read_text().count("\n") <= 1  # a header at most
+
+
 def test_too_little_disk_space_is_refused_before_any_run(reference, tmp_path, monkeypatch):
     import cdpr_sym.sweep.runner as runner
 
