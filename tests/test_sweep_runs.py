@@ -70,3 +70,11 @@ def test_runs_travel_by_pickle_unchanged_and_from_tuples():
     assert runs.pairs.tolist() == [0, 1] and runs.controllers.tolist() == ["pd", "l2"]
     assert np.array_equal(runs.starts, starts) and np.array_equal(runs.goals, goals)
     assert len(Runs.of_items([])) == 0
+
+
+def test_chunk_sizes_refuse_bounds_that_would_never_end():
+    import pytest
+
+    for largest, smallest in ((0, 1), (-1, 1), (5, 6), (5, 0)):
+        with pytest.raises(ValueError, match="smallest <= largest"):
+            chunk_sizes(10, 2, largest, smallest)

@@ -105,11 +105,11 @@ def test_a_lost_worker_ends_the_sweep_with_status_1_keeping_its_rows(tmp_path, m
     from cdpr_sym.errors import Interrupted
     from cdpr_sym.sweep import SweepConfig, run_sweep
 
-    def first_chunk_then_lost(pool, chunks):
-        yield runner.run_items_csv(config.as_dict(), chunks[0])
+    def first_chunk_then_lost(work, config, chunks, workers):
+        yield work(config, chunks[0])
         raise WorkerLost("worker process 4242 was killed by signal 9")
 
-    monkeypatch.setattr(runner.LocalWorkers, "map", first_chunk_then_lost)
+    monkeypatch.setattr(runner, "local_map", first_chunk_then_lost)
     out = tmp_path / "rows.csv"
     config = SweepConfig(robot="planar2", controllers=("pd-sat",), pairs=8, duration=0.2)
     with pytest.raises(Interrupted) as stop:
@@ -121,69 +121,52 @@ def test_a_lost_worker_ends_the_sweep_with_status_1_keeping_its_rows(tmp_path, m
     assert out.read_text().count("\n") == 3  # the header and the first chunk's two rows
 
 
-def _pid_and_warmth(config: dict, chunk: list) -> list:
-    return [(os.getpid(), (config["warmed"] / str(os.getpid())).exists())]
+def test_a_worker_dead_before_its_next_chunk_is_a_lost_worker_not_a_broken_pipe():
+    import multiprocessing
+
+    from cdpr_sym.sweep.workers import _dispatch
+
+    context = multiprocessing.get_context("fork")
+    ours, theirs = context.Pipe()
+    process = context.Process(target=os._exit, args=(3,), daemon=True)
+    process.start()
+    theirs.close()
+    process.join()
+    with pytest.raises(WorkerLost, match="ended with status 3"):
+        list(_dispatch({ours: process}, iter([[1], [2]])))
+    ours.close()
 
 
-def test_workers_warm_up_before_their_first_chunk_and_a_failed_warm_up_is_no_error(tmp_path):
-    from cdpr_sym.sweep.workers import LocalWorkers
-
-    def warm():
-        (tmp_path / str(os.getpid())).touch()
-
-    with LocalWorkers(_pid_and_warmth, {"warmed": tmp_path}, 2, warm=warm) as pool:
-        rows = [row for part in pool.map([[0]] * 6) for row in part]
-    warmed = {path.name for path in tmp_path.iterdir()}
-    assert len(warmed) == 2 and {str(pid) for pid, _ in rows} <= warmed
-    assert all(was_warm for _, was_warm in rows)  # warm ran before each worker's chunks
-
-    def broken():
-        raise RuntimeError("no compiler")
-
-    with LocalWorkers(_square, {"offset": 0}, 2, warm=broken) as pool:
-        assert sorted(row["x"] for part in pool.map([[2], [3]]) for row in part) == [2, 3]
+def _sockets(config: dict, chunk: list) -> list:
+    links = []
+    for fd in os.listdir("/proc/self/fd"):
+        try:
+            links.append(os.readlink(f"/proc/self/fd/{fd}"))
+        except FileNotFoundError:  # the listing's own descriptor, closed since
+            pass
+    return [sum(link.startswith("socket:") for link in links)]
 
 
-def test_a_sweeps_workers_start_warm_before_the_pairs_are_drawn(tmp_path, monkeypatch):
-    """The sweep forks its workers before its checks and pair draw, and each starts
-    loading the compiled libraries of every controller while the parent draws."""
-    import cdpr_sym.sweep.runner as runner
-    from cdpr_sym.sweep import SweepConfig, run_sweep
-
-    events = tmp_path / "events"
-    warm, draw = runner.warm_worker, runner.draw_pairs
-
-    def logged_warm(config_dict):
-        with open(events, "a") as log:
-            log.write(f"warm {os.getpid()}\n")
-        warm(config_dict)
-
-    def logged_draw(robot, config):
-        with open(events, "a") as log:
-            log.write(f"draw {os.getpid()}\n")
-        time.sleep(0.5)  # long enough for the workers to start warming
-        with open(events, "a") as log:
-            log.write("drawn\n")
-        return draw(robot, config)
-
-    monkeypatch.setattr(runner, "warm_worker", logged_warm)
-    monkeypatch.setattr(runner, "draw_pairs", logged_draw)
-    config = SweepConfig(robot="planar2", controllers=("pd",), pairs=4, duration=0.1)
-    run_sweep(config, tmp_path / "rows.csv", workers=2, progress=False)
-    lines = events.read_text().split("\n")[:-1]
-    warmed = [line for line in lines[: lines.index("drawn")] if line.startswith("warm ")]
-    assert len(warmed) == 2 and f"warm {os.getpid()}" not in warmed
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="needs Linux's /proc")
+def test_a_worker_holds_only_its_own_end_of_its_pipe():
+    """Each worker closes its inherited copies of the parent's pipe ends, its own included,
+    so that closing the parent's end reaches it as the end of its work."""
+    assert [count for part in local_map(_sockets, {}, [[0]] * 6, 2) for count in part] == [1] * 6
 
 
-def test_warming_a_worker_loads_each_controllers_batched_rollout():
-    from cdpr_sym.closed_loop import get_simulator
-    from cdpr_sym.closed_loop.batch import _BATCHES
-    from cdpr_sym.control import CONTROLLERS
-    from cdpr_sym.robot import preset
-    from cdpr_sym.sweep import SweepConfig
-    from cdpr_sym.sweep.runner import warm_worker
+def test_a_worker_stops_when_the_parents_end_of_its_pipe_closes():
+    import multiprocessing
 
-    config = SweepConfig(robot="planar2", controllers=("pd", "pd-sat"), pairs=1)
-    warm_worker(config.as_dict())
-    for name in config.controllers:
-        assert _BATCHES.get(get_simulator(preset("planar2"), CONTROLLERS[name]))
+    from cdpr_sym.sweep.workers import _serve
+
+    context = multiprocessing.get_context("fork")
+    ours, theirs = context.Pipe()
+    process = context.Process(target=_serve, daemon=True,
+                              args=(theirs, [ours], _square, {"offset": 0}, os.getpid()))
+    process.start()
+    theirs.close()
+    ours.send([3])
+    assert ours.recv() == ("rows", [{"x": 3, "square": 9}])
+    ours.close()
+    process.join(10)
+    assert process.exitcode == 0

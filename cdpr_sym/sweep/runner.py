@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import functools
 import io
 import os
 import platform
@@ -32,7 +31,6 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from cdpr_sym.closed_loop import Plant, get_simulator, summarise_many
-from cdpr_sym.closed_loop.batch import batch_rollout
 from cdpr_sym.control import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, Interrupted, InvalidCase
 from cdpr_sym.results import RunSummary, Trajectory
@@ -48,7 +46,6 @@ from cdpr_sym.sweep.output import check_identity, done_rows, exclusive_output
 from cdpr_sym.sweep.runs import Runs, as_runs, chunk_sizes, chunks, pending_runs
 from cdpr_sym.sweep.workers import (
     DASK_TIMEOUT,
-    LocalWorkers,
     Terminated,
     WorkerLost,
     dask_client,
@@ -258,12 +255,11 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
         and the message says how to resume.
     """
     _check_format(format)
+    if chunk_size is not None and not (isinstance(chunk_size, int) and chunk_size >= 1):
+        raise InvalidCase("chunk_size", f"expected a whole number of runs >= 1, got {chunk_size}")
     out = Path(out)
     robot = resolve_robot(config.robot)
-    work = run_items_csv if format == "csv" else run_items
-    # local workers start first: their warm-up overlaps the checks and the pair draw
-    with _local_workers(config, work, 0 if dask_address else workers) as pool, \
-            exclusive_output(out):
+    with exclusive_output(out):
         _check_output(config, robot, out, format, restart_if_stale)
         starts, goals = draw_pairs(robot, config)
         done = done_rows(config, out, format, starts, goals)
@@ -278,28 +274,14 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
             # chunks shrink to a tenth of the largest at the end (each costs ~2.5 ms of Python)
             parts = list(chunks(runs, chunk_sizes(len(runs), workers, largest,
                                                   max(1, largest // 10))))
+            work = run_items_csv if format == "csv" else run_items
             results = (dask_map(client, work, config.as_dict(), parts) if client
-                       else pool.map(parts) if pool is not None
-                       else local_map(work, config.as_dict(), parts, 1))
+                       else local_map(work, config.as_dict(), parts, workers))
             _collect(results, out, format, robot.n, len(runs), progress)
         finally:
             if client is not None:
                 client.close()
     return out
-
-
-def _local_workers(config: SweepConfig, work: Callable[..., Any], workers: int | None
-                   ) -> contextlib.AbstractContextManager[LocalWorkers | None]:
-    """``workers`` local processes (None: one per processor) warming up for ``config``, or
-    None where the runs go on Dask (``workers`` 0) or in this process (one worker)."""
-    count = (os.cpu_count() or 1) if workers is None else workers
-    if count <= 1:
-        return contextlib.nullcontext()
-    from cdpr_sym.version import source_digest
-
-    source_digest()  # taken once here rather than in each worker (libraries' recipes use it)
-    return LocalWorkers(work, config.as_dict(), count,
-                        warm=functools.partial(warm_worker, config.as_dict()))
 
 
 def _cluster_threads(client: Any) -> int:
@@ -385,18 +367,8 @@ def _row_sink(out: Path, format: str, n: int
         yield append_rows
 
 
-def warm_worker(config_dict: dict[str, Any]) -> None:
-    """Load (or build) each controller's compiled simulator and batched rollout, so a
-    worker's first chunk runs at full speed."""
-    config = SweepConfig(**{**config_dict, "controllers": tuple(config_dict["controllers"])})
-    robot = resolve_robot(config.robot)
-    for name in config.controllers:
-        batch_rollout(get_simulator(robot, CONTROLLERS[name]))
-
-
 def _warm_cache(robot: Robot, names: Sequence[str]) -> None:
-    """Load (or build) each controller's compiled simulator in this process: a library that
-    cannot be built (no compiler) stops the sweep here, in one line, rather than in every
-    row. On a cache hit this takes about a millisecond per controller."""
+    """Compile each controller once in this process so workers only load the library (and
+    a library that cannot be built stops the sweep here, in one line, not in every row)."""
     for name in names:
         get_simulator(robot, CONTROLLERS[name])

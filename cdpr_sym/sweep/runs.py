@@ -88,6 +88,8 @@ def chunk_sizes(total: int, workers: int, largest: int, smallest: int = 1) -> li
     half of a worker's share of what is left, so chunks shrink towards the end
     and the workers finish together (guided scheduling); at least ``smallest`` each,
     except a last remainder."""
+    if not 1 <= smallest <= largest:
+        raise ValueError(f"expected 1 <= smallest <= largest, got {smallest} and {largest}")
     sizes, left = [], total
     while left > 0:
         size = min(largest, max(smallest, math.ceil(left / (2 * max(1, workers)))), left)

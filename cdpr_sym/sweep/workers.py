@@ -20,7 +20,7 @@ import pickle
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
@@ -31,8 +31,11 @@ PARENT_POLL = 0.2
 #: How long to wait for a Dask scheduler to answer, s.
 DASK_TIMEOUT = 10.0
 
-Rows = list[dict[str, Any]]
-Work = Callable[[dict[str, Any], list], Rows]
+#: What a chunk of work gives back: its rows (or anything else picklable, such as CSV text).
+Rows = Any
+#: A worker's entry point: (configuration, chunk) -> rows; a chunk is any picklable value
+#: (a sweep sends :class:`~cdpr_sym.sweep.runs.Runs`).
+Work = Callable[[dict[str, Any], Any], Rows]
 
 
 class Terminated(KeyboardInterrupt):
@@ -75,15 +78,12 @@ def _worker_setup(parent: int) -> None:
 
 
 def _serve(connection: Connection, inherited: list[Connection], work: Work,
-           config: dict[str, Any], parent: int, warm: Callable[[], object] | None) -> None:
-    """A worker's life: warm up, run each chunk received, send back its rows or its
-    error, and stop at ``None`` or when the parent's end closes."""
-    for other in inherited:  # the parent's ends of the other workers' pipes
-        other.close()
+           config: dict[str, Any], parent: int) -> None:
+    """A worker's life: run each chunk received, send back its rows or its error, and
+    stop at ``None`` or when the parent's end closes."""
+    for end in inherited:  # the parent's ends of every pipe, this worker's own included
+        end.close()
     _worker_setup(parent)
-    if warm is not None:
-        with contextlib.suppress(Exception):  # a chunk reports the failure as its own
-            warm()
     while True:
         try:
             chunk = connection.recv()
@@ -109,78 +109,52 @@ def _ended(process: multiprocessing.process.BaseProcess) -> str:
     return f"worker process {process.pid} ended with status {code}"
 
 
-class LocalWorkers:
-    """``count`` worker processes forked at once, each running ``warm`` and then waiting
-    for chunks of ``work`` (called as ``work(config, chunk)``): a sweep starts them
-    before its checks and its pair draw, so their warm-up (loading the compiled
-    libraries) overlaps that work. Leaving the ``with`` block, or an early end of
-    :meth:`map`, kills them at once.
+def local_map(work: Work, config: dict[str, Any], chunks: Sequence[Any], workers: int
+              ) -> Iterator[Rows]:
+    """Rows of each chunk as they finish, from ``workers`` local processes (in this
+    process when ``workers <= 1``). Leaving the iteration early (an error, an interrupt)
+    kills the workers at once.
 
     Each worker has a pipe of its own and no lock is shared, so a worker killed at any
     moment (a SIGTERM to the whole process group, the out-of-memory killer) cannot leave
     the parent waiting on a lock it held; the parent raises :class:`WorkerLost` instead.
     """
-
-    def __init__(self, work: Work, config: dict[str, Any], count: int,
-                 warm: Callable[[], object] | None = None) -> None:
-        context = multiprocessing.get_context("fork")
-        self._processes: dict[Connection, multiprocessing.process.BaseProcess] = {}
-        try:
-            for _ in range(count):
-                ours, theirs = context.Pipe()
-                process = context.Process(target=_serve, daemon=True, args=(
-                    theirs, list(self._processes), work, config, os.getpid(), warm))
-                process.start()
-                theirs.close()
-                self._processes[ours] = process
-        except BaseException:
-            self.close()
-            raise
-
-    def __enter__(self) -> LocalWorkers:
-        return self
-
-    def __exit__(self, *exception: object) -> None:
-        self.close()
-
-    def map(self, chunks: Iterable[list]) -> Iterator[Rows]:
-        """Rows of each chunk as they finish, every worker kept busy with the next one."""
-        try:
-            yield from _dispatch(self._processes, iter(chunks))
-        finally:
-            self.close()
-
-    def close(self) -> None:
-        """Kill the workers still running and reap them."""
-        for connection, process in self._processes.items():
-            if process.is_alive():
-                process.kill()
-            process.join()
-            connection.close()
-        self._processes = {}
-
-
-def local_map(work: Work, config: dict[str, Any], chunks: list[list], workers: int
-              ) -> Iterator[Rows]:
-    """Rows of each chunk as they finish, from ``workers`` local processes
-    (:class:`LocalWorkers`; in this process when ``workers <= 1``). Leaving the iteration
-    early (an error, an interrupt) kills the workers at once."""
     if workers <= 1:
         for chunk in chunks:
             yield work(config, chunk)
         return
-    with LocalWorkers(work, config, min(workers, len(chunks))) as pool:  # no chunk, no process
-        yield from pool.map(chunks)
+    context = multiprocessing.get_context("fork")
+    processes: dict[Connection, multiprocessing.process.BaseProcess] = {}
+    try:
+        for _ in range(min(workers, len(chunks))):  # no chunk, no process
+            ours, theirs = context.Pipe()
+            process = context.Process(target=_serve, daemon=True, args=(
+                theirs, [*processes, ours], work, config, os.getpid()))
+            process.start()
+            theirs.close()
+            processes[ours] = process
+        yield from _dispatch(processes, iter(chunks))
+    finally:
+        for connection, process in processes.items():
+            if process.is_alive():
+                process.kill()
+            process.join()
+            connection.close()
 
 
 def _dispatch(processes: dict[Connection, multiprocessing.process.BaseProcess],
-              chunks: Iterator[list]) -> Iterator[Rows]:
+              chunks: Iterator[Any]) -> Iterator[Rows]:
     """Keep every worker busy with the next chunk; yield rows as they come back."""
     busy: set[Connection] = set()
 
     def hand_out(connection: Connection) -> None:
         chunk = next(chunks, None)
-        connection.send(chunk)
+        try:
+            connection.send(chunk)
+        except (BrokenPipeError, ConnectionResetError):  # it died while idle
+            if chunk is not None:
+                raise WorkerLost(_ended(processes[connection])) from None
+            return
         if chunk is not None:
             busy.add(connection)
 
@@ -214,7 +188,7 @@ def dask_client(address: str, timeout: float = DASK_TIMEOUT) -> Any:
                           f"{timeout:g} s ({type(failure).__name__})") from None
 
 
-def dask_map(client: Any, work: Work, config: dict[str, Any], chunks: list[list]
+def dask_map(client: Any, work: Work, config: dict[str, Any], chunks: Sequence[Any]
              ) -> Iterator[Rows]:
     """Rows of each chunk as they finish on the cluster; leaving early cancels the rest."""
     from dask.distributed import as_completed
