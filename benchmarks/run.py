@@ -127,16 +127,19 @@ def sweep_rate(pairs: int, workers: int, dask: str | None = None,
 
 
 def pinned_single_rate(robot_name: str, controller: str, seconds: float) -> Callable[[], float]:
-    """A call that times ``Simulator.run`` of the robot's own case on core 0 (best of 2
-    rounds of ``seconds`` / 2) and gives the process every core back."""
+    """A call that times ``Simulator.run`` of the robot's own case on core 0, as the table's
+    single runs are timed (the best of :data:`SINGLE_ROUNDS` rounds of ``seconds`` / 2: a
+    best of fewer rounds reads lower and would flatter the ratio), and gives the process
+    its cores back."""
     call = cdpr_run(robot_name, controller)
 
     def rate() -> float:
+        cores = os.sched_getaffinity(0)
         timing.pin_to_one_core(0)
         try:
-            return timing.best_rate(call, min_seconds=seconds / 2, rounds=2)
+            return timing.best_rate(call, min_seconds=seconds / 2, rounds=SINGLE_ROUNDS)
         finally:
-            os.sched_setaffinity(0, range(os.cpu_count() or 1))
+            os.sched_setaffinity(0, cores)
 
     return rate
 
