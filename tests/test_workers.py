@@ -137,21 +137,29 @@ def test_a_worker_dead_before_its_next_chunk_is_a_lost_worker_not_a_broken_pipe(
     ours.close()
 
 
-def _sockets(config: dict, chunk: list) -> list:
+def _socket_count() -> int:
     links = []
     for fd in os.listdir("/proc/self/fd"):
         try:
             links.append(os.readlink(f"/proc/self/fd/{fd}"))
         except FileNotFoundError:  # the listing's own descriptor, closed since
             pass
-    return [sum(link.startswith("socket:") for link in links)]
+    return sum(link.startswith("socket:") for link in links)
+
+
+def _pipe_sockets(config: dict, chunk: list) -> list:
+    """The sockets this worker holds beyond those the parent held before it forked any."""
+    return [_socket_count() - config["before"]]
 
 
 @pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="needs Linux's /proc")
 def test_a_worker_holds_only_its_own_end_of_its_pipe():
     """Each worker closes its inherited copies of the parent's pipe ends, its own included,
     so that closing the parent's end reaches it as the end of its work."""
-    assert [count for part in local_map(_sockets, {}, [[0]] * 6, 2) for count in part] == [1] * 6
+    config = {"before": _socket_count()}
+    counts = [count for part in local_map(_pipe_sockets, config, [[0]] * 6, 2)
+              for count in part]
+    assert counts == [1] * 6
 
 
 def test_a_worker_stops_when_the_parents_end_of_its_pipe_closes():
