@@ -39,6 +39,13 @@ def check_seed(seed: int) -> int:
     return seed
 
 
+def check_chunk_size(chunk_size: int | None) -> int | None:
+    """Most runs per chunk of a sweep: None (the default) or a whole number >= 1."""
+    if not (chunk_size is None or (_is_whole(chunk_size) and chunk_size >= 1)):
+        raise InvalidCase("chunk_size", f"expected a whole number of runs >= 1, got {chunk_size}")
+    return chunk_size
+
+
 @dataclasses.dataclass(frozen=True)
 class SweepConfig:
     """Everything that determines a sweep's rows.

@@ -41,7 +41,14 @@ from cdpr_sym.results.store import (
     sidecar_path,
 )
 from cdpr_sym.robot import WRENCH_FIELDS, Robot, resolve_robot
-from cdpr_sym.sweep.config import FORMATS, SweepConfig, column_types, columns, draw_pairs
+from cdpr_sym.sweep.config import (
+    FORMATS,
+    SweepConfig,
+    check_chunk_size,
+    column_types,
+    columns,
+    draw_pairs,
+)
 from cdpr_sym.sweep.output import check_identity, done_rows, exclusive_output
 from cdpr_sym.sweep.runs import Runs, as_runs, chunk_sizes, chunks, pending_runs
 from cdpr_sym.sweep.workers import (
@@ -255,8 +262,7 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
         and the message says how to resume.
     """
     _check_format(format)
-    if chunk_size is not None and not (isinstance(chunk_size, int) and chunk_size >= 1):
-        raise InvalidCase("chunk_size", f"expected a whole number of runs >= 1, got {chunk_size}")
+    check_chunk_size(chunk_size)
     out = Path(out)
     robot = resolve_robot(config.robot)
     with exclusive_output(out):
