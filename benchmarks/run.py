@@ -19,6 +19,7 @@ this one run.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import platform
@@ -27,7 +28,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -126,20 +127,24 @@ def sweep_rate(pairs: int, workers: int, dask: str | None = None,
             **({"beside": rates} if beside is not None else {})}
 
 
-def pinned_single_rate(robot_name: str, controller: str, seconds: float) -> Callable[[], float]:
-    """A call that times ``Simulator.run`` of the robot's own case on core 0, as the table's
-    single runs are timed (the best of :data:`SINGLE_ROUNDS` rounds of ``seconds`` / 2: a
-    best of fewer rounds reads lower and would flatter the ratio), and gives the process
-    its cores back."""
-    call = cdpr_run(robot_name, controller)
+@contextlib.contextmanager
+def _on_one_core() -> Iterator[None]:
+    """This process on core 0 within the block; its cores are given back after it."""
+    cores = os.sched_getaffinity(0)
+    timing.pin_to_one_core(0)
+    try:
+        yield
+    finally:
+        os.sched_setaffinity(0, cores)
 
+
+def pinned_single_rate(robot_name: str, controller: str, seconds: float) -> Callable[[], float]:
+    """A call that times ``Simulator.run`` of the robot's own case on core 0 as the table's
+    single runs are timed (:func:`cdpr_single`, rounds of ``seconds`` / 2: a best of fewer
+    rounds reads lower and would flatter the ratio)."""
     def rate() -> float:
-        cores = os.sched_getaffinity(0)
-        timing.pin_to_one_core(0)
-        try:
-            return timing.best_rate(call, min_seconds=seconds / 2, rounds=SINGLE_ROUNDS)
-        finally:
-            os.sched_setaffinity(0, cores)
+        with _on_one_core():
+            return cdpr_single(robot_name, controller, seconds / 2)
 
     return rate
 
@@ -164,20 +169,19 @@ def dask_rates(pairs: int, workers: int, rounds: int = DASK_ROUNDS) -> dict[str,
 
 def measure(seconds: float, dask_pairs: int) -> dict[str, Any]:
     """Every figure of the report, as one JSON-ready dictionary."""
-    timing.pin_to_one_core(0)
     starts, goals = draw_pairs(BATCH_PAIRS, seed=0)
     rows: dict[str, dict[str, float]] = {}
-    for name in CONTROLLER_NAMES:
-        rows[name] = {
-            **single_rates(name, seconds),
-            "jax": timing.single_rate("jax", name, min_seconds=seconds),
-            "jax_batch": timing.batch_rate(name, pairs=BATCH_PAIRS,
-                                           min_seconds=seconds)["sims_per_s"],
-            "cdpr_batch": cdpr_batch("aras3", name, seconds, (starts, goals)),
-            "cdpr_summaries": cdpr_batch("aras3", name, seconds, (starts, goals),
-                                         batched=summarise_many),
-        }
-    os.sched_setaffinity(0, range(os.cpu_count() or 1))
+    with _on_one_core():
+        for name in CONTROLLER_NAMES:
+            rows[name] = {
+                **single_rates(name, seconds),
+                "jax": timing.single_rate("jax", name, min_seconds=seconds),
+                "jax_batch": timing.batch_rate(name, pairs=BATCH_PAIRS,
+                                               min_seconds=seconds)["sims_per_s"],
+                "cdpr_batch": cdpr_batch("aras3", name, seconds, (starts, goals)),
+                "cdpr_summaries": cdpr_batch("aras3", name, seconds, (starts, goals),
+                                             batched=summarise_many),
+            }
     workers = len(os.sched_getaffinity(0))
     return {
         "machine": {"cpu": _cpu_name(), "cores": workers, "python": platform.python_version()},
@@ -194,11 +198,9 @@ def measure(seconds: float, dask_pairs: int) -> dict[str, Any]:
 
 def _platform_rates(robot_name: str, controller: str, seconds: float) -> dict[str, float]:
     """Runs per second of a platform's own case on one core: single and batched."""
-    timing.pin_to_one_core(0)
-    out = {"cdpr_run": cdpr_single(robot_name, controller, seconds),
-           "cdpr_batch": cdpr_batch(robot_name, controller, seconds)}
-    os.sched_setaffinity(0, range(os.cpu_count() or 1))
-    return out
+    with _on_one_core():
+        return {"cdpr_run": cdpr_single(robot_name, controller, seconds),
+                "cdpr_batch": cdpr_batch(robot_name, controller, seconds)}
 
 
 def _cpu_name() -> str:
