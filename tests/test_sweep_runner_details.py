@@ -231,7 +231,7 @@ def test_rows_formatted_where_they_ran_equal_what_a_dict_writer_writes(monkeypat
 
 
 @pytest.mark.parametrize("size", [0, -3, 2.5, True])
-def test_a_chunk_size_not_a_whole_number_from_one_is_refused_naming_it(size):
+def test_a_chunk_size_not_a_whole_number_from_one_is_refused_naming_it(size, tmp_path):
     with pytest.raises(InvalidCase) as raised:
-        run_sweep(SMALL, Path("unused.csv"), chunk_size=size)
+        run_sweep(SMALL, tmp_path / "unused.csv", chunk_size=size)
     assert raised.value.field == "chunk_size"
