@@ -155,9 +155,10 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
 
     ``[simulator.run(s, g, k, r_d, ...) for s, g in zip(starts, goals)]``, advanced
     ``lanes`` runs at a time in vectorised compiled code. Lanes are independent, so a
-    run's result does not depend on the others in its block; against ``simulator.run``, or
-    on another lane count, it agrees to round-off (the vector code re-associates
-    differently), which chattering designs amplify.
+    run's result does not depend on the others in its block, and every operation is
+    rounded as written (:data:`~cdpr_sym.codegen.build.EXACT_FLAGS`), so it equals
+    ``simulator.run`` of the same compiled simulator, and itself on any other lane count,
+    bit for bit.
 
     Parameters
     ----------
@@ -208,8 +209,9 @@ def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: n
 
     The batched loop keeps each run's running extremes and counts as it advances, so a
     sweep of any length holds one summary row per run; the metrics equal those of
-    :func:`run_many`'s trajectories (the total variation to round-off: it is summed in step
-    order rather than pairwise). Same parameters and errors as :func:`run_many`.
+    :func:`run_many`'s trajectories bit for bit (the C loop adds errors and tension changes
+    in the order :meth:`~cdpr_sym.results.Trajectory.summary` does). Same parameters and
+    errors as :func:`run_many`.
     """
     check_lanes(lanes)
     starts, goals, n_steps = _checked(simulator, starts, goals, duration, dt, plant)

@@ -18,7 +18,7 @@ from cdpr_sym.closed_loop.layout import Fields, StepLayout
 from cdpr_sym.closed_loop.step import STOP_REASONS
 from cdpr_sym.codegen import render
 from cdpr_sym.control.flags import FALLBACK_FLAGS, FLAG_NAMES
-from cdpr_sym.results.summary import RunSummary
+from cdpr_sym.results.summary import RunSummary, errors
 
 
 @functools.cache
@@ -59,7 +59,7 @@ def run_summaries(rows: np.ndarray, layout: StepLayout, goals: np.ndarray, dt: f
     unsettled = (status != 0) | (last_outside == commands)
     settle = np.where(last_outside >= 0, (last_outside + 1) * dt, 0.0)
     q_last = layout.x.split(values["x_last"])["q"]
-    final_error = np.linalg.norm(q_last - np.asarray(goals, dtype=float), axis=1)
+    final_error = errors(q_last - np.asarray(goals, dtype=float))
     jumps = ([None] * len(goals) if static_tensions is None
              else np.max(np.abs(values["first_tau"] - static_tensions), axis=1).tolist())
     counts = values["flag_counts"].astype(np.int64).tolist()

@@ -38,9 +38,14 @@ from cdpr_sym.codegen.build import (
 from cdpr_sym.codegen.names import is_c_identifier
 from cdpr_sym.errors import CompilationFailed, InvalidCase
 
-#: Compiler flags added for lane code: this machine's vector instructions, and no fused
-#: multiply-add, so that every lane rounds as CasADi's scalar C does.
-VECTOR_FLAGS = ("-O3", "-march=native", "-ffp-contract=off")
+#: Compiler flags added for lane code: this machine's vector instructions, and every
+#: operation rounded as written (no fused multiply-add, no re-association, no reciprocals,
+#: whatever the caller's flags allow), so that a lane computes what CasADi's scalar C
+#: computes with :data:`~cdpr_sym.codegen.build.EXACT_FLAGS`: the same run on 1, 4 or 8
+#: lanes, or in the scalar loop, gives the same bits. (With re-association allowed, GCC
+#: rewrote sums differently for each vector width and lane counts disagreed by round-off.)
+VECTOR_FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fno-associative-math",
+                "-fno-reciprocal-math")
 
 #: Most lanes a vector may hold. Each of a function's work variables is a local vector of
 #: ``8 * lanes`` bytes: at 64 lanes the 8-cable platform's wrench classifier (507 of them)

@@ -12,6 +12,8 @@ import dataclasses
 import math
 from typing import Any
 
+import numpy as np
+
 from cdpr_sym.control.flags import FLAG_ALPHA, FLAG_INFEASIBLE, FLAG_NAMES
 
 #: Settling band on ||q - q_goal||, m.
@@ -24,6 +26,31 @@ SCALAR_METRICS = ("min_tension", "max_tension", "settle_time", "final_error", "m
                   "tension_feasible", "converged", "share_alpha_below_one", "share_fallback",
                   "fallback_steps", "infeasible_steps", "tension_total_variation",
                   "max_tension_step", "start_jump", "stop_reason", "duration")
+
+
+def squared_errors(offsets: np.ndarray) -> np.ndarray:
+    """Sum of squares along the last axis, coordinate by coordinate in index order.
+
+    ``offsets`` (..., n) are q - q_goal (m; rad for angles); the result (...) is
+    ((o_1 o_1 + o_2 o_2) + ...) + o_n o_n, each step rounded as IEEE double arithmetic
+    rounds it. The compiled sweep summary adds in the same order
+    (``templates/summarise_lanes.c.j2``), so a run's settling time and final error are the
+    same numbers whether its trajectory is stored or reduced as it runs, on every host:
+    ``numpy.linalg.norm`` and ``einsum`` choose their summation order (BLAS kernels,
+    SIMD width) by machine, which moved ``final_error`` by one unit in the last place on
+    hosts with AVX-512.
+    """
+    offsets = np.asarray(offsets, dtype=float)
+    total = np.zeros(offsets.shape[:-1])
+    for index in range(offsets.shape[-1]):
+        column = offsets[..., index]
+        total = total + column * column
+    return total
+
+
+def errors(offsets: np.ndarray) -> np.ndarray:
+    """||offsets|| along the last axis (m), the square root of :func:`squared_errors`."""
+    return np.sqrt(squared_errors(offsets))
 
 
 @dataclasses.dataclass(frozen=True)

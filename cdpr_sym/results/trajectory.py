@@ -16,7 +16,7 @@ import numpy as np
 from cdpr_sym.control.flags import FALLBACK_FLAGS, FLAG_NAMES
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results.store import load_arrays, save_arrays
-from cdpr_sym.results.summary import SETTLE_TOLERANCE, RunSummary
+from cdpr_sym.results.summary import SETTLE_TOLERANCE, RunSummary, errors, squared_errors
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -139,15 +139,15 @@ class Trajectory:
     @property
     def error(self) -> np.ndarray:
         """||q(t) - q_goal||, m, shape (N + 1,)."""
-        return np.linalg.norm(self.q - self.q_goal, axis=1)
+        return errors(self.q - self.q_goal)
 
     def settle_time(self, tolerance: float = SETTLE_TOLERANCE) -> float | None:
         """First time after which the error stays within ``tolerance`` (m), or None."""
         if self.stop_reason is not None:
             return None
-        # compared squared: one pass over q and no square root per sample
-        offset = self.q - self.q_goal
-        outside = np.flatnonzero(np.einsum("ij,ij->i", offset, offset) > tolerance ** 2)
+        # compared squared, summed in the order the compiled summary sums (no square root
+        # per sample)
+        outside = np.flatnonzero(squared_errors(self.q - self.q_goal) > tolerance * tolerance)
         if outside.size == 0:
             return float(self.t[0])
         if outside[-1] == len(self.t) - 1:
@@ -189,8 +189,10 @@ class Trajectory:
             max_tension=float(after_start.max()) if after_start.size else math.nan,
             min_alpha=float(self.alpha.min()) if self.alpha.size else math.nan,
             settle_time=self.settle_time(),
-            final_error=float(np.linalg.norm(self.q[-1] - self.q_goal)),
-            total_variation=float(steps.sum()),
+            final_error=float(errors(self.q[-1] - self.q_goal)),
+            # summed in step order, cable by cable, as the compiled summary sums: the same
+            # number both ways (numpy's sum is pairwise)
+            total_variation=float(np.add.accumulate(steps.ravel())[-1]) if steps.size else 0.0,
             max_step=float(steps.max()) if steps.size else 0.0,
             flag_counts=self.flag_counts(),
             fallback_steps=int(np.count_nonzero(self.flags & FALLBACK_FLAGS)),
