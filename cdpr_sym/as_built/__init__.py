@@ -2,7 +2,7 @@
 
 :class:`AsBuilt` composes the effects (:class:`Actuation`, :class:`Sensing`, a command delay,
 anchor offsets), each off by default; :class:`~cdpr_sym.closed_loop.Plant` carries it into a
-simulation, where :mod:`cdpr_sym.closed_loop.as_built_step` generates the step.
+simulation, where the effects of :mod:`cdpr_sym.closed_loop.effects` generate the step.
 """
 
 import lazy_loader

@@ -10,7 +10,7 @@ so the layout is written down once::
     log = [tau (m), alpha, beta, j (n(n-1)/2), flags, plant]
 
 for n degrees of freedom and m >= n cables; the ``plant`` fields are those an as-built plant
-adds (:mod:`cdpr_sym.closed_loop.as_built_step`), none for the ideal plant.
+adds (:mod:`cdpr_sym.closed_loop.effects`), none for the ideal plant.
 """
 
 from __future__ import annotations

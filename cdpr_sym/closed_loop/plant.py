@@ -4,7 +4,7 @@ The plant is M ddq + C dq + grad V = W tau_applied with mass (and weight) scaled
 ``Plant.mass_scale``; a slack-cable plant applies max(tau, 0); a rate-limited plant moves
 the applied tension towards the command by at most ``rate_limit * dt`` per control period.
 An as-built plant (:class:`~cdpr_sym.as_built.AsBuilt`) adds winches, elastic cables,
-sensing, delay and anchor errors; its step is :mod:`cdpr_sym.closed_loop.as_built_step`.
+sensing, delay and anchor errors, each an effect of :mod:`cdpr_sym.closed_loop.effects`.
 """
 
 from __future__ import annotations

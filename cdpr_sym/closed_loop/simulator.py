@@ -10,6 +10,7 @@ frame or produces a non-finite state stops there, and the returned
 
 from __future__ import annotations
 
+import collections
 import ctypes
 import dataclasses
 import functools
@@ -23,14 +24,11 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.closed_loop.case import Case, check_timing, minimal_values_per_step
+from cdpr_sym.closed_loop.effects import AsBuiltReadout, StartContext, plant_effects
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
-from cdpr_sym.closed_loop.step import (
-    ALL_STOP_REASONS,
-    chunk_function,
-    step_function,
-    step_layout,
-)
+from cdpr_sym.closed_loop.step import chunk_function, plant_layout, step_function
+from cdpr_sym.closed_loop.stops import ALL_STOP_REASONS
 from cdpr_sym.codegen import (
     BuildOptions,
     CompiledLibrary,
@@ -51,8 +49,8 @@ from cdpr_sym.model import SymbolicModel
 from cdpr_sym.results import Trajectory
 from cdpr_sym.robot import Robot, resolve_robot, robot_key
 
-if TYPE_CHECKING:  # the as-built plant and NMPC's solver are imported where a run needs them
-    from cdpr_sym.as_built import AsBuiltStructure, Sensing
+if TYPE_CHECKING:  # NMPC's solver is imported where a run needs it
+    from cdpr_sym.as_built import AsBuiltStructure
     from cdpr_sym.closed_loop.sampled import SampledSolver
 
 
@@ -150,10 +148,11 @@ class Simulator:
         self.as_built = as_built
         self.chunk = chunk
         self.rate_limited = rate_limited
-        if as_built is None:
-            self.layout = step_layout(self.model, controller, rate_limited=rate_limited)
-        else:
-            self._build_as_built(as_built)
+        #: The plant's effects (:mod:`cdpr_sym.closed_loop.effects`), in layout order.
+        self.effects = plant_effects(rate_limited=rate_limited, as_built=as_built)
+        self.layout = plant_layout(self.model, controller, self.effects)
+        #: The as-built plant in numbers (None for the ideal plant).
+        self.readout = AsBuiltReadout(self.model) if as_built is not None else None
         #: The robot and controller part of every run's record, built once.
         self._described = described(robot, controller)
         #: initial_memory mapped over a number of runs, by that number (built on first use).
@@ -182,10 +181,10 @@ class Simulator:
 
     @functools.cached_property
     def step(self) -> ca.Function:
-        """The closed loop's step (x, p) -> (x_next, log) of the ideal plant, generated on
-        first use: a run whose compiled library is found by its recipe never needs it (an
-        as-built plant's step is built with the simulator)."""
-        return step_function(self.model, self.controller, rate_limited=self.rate_limited)
+        """The closed loop's step (x, p) -> (x_next, log) with this plant's effects,
+        generated on first use: a run whose compiled library is found by its recipe never
+        needs it."""
+        return step_function(self.model, self.controller, effects=self.effects)
 
     @functools.cached_property
     def law(self) -> ca.Function:
@@ -226,20 +225,6 @@ class Simulator:
 
         return build_recipe(self.recipe, self.library_name, generate, options=build_options)
 
-    def _build_as_built(self, as_built: AsBuiltStructure) -> None:
-        """The step of an as-built plant with these effects, and the plant's own functions
-        (its true static tension and cable geometry, the encoders' forward kinematics)."""
-        from cdpr_sym.as_built import true_static_function
-        from cdpr_sym.as_built.geometry import true_geometry_function
-        from cdpr_sym.closed_loop.as_built_step import as_built_layout, as_built_step_function
-        from cdpr_sym.model.forward_kinematics import forward_kinematics_function
-
-        self.layout = as_built_layout(self.model, self.controller, as_built)
-        self.step = as_built_step_function(self.model, self.controller, as_built)
-        self._true_static = true_static_function(self.model)
-        self._true_geometry = true_geometry_function(self.robot)
-        self._forward_kinematics = forward_kinematics_function(self.model, tolerance=1.0)
-
     @property
     def values_per_step(self) -> int:
         """float64 values a run stores per control step: a state row and a log row."""
@@ -261,27 +246,28 @@ class Simulator:
         tension, so its cables carry that tension (stretched to it, the winches' torque
         holding it) and the commands still on their way are it; where the plant's mass or
         anchors differ, its own mismatch acts from t = 0 on."""
-        fields = {"q": start, "dq": np.zeros(self.robot.n) if dq0 is None else dq0,
+        dq0 = np.zeros(self.robot.n) if dq0 is None else dq0
+        fields = {"q": start, "dq": dq0,
                   # an empty memory needs no call (a CasADi call costs ~40 us per run)
                   "memory": np.array(self.initial_memory(start, goal, k, r_d)).ravel()
                   if self.layout.n_memory else [],
-                  "applied": self._static_tension(start) if self.layout.rate_limited else [],
-                  "status": 0.0}
-        if self.as_built is not None:
-            fields.update(self._as_built_start(start, fields["dq"], plant))
+                  "applied": [], "status": 0.0}
+        if self.effects:
+            context = StartContext(np.asarray(start, dtype=float), dq0, plant,
+                                   self._static_tension(start), self.readout)
+            for effect in self.effects:
+                fields.update(effect.start_values(context))
         return self.layout.x.pack(fields)
 
     def true_static_tension(self, q: np.ndarray, plant: Plant) -> np.ndarray:
         """The tension (N) holding the as-built ``plant`` at rest at ``q``: its mass and
         anchors (m > n: the default distribution of its weight)."""
-        tension, _ = self._true_static(q, plant.mass_scale, _anchor_offsets(self.robot, plant))
-        return np.array(tension).ravel()
+        return self._as_built_readout().true_static(q, plant)[0]
 
     def true_static_held(self, q: np.ndarray, plant: Plant) -> bool:
         """Whether the as-built ``plant`` can be held at rest at ``q`` with tensions in
         [T_min, T_max] (m > n: by the default distribution, which can miss a tension)."""
-        _, held = self._true_static(q, plant.mass_scale, _anchor_offsets(self.robot, plant))
-        return bool(float(held) > 0.5)
+        return self._as_built_readout().true_static(q, plant)[1]
 
     def read_offset(self, q: np.ndarray, plant: Plant) -> np.ndarray:
         """Where the encoders place the as-built ``plant`` held at rest at ``q``, minus ``q``
@@ -292,48 +278,18 @@ class Simulator:
         spec = plant.as_built
         if spec is None or spec.sensing is None:
             return np.zeros(self.robot.n)
-        lengths, _ = self._true_geometry(q, _anchor_offsets(self.robot, plant))
-        reading = np.array(lengths).ravel()
-        if spec.actuation is not None:  # the cables carry the true static tension
-            reading = reading / (1 + self.true_static_tension(q, plant)
-                                 / spec.actuation.cable_stiffness)
-        read = self._read_pose(reading, q, spec.sensing)
+        readout = self._as_built_readout()
+        # the cables carry the true static tension
+        reading = readout.encoder_reading(q, readout.true_static(q, plant)[0], plant)
+        read = readout.read_pose(reading, q, spec.sensing)
         return np.full(self.robot.n, np.nan) if read is None else read - q
 
-    def _as_built_start(self, start: np.ndarray, dq0: np.ndarray, plant: Plant
-                        ) -> dict[str, object]:
-        """The as-built plant's own state fields at the start of a move."""
-        structure, spec = self.as_built, plant.as_built
-        tension = self._static_tension(start)
-        fields: dict[str, object] = {"pending": np.tile(tension, structure.delay)}
-        lengths, _ = self._true_geometry(start, _anchor_offsets(self.robot, plant))
-        reading = np.array(lengths).ravel()
-        if structure.actuation:
-            drive = spec.actuation
-            # stretched to carry the tension: l = l0 (1 + T / EA); the encoders read l0
-            reading = reading / (1 + tension / drive.cable_stiffness)
-            fields.update(payout=reading, drum_speed=np.zeros(self.robot.m),
-                          motor_torque=drive.drum_radius * tension)
-        if structure.sensing:
-            # what the encoders read before the move, so the first velocity estimate
-            # compares like with like (the estimate is off by stretch and anchor errors)
-            # (no pose fits: the start itself, and the first step flags it)
-            read = self._read_pose(reading, start, spec.sensing)
-            fields.update(q_read=start if read is None else read, dq_read=dq0)
-        return fields
-
-    def _read_pose(self, reading: np.ndarray, start: np.ndarray, sensing: Sensing
-                   ) -> np.ndarray | None:
-        """The pose forward kinematics gives for encoder ``reading`` (m), rounded to the
-        resolution, from ``start``; None when no pose fits."""
-        if sensing.resolution > 0:
-            reading = sensing.resolution * np.floor(reading / sensing.resolution + 0.5)
-        q, ok, residual = self._forward_kinematics(reading, start)
-        from cdpr_sym.closed_loop.as_built_step import reading_bound
-
-        bound = reading_bound(self.robot.n, self.robot.m, sensing.resolution,
-                              sensing.consistency)
-        return np.array(q).ravel() if float(ok) > 0.5 and float(residual) <= bound else None
+    def _as_built_readout(self) -> AsBuiltReadout:
+        """The as-built plant's numbers (built for an ideal-plant simulator too, which the
+        robustness study asks about the plants it compares)."""
+        if self.readout is None:
+            self.readout = AsBuiltReadout(self.model)
+        return self.readout
 
     def rollout(self, x0: np.ndarray, p: np.ndarray, n_steps: int
                 ) -> tuple[np.ndarray, np.ndarray]:
@@ -438,16 +394,11 @@ class Simulator:
                    plant: Plant) -> np.ndarray:
         """The step's parameter vector p for a move to ``goal`` (m) with gains ``k`` (N/m),
         ``r_d`` (N s/m), period ``dt`` (s) and ``plant``."""
+        if plant.as_built is not None:
+            plant.as_built.check_period(dt)
         values: dict[str, object] = {}
-        spec = plant.as_built
-        if spec is not None:
-            spec.check_period(dt)
-            if spec.actuation is not None:
-                values["actuation"] = spec.actuation.parameters()
-            if spec.sensing is not None:
-                values["sensing"] = spec.sensing.parameters()
-            if spec.anchor_offsets is not None:
-                values["anchor_offsets"] = spec.anchor_offsets
+        for effect in self.effects:
+            values.update(effect.parameter_values(plant))
         return self.layout.parameters(goal, k, r_d, dt, mass_scale=plant.mass_scale,
                                       slack=plant.slack, rate_limit=plant.rate_limit,
                                       plant=values)
@@ -584,14 +535,6 @@ def sample_times(samples: int, dt: float) -> np.ndarray:
     return times
 
 
-def _anchor_offsets(robot: Robot, plant: Plant) -> np.ndarray:
-    """The plant's anchor offsets, flat (m d), m; zeros when it has none."""
-    spec = plant.as_built
-    if spec is None or spec.anchor_offsets is None:
-        return np.zeros(robot.m * robot.dimension)
-    return spec.anchor_offsets.ravel()
-
-
 def _as_built_suffix(structure: AsBuiltStructure | None) -> str:
     """The library-name suffix of an as-built step (empty for the ideal plant)."""
     if structure is None:
@@ -609,14 +552,19 @@ def controller_identifier(controller: Controller) -> str:
     return f"{base}_{hashlib.sha256(options.encode()).hexdigest()[:8]}"
 
 
-_SIMULATORS: dict[tuple, Simulator] = {}
+#: Simulators kept for reuse in this process, most recently used last: a sweep over many
+#: robots or plants once kept every one (and its loaded libraries) for the process's life.
+_SIMULATORS: collections.OrderedDict[tuple, Simulator] = collections.OrderedDict()
+#: Most simulators kept (each holds its loaded libraries, a few MB at most).
+SIMULATOR_CACHE_SIZE = 32
 
 
 def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
                   build_options: BuildOptions = BuildOptions(),
                   rate_limited: bool = False, as_built: AsBuiltStructure | None = None
                   ) -> Simulator:
-    """A :class:`Simulator`, reused within the process for equal robots and options.
+    """A :class:`Simulator`, reused within the process for equal robots and options (the
+    :data:`SIMULATOR_CACHE_SIZE` most recently used are kept).
 
     Parameters
     ----------
@@ -638,11 +586,16 @@ def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
     """
     key = (robot_key(robot), controller, chunk, build_options,
            build_options.resolved_backend(), rate_limited, as_built)
-    if key not in _SIMULATORS:
-        _SIMULATORS[key] = Simulator(robot, controller, chunk=chunk,
-                                     build_options=build_options, rate_limited=rate_limited,
-                                     as_built=as_built)
-    return _SIMULATORS[key]
+    simulator = _SIMULATORS.get(key)
+    if simulator is None:
+        simulator = Simulator(robot, controller, chunk=chunk, build_options=build_options,
+                              rate_limited=rate_limited, as_built=as_built)
+        _SIMULATORS[key] = simulator
+        while len(_SIMULATORS) > SIMULATOR_CACHE_SIZE:
+            _SIMULATORS.popitem(last=False)
+    else:
+        _SIMULATORS.move_to_end(key)
+    return simulator
 
 
 def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=None,

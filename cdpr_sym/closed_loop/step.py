@@ -1,111 +1,125 @@
 """The closed-loop step: one control period, as one CasADi function.
 
 The tension is computed at the control rate, held (the tension, not the force: W(q) is
-re-evaluated at each RK4 stage) and the plant integrated with one RK4 step per period. A
-step that reaches a singular configuration (|det W| below threshold, or det W changing sign
-within the step), a non-finite state or a pose outside the frame sets a stop status and
-freezes the state. The vectors follow :class:`~cdpr_sym.closed_loop.layout.StepLayout`.
+re-evaluated at each RK4 stage) and the plant integrated with one RK4 step per period. The
+plant is the ideal one (rigid cables applying the command) changed by its effects
+(:mod:`cdpr_sym.closed_loop.effects`), composed in one pipeline: what the controller
+reads, its law, how the command reaches the cables, the plant's integration, the stop
+status (:mod:`cdpr_sym.closed_loop.stops`), the next state and the log. Once the status is
+non-zero the state is frozen. The vectors follow
+:class:`~cdpr_sym.closed_loop.layout.StepLayout`.
 """
 
 from __future__ import annotations
 
 import casadi as ca
 
+from cdpr_sym.closed_loop.effects import PlantEffect, StepBuild, plant_effects
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import applied_tension, plant_rhs
-from cdpr_sym.control import FLAG_SINGULAR, Controller
-from cdpr_sym.model import SINGULAR_DET, SymbolicModel, rk4
+from cdpr_sym.closed_loop.stops import (
+    ALL_STOP_REASONS,
+    LOST_POSE,
+    STOP_CODES,
+    STOP_REASONS,
+    crossed_singularity,
+    singular_flag,
+    stop_status,
+)
+from cdpr_sym.control import Controller
+from cdpr_sym.model import SymbolicModel, rk4
 
-STOP_REASONS = {1: "singular", 2: "non_finite", 3: "left_frame"}
-STOP_CODES = {name: code for code, name in STOP_REASONS.items()}
-#: The stop status of a pose the encoders cannot give (an as-built plant with sensing).
-LOST_POSE = 4
-#: Every stop status a run can end with, the ideal plant's and the as-built plant's: one
-#: table, so no two codes collide.
-ALL_STOP_REASONS = {**STOP_REASONS, LOST_POSE: "lost_pose"}
+__all__ = ["ALL_STOP_REASONS", "LOST_POSE", "STOP_CODES", "STOP_REASONS", "chunk_function",
+           "crossed_singularity", "plant_layout", "rk4", "singular_flag", "step_function",
+           "step_layout", "stop_status"]
 
 
 def step_layout(model: SymbolicModel, controller: Controller, *,
                 rate_limited: bool = False) -> StepLayout:
-    """The layout of the step of ``controller`` on ``model``."""
+    """The layout of the step of ``controller`` on ``model`` with the ideal plant (or one
+    with a tension-rate limit)."""
+    return plant_layout(model, controller, plant_effects(rate_limited=rate_limited))
+
+
+def plant_layout(model: SymbolicModel, controller: Controller,
+                 effects: tuple[PlantEffect, ...]) -> StepLayout:
+    """The layout of the step of ``controller`` on ``model`` with the plant ``effects``:
+    the ideal plant's fields, then each effect's, in registry order."""
+    rate_limited = any(effect.name == "rate_limit" for effect in effects)
     return StepLayout(model.n, model.n_j, controller.memory_size(model), rate_limited,
-                      model.m if model.m != model.n else None)
+                      model.m if model.m != model.n else None,
+                      plant_x=_fields(effect.state_fields(model) for effect in effects),
+                      plant_p=_fields(effect.parameter_fields(model) for effect in effects),
+                      plant_log=_fields(effect.log_fields(model) for effect in effects))
+
+
+def _fields(declared) -> tuple[tuple[str, int], ...]:
+    return tuple(field for fields in declared for field in fields)
+
+
+class _RigidCables:
+    """The ideal plant: z = [q, dq], the command applied by rigid cables (clipped at zero
+    when ``slack``), one RK4 step per period."""
+
+    fields = ("q", "dq")
+
+    def __init__(self, build: StepBuild) -> None:
+        self.model, self.par = build.model, build.par
+
+    def pack(self, state: dict[str, ca.SX]) -> ca.SX:
+        return ca.vertcat(state["q"], state["dq"])
+
+    def split(self, z: ca.SX) -> dict[str, ca.SX]:
+        return {"q": z[: self.model.n], "dq": z[self.model.n:]}
+
+    def advance(self, z: ca.SX, command: ca.SX, dt: ca.SX) -> ca.SX:
+        applied = applied_tension(command, self.par["slack"])
+        return rk4(plant_rhs(self.model, applied, self.par["mass_scale"]), z, dt)
 
 
 def step_function(model: SymbolicModel, controller: Controller, *,
-                  rate_limited: bool = False) -> ca.Function:
-    """One sampled-data control period: (x, p) -> (x_next, log), laid out by :func:`step_layout`.
-
-    Once status is non-zero the state is frozen.
+                  rate_limited: bool = False,
+                  effects: tuple[PlantEffect, ...] | None = None) -> ca.Function:
+    """One sampled-data control period: (x, p) -> (x_next, log), laid out by
+    :func:`plant_layout`, for the plant ``effects`` (default: the ideal plant, with a
+    tension-rate limit when ``rate_limited``). Once status is non-zero the state is frozen.
     """
-    layout = step_layout(model, controller, rate_limited=rate_limited)
+    if effects is None:
+        effects = plant_effects(rate_limited=rate_limited)
+    layout = plant_layout(model, controller, effects)
     x, p = ca.SX.sym("x", layout.x.size), ca.SX.sym("p", layout.p.size)
     state, par = layout.x.split(x), layout.p.split(p)
-    q, dq, memory, status = state["q"], state["dq"], state["memory"], state["status"]
-    dt = par["dt"]
-    law, memory_next = controller.step(model, q, dq, par["q_goal"], par["k"], par["r_d"],
-                                       memory, dt)
-    actuator = law.tau
-    if rate_limited:
-        largest = par["rate_limit"] * dt
-        actuator = state["applied"] + ca.fmin(ca.fmax(law.tau - state["applied"], -largest),
-                                              largest)
-    applied = applied_tension(actuator, par["slack"])
-    z_next = rk4(plant_rhs(model, applied, par["mass_scale"]), ca.vertcat(q, dq), dt)
-    new_status = stop_status(model, status, law.flags, law.tau, q, z_next)
+    build = StepBuild(model, effects, state, par)
+    provided = [effect.dynamics(build) for effect in effects]
+    build.dynamics = next((d for d in provided if d is not None), None) or _RigidCables(build)
+    build.z = build.dynamics.pack(state)
+    q, dq, dt = state["q"], state["dq"], par["dt"]
+
+    q_read, dq_read = q, dq
+    for effect in effects:
+        q_read, dq_read = effect.read(build, q_read, dq_read)
+    law, memory_next = controller.step(model, q_read, dq_read, par["q_goal"], par["k"],
+                                       par["r_d"], state["memory"], dt)
+    command = law.tau
+    for effect in effects:
+        command = effect.deliver(build, command)
+    z_next = build.dynamics.advance(build.z, command, dt)
+
+    earlier = tuple(stop for effect in effects for stop in effect.stops(build))
+    new_status = stop_status(model, state["status"], law.flags, law.tau, q, z_next,
+                             earlier=earlier)
     stopped = new_status != 0
-    x_next = ca.vertcat(ca.if_else(stopped, ca.vertcat(q, dq), z_next),
-                        ca.if_else(stopped, memory, memory_next),
-                        ca.if_else(stopped, state["applied"], actuator) if rate_limited
-                        else ca.SX.zeros(0, 1),
-                        new_status)
-    log = ca.vertcat(law.tau, law.alpha, law.beta, law.j, law.flags)
+    moved = {**build.dynamics.split(z_next), "memory": memory_next}
+    for effect in effects:
+        moved.update(effect.next_state(build))
+    x_next = ca.vertcat(*(ca.if_else(stopped, state[name], moved.get(name, state[name]))
+                          for name in layout.x.names if name != "status"), new_status)
+    logged = {name: value for effect in effects
+              for name, value in effect.log(build, command).items()}
+    log = ca.vertcat(law.tau, law.alpha, law.beta, law.j, law.flags,
+                     *(logged[name] for name, _ in layout.plant_log))
     return ca.Function("step", [x, p], [x_next, log], ["x", "p"], ["x_next", "log"],
                        {"cse": True})
-
-
-def stop_status(model: SymbolicModel, status: ca.SX, flags: ca.SX, command: ca.SX, q: ca.SX,
-                z_next: ca.SX, *, earlier: tuple[tuple[ca.SX, int], ...] = ()) -> ca.SX:
-    """The status after a step from pose ``q`` to the plant state ``z_next`` (its first n
-    entries the pose): ``status`` once stopped; else the code of the first stop that holds,
-    the ``earlier`` (condition, code) pairs first, then singular (the controller's flag, or
-    det W changing sign within the step), non-finite (any of ``z_next`` or the command:
-    a slack or rate-limited plant would otherwise turn NaN into a number) and outside the
-    frame; 0 to go on."""
-    q_next = z_next[: model.n]
-    singular = ca.logic_or(singular_flag(flags), crossed_singularity(model, q, q_next))
-    finite = ca.sum1(ca.fabs(ca.vertcat(z_next, command)) <= 1e300) > (
-        z_next.numel() + command.numel() - 0.5)
-    lower, upper = model.robot.frame_lower, model.robot.frame_upper
-    outside = ca.sum1(q_next < lower) + ca.sum1(q_next > upper) > 0
-    stops = (*earlier, (singular, STOP_CODES["singular"]),
-             (ca.logic_not(finite), STOP_CODES["non_finite"]),
-             (outside, STOP_CODES["left_frame"]))
-    new_status = ca.SX(0)
-    for condition, code in reversed(stops):
-        new_status = ca.if_else(condition, code, new_status)
-    return ca.if_else(status != 0, status, new_status)
-
-
-def singular_flag(flags: ca.SX) -> ca.SX:
-    """Whether the controller's flags hold FLAG_SINGULAR.
-
-    A bit test by floor alone (exact for the small integers flags are): fmod has no vector
-    form, and one call of it keeps the batched step from using SIMD.
-    """
-    shifted = ca.floor(flags / FLAG_SINGULAR)
-    return shifted - 2 * ca.floor(0.5 * shifted) > 0.5
-
-
-def crossed_singularity(model: SymbolicModel, q: ca.SX, q_next: ca.SX) -> ca.SX:
-    """Whether the step passed through a singularity between samples: det W changes sign
-    (m = n; read from W diag(l), which needs no square root or division: a sixth of the
-    step's time went to W(q_next) for this sign alone), or W loses row rank at q_next
-    (m > n: W W^T has no sign to change)."""
-    if model.m == model.n:
-        return (ca.det(model.scaled_structure_matrix(q))
-                * ca.det(model.scaled_structure_matrix(q_next)) <= 0)
-    return model.singularity_measure(model.structure_matrix(q_next)) < SINGULAR_DET
 
 
 def chunk_function(step: ca.Function, n_steps: int) -> ca.Function:

@@ -8,10 +8,10 @@ of rows in a dataset folder). The runs of each controller are advanced together 
 vectorised blocks and reduced to their metrics as they advance
 (:func:`~cdpr_sym.closed_loop.summarise_many`). A JSON sidecar records the
 configuration, package versions and seed so any row can be re-run exactly (``run_many``
-on its pair alone, or a single ``simulate`` run: the same bits). Work is spread over local processes by default,
-or over an existing Dask cluster; an interrupted sweep resumes from the rows already written.
-Only one sweep writes an output at a time, and Ctrl-C or SIGTERM stops it within about a
-second, keeping every finished row.
+on its pair alone, or a single ``simulate`` run: the same bits). Work is spread over local
+processes by default, or over an existing Dask cluster; an interrupted sweep resumes from
+the rows already written. Only one sweep writes an output at a time, and Ctrl-C or SIGTERM
+stops it within about a second, keeping every finished row.
 """
 
 from __future__ import annotations

@@ -1,0 +1,98 @@
+"""Encoder sensing (:class:`~cdpr_sym.as_built.Sensing`): the controller reads the pose from
+quantised cable lengths by forward kinematics, and the velocity from a filtered difference.
+
+Each control period: the encoders read the cable lengths (the paid-out, unstretched lengths
+r theta with winches; the geometric ones without), rounded to the resolution; forward
+kinematics with the controller's model, from the previous estimate, gives the pose; a
+first-order filtered difference quotient the velocity. A pose that no forward kinematics
+explains within :func:`reading_bound` stops the run (``"lost_pose"``), as a real controller
+that lost its pose must.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import TYPE_CHECKING, ClassVar
+
+import casadi as ca
+
+from cdpr_sym.as_built.spec import SENSING_PARAMETERS
+from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StepBuild
+from cdpr_sym.closed_loop.stops import LOST_POSE
+from cdpr_sym.model import SymbolicModel
+
+if TYPE_CHECKING:
+    from cdpr_sym.as_built import AsBuiltStructure
+    from cdpr_sym.closed_loop.effects.start import StartContext
+    from cdpr_sym.closed_loop.plant import Plant
+
+
+@dataclasses.dataclass(frozen=True)
+class Encoders(PlantEffect):
+    """The states ``q_read``, ``dq_read`` (the last estimates) and the parameter
+    ``sensing`` (:data:`~cdpr_sym.as_built.SENSING_PARAMETERS`)."""
+
+    name: ClassVar[str] = "encoders"
+    as_built: ClassVar[bool] = True
+
+    @classmethod
+    def select(cls, *, rate_limited: bool, as_built: AsBuiltStructure | None
+               ) -> Encoders | None:
+        return cls() if as_built is not None and as_built.sensing else None
+
+    def state_fields(self, model: SymbolicModel) -> FieldList:
+        return (("q_read", model.n), ("dq_read", model.n))
+
+    def parameter_fields(self, model: SymbolicModel) -> FieldList:
+        return (("sensing", len(SENSING_PARAMETERS)),)
+
+    def read(self, build: StepBuild, q: ca.SX, dq: ca.SX) -> tuple[ca.SX, ca.SX]:
+        # imported where a step with encoders is built: a sweep of the ideal plant never
+        # loads forward kinematics (~40 ms of its start-up)
+        from cdpr_sym.model.forward_kinematics import forward_kinematics_expression
+
+        model, state, sensing = build.model, build.state, build.par["sensing"]
+        resolution, cutoff, consistency = sensing[0], sensing[1], sensing[2]
+        exact = build.dynamics.encoder_lengths(build.z)
+        step = ca.fmax(resolution, 1e-300)
+        reading = ca.if_else(resolution > 0, step * ca.floor(exact / step + 0.5), exact)
+        # the solver's own residual test is left wide open: reading_bound decides
+        q_read, ok, residual = forward_kinematics_expression(model, reading, state["q_read"],
+                                                             tolerance=1.0)
+        ok = ca.logic_and(ok, residual <= reading_bound(model.n, model.m, resolution,
+                                                        consistency))
+        dt = build.par["dt"]
+        keep = ca.exp(-2 * math.pi * cutoff * dt)
+        dq_read = keep * state["dq_read"] + (1 - keep) * (q_read - state["q_read"]) / dt
+        build.memo(self).update(q_read=q_read, dq_read=dq_read, ok=ok)
+        return q_read, dq_read
+
+    def stops(self, build: StepBuild) -> tuple[tuple[ca.SX, int], ...]:
+        return ((build.memo(self)["ok"] < 0.5, LOST_POSE),)
+
+    def next_state(self, build: StepBuild) -> dict[str, ca.SX]:
+        memo = build.memo(self)
+        return {"q_read": memo["q_read"], "dq_read": memo["dq_read"]}
+
+    def parameter_values(self, plant: Plant) -> dict[str, object]:
+        return {"sensing": plant.as_built.sensing.parameters()}
+
+    def start_values(self, start: StartContext) -> dict[str, object]:
+        """What the encoders read before the move, so the first velocity estimate compares
+        like with like (off by stretch and anchor errors); the start itself where no pose
+        fits (the first step then stops the run)."""
+        read = start.read_pose(start.encoder_reading())
+        return {"q_read": start.start if read is None else read, "dq_read": start.dq0}
+
+
+def reading_bound(n: int, m: int, resolution, consistency):
+    """The largest misfit max_i |l_i(q) - read_i| (m) of a pose read from encoders: round-off
+    for m = n (some pose has exactly these lengths); for m > n half a count per cable (see
+    :func:`~cdpr_sym.model.forward_kinematics.quantisation_tolerance`) plus ``consistency``.
+    Numbers or CasADi expressions."""
+    from cdpr_sym.model.forward_kinematics import FK_TOLERANCE
+
+    if m == n:
+        return FK_TOLERANCE
+    return FK_TOLERANCE + math.sqrt(m) * resolution / 2 + consistency

@@ -1,0 +1,119 @@
+"""The numbers of a move's start that the effects' initial states are made of, and the
+as-built plant's numeric twins (its static tension, geometry and encoder reading)."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from cdpr_sym.as_built import Sensing
+from cdpr_sym.as_built.geometry import true_geometry_function
+from cdpr_sym.closed_loop.effects.encoders import reading_bound
+from cdpr_sym.model import SymbolicModel
+
+if TYPE_CHECKING:
+    from cdpr_sym.closed_loop.plant import Plant
+
+
+def anchor_offsets(model: SymbolicModel, plant: Plant) -> np.ndarray:
+    """The plant's anchor offsets, flat (m d), m; zeros when it has none."""
+    spec = plant.as_built
+    if spec is None or spec.anchor_offsets is None:
+        return np.zeros(model.m * model.robot.dimension)
+    return spec.anchor_offsets.ravel()
+
+
+class AsBuiltReadout:
+    """The as-built plant in numbers: its true static tension, its cable lengths and what
+    its encoders read, and the pose forward kinematics gives for a reading.
+
+    Parameters
+    ----------
+    model : SymbolicModel
+        The controller's model (forward kinematics use it, as the controller does).
+    """
+
+    def __init__(self, model: SymbolicModel) -> None:
+        # imported with the first as-built plant: a sweep of the ideal plant never loads
+        # its static tension or forward kinematics
+        from cdpr_sym.as_built.static import true_static_function
+        from cdpr_sym.model.forward_kinematics import forward_kinematics_function
+
+        self.model = model
+        self._true_static = true_static_function(model)
+        self._true_geometry = true_geometry_function(model.robot)
+        self._forward_kinematics = forward_kinematics_function(model, tolerance=1.0)
+
+    def true_static(self, q: np.ndarray, plant: Plant) -> tuple[np.ndarray, bool]:
+        """The tension (N) holding ``plant`` at rest at ``q`` (its mass and anchors; m > n:
+        the default distribution of its weight), and whether it lies in [T_min, T_max]."""
+        tension, held = self._true_static(q, plant.mass_scale, anchor_offsets(self.model, plant))
+        return np.array(tension).ravel(), bool(float(held) > 0.5)
+
+    def true_lengths(self, q: np.ndarray, plant: Plant) -> np.ndarray:
+        """The plant's geometric cable lengths at ``q``, m."""
+        lengths, _ = self._true_geometry(q, anchor_offsets(self.model, plant))
+        return np.array(lengths).ravel()
+
+    def encoder_reading(self, q: np.ndarray, tension: np.ndarray, plant: Plant) -> np.ndarray:
+        """What the encoders read (m) with ``plant`` at rest at ``q`` and its cables carrying
+        ``tension`` (N): with winches the unstretched length l0 = l / (1 + T / EA)."""
+        reading = self.true_lengths(q, plant)
+        spec = plant.as_built
+        if spec is not None and spec.actuation is not None:
+            reading = reading / (1 + tension / spec.actuation.cable_stiffness)
+        return reading
+
+    def read_pose(self, reading: np.ndarray, guess: np.ndarray, sensing: Sensing
+                  ) -> np.ndarray | None:
+        """The pose forward kinematics gives from ``guess`` for encoder ``reading`` (m),
+        rounded to the resolution; None when no pose fits within the reading bound."""
+        if sensing.resolution > 0:
+            reading = sensing.resolution * np.floor(reading / sensing.resolution + 0.5)
+        q, ok, residual = self._forward_kinematics(reading, guess)
+        bound = reading_bound(self.model.n, self.model.m, sensing.resolution,
+                              sensing.consistency)
+        return np.array(q).ravel() if float(ok) > 0.5 and float(residual) <= bound else None
+
+
+@dataclasses.dataclass
+class StartContext:
+    """A move's start as the effects see it when they fill in their initial state.
+
+    Attributes
+    ----------
+    start, dq0 : ndarray, shape (n,)
+        The start pose (m, rad) and velocity.
+    plant : Plant
+    static_tension : ndarray, shape (m,)
+        The model's static tension at the start, N: the controller held the plant at rest
+        with it, so its cables carry it and the commands on their way are it.
+    readout : AsBuiltReadout or None
+        The as-built plant's numbers (None for the ideal plant).
+    """
+
+    start: np.ndarray
+    dq0: np.ndarray
+    plant: Plant
+    static_tension: np.ndarray
+    readout: AsBuiltReadout | None = None
+
+    @property
+    def cables(self) -> int:
+        return len(self.static_tension)
+
+    @functools.cached_property
+    def _reading(self) -> np.ndarray:
+        return self.readout.encoder_reading(self.start, self.static_tension, self.plant)
+
+    def encoder_reading(self) -> np.ndarray:
+        """What the encoders read at the start, m (the cables stretched by the static
+        tension where they are elastic)."""
+        return self._reading
+
+    def read_pose(self, reading: np.ndarray) -> np.ndarray | None:
+        """The pose read from ``reading`` starting from the start pose, or None."""
+        return self.readout.read_pose(reading, self.start, self.plant.as_built.sensing)

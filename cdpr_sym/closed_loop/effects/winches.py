@@ -1,0 +1,79 @@
+"""Elastic cables on torque-controlled winches (:class:`~cdpr_sym.as_built.Actuation`).
+
+The controller's tension command is the reference of each winch's torque loop; the drum
+pays cable out (``payout`` = r theta, the unstretched length), and the tension follows from
+the cable's stretch (:mod:`cdpr_sym.as_built.actuation`). Part of the as-built body
+(:mod:`~cdpr_sym.closed_loop.effects.true_cables`), whose dynamics call
+:meth:`Winches.tension` and :meth:`Winches.drive_rates`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING, ClassVar
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.as_built import actuation
+from cdpr_sym.as_built.spec import ACTUATION_PARAMETERS
+from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect
+from cdpr_sym.model import SymbolicModel
+
+if TYPE_CHECKING:
+    from cdpr_sym.as_built import AsBuiltStructure
+    from cdpr_sym.closed_loop.effects.start import StartContext
+    from cdpr_sym.closed_loop.plant import Plant
+
+#: The winch states: payout r theta (m), drum speed (rad/s), motor torque (N m), per cable.
+DRIVE_FIELDS = ("payout", "drum_speed", "motor_torque")
+
+
+@dataclasses.dataclass(frozen=True)
+class Winches(PlantEffect):
+    """The winches' states (:data:`DRIVE_FIELDS`) and the parameter ``actuation``
+    (:data:`~cdpr_sym.as_built.ACTUATION_PARAMETERS`)."""
+
+    name: ClassVar[str] = "winches"
+    as_built: ClassVar[bool] = True
+    drive_fields: ClassVar[tuple[str, ...]] = DRIVE_FIELDS
+
+    @classmethod
+    def select(cls, *, rate_limited: bool, as_built: AsBuiltStructure | None
+               ) -> Winches | None:
+        return cls() if as_built is not None and as_built.actuation else None
+
+    def state_fields(self, model: SymbolicModel) -> FieldList:
+        return tuple((name, model.m) for name in DRIVE_FIELDS)
+
+    def parameter_fields(self, model: SymbolicModel) -> FieldList:
+        return (("actuation", len(ACTUATION_PARAMETERS)),)
+
+    @staticmethod
+    def tension(parts: dict[str, ca.SX], lengths: ca.SX, jacobian: ca.SX,
+                parameters: ca.SX) -> ca.SX:
+        """The tension of the elastic cables (N) at the state ``parts``, with the true
+        ``lengths`` (m) and their Jacobian."""
+        radius = actuation.named(parameters)["drum_radius"]
+        return actuation.cable_tension(lengths, jacobian @ parts["dq"], parts["payout"],
+                                       radius * parts["drum_speed"], parameters)
+
+    @staticmethod
+    def drive_rates(parts: dict[str, ca.SX], tension: ca.SX, command: ca.SX,
+                    parameters: ca.SX) -> ca.SX:
+        """d/dt of the winch states: payout rate, drum acceleration, torque rate."""
+        speed, torque = parts["drum_speed"], parts["motor_torque"]
+        radius = actuation.named(parameters)["drum_radius"]
+        return ca.vertcat(radius * speed,
+                          actuation.drum_acceleration(tension, speed, torque, parameters),
+                          actuation.torque_rate(torque, command, parameters))
+
+    def parameter_values(self, plant: Plant) -> dict[str, object]:
+        return {"actuation": plant.as_built.actuation.parameters()}
+
+    def start_values(self, start: StartContext) -> dict[str, object]:
+        """At rest, each cable stretched to carry the static tension (its payout the
+        encoders' reading), the drums still, the motors' torque holding the tension."""
+        drive = start.plant.as_built.actuation
+        return {"payout": start.encoder_reading(), "drum_speed": np.zeros(start.cables),
+                "motor_torque": drive.drum_radius * start.static_tension}
