@@ -1,5 +1,5 @@
 """A sweep's configuration: each refusal names its field and says what was expected, and
-robot references resolve to what the worker processes can load."""
+robot references resolve to a name or file a resume can read again."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""What a sweep is: its configuration, the robot reference its workers load, its pairs."""
+"""What a sweep is: its configuration, the robot reference it records, its pairs."""
 
 from __future__ import annotations
 
@@ -53,7 +53,8 @@ class SweepConfig:
     Parameters
     ----------
     robot : str
-        Preset name or robot TOML path.
+        Preset name or robot TOML path, resolved once when the sweep starts (its workers
+        receive the robot itself) and again by a resume.
     controllers : tuple of str
         Controller names (see ``cdpr_sym.control.CONTROLLERS``).
     pairs : int
@@ -96,10 +97,11 @@ class SweepConfig:
 
 
 def robot_reference(robot: Robot | str | Path) -> tuple[Robot, str]:
-    """The robot and the string sweep workers load it from (a preset name or a file path).
+    """The robot and the string a sweep records it by (a preset name or a file path).
 
     A :class:`Robot` object is accepted when it equals the preset of its name; any other robot
-    must be given as its file, since the workers run in other processes.
+    must be given as its file, since the sweep's configuration names its robot and a resume
+    reads it again from that name (the workers receive the robot itself, not the name).
     """
     if isinstance(robot, (str, Path)):
         resolved = resolve_robot(robot)
@@ -108,7 +110,7 @@ def robot_reference(robot: Robot | str | Path) -> tuple[Robot, str]:
                           else str(Path(robot).resolve()))
     if robot.name in PRESET_NAMES and preset(robot.name).as_dict() == robot.as_dict():
         return robot, robot.name
-    raise InvalidCase("robot", f"sweep workers load the robot by preset name or file, and "
+    raise InvalidCase("robot", f"a sweep names its robot by preset name or file, and "
                       f"{robot.name!r} is not an unchanged preset; pass its TOML file instead")
 
 

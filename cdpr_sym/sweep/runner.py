@@ -11,6 +11,9 @@ configuration, package versions and seed so any row can be re-run exactly (``run
 on its pair alone; a single ``simulate`` run agrees to round-off, which chattering designs
 amplify). Work is spread over local processes by default,
 or over an existing Dask cluster; an interrupted sweep resumes from the rows already written.
+The robot is read once, when the sweep starts, and the workers receive it (a
+:class:`~cdpr_sym.sweep.job.SweepJob`, sent to each once): a robot file edited or deleted
+during the sweep changes none of its rows.
 Only one sweep writes an output at a time, and Ctrl-C or SIGTERM stops it within about a
 second, keeping every finished row.
 """
@@ -49,6 +52,7 @@ from cdpr_sym.sweep.config import (
     columns,
     draw_pairs,
 )
+from cdpr_sym.sweep.job import SweepJob
 from cdpr_sym.sweep.output import check_identity, done_rows, exclusive_output
 from cdpr_sym.sweep.runs import Runs, as_runs, chunk_sizes, chunks, pending_runs
 from cdpr_sym.sweep.workers import (
@@ -115,13 +119,13 @@ def _error_row(failure: BaseException) -> dict[str, Any]:
     return {"status": "error", "error": f"{type(failure).__name__}: {failure}"}
 
 
-def run_items(config_dict: dict[str, Any], work: Runs | Sequence[tuple[int, str, list, list]]
+def run_items(job: SweepJob, work: Runs | Sequence[tuple[int, str, list, list]]
               ) -> list[dict[str, Any]]:
     """Worker entry point: run the :class:`~cdpr_sym.sweep.runs.Runs` of ``work`` (or
-    (pair, controller, start, goal) tuples), return CSV rows in their order (the runs of
-    each controller advanced together)."""
+    (pair, controller, start, goal) tuples) on the robot and settings of ``job``, return
+    CSV rows in their order (the runs of each controller advanced together)."""
     runs = as_runs(work)
-    rows = _run_rows(config_dict, runs)
+    rows = _run_rows(job, runs)
     starts, goals = runs.starts.tolist(), runs.goals.tolist()
     for row, pair, name, start, goal in zip(rows, runs.pairs.tolist(), runs.controllers.tolist(),
                                             starts, goals, strict=True):
@@ -131,10 +135,10 @@ def run_items(config_dict: dict[str, Any], work: Runs | Sequence[tuple[int, str,
     return rows
 
 
-def _run_rows(config_dict: dict[str, Any], runs: Runs) -> list[dict[str, Any]]:
-    """The metric rows of ``runs`` in their order, each controller's runs advanced together."""
-    config = SweepConfig(**{**config_dict, "controllers": tuple(config_dict["controllers"])})
-    robot = resolve_robot(config.robot)
+def _run_rows(job: SweepJob, runs: Runs) -> list[dict[str, Any]]:
+    """The metric rows of ``runs`` in their order, each controller's runs advanced together
+    (on the job's robot: no file is read here)."""
+    config, robot = job.config, job.robot
     rows: list[dict[str, Any]] = [{} for _ in range(len(runs))]
     for name in dict.fromkeys(runs.controllers.tolist()):
         indices = np.flatnonzero(runs.controllers == name)
@@ -153,14 +157,14 @@ class CsvChunk(NamedTuple):
     text: str
 
 
-def run_items_csv(config_dict: dict[str, Any],
+def run_items_csv(job: SweepJob,
                   work: Runs | Sequence[tuple[int, str, list, list]]) -> CsvChunk:
     """Worker entry point of a CSV sweep: :func:`run_items`, formatted as CSV lines where
     the runs ran. One string travels back instead of a dictionary per row (pickling and
     sending them cost a Dask sweep about 40 us a row) and the writing process only appends
     it; the lines equal what ``csv.DictWriter`` writes for the same rows."""
     runs = as_runs(work)
-    rows = run_items(config_dict, runs)
+    rows = run_items(job, runs)
     names = columns(runs.starts.shape[1]) if len(runs) else []
     buffer = io.StringIO()
     csv.writer(buffer).writerows([[row.get(name, "") for name in names] for row in rows])
@@ -244,6 +248,9 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
     (pair, controller) rows already stored (see :mod:`cdpr_sym.sweep.output` for the lock,
     the checks and the repair of a damaged table).
 
+    The robot ``config.robot`` names is read once, here; every worker runs on that robot
+    (see :mod:`cdpr_sym.sweep.job`), whatever happens to its file meanwhile.
+
     Work goes out in chunks of at most ``chunk_size`` runs (by default
     :data:`LOCAL_CHUNK_ROWS`, or :data:`DASK_CHUNK_ROWS` on Dask), shrinking towards the
     end of the sweep so the workers finish together.
@@ -281,8 +288,10 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
             parts = list(chunks(runs, chunk_sizes(len(runs), workers, largest,
                                                   max(1, largest // 10))))
             work = run_items_csv if format == "csv" else run_items
-            results = (dask_map(client, work, config.as_dict(), parts) if client
-                       else local_map(work, config.as_dict(), parts, workers))
+            # the robot read once, above, travels to the workers: none reads its file
+            job = SweepJob(config, robot)
+            results = (dask_map(client, work, job, parts) if client
+                       else local_map(work, job, parts, workers))
             _collect(results, out, format, robot.n, len(runs), progress)
         finally:
             if client is not None:
