@@ -12,7 +12,6 @@ from cdpr_sym.closed_loop import Plant
 from cdpr_sym.closed_loop.case import check_timing
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.results import SCALAR_METRICS
 from cdpr_sym.robot import PRESET_NAMES, Robot, preset, resolve_robot
 from cdpr_sym.workspace import WorkspaceEvaluator, sample_static_workspace
 
@@ -123,23 +122,5 @@ def draw_pairs(robot: Robot, config: SweepConfig) -> tuple[np.ndarray, np.ndarra
     return poses[: config.pairs], poses[config.pairs:]
 
 
-def columns(n: int) -> list[str]:
-    """CSV header for an n-DOF robot."""
-    axes = [f"{i}" for i in range(n)]
-    return ["pair", "controller", *[f"start_{a}" for a in axes], *[f"goal_{a}" for a in axes],
-            "status", "error", *SCALAR_METRICS]
-
-
 #: How a sweep stores its rows: one CSV file, or a folder of Parquet parts (a dataset).
 FORMATS = ("csv", "parquet")
-
-#: Typed columns of a Parquet sweep that are not float64 (every other metric is a float).
-_TYPED_METRICS = {"tension_feasible": "bool", "converged": "bool", "fallback_steps": "int64",
-                  "infeasible_steps": "int64", "stop_reason": "string"}
-
-
-def column_types(n: int) -> dict[str, str]:
-    """The columns of :func:`columns` with their Parquet types (``int64``, ``float64``,
-    ``bool`` or ``string``), in table order."""
-    fixed = {"pair": "int64", "controller": "string", "status": "string", "error": "string"}
-    return {name: fixed.get(name, _TYPED_METRICS.get(name, "float64")) for name in columns(n)}

@@ -43,15 +43,9 @@ from cdpr_sym.results.store import (
     require_parquet,
     sidecar_path,
 )
+from cdpr_sym.results.sweep_columns import sweep_column_types, sweep_columns
 from cdpr_sym.robot import WRENCH_FIELDS, Robot, resolve_robot
-from cdpr_sym.sweep.config import (
-    FORMATS,
-    SweepConfig,
-    check_chunk_size,
-    column_types,
-    columns,
-    draw_pairs,
-)
+from cdpr_sym.sweep.config import FORMATS, SweepConfig, check_chunk_size, draw_pairs
 from cdpr_sym.sweep.job import SweepJob
 from cdpr_sym.sweep.output import check_identity, done_rows, exclusive_output
 from cdpr_sym.sweep.runs import Runs, as_runs, chunk_sizes, chunks, pending_runs
@@ -165,7 +159,7 @@ def run_items_csv(job: SweepJob,
     it; the lines equal what ``csv.DictWriter`` writes for the same rows."""
     runs = as_runs(work)
     rows = run_items(job, runs)
-    names = columns(runs.starts.shape[1]) if len(runs) else []
+    names = sweep_columns(runs.starts.shape[1]) if len(runs) else []
     buffer = io.StringIO()
     csv.writer(buffer).writerows([[row.get(name, "") for name in names] for row in rows])
     return CsvChunk(len(rows), buffer.getvalue())
@@ -358,7 +352,7 @@ def _row_sink(out: Path, format: str, n: int
     """A function that stores a list of rows (or, for CSV, a :class:`CsvChunk` already
     formatted) durably: a Parquet part, or CSV lines appended and flushed."""
     if format == "parquet":
-        types = column_types(n)
+        types = sweep_column_types(n)
 
         def store_part(rows: list) -> None:
             if rows:
@@ -367,7 +361,7 @@ def _row_sink(out: Path, format: str, n: int
         yield store_part
         return
     with open(out, "a", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=columns(n), extrasaction="ignore")
+        writer = csv.DictWriter(handle, fieldnames=sweep_columns(n), extrasaction="ignore")
         if handle.tell() == 0:
             writer.writeheader()
             handle.flush()
