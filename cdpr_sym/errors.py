@@ -6,6 +6,8 @@ can catch either the precise class or the builtin.
 
 from __future__ import annotations
 
+from typing import Any
+
 
 class CdprError(Exception):
     """Base class of every error raised by cdpr_sym."""
@@ -19,6 +21,10 @@ class InvalidRobot(CdprError, ValueError):
         self.message = message
         super().__init__(f"{field}: {message}")
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # pickled with both arguments (an error sent back from a worker process)
+        return type(self), (self.field, self.message), self.__dict__
+
 
 class InvalidCase(CdprError, ValueError):
     """A start, goal, gain or option is outside what the robot or controller accepts."""
@@ -27,6 +33,10 @@ class InvalidCase(CdprError, ValueError):
         self.field = field
         self.message = message
         super().__init__(f"{field}: {message}")
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # pickled with both arguments (an error sent back from a worker process)
+        return type(self), (self.field, self.message), self.__dict__
 
 
 class CompilerNotFound(CdprError, RuntimeError):

@@ -8,7 +8,7 @@ from cdpr_sym.closed_loop.batch import batch_rollout, run_many
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import CONTROLLERS
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.sweep import SweepConfig
+from cdpr_sym.sweep import SweepConfig, SweepJob
 from cdpr_sym.sweep.runner import run_items, run_one
 
 
@@ -102,7 +102,7 @@ def test_sweep_items_are_run_in_groups_and_returned_in_their_order(aras3, rng):
     items = [(pair, name, start.tolist(), goal.tolist())
              for pair, (name, start, goal) in enumerate(zip(names, starts, goals, strict=True))]
     config = SweepConfig(robot="aras3", controllers=("pd", "smooth"), pairs=5, duration=0.3)
-    rows = run_items(config.as_dict(), items)
+    rows = run_items(SweepJob(config, aras3), items)
     for row, (pair, name, start, goal) in zip(rows, items, strict=True):
         alone = run_one(aras3, name, np.array(start), np.array(goal), duration=0.3,
                         dt=config.dt, mass_scale=1.0)

@@ -16,9 +16,9 @@ from cdpr_sym import InvalidCase, SymbolicModel, UnknownName, __version__, prese
 from cdpr_sym.closed_loop import get_simulator, run_many
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.reporting.sweep_report import maps_figure, write_sweep_report
-from cdpr_sym.results import SCALAR_METRICS
+from cdpr_sym.results import SCALAR_METRICS, sweep_columns
 from cdpr_sym.results.store import load_table, sidecar_path
-from cdpr_sym.sweep import SweepConfig, columns, run_sweep
+from cdpr_sym.sweep import SweepConfig, run_sweep
 
 CONFIG = SweepConfig(robot="aras3", controllers=("l2", "box"), pairs=3, seed=11,
                      duration=2.0)
@@ -55,7 +55,7 @@ def local_sweep(tmp_path_factory) -> Path:
 
 def test_sweep_writes_one_row_per_pair_and_controller(local_sweep):
     text = local_sweep.read_text()
-    assert text.splitlines()[0] == ",".join(columns(3))
+    assert text.splitlines()[0] == ",".join(sweep_columns(3))
     rows = _read(local_sweep)
     assert sorted(_keyed(rows)) == [(pair, name) for pair in range(CONFIG.pairs)
                                     for name in sorted(CONFIG.controllers)]
@@ -283,7 +283,7 @@ def test_rows_read_back_in_the_order_the_sweep_defines_whatever_finished_first(t
     gets them by pair, then in the configured order of the designs (reports list designs
     in the order they first appear)."""
     out = tmp_path / "rows.csv"
-    names = columns(2)
+    names = sweep_columns(2)
     written = [(3, "pd"), (3, "l2"), (0, "l2"), (1, "pd"), (0, "pd"), (1, "l2")]
     with open(out, "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=names, extrasaction="ignore")

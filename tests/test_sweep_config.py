@@ -1,5 +1,5 @@
 """A sweep's configuration: each refusal names its field and says what was expected, and
-robot references resolve to what the worker processes can load."""
+robot references resolve to a name or file a resume can read again."""
 
 from __future__ import annotations
 
@@ -66,19 +66,3 @@ def test_a_changed_preset_object_is_refused():
 def test_a_preset_name_resolves_to_its_robot():
     robot, reference = robot_reference("aras3")
     assert reference == "aras3" and robot.as_dict() == preset("aras3").as_dict()
-
-
-def test_column_types_of_a_two_dof_table_written_out_by_hand():
-    from cdpr_sym.sweep.config import column_types
-
-    floats = ["start_0", "start_1", "goal_0", "goal_1", "min_tension", "max_tension",
-              "settle_time", "final_error", "min_alpha", "share_alpha_below_one",
-              "share_fallback", "tension_total_variation", "max_tension_step", "start_jump",
-              "duration"]
-    expected = {"pair": "int64", "controller": "string", "status": "string",
-                "error": "string", "tension_feasible": "bool", "converged": "bool",
-                "fallback_steps": "int64", "infeasible_steps": "int64",
-                "stop_reason": "string", **dict.fromkeys(floats, "float64")}
-    types = column_types(2)
-    assert types == expected
-    assert list(types)[:4] == ["pair", "controller", "start_0", "start_1"]

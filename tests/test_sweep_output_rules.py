@@ -57,9 +57,9 @@ def _done(out: Path) -> set[tuple[int, str]]:
 
 
 def test_the_header_matches_the_hand_written_one():
-    from cdpr_sym.sweep.config import columns
+    from cdpr_sym.results import sweep_columns
 
-    assert columns(2) == HEADER  # the tables below are written with this header
+    assert sweep_columns(2) == HEADER  # the tables below are written with this header
 
 
 def test_a_complete_row_of_this_sweep_is_kept_by_its_pair_and_controller():

@@ -13,6 +13,7 @@ import pytest
 
 from cdpr_sym import InvalidCase
 from cdpr_sym.reporting.sweep_report import write_sweep_report
+from cdpr_sym.results import sweep_columns
 from cdpr_sym.results.store import (
     append_parquet_part,
     load_table,
@@ -20,7 +21,7 @@ from cdpr_sym.results.store import (
     read_parquet_rows,
     sidecar_path,
 )
-from cdpr_sym.sweep import SweepConfig, columns, run_sweep
+from cdpr_sym.sweep import SweepConfig, run_sweep
 
 pa = pytest.importorskip("pyarrow")
 ds = pytest.importorskip("pyarrow.dataset")
@@ -76,7 +77,7 @@ def test_parquet_sweep_gives_the_rows_of_a_csv_sweep(csv_sweep, parquet_sweep):
     assert len(parquet_parts(parquet_sweep)) == CONFIG.pairs
     rows, meta = load_table(parquet_sweep)
     csv_rows, csv_meta = load_table(csv_sweep)
-    assert list(rows[0]) == columns(3)
+    assert list(rows[0]) == sweep_columns(3)
     _assert_same_rows(rows, csv_rows)
     assert meta["config"] == csv_meta["config"] == CONFIG.as_dict()
     assert meta["identity"] == csv_meta["identity"]
@@ -92,7 +93,7 @@ def test_parquet_layout_is_a_dataset_folder_with_the_sidecar_beside_it(parquet_s
 def test_parquet_dataset_is_read_lazily_with_typed_columns(parquet_sweep):
     dataset = ds.dataset(parquet_sweep, format="parquet")
     schema = dataset.schema
-    assert schema.names == columns(3)
+    assert schema.names == sweep_columns(3)
     assert schema.field("pair").type == pa.int64()
     assert schema.field("controller").type == pa.string()
     assert schema.field("status").type == pa.string()

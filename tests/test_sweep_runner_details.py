@@ -20,9 +20,10 @@ import pytest
 import cdpr_sym
 import cdpr_sym.sweep.runner as runner
 from cdpr_sym.errors import Interrupted, InvalidCase
+from cdpr_sym.results import sweep_columns
 from cdpr_sym.results.store import sidecar_path
 from cdpr_sym.robot import preset
-from cdpr_sym.sweep import SweepConfig, run_sweep
+from cdpr_sym.sweep import SweepConfig, SweepJob, run_sweep
 from cdpr_sym.sweep.workers import Terminated, WorkerLost, local_map
 
 SMALL = SweepConfig(robot="planar2", controllers=("pd",), pairs=2, seed=1, duration=0.2)
@@ -211,11 +212,12 @@ def test_rows_formatted_where_they_ran_equal_what_a_dict_writer_writes(monkeypat
     starts, goals = runner.draw_pairs(robot, config)
     items = [(pair, name, starts[pair].tolist(), goals[pair].tolist())
              for pair in range(3) for name in config.controllers]
-    rows = runner.run_items(config.as_dict(), items)
+    job = SweepJob(config, robot)
+    rows = runner.run_items(job, items)
     expected = io.StringIO()
-    csv.DictWriter(expected, fieldnames=runner.columns(3), extrasaction="ignore"
+    csv.DictWriter(expected, fieldnames=sweep_columns(3), extrasaction="ignore"
                    ).writerows(rows)
-    chunk = runner.run_items_csv(config.as_dict(), items)
+    chunk = runner.run_items_csv(job, items)
     assert chunk.rows == len(items) and chunk.text == expected.getvalue()
 
     def failing(*args, **kwargs):
@@ -223,8 +225,8 @@ def test_rows_formatted_where_they_ran_equal_what_a_dict_writer_writes(monkeypat
 
     monkeypatch.setattr(runner, "summarise_many", failing)
     monkeypatch.setattr(runner, "get_simulator", failing)
-    chunk = runner.run_items_csv(config.as_dict(), items[:1])
-    parsed = next(csv.DictReader([",".join(runner.columns(3)) + "\r\n", chunk.text]))
+    chunk = runner.run_items_csv(job, items[:1])
+    parsed = next(csv.DictReader([",".join(sweep_columns(3)) + "\r\n", chunk.text]))
     assert parsed["status"] == "error"
     assert parsed["error"] == 'ValueError: bad "pose", twice'
     assert float(parsed["start_1"]) == items[0][2][1]

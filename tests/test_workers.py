@@ -12,6 +12,7 @@ import time
 
 import pytest
 
+from cdpr_sym.errors import InvalidCase, InvalidRobot
 from cdpr_sym.sweep.workers import WorkerLost, local_map
 
 
@@ -35,6 +36,22 @@ def _fails_on_seven(config: dict, chunk: list) -> list:
 def test_an_error_in_a_worker_is_raised_in_the_parent():
     with pytest.raises(ValueError, match="seven is bad"):
         list(local_map(_fails_on_seven, {}, [[x] for x in range(20)], 2))
+
+
+def _invalid_on_five(config: dict, chunk: list) -> list:
+    if 5 in chunk:
+        raise (InvalidRobot if config["robot"] else InvalidCase)("path", "no file at x.toml")
+    return [{"x": x} for x in chunk]
+
+
+@pytest.mark.parametrize("robot", [True, False], ids=["InvalidRobot", "InvalidCase"])
+def test_a_package_error_in_a_worker_is_raised_in_the_parent_as_itself(robot):
+    """The package's errors with a field pickle whole: the parent gets the worker's error,
+    not a TypeError from rebuilding it."""
+    with pytest.raises(InvalidRobot if robot else InvalidCase) as raised:
+        list(local_map(_invalid_on_five, {"robot": robot}, [[x] for x in range(10)], 2))
+    assert (raised.value.field, raised.value.message) == ("path", "no file at x.toml")
+    assert str(raised.value) == "path: no file at x.toml"
 
 
 def _dies_on_three(config: dict, chunk: list) -> list:

@@ -2,8 +2,9 @@
 
 :class:`Trajectory` holds one run and :class:`RunSummary` what its metrics are made of;
 :mod:`~cdpr_sym.results.store` owns the file formats (trajectories as ``.npz``, sweep tables
-as CSV with a JSON sidecar, summaries as JSON); :mod:`~cdpr_sym.results.judging` turns rows
-into outcomes and shares.
+as CSV with a JSON sidecar, summaries as JSON) and :mod:`~cdpr_sym.results.sweep_columns`
+the columns of a sweep table (names, order, stored types);
+:mod:`~cdpr_sym.results.judging` turns rows into outcomes and shares.
 """
 
 import lazy_loader

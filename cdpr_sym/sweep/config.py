@@ -1,4 +1,4 @@
-"""What a sweep is: its configuration, the robot reference its workers load, its pairs."""
+"""What a sweep is: its configuration, the robot reference it records, its pairs."""
 
 from __future__ import annotations
 
@@ -12,7 +12,6 @@ from cdpr_sym.closed_loop import Plant
 from cdpr_sym.closed_loop.case import check_timing
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.results import SCALAR_METRICS
 from cdpr_sym.robot import PRESET_NAMES, Robot, preset, resolve_robot
 from cdpr_sym.workspace import WorkspaceEvaluator, sample_static_workspace
 
@@ -53,7 +52,8 @@ class SweepConfig:
     Parameters
     ----------
     robot : str
-        Preset name or robot TOML path.
+        Preset name or robot TOML path, resolved once when the sweep starts (its workers
+        receive the robot itself) and again by a resume.
     controllers : tuple of str
         Controller names (see ``cdpr_sym.control.CONTROLLERS``).
     pairs : int
@@ -96,10 +96,11 @@ class SweepConfig:
 
 
 def robot_reference(robot: Robot | str | Path) -> tuple[Robot, str]:
-    """The robot and the string sweep workers load it from (a preset name or a file path).
+    """The robot and the string a sweep records it by (a preset name or a file path).
 
     A :class:`Robot` object is accepted when it equals the preset of its name; any other robot
-    must be given as its file, since the workers run in other processes.
+    must be given as its file, since the sweep's configuration names its robot and a resume
+    reads it again from that name (the workers receive the robot itself, not the name).
     """
     if isinstance(robot, (str, Path)):
         resolved = resolve_robot(robot)
@@ -108,7 +109,7 @@ def robot_reference(robot: Robot | str | Path) -> tuple[Robot, str]:
                           else str(Path(robot).resolve()))
     if robot.name in PRESET_NAMES and preset(robot.name).as_dict() == robot.as_dict():
         return robot, robot.name
-    raise InvalidCase("robot", f"sweep workers load the robot by preset name or file, and "
+    raise InvalidCase("robot", f"a sweep names its robot by preset name or file, and "
                       f"{robot.name!r} is not an unchanged preset; pass its TOML file instead")
 
 
@@ -121,23 +122,5 @@ def draw_pairs(robot: Robot, config: SweepConfig) -> tuple[np.ndarray, np.ndarra
     return poses[: config.pairs], poses[config.pairs:]
 
 
-def columns(n: int) -> list[str]:
-    """CSV header for an n-DOF robot."""
-    axes = [f"{i}" for i in range(n)]
-    return ["pair", "controller", *[f"start_{a}" for a in axes], *[f"goal_{a}" for a in axes],
-            "status", "error", *SCALAR_METRICS]
-
-
 #: How a sweep stores its rows: one CSV file, or a folder of Parquet parts (a dataset).
 FORMATS = ("csv", "parquet")
-
-#: Typed columns of a Parquet sweep that are not float64 (every other metric is a float).
-_TYPED_METRICS = {"tension_feasible": "bool", "converged": "bool", "fallback_steps": "int64",
-                  "infeasible_steps": "int64", "stop_reason": "string"}
-
-
-def column_types(n: int) -> dict[str, str]:
-    """The columns of :func:`columns` with their Parquet types (``int64``, ``float64``,
-    ``bool`` or ``string``), in table order."""
-    fixed = {"pair": "int64", "controller": "string", "status": "string", "error": "string"}
-    return {name: fixed.get(name, _TYPED_METRICS.get(name, "float64")) for name in columns(n)}

@@ -47,7 +47,8 @@ from cdpr_sym.results.store import (
     write_csv_atomically,
     write_json,
 )
-from cdpr_sym.sweep.config import SweepConfig, columns
+from cdpr_sym.results.sweep_columns import sweep_columns
+from cdpr_sym.sweep.config import SweepConfig
 
 log = logging.getLogger("cdpr_sym.sweep")
 
@@ -161,7 +162,7 @@ def _repaired_csv(config: SweepConfig, out: Path, starts: np.ndarray, goals: np.
     records, torn = read_csv_records(out)
     if not records and not torn:
         return set()
-    header = columns(starts.shape[1])
+    header = sweep_columns(starts.shape[1])
     kept: list[list[str]] = []
     rejected: list[list[str]] = []
     done: set[tuple[int, str]] = set()

@@ -10,8 +10,11 @@ vectorised blocks and reduced to their metrics as they advance
 configuration, package versions and seed so any row can be re-run exactly (``run_many``
 on its pair alone, or a single ``simulate`` run: the same bits). Work is spread over local
 processes by default, or over an existing Dask cluster; an interrupted sweep resumes from
-the rows already written. Only one sweep writes an output at a time, and Ctrl-C or SIGTERM
-stops it within about a second, keeping every finished row.
+the rows already written. The robot is read once, when the sweep starts, and the workers
+receive it (a :class:`~cdpr_sym.sweep.job.SweepJob`, sent to each once): a robot file
+edited or deleted during the sweep changes none of its rows. Only one sweep writes an
+output at a time, and Ctrl-C or SIGTERM stops it within about a second, keeping every
+finished row.
 """
 
 from __future__ import annotations
@@ -39,15 +42,10 @@ from cdpr_sym.results.store import (
     require_parquet,
     sidecar_path,
 )
+from cdpr_sym.results.sweep_columns import sweep_column_types, sweep_columns
 from cdpr_sym.robot import WRENCH_FIELDS, Robot, resolve_robot
-from cdpr_sym.sweep.config import (
-    FORMATS,
-    SweepConfig,
-    check_chunk_size,
-    column_types,
-    columns,
-    draw_pairs,
-)
+from cdpr_sym.sweep.config import FORMATS, SweepConfig, check_chunk_size, draw_pairs
+from cdpr_sym.sweep.job import SweepJob
 from cdpr_sym.sweep.output import check_identity, done_rows, exclusive_output
 from cdpr_sym.sweep.runs import Runs, as_runs, chunk_sizes, chunks, pending_runs
 from cdpr_sym.sweep.workers import (
@@ -114,13 +112,13 @@ def _error_row(failure: BaseException) -> dict[str, Any]:
     return {"status": "error", "error": f"{type(failure).__name__}: {failure}"}
 
 
-def run_items(config_dict: dict[str, Any], work: Runs | Sequence[tuple[int, str, list, list]]
+def run_items(job: SweepJob, work: Runs | Sequence[tuple[int, str, list, list]]
               ) -> list[dict[str, Any]]:
     """Worker entry point: run the :class:`~cdpr_sym.sweep.runs.Runs` of ``work`` (or
-    (pair, controller, start, goal) tuples), return CSV rows in their order (the runs of
-    each controller advanced together)."""
+    (pair, controller, start, goal) tuples) on the robot and settings of ``job``, return
+    CSV rows in their order (the runs of each controller advanced together)."""
     runs = as_runs(work)
-    rows = _run_rows(config_dict, runs)
+    rows = _run_rows(job, runs)
     starts, goals = runs.starts.tolist(), runs.goals.tolist()
     for row, pair, name, start, goal in zip(rows, runs.pairs.tolist(), runs.controllers.tolist(),
                                             starts, goals, strict=True):
@@ -130,10 +128,10 @@ def run_items(config_dict: dict[str, Any], work: Runs | Sequence[tuple[int, str,
     return rows
 
 
-def _run_rows(config_dict: dict[str, Any], runs: Runs) -> list[dict[str, Any]]:
-    """The metric rows of ``runs`` in their order, each controller's runs advanced together."""
-    config = SweepConfig(**{**config_dict, "controllers": tuple(config_dict["controllers"])})
-    robot = resolve_robot(config.robot)
+def _run_rows(job: SweepJob, runs: Runs) -> list[dict[str, Any]]:
+    """The metric rows of ``runs`` in their order, each controller's runs advanced together
+    (on the job's robot: no file is read here)."""
+    config, robot = job.config, job.robot
     rows: list[dict[str, Any]] = [{} for _ in range(len(runs))]
     for name in dict.fromkeys(runs.controllers.tolist()):
         indices = np.flatnonzero(runs.controllers == name)
@@ -152,15 +150,15 @@ class CsvChunk(NamedTuple):
     text: str
 
 
-def run_items_csv(config_dict: dict[str, Any],
+def run_items_csv(job: SweepJob,
                   work: Runs | Sequence[tuple[int, str, list, list]]) -> CsvChunk:
     """Worker entry point of a CSV sweep: :func:`run_items`, formatted as CSV lines where
     the runs ran. One string travels back instead of a dictionary per row (pickling and
     sending them cost a Dask sweep about 40 us a row) and the writing process only appends
     it; the lines equal what ``csv.DictWriter`` writes for the same rows."""
     runs = as_runs(work)
-    rows = run_items(config_dict, runs)
-    names = columns(runs.starts.shape[1]) if len(runs) else []
+    rows = run_items(job, runs)
+    names = sweep_columns(runs.starts.shape[1]) if len(runs) else []
     buffer = io.StringIO()
     csv.writer(buffer).writerows([[row.get(name, "") for name in names] for row in rows])
     return CsvChunk(len(rows), buffer.getvalue())
@@ -243,6 +241,9 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
     (pair, controller) rows already stored (see :mod:`cdpr_sym.sweep.output` for the lock,
     the checks and the repair of a damaged table).
 
+    The robot ``config.robot`` names is read once, here; every worker runs on that robot
+    (see :mod:`cdpr_sym.sweep.job`), whatever happens to its file meanwhile.
+
     Work goes out in chunks of at most ``chunk_size`` runs (by default
     :data:`LOCAL_CHUNK_ROWS`, or :data:`DASK_CHUNK_ROWS` on Dask), shrinking towards the
     end of the sweep so the workers finish together.
@@ -280,8 +281,10 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
             parts = list(chunks(runs, chunk_sizes(len(runs), workers, largest,
                                                   max(1, largest // 10))))
             work = run_items_csv if format == "csv" else run_items
-            results = (dask_map(client, work, config.as_dict(), parts) if client
-                       else local_map(work, config.as_dict(), parts, workers))
+            # the robot read once, above, travels to the workers: none reads its file
+            job = SweepJob(config, robot)
+            results = (dask_map(client, work, job, parts) if client
+                       else local_map(work, job, parts, workers))
             _collect(results, out, format, robot.n, len(runs), progress)
         finally:
             if client is not None:
@@ -348,7 +351,7 @@ def _row_sink(out: Path, format: str, n: int
     """A function that stores a list of rows (or, for CSV, a :class:`CsvChunk` already
     formatted) durably: a Parquet part, or CSV lines appended and flushed."""
     if format == "parquet":
-        types = column_types(n)
+        types = sweep_column_types(n)
 
         def store_part(rows: list) -> None:
             if rows:
@@ -357,7 +360,7 @@ def _row_sink(out: Path, format: str, n: int
         yield store_part
         return
     with open(out, "a", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=columns(n), extrasaction="ignore")
+        writer = csv.DictWriter(handle, fieldnames=sweep_columns(n), extrasaction="ignore")
         if handle.tell() == 0:
             writer.writeheader()
             handle.flush()

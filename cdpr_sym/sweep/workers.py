@@ -33,9 +33,10 @@ DASK_TIMEOUT = 10.0
 
 #: What a chunk of work gives back: its rows (or anything else picklable, such as CSV text).
 Rows = Any
-#: A worker's entry point: (configuration, chunk) -> rows; a chunk is any picklable value
-#: (a sweep sends :class:`~cdpr_sym.sweep.runs.Runs`).
-Work = Callable[[dict[str, Any], Any], Rows]
+#: A worker's entry point: (job, chunk) -> rows. The job is what every chunk shares, sent to
+#: each worker once (a sweep sends its :class:`~cdpr_sym.sweep.job.SweepJob`); a chunk is
+#: any picklable value (a sweep sends :class:`~cdpr_sym.sweep.runs.Runs`).
+Work = Callable[[Any, Any], Rows]
 
 
 class Terminated(KeyboardInterrupt):
@@ -77,8 +78,8 @@ def _worker_setup(parent: int) -> None:
     threading.Thread(target=_exit_with_parent, args=(parent,), daemon=True).start()
 
 
-def _serve(connection: Connection, inherited: list[Connection], work: Work,
-           config: dict[str, Any], parent: int) -> None:
+def _serve(connection: Connection, inherited: list[Connection], work: Work, job: Any,
+           parent: int) -> None:
     """A worker's life: run each chunk received, send back its rows or its error, and
     stop at ``None`` or when the parent's end closes."""
     for end in inherited:  # the parent's ends of every pipe, this worker's own included
@@ -92,7 +93,7 @@ def _serve(connection: Connection, inherited: list[Connection], work: Work,
         if chunk is None:
             return
         try:
-            reply: tuple[str, Any] = ("rows", work(config, chunk))
+            reply: tuple[str, Any] = ("rows", work(job, chunk))
         except Exception as error:
             reply = ("error", error)
         try:
@@ -109,11 +110,13 @@ def _ended(process: multiprocessing.process.BaseProcess) -> str:
     return f"worker process {process.pid} ended with status {code}"
 
 
-def local_map(work: Work, config: dict[str, Any], chunks: Sequence[Any], workers: int
-              ) -> Iterator[Rows]:
+def local_map(work: Work, job: Any, chunks: Sequence[Any], workers: int) -> Iterator[Rows]:
     """Rows of each chunk as they finish, from ``workers`` local processes (in this
     process when ``workers <= 1``). Leaving the iteration early (an error, an interrupt)
     kills the workers at once.
+
+    Each process gets ``job`` once, when it starts (forked: inherited, not pickled), and
+    then only its chunks.
 
     Each worker has a pipe of its own and no lock is shared, so a worker killed at any
     moment (a SIGTERM to the whole process group, the out-of-memory killer) cannot leave
@@ -121,7 +124,7 @@ def local_map(work: Work, config: dict[str, Any], chunks: Sequence[Any], workers
     """
     if workers <= 1:
         for chunk in chunks:
-            yield work(config, chunk)
+            yield work(job, chunk)
         return
     context = multiprocessing.get_context("fork")
     processes: dict[Connection, multiprocessing.process.BaseProcess] = {}
@@ -129,7 +132,7 @@ def local_map(work: Work, config: dict[str, Any], chunks: Sequence[Any], workers
         for _ in range(min(workers, len(chunks))):  # no chunk, no process
             ours, theirs = context.Pipe()
             process = context.Process(target=_serve, daemon=True, args=(
-                theirs, [*processes, ours], work, config, os.getpid()))
+                theirs, [*processes, ours], work, job, os.getpid()))
             process.start()
             theirs.close()
             processes[ours] = process
@@ -188,14 +191,20 @@ def dask_client(address: str, timeout: float = DASK_TIMEOUT) -> Any:
                           f"{timeout:g} s ({type(failure).__name__})") from None
 
 
-def dask_map(client: Any, work: Work, config: dict[str, Any], chunks: Sequence[Any]
-             ) -> Iterator[Rows]:
-    """Rows of each chunk as they finish on the cluster; leaving early cancels the rest."""
+def dask_map(client: Any, work: Work, job: Any, chunks: Sequence[Any]) -> Iterator[Rows]:
+    """Rows of each chunk as they finish on the cluster; leaving early cancels the rest.
+
+    ``job`` is sent to the cluster's workers once (scattered to each) and every task
+    refers to it, so a task carries only its chunk.
+    """
     from dask.distributed import as_completed
 
-    futures = client.map(work, [config] * len(chunks), chunks, pure=False)
+    if not chunks:
+        return
+    shared = client.scatter(job, broadcast=True, hash=False)
+    futures = client.map(work, [shared] * len(chunks), chunks, pure=False)
     try:
         for future in as_completed(futures):
             yield future.result()
     finally:
-        client.cancel(futures)
+        client.cancel([*futures, shared])
