@@ -14,7 +14,7 @@ import pytest
 
 from cdpr_sym import SymbolicModel, load_robot, preset, simulate
 from cdpr_sym.cli import main
-from cdpr_sym.control import CONTROLLERS, controller_by_name
+from cdpr_sym.control import CONTROLLERS, capabilities, controller_by_name
 from cdpr_sym.results.store import sidecar_path
 
 #: Keys ``simulate --json`` documents, with the JSON types each may take.
@@ -25,7 +25,7 @@ PNG = b"\x89PNG\r\n\x1a\n"
 
 #: The designs that compute their command in the step (bench).
 CLOSED_FORM = {name for name, design in CONTROLLERS.items()
-               if not getattr(design, "sampled", False)}
+               if not capabilities(design).sampled}
 
 
 def _run(capsys, *argv: str) -> tuple[int, str, str]:

@@ -85,3 +85,43 @@ def test_first_smooth_command_at_rest_is_the_static_tension(aras3, aras3_model):
     np.testing.assert_allclose(out.tau, static, rtol=1e-12)
     plan = initial_memory_function(aras3_model, CONTROLLERS["smooth"])
     assert plan.size1_out(0) == CONTROLLERS["smooth"].memory_size(SymbolicModel(aras3))
+
+
+#: What the README says each design supports beyond its law: the designs for robots with
+#: more cables than degrees of freedom, and the one that optimises at its own rate.
+ANY_CABLES = {"pd-td", "smooth", "smooth-lp", "l2", "nmpc", "nmpc-sqp", "nmpc-ipopt"}
+SAMPLED = {"nmpc", "nmpc-sqp", "nmpc-ipopt"}
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_capabilities_are_declared_and_read_in_one_place(name):
+    from cdpr_sym.control import Capabilities, capabilities
+
+    controller = CONTROLLERS[name]
+    declared = controller.capabilities()
+    assert isinstance(declared, Capabilities) and capabilities(controller) == declared
+    assert declared.any_cables == (name in ANY_CABLES)
+    assert declared.sampled == (name in SAMPLED)
+    if declared.sampled:
+        assert declared.sample_period == pytest.approx(1.0 / controller.rate)
+
+
+def test_a_controller_without_capabilities_inverts_w_every_period():
+    from cdpr_sym.control import SQUARE_STEPWISE, capabilities, check_cables
+
+    class Outside:
+        name = "outside"
+
+    assert capabilities(Outside()) == SQUARE_STEPWISE
+    check_cables(Outside(), 3, 3)
+    with pytest.raises(InvalidCase, match="^controller: outside needs as many cables"):
+        check_cables(Outside(), 3, 4)
+
+
+def test_names_and_objects_are_coerced_in_one_place(aras3):
+    from cdpr_sym.control import controller_by_name
+    from cdpr_sym.robot import resolve_robot
+
+    assert resolve_robot(aras3) is aras3 and resolve_robot("aras3") == aras3
+    assert controller_by_name(CONTROLLERS["l2"]) is CONTROLLERS["l2"]
+    assert controller_by_name("l2") is CONTROLLERS["l2"]

@@ -7,7 +7,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from cdpr_sym.control import CONTROLLERS, L2Design, law_function
+from cdpr_sym.control import CONTROLLERS, L2Design, capabilities, law_function
 from cdpr_sym.control.flags import FALLBACK_FLAGS
 from cdpr_sym.control.parts import tension_parts
 from cdpr_sym.control.registry import check_cables
@@ -101,7 +101,8 @@ def test_tau_1_is_the_weight_holding_tension_nearest_the_centre(name):
 
 
 def test_only_the_closed_form_construction_runs_on_more_cables():
-    assert CONTROLLERS["l2"].redundant
+    assert capabilities(CONTROLLERS["l2"]).any_cables
+    assert not capabilities(L2Design(construction="min_norm")).any_cables
     check_cables(CONTROLLERS["l2"], 3, 4)
     with pytest.raises(InvalidCase, match=r"^controller: l2 needs as many cables"):
         check_cables(L2Design(construction="min_norm"), 3, 4)

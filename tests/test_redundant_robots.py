@@ -11,7 +11,7 @@ import reference as ref
 from cdpr_sym import Plant, Robot, get_simulator, preset
 from cdpr_sym.cli import main
 from cdpr_sym.closed_loop import run_many, summarise_many
-from cdpr_sym.control import CONTROLLERS, DistributedPD
+from cdpr_sym.control import CONTROLLERS, DistributedPD, capabilities
 from cdpr_sym.errors import InvalidCase, InvalidRobot
 from cdpr_sym.model import SymbolicModel
 
@@ -56,7 +56,7 @@ def test_the_structure_matrix_and_its_rank_measure_match_numpy(name, rng, random
 
 
 SQUARE_ONLY = sorted(name for name, design in CONTROLLERS.items()
-                     if not getattr(design, "redundant", False))
+                     if not capabilities(design).any_cables)
 
 
 def test_the_designs_for_redundant_robots_are_pd_td_smooth_and_the_paper_l2():

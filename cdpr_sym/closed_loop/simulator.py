@@ -39,6 +39,7 @@ from cdpr_sym.codegen import (
 )
 from cdpr_sym.control import (
     Controller,
+    capabilities,
     check_cables,
     controller_by_name,
     initial_memory_function,
@@ -172,7 +173,7 @@ class Simulator:
             self._chunk_function = chunk_function(self.step, chunk)
         #: The solver of a controller that optimises at its own rate (NMPC), else None.
         self.sampled: SampledSolver | None = None
-        if getattr(controller, "sampled", False):
+        if capabilities(controller).sampled:
             from cdpr_sym.closed_loop.sampled import SampledSolver
 
             self.sampled = SampledSolver(self.model, controller, backend=self.backend,
@@ -648,10 +649,9 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=N
     >>> bool(run.metrics()["tension_feasible"])
     True
     """
-    robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
-    controller = controller_by_name(controller) if isinstance(controller, str) else controller
+    robot, controller = resolve_robot(robot), controller_by_name(controller)
     check_timing(duration, dt, values_per_step=minimal_values_per_step(robot))
-    if getattr(controller, "sampled", False):
+    if capabilities(controller).sampled:
         from cdpr_sym.closed_loop.sampled import steps_per_sample
 
         steps_per_sample(controller, dt)  # before building: dt must divide its period

@@ -16,10 +16,13 @@ from .flags import (
 )
 from .ida_pbc import PD, L2Design, SaturatedPD
 from .interface import (
+    SQUARE_STEPWISE,
+    Capabilities,
     ControlLaw,
     Controller,
     ControlOutput,
     StatelessLaw,
+    capabilities,
 )
 from .nmpc import Nmpc, NmpcProblem
 from .planned import SmoothReference, VirtualReferenceIdaPbc
@@ -32,11 +35,11 @@ from .registry import (
 )
 
 __all__ = [
-    "CONTROLLERS", "DESCRIPTIONS", "FALLBACK_FLAGS", "FLAG_ALPHA", "FLAG_BETA", "FLAG_INFEASIBLE",
-    "FLAG_LOW_SPEED", "FLAG_NAMES", "FLAG_SATURATED", "FLAG_SINGULAR", "PD", "BoxDesign",
-    "ControlLaw", "ControlOutput", "Controller", "DistributedPD", "L2Design", "LinfDesign",
-    "Nmpc", "NmpcProblem",
-    "SaturatedPD", "SmoothReference", "StatelessLaw", "VirtualReferenceIdaPbc", "check_cables",
+    "CONTROLLERS", "DESCRIPTIONS", "FALLBACK_FLAGS", "FLAG_ALPHA", "FLAG_BETA",
+    "FLAG_INFEASIBLE", "FLAG_LOW_SPEED", "FLAG_NAMES", "FLAG_SATURATED", "FLAG_SINGULAR", "PD",
+    "SQUARE_STEPWISE", "BoxDesign", "Capabilities", "ControlLaw", "ControlOutput", "Controller",
+    "DistributedPD", "L2Design", "LinfDesign", "Nmpc", "NmpcProblem", "SaturatedPD",
+    "SmoothReference", "StatelessLaw", "VirtualReferenceIdaPbc", "capabilities", "check_cables",
     "controller_by_name", "controller_from_options", "initial_memory_function", "law_function",
     "tension",
 ]

@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 import casadi as ca
 
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
-from cdpr_sym.control.interface import ControlLaw, StatelessLaw
+from cdpr_sym.control.interface import Capabilities, ControlLaw, StatelessLaw
 from cdpr_sym.control.parts import distributed_command, flag_if
 from cdpr_sym.distribution import AUTO, METHODS
 from cdpr_sym.errors import InvalidCase
@@ -44,8 +44,6 @@ class DistributedPD(StatelessLaw):
 
     method: str = AUTO
     name: ClassVar[str] = "pd-td"
-    #: Runs on robots with more cables than degrees of freedom.
-    redundant: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         if self.method != AUTO and self.method not in METHODS:
@@ -54,6 +52,11 @@ class DistributedPD(StatelessLaw):
 
     def options(self) -> dict[str, Any]:
         return {"method": self.method}
+
+    def capabilities(self) -> Capabilities:
+        """Runs on robots with more cables than degrees of freedom (the distribution
+        picks the tension)."""
+        return Capabilities(any_cables=True)
 
     def law(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
             r_d: ca.SX) -> ControlLaw:

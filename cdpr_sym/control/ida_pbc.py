@@ -22,7 +22,7 @@ from cdpr_sym.control.flags import (
     FLAG_SATURATED,
     FLAG_SINGULAR,
 )
-from cdpr_sym.control.interface import ControlLaw, StatelessLaw
+from cdpr_sym.control.interface import Capabilities, ControlLaw, StatelessLaw
 from cdpr_sym.control.parts import (
     TensionParts,
     beta_margin,
@@ -136,15 +136,14 @@ class L2Design(StatelessLaw):
         return {"construction": self.construction, "low_speed": self.low_speed,
                 "fallback": self.fallback}
 
-    @property
-    def redundant(self) -> bool:
+    def capabilities(self) -> Capabilities:
         """Runs with m > n cables in the closed-form construction: tau_1 is then the
         weight-holding tension nearest the box's centre, the PD part goes through W^+, and
         the least-squares J_d leaves tau_2 + tau_3 = v (v^T tau_2) / |v|^2 as for m = n
         (:func:`~cdpr_sym.control.parts.least_squares_closed_form`), so Theorem 1's ball
         bound holds unchanged. (The paper's and the minimum-norm constructions solve with
         A A^T, which has rank n - 1 < m - 1 there.)"""
-        return self.construction == "closed_form"
+        return Capabilities(any_cables=self.construction == "closed_form")
 
     def law(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
             r_d: ca.SX) -> ControlLaw:

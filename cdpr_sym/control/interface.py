@@ -11,10 +11,15 @@ step, in the exported C and in the numeric helpers of :mod:`cdpr_sym.control.eva
 ``law`` is a :class:`ControlLaw`: tau (N) the commanded tension, alpha the scale on the PD
 part (24), beta the margin of (20) (N), j the n(n-1)/2 free entries of J_d, and flags a bit
 set of :mod:`cdpr_sym.control.flags`.
+
+What a controller supports and needs beyond its law — the cable counts it runs, whether it
+optimises at a rate of its own outside the generated step — is its :class:`Capabilities`,
+read through :func:`capabilities` and nowhere else.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, ClassVar, NamedTuple, Protocol, runtime_checkable
 
 import casadi as ca
@@ -43,6 +48,41 @@ class ControlOutput(NamedTuple):
     flags: int
 
 
+@dataclasses.dataclass(frozen=True)
+class Capabilities:
+    """What a controller supports and needs beyond its law.
+
+    Attributes
+    ----------
+    any_cables : bool
+        Runs a robot with m >= n cables; False: only m = n (the design inverts W).
+    sample_period : float or None
+        s between two solves of a controller that optimises outside the generated step, at a
+        rate of its own (NMPC: the simulator and the exported package run its solver every
+        ``sample_period`` and the step plays the solution back); None: the whole law is in
+        the step, evaluated every control period.
+    """
+
+    any_cables: bool = False
+    sample_period: float | None = None
+
+    @property
+    def sampled(self) -> bool:
+        """Whether the controller optimises at its own rate (``sample_period`` is set)."""
+        return self.sample_period is not None
+
+
+#: A design that inverts W, evaluated in full every control period.
+SQUARE_STEPWISE = Capabilities()
+
+
+def capabilities(controller: object) -> Capabilities:
+    """``controller.capabilities()``; :data:`SQUARE_STEPWISE` for a controller defined
+    outside the package without the method (the protocol's default)."""
+    method = getattr(controller, "capabilities", None)
+    return SQUARE_STEPWISE if method is None else method()
+
+
 @runtime_checkable
 class Controller(Protocol):
     """What every controller provides (see the module docstring)."""
@@ -62,6 +102,10 @@ class Controller(Protocol):
     def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
              r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
         """One control step at the state (q, dq): the law and the next memory."""
+
+    def capabilities(self) -> Capabilities:
+        """What the controller supports and needs beyond its law (optional: read through
+        :func:`capabilities`, which defaults to :data:`SQUARE_STEPWISE`)."""
 
 
 class StatelessLaw:
@@ -92,3 +136,7 @@ class StatelessLaw:
     def options(self) -> dict[str, Any]:
         """No options by default."""
         return {}
+
+    def capabilities(self) -> Capabilities:
+        """:data:`SQUARE_STEPWISE` by default."""
+        return SQUARE_STEPWISE

@@ -20,7 +20,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
-from cdpr_sym.control.interface import ControlLaw
+from cdpr_sym.control.interface import SQUARE_STEPWISE, Capabilities, ControlLaw
 from cdpr_sym.control.parts import (
     FILTER_STAGES,
     alpha_interval,
@@ -104,8 +104,6 @@ class SmoothReference:
     command_cutoff: float | None = None
     guard: float = 0.0
     name: ClassVar[str] = "smooth"
-    #: Runs on robots with more cables than degrees of freedom (tension distribution).
-    redundant: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         for field in ("durations", "margins"):  # options() gives lists; keep it hashable
@@ -128,6 +126,11 @@ class SmoothReference:
         return {"durations": list(self.durations), "margins": list(self.margins),
                 "max_rate": self.max_rate, "samples": self.samples,
                 "command_cutoff": self.command_cutoff, "guard": self.guard}
+
+    def capabilities(self) -> Capabilities:
+        """Runs on robots with more cables than degrees of freedom (its plan and command
+        go through the tension distribution)."""
+        return Capabilities(any_cables=True)
 
     def memory_size(self, model: SymbolicModel) -> int:
         """Internal state: [t, q_start (n), T, margin] and the command filter's stages."""
@@ -389,6 +392,10 @@ class VirtualReferenceIdaPbc:
                 "ramp": self.ramp, "start_share": self.start_share,
                 "plan": self.plan.options(), "observer_rate": self.observer_rate,
                 "command_cutoff": self.command_cutoff}
+
+    def capabilities(self) -> Capabilities:
+        """m = n only: the IDA-PBC tension inverts W."""
+        return SQUARE_STEPWISE
 
     def memory_size(self, model: SymbolicModel) -> int:
         """Internal state: [xi (n), dxi (n), F, a, d0], the observer's z (n) and the command

@@ -7,7 +7,7 @@ from typing import Any
 from cdpr_sym.control.distributed import DistributedPD
 from cdpr_sym.control.exact_box import BoxDesign, LinfDesign
 from cdpr_sym.control.ida_pbc import PD, L2Design, SaturatedPD
-from cdpr_sym.control.interface import Controller
+from cdpr_sym.control.interface import Controller, capabilities
 from cdpr_sym.control.nmpc import Nmpc
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.errors import InvalidCase, UnknownName
@@ -63,14 +63,15 @@ DESCRIPTIONS = {
 }
 
 
-def controller_by_name(name: str) -> Controller:
-    """A registered controller by its command-line name.
+def controller_by_name(name: str | Controller) -> Controller:
+    """A registered controller by its command-line name; a controller as it is (every
+    function that takes a controller or its name coerces it here).
 
     Parameters
     ----------
-    name : str
+    name : str or Controller
         One of :data:`CONTROLLERS` (``"pd"``, ``"pd-sat"``, ``"l2"``, ``"l2-minnorm"``,
-        ``"linf"``, ``"box"``, ``"smooth"``, ``"ida-ref"``).
+        ``"linf"``, ``"box"``, ``"smooth"``, ``"ida-ref"``), or a controller.
 
     Returns
     -------
@@ -82,6 +83,8 @@ def controller_by_name(name: str) -> Controller:
     UnknownName
         ``name`` is not registered.
     """
+    if not isinstance(name, str):
+        return name
     try:
         return CONTROLLERS[name]
     except KeyError:
@@ -98,9 +101,9 @@ def controller_from_options(name: str, options: dict[str, Any]) -> Controller:
 def check_cables(controller: Controller, n: int, m: int) -> None:
     """Raise :class:`InvalidCase` (``controller``) when ``controller`` cannot run a robot of
     n degrees of freedom on m cables: every design but ``pd-td`` inverts a square W."""
-    if m > n and not getattr(controller, "redundant", False):
+    if m > n and not capabilities(controller).any_cables:
         redundant = [name for name, design in CONTROLLERS.items()
-                     if getattr(design, "redundant", False)]
+                     if capabilities(design).any_cables]
         raise InvalidCase("controller", f"{controller.name} needs as many cables as degrees "
                           f"of freedom (it inverts W), got {m} cables for n = {n}; use "
                           f"{', '.join(redundant)}")

@@ -271,7 +271,7 @@ def forward_kinematics(robot: Robot | str, lengths: npt.ArrayLike,
     >>> result.ok, bool(np.allclose(result.q, robot.goal, rtol=0, atol=1e-9))
     (True, True)
     """
-    robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
+    robot = resolve_robot(robot)
     lengths = _numeric_vector("lengths", lengths, robot.m)
     q_guess = robot.start if q_guess is None else _numeric_vector("q_guess", q_guess, robot.n)
     key = (robot_key(robot), iterations, tolerance, step_tolerance)

@@ -202,13 +202,14 @@ def _bundled(name: str) -> Robot:
     return robot_from_dict(tomllib.loads(text), source=f"{name}.toml")
 
 
-def resolve_robot(name_or_path: str | Path) -> Robot:
-    """A preset by name, or else a TOML file by path.
+def resolve_robot(name_or_path: Robot | str | Path) -> Robot:
+    """A preset by name, or else a TOML file by path; a :class:`Robot` as it is (every
+    function that takes a robot, its name or its file coerces it here).
 
     Parameters
     ----------
-    name_or_path : str or Path
-        A preset name (:data:`PRESET_NAMES`) or a robot TOML file.
+    name_or_path : Robot, str or Path
+        A robot, a preset name (:data:`PRESET_NAMES`) or a robot TOML file.
 
     Returns
     -------
@@ -221,6 +222,8 @@ def resolve_robot(name_or_path: str | Path) -> Robot:
     InvalidRobot
         The file is missing or malformed.
     """
+    if isinstance(name_or_path, Robot):
+        return name_or_path
     if str(name_or_path) in PRESET_NAMES:
         return preset(str(name_or_path))
     if Path(name_or_path).suffix == ".toml" or Path(name_or_path).exists():

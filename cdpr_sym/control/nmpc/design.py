@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 import casadi as ca
 
 from cdpr_sym.control.flags import FLAG_SATURATED
-from cdpr_sym.control.interface import ControlLaw
+from cdpr_sym.control.interface import Capabilities, ControlLaw
 from cdpr_sym.control.parts import check_positive, clip_to_box, flag_if
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
@@ -95,10 +95,6 @@ class Nmpc:
     substeps: int = 2
 
     name: ClassVar[str] = "nmpc"
-    #: Works with any m >= n cables: the optimisation picks every tension.
-    redundant: ClassVar[bool] = True
-    #: Its optimisation runs at ``rate`` outside the generated step.
-    sampled: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         for field in ("rate", "horizon", "position_weight", "velocity_weight", "rate_weight",
@@ -128,6 +124,11 @@ class Nmpc:
     def options(self) -> dict[str, Any]:
         """Every field (they all shape the problem)."""
         return dataclasses.asdict(self)
+
+    def capabilities(self) -> Capabilities:
+        """Any m >= n cables (the optimisation picks every tension), solved every
+        :attr:`period` outside the generated step."""
+        return Capabilities(any_cables=True, sample_period=self.period)
 
     def memory_size(self, model: SymbolicModel) -> int:
         """The last command (m), the planned rate (m) and the sample's flags."""
