@@ -12,11 +12,11 @@ from __future__ import annotations
 
 from cdpr_sym.as_built import AsBuiltStructure
 from cdpr_sym.closed_loop.effects.anchors import AnchorErrors
-from cdpr_sym.closed_loop.effects.base import Dynamics, PlantEffect, StepBuild
+from cdpr_sym.closed_loop.effects.base import Dynamics, PlantEffect, StartContext, StepBuild
 from cdpr_sym.closed_loop.effects.delay import Delay
 from cdpr_sym.closed_loop.effects.encoders import Encoders
 from cdpr_sym.closed_loop.effects.rate_limit import RateLimit
-from cdpr_sym.closed_loop.effects.start import AsBuiltReadout, StartContext
+from cdpr_sym.closed_loop.effects.readout import AsBuiltReadout
 from cdpr_sym.closed_loop.effects.true_cables import TrueCables
 from cdpr_sym.closed_loop.effects.winches import Winches
 

@@ -25,6 +25,7 @@ Every hook defaults to "no change", so an effect writes only what it adds.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import casadi as ca
@@ -34,7 +35,6 @@ from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
     from cdpr_sym.as_built import AsBuiltStructure
-    from cdpr_sym.closed_loop.effects.start import StartContext
     from cdpr_sym.closed_loop.plant import Plant
 
 #: (name, size) pairs of a vector's fields.
@@ -169,6 +169,42 @@ class PlantEffect:
         return {"effect": self.name, **dataclasses.asdict(self)}
 
 
-def empty(size: int = 0) -> np.ndarray:
-    """An empty (or zero) numeric field value."""
-    return np.zeros(size)
+@dataclasses.dataclass
+class StartContext:
+    """A move's start as the effects see it when they fill in their initial state.
+
+    Attributes
+    ----------
+    start, dq0 : ndarray, shape (n,)
+        The start pose (m, rad) and velocity.
+    plant : Plant
+    static_tension : ndarray, shape (m,)
+        The model's static tension at the start, N: the controller held the plant at rest
+        with it, so its cables carry it and the commands on their way are it.
+    readout : AsBuiltReadout or None
+        The as-built plant's numbers (:mod:`~cdpr_sym.closed_loop.effects.readout`; None
+        for the ideal plant).
+    """
+
+    start: np.ndarray
+    dq0: np.ndarray
+    plant: Plant
+    static_tension: np.ndarray
+    readout: Any = None
+
+    @property
+    def cables(self) -> int:
+        return len(self.static_tension)
+
+    @functools.cached_property
+    def _reading(self) -> np.ndarray:
+        return self.readout.encoder_reading(self.start, self.static_tension, self.plant)
+
+    def encoder_reading(self) -> np.ndarray:
+        """What the encoders read at the start, m (the cables stretched by the static
+        tension where they are elastic)."""
+        return self._reading
+
+    def read_pose(self, reading: np.ndarray) -> np.ndarray | None:
+        """The pose read from ``reading`` starting from the start pose, or None."""
+        return self.readout.read_pose(reading, self.start, self.plant.as_built.sensing)

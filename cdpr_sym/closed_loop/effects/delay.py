@@ -8,12 +8,11 @@ from typing import TYPE_CHECKING, ClassVar
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StepBuild
+from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StartContext, StepBuild
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
     from cdpr_sym.as_built import AsBuiltStructure
-    from cdpr_sym.closed_loop.effects.start import StartContext
 
 
 @dataclasses.dataclass(frozen=True)

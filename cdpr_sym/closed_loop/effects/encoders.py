@@ -18,13 +18,12 @@ from typing import TYPE_CHECKING, ClassVar
 import casadi as ca
 
 from cdpr_sym.as_built.spec import SENSING_PARAMETERS
-from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StepBuild
+from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StartContext, StepBuild
 from cdpr_sym.closed_loop.stops import LOST_POSE
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
     from cdpr_sym.as_built import AsBuiltStructure
-    from cdpr_sym.closed_loop.effects.start import StartContext
     from cdpr_sym.closed_loop.plant import Plant
 
 

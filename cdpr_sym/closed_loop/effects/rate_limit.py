@@ -8,11 +8,10 @@ from typing import TYPE_CHECKING, ClassVar
 
 import casadi as ca
 
-from cdpr_sym.closed_loop.effects.base import PlantEffect, StepBuild
+from cdpr_sym.closed_loop.effects.base import PlantEffect, StartContext, StepBuild
 
 if TYPE_CHECKING:
     from cdpr_sym.as_built import AsBuiltStructure
-    from cdpr_sym.closed_loop.effects.start import StartContext
 
 
 @dataclasses.dataclass(frozen=True)

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, ClassVar
 import casadi as ca
 
 from cdpr_sym.as_built.geometry import true_geometry_function
-from cdpr_sym.closed_loop.effects import anchors
+from cdpr_sym.closed_loop.effects.anchors import offsets as anchor_offsets
 from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StepBuild
 from cdpr_sym.model import SymbolicModel, rk4
 
@@ -57,7 +57,7 @@ class TrueDynamics:
     def __init__(self, build: StepBuild, substeps: int) -> None:
         self.model = build.model
         self.geometry = true_geometry_function(build.model.robot)
-        self.offsets = anchors.offsets(build)
+        self.offsets = anchor_offsets(build)
         self.mass_scale = build.par["mass_scale"]
         self.winches = build.find("winches")
         self.actuation = None if self.winches is None else build.par["actuation"]

@@ -17,12 +17,11 @@ import numpy as np
 
 from cdpr_sym.as_built import actuation
 from cdpr_sym.as_built.spec import ACTUATION_PARAMETERS
-from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect
+from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StartContext
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
     from cdpr_sym.as_built import AsBuiltStructure
-    from cdpr_sym.closed_loop.effects.start import StartContext
     from cdpr_sym.closed_loop.plant import Plant
 
 #: The winch states: payout r theta (m), drum speed (rad/s), motor torque (N m), per cable.

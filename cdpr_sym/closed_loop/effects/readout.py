@@ -1,10 +1,8 @@
-"""The numbers of a move's start that the effects' initial states are made of, and the
-as-built plant's numeric twins (its static tension, geometry and encoder reading)."""
+"""The as-built plant in numbers: its static tension, cable lengths, encoder reading, and
+the pose forward kinematics gives for a reading (the numeric twins of its step)."""
 
 from __future__ import annotations
 
-import dataclasses
-import functools
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -77,43 +75,3 @@ class AsBuiltReadout:
         bound = reading_bound(self.model.n, self.model.m, sensing.resolution,
                               sensing.consistency)
         return np.array(q).ravel() if float(ok) > 0.5 and float(residual) <= bound else None
-
-
-@dataclasses.dataclass
-class StartContext:
-    """A move's start as the effects see it when they fill in their initial state.
-
-    Attributes
-    ----------
-    start, dq0 : ndarray, shape (n,)
-        The start pose (m, rad) and velocity.
-    plant : Plant
-    static_tension : ndarray, shape (m,)
-        The model's static tension at the start, N: the controller held the plant at rest
-        with it, so its cables carry it and the commands on their way are it.
-    readout : AsBuiltReadout or None
-        The as-built plant's numbers (None for the ideal plant).
-    """
-
-    start: np.ndarray
-    dq0: np.ndarray
-    plant: Plant
-    static_tension: np.ndarray
-    readout: AsBuiltReadout | None = None
-
-    @property
-    def cables(self) -> int:
-        return len(self.static_tension)
-
-    @functools.cached_property
-    def _reading(self) -> np.ndarray:
-        return self.readout.encoder_reading(self.start, self.static_tension, self.plant)
-
-    def encoder_reading(self) -> np.ndarray:
-        """What the encoders read at the start, m (the cables stretched by the static
-        tension where they are elastic)."""
-        return self._reading
-
-    def read_pose(self, reading: np.ndarray) -> np.ndarray | None:
-        """The pose read from ``reading`` starting from the start pose, or None."""
-        return self.readout.read_pose(reading, self.start, self.plant.as_built.sensing)
