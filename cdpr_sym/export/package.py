@@ -60,6 +60,7 @@ from cdpr_sym.codegen.names import MAX_IDENTIFIER
 from cdpr_sym.control import (
     FLAG_NAMES,
     Controller,
+    capabilities,
     check_cables,
     controller_by_name,
     initial_memory_function,
@@ -380,12 +381,12 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     >>> result.header.name
     'cdpr_planar2_pd.h'
     """
-    robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
+    robot = resolve_robot(robot)
     # a registered name names the package (l2-minnorm and l2 share the class name "l2")
     label = controller if isinstance(controller, str) else controller.name
-    controller = controller_by_name(controller) if isinstance(controller, str) else controller
+    controller = controller_by_name(controller)
     check_cables(controller, robot.n, robot.m)
-    sampled = getattr(controller, "sampled", False)
+    sampled = capabilities(controller).sampled
     if sampled:
         check_exportable(controller)
     prefix = prefix if prefix is not None else c_identifier(f"cdpr_{robot.name}_{label}")
@@ -493,8 +494,7 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
     CompilationFailed
         The compiler rejected the code (its output is in the message).
     """
-    robot = robot if isinstance(robot, Robot) else resolve_robot(robot)
-    controller = controller_by_name(controller) if isinstance(controller, str) else controller
+    robot, controller = resolve_robot(robot), controller_by_name(controller)
     check_cables(controller, robot.n, robot.m)
     cc = require_compiler(compiler)
     rng = np.random.default_rng(0)

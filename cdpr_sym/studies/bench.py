@@ -12,7 +12,7 @@ import numpy as np
 
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.codegen import BuildOptions
-from cdpr_sym.control import CONTROLLERS
+from cdpr_sym.control import CONTROLLERS, capabilities
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
 
@@ -55,9 +55,9 @@ def bench_controllers(robot: Robot, *, duration: float = 5.0, dt: float = 1e-3,
     """Closed-loop simulations per second (``duration`` s at 1/``dt`` Hz) per controller."""
     out = {}
     for name, controller in CONTROLLERS.items():
-        if robot.m > robot.n and not getattr(controller, "redundant", False):
+        if robot.m > robot.n and not capabilities(controller).any_cables:
             continue  # it inverts W: refused on a robot with more cables than DOF
-        if getattr(controller, "sampled", False):
+        if capabilities(controller).sampled:
             continue  # NMPC: its cost is per solve (python -m benchmarks.nmpc)
         simulator = get_simulator(robot, controller, build_options=build_options)
 

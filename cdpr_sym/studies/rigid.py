@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from cdpr_sym.control import CONTROLLERS
+from cdpr_sym.control import CONTROLLERS, capabilities
 from cdpr_sym.control.analysis import L2_FELL_BACK, construction_gap
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.reporting import plots
@@ -38,7 +38,7 @@ SHOWN = ("l2", "pd-sat", "smooth", "ida-ref")
 #: Every design but the converged NMPC variants, whose solves take 0.1-1 s each in CasADi's
 #: virtual machine (``nmpc``, the real-time iteration, is in).
 DESIGNS = tuple(name for name, design in CONTROLLERS.items()
-                if not (getattr(design, "sampled", False) and design.solver != "rti"))
+                if not (capabilities(design).sampled and design.solver != "rti"))
 
 
 def run_rigid_study(out_dir: Path, *, pairs: int = 200, seed: int = 0,
