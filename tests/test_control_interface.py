@@ -114,7 +114,7 @@ def test_a_controller_without_capabilities_inverts_w_every_period():
 
     assert capabilities(Outside()) == SQUARE_STEPWISE
     check_cables(Outside(), 3, 3)
-    with pytest.raises(InvalidCase, match="^controller: outside needs as many cables"):
+    with pytest.raises(InvalidCase, match=r"^controller: outside needs as many cables"):
         check_cables(Outside(), 3, 4)
 
 

@@ -34,7 +34,13 @@ from cdpr_sym import (
 )
 from cdpr_sym.cli import main
 from cdpr_sym.codegen import run_command
-from cdpr_sym.control import CONTROLLERS, FLAG_NAMES, initial_memory_function, law_function
+from cdpr_sym.control import (
+    CONTROLLERS,
+    FLAG_NAMES,
+    capabilities,
+    initial_memory_function,
+    law_function,
+)
 from cdpr_sym.export import REQUIRED_MODEL_TERMS, ExportResult, bench_export, export_c
 from cdpr_sym.export.package import prefix_problem
 from cdpr_sym.robot import PRESET_NAMES
@@ -381,7 +387,7 @@ def test_every_controller_and_preset_builds_strict_and_reproduces_simulation(tmp
     results = {(robot, controller): export_c(robot, controller, tmp_path / f"{robot}_{controller}",
                                              avoid_stack=robot != "aras3")
                for robot in square for controller in CONTROLLERS
-               if not getattr(CONTROLLERS[controller], "sampled", False)}
+               if not capabilities(CONTROLLERS[controller]).sampled}
     objects = {}
     for key, result in results.items():
         objects[key] = [(result.source, result.out_dir / "main.o", ())]
@@ -627,7 +633,7 @@ def test_a_controller_that_inverts_w_is_refused_on_more_cables_naming_it(tmp_pat
     """Exported like simulated: every design but the redundant ones is refused, in one line
     naming the controller, before any file is written."""
     redundant = {name for name, design in CONTROLLERS.items()
-                 if getattr(design, "redundant", False)}
+                 if capabilities(design).any_cables}
     assert {"pd-td", "smooth", "l2"} <= redundant
     for robot in (name for name in PRESET_NAMES if preset(name).m > preset(name).n):
         for name in set(CONTROLLERS) - redundant:
