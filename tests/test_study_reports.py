@@ -10,6 +10,7 @@ computed the study, so any drift of a template, a number format or a verdict rul
 from __future__ import annotations
 
 import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -18,6 +19,8 @@ from cdpr_sym.cli import main
 from cdpr_sym.studies.registry import STUDY_NAMES, study_by_name
 
 REPORTS = Path(__file__).parents[1] / "reports"
+#: The largest file a clean clone may hold under reports/, bytes.
+MOST_BYTES = 1 << 20
 
 
 def _as_cloned(name: str, target: Path) -> Path:
@@ -49,3 +52,33 @@ def test_a_folder_without_runs_or_aggregates_is_refused_naming_the_study(tmp_pat
     assert err == (f"cdpr-sym: error: results: {folder} has no stored runs (runs/ is not kept "
                    "in git); run 'cdpr-sym study compare' to compute them")
     assert not (folder / "report.md").exists()
+
+
+def _git(*args: str) -> subprocess.CompletedProcess:
+    """``git`` run in the repository (the test is skipped outside a git checkout)."""
+    try:
+        done = subprocess.run(["git", "-C", str(REPORTS.parent), *args], capture_output=True,
+                              text=True)
+    except OSError:
+        pytest.skip("no git")
+    if "not a git repository" in done.stderr:
+        pytest.skip("not a git checkout")
+    return done
+
+
+def test_no_committed_report_file_is_over_a_megabyte():
+    tracked = _git("ls-files", "-z", "reports").stdout.split("\0")
+    sizes = {path: (REPORTS.parent / path).stat().st_size for path in tracked if path
+             and (REPORTS.parent / path).exists()}
+    assert sizes and {path: size for path, size in sizes.items() if size > MOST_BYTES} == {}
+
+
+@pytest.mark.parametrize("path", [
+    "reports/paper/runs/index.json", "reports/compare/sweep.csv",
+    "reports/designs/sweep_mass_1.0.csv", "reports/rigid/spatial6_sweep.csv",
+    "reports/rigid/planar3/runs/index.json", "reports/redundant/same_pairs.json",
+    "reports/redundant/ipanema8_sweep.csv", "reports/robustness/runs.json"])
+def test_the_per_run_files_are_left_out_of_git(path):
+    done = _git("check-ignore", "--no-index", "--quiet", path)
+    assert done.returncode == 0, f"{path} is not ignored"
+    assert _git("ls-files", path).stdout == ""

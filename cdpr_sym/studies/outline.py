@@ -57,13 +57,14 @@ def study_sweep(config: SweepConfig, table: Path, *, progress: bool) -> None:
     run_sweep(config, table, progress=progress, restart_if_stale=True)
 
 
-def write_study(folder: Path, kind: str, robot: Robot | None, **measured: Any) -> None:
+def write_study(folder: Path, kind: str, robot: Robot | None, *, indent: int | None = 2,
+                **measured: Any) -> None:
     """``study.json``: which study, the robot description, and what the study measured
-    besides runs."""
+    besides runs (``indent=None``: on one line, for a large one)."""
     folder.mkdir(parents=True, exist_ok=True)
     write_json(folder / STUDY_FILE, {"study": kind,
                                      "robot": None if robot is None else robot.as_dict(),
-                                     **measured})
+                                     **measured}, indent=indent)
 
 
 def read_study(folder: Path) -> dict[str, Any]:

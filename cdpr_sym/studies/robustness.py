@@ -7,7 +7,7 @@ by 5 s, no tension step or start jump above 1 N), judged on the *true* tension i
 Shares count only the pairs whose start and goal the true plant (its mass and anchors) can
 hold at rest with tensions in the box; the report says how many each effect excludes.
 
-``compute`` writes ``runs.json`` (one row per run) and ``study.json``
+``compute`` writes ``runs.json`` (one row per run; not kept in git) and ``study.json``
 (pairs, seed and every effect's specification, drawn values included). The report step
 condenses the runs into ``summary.json`` (shares and reasons per effect and design) and
 ``shares.png``, and writes ``report.md`` (``reporting/templates/robustness.md.j2``) from
@@ -134,9 +134,10 @@ def compute_robustness_study(robot: Robot, out_dir: Path, *, pairs: int = 200, s
     scan = _damping_scan(robot, starts[:SCAN_PAIRS], goals[:SCAN_PAIRS], progress)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / RUNS_FILE, rows)
-    write_study(out_dir, "robustness", robot, pairs=pairs, seed=seed, designs=list(DESIGNS),
-                duration=DURATION, dt=DT, effects=specs, damping_scan=scan,
-                starts=starts.tolist(), goals=goals.tolist())
+    # every run's specification makes it about 0.5 MB: on one line, half the indented size
+    write_study(out_dir, "robustness", robot, indent=None, pairs=pairs, seed=seed,
+                designs=list(DESIGNS), duration=DURATION, dt=DT, effects=specs,
+                damping_scan=scan, starts=starts.tolist(), goals=goals.tolist())
 
 
 def _damping_scan(robot: Robot, starts: np.ndarray, goals: np.ndarray, progress: bool
