@@ -43,12 +43,12 @@ def test_the_command_line_offers_the_registered_studies():
 
 
 def test_building_the_parser_loads_no_study():
-    code = ("import sys\nfrom cdpr_sym.cli.parser import build_parser\nbuild_parser()\n"
-            "print([m for m in sys.modules if m.startswith('cdpr_sym.studies.')])")
+    code = ("import json, sys\nfrom cdpr_sym.cli.parser import build_parser\nbuild_parser()\n"
+            "print(json.dumps([m for m in sys.modules if m.startswith('cdpr_sym.studies.')]))")
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
                          text=True).stdout
-    assert sorted(eval(out)) == ["cdpr_sym.studies.bench", "cdpr_sym.studies.interface",
-                                 "cdpr_sym.studies.registry"]
+    assert sorted(json.loads(out)) == ["cdpr_sym.studies.bench", "cdpr_sym.studies.interface",
+                                       "cdpr_sym.studies.registry"]
 
 
 class _Ran(Exception):
