@@ -51,7 +51,7 @@ def no_heavy_work(monkeypatch):
                "cdpr_sym.studies.workspace.run_workspace_study",
                "cdpr_sym.studies.bench.run_bench",
                "cdpr_sym.sweep.run_sweep",
-               "cdpr_sym.studies.compare.run_compare_study")
+               "cdpr_sym.studies.compare.compute_compare_study")
     for target in targets:
         importlib.import_module(target.rsplit(".", 1)[0])
     for target in targets:

@@ -94,3 +94,17 @@ def test_the_layout_check_sees_an_upward_import(tmp_path):
                     "from ..sweep import run_sweep\nfrom . import kinematics\n")
     assert sorted(_upward("cdpr_sym.model.symbolic", _imports(fake, "cdpr_sym.model"))) == [
         "cdpr_sym.closed_loop", "cdpr_sym.sweep"]
+
+
+#: What the command line may import of the studies: the registry and the interface, and
+#: the workspace and bench studies, which have commands of their own.
+CLI_REACHES = {"cdpr_sym.studies.registry", "cdpr_sym.studies.interface",
+               "cdpr_sym.studies.workspace", "cdpr_sym.studies.bench"}
+
+
+def test_the_command_line_reaches_the_studies_through_the_registry():
+    """No command names a study's module: ``study`` and ``report`` dispatch by name."""
+    for path in (PACKAGE / "cli").glob("*.py"):
+        studies = {name for name in _imports(path, "cdpr_sym.cli")
+                   if name.startswith("cdpr_sym.studies")}
+        assert studies <= CLI_REACHES, (path.name, studies - CLI_REACHES)

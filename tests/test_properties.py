@@ -299,7 +299,7 @@ def _stand_in(name: str):
 #: Long work each command would start, replaced by a stand-in.
 HEAVY = ("cdpr_sym.cli.commands.simulate", "cdpr_sym.studies.workspace.run_workspace_study",
          "cdpr_sym.studies.bench.run_bench", "cdpr_sym.sweep.run_sweep",
-         "cdpr_sym.studies.compare.run_compare_study")
+         "cdpr_sym.studies.compare.compute_compare_study")
 
 _TIMING = {"duration", "dt"}
 #: Numeric options per command: (option, fields its refusal may name, values it takes).

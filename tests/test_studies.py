@@ -62,6 +62,22 @@ def test_paper_report_is_rebuilt_from_the_stored_runs_alone(paper_folder, monkey
     assert (paper_folder / "report.md").read_text() == first
 
 
+def test_paper_report_text_is_rebuilt_without_the_runs(paper_folder, tmp_path, monkeypatch):
+    """What git keeps of a paper study (study.json, metrics.json, measured.json) gives the
+    same claims and report.md as the runs did."""
+    folder = shutil.copytree(paper_folder, tmp_path / "copy")
+    claims = write_paper_report(folder)
+    first = (folder / "report.md").read_text()
+    shutil.rmtree(folder / "runs")
+    (folder / "report.md").unlink()
+
+    def no_runs(*args, **kwargs):
+        raise AssertionError("the report read the runs")
+    monkeypatch.setattr("cdpr_sym.studies.paper.load_runs", no_runs)
+    assert write_paper_report(folder) == claims
+    assert (folder / "report.md").read_text() == first
+
+
 def test_paper_verdicts_follow_their_rules_on_the_runs(paper_folder):
     runs = load_runs(paper_folder)
     metrics = {name: run.metrics() for name, run in runs.items()}
@@ -102,8 +118,10 @@ def test_report_command_refuses_a_folder_it_cannot_use(paper_folder, tmp_path, c
                                                         '"study": "compare"'))
     elif damage == "corrupt":
         (folder / "study.json").write_bytes(b"\x00\xff not json")
-    elif damage == "no_runs":
+    elif damage == "no_runs":  # neither the runs nor what the report keeps of them
         shutil.rmtree(folder / "runs")
+        for name in ("metrics.json", "measured.json"):
+            (folder / name).unlink(missing_ok=True)
     assert main(["report", "paper", str(folder)]) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1

@@ -10,20 +10,20 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import importlib
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from cdpr_sym.cli.output import Output, quantity, yes_no
-from cdpr_sym.cli.parser import MAX_WORKERS, STUDIES_WITHOUT_RUNS, STUDY_REPORTS
+from cdpr_sym.cli.parser import MAX_WORKERS
 from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import Controller, controller_by_name
 from cdpr_sym.errors import InvalidCase, InvalidRobot
-from cdpr_sym.results.store import read_json
 from cdpr_sym.results.trajectory import save_path
 from cdpr_sym.robot import PRESET_NAMES, Robot, resolve_robot
+from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyRequest
+from cdpr_sym.studies.registry import study_by_name
 from cdpr_sym.sweep.config import check_pairs, check_seed
 
 if TYPE_CHECKING:
@@ -111,78 +111,38 @@ def check_pairs_and_seed(args: argparse.Namespace) -> None:
     check_seed(args.seed)
 
 
-def study_command(args: argparse.Namespace, out: Output) -> int:
+def check_study_args(study: Study, args: argparse.Namespace) -> tuple[StudyRequest, Path]:
+    """The request and output folder of ``study``, every option checked before long work:
+    ``pairs`` and ``seed``; ``robot`` (refused by a study of its own robots, else its case
+    checked); ``out`` (a folder; required for a robot file named like a preset, whose
+    default folder would be that preset's)."""
     check_pairs_and_seed(args)
-    if args.name == "redundant" and args.robot:
-        raise InvalidCase("robot", "the redundant study compares its own presets (aras3, "
-                          "spatial4, planar4, ipanema8); it takes no --robot")
-    robot = checked_robot(args.robot or "aras3")
-    default = args.robot is None or (args.robot == "aras3" and args.name != "rigid")
+    options = study.options
+    if args.robot and not options.robot:
+        raise InvalidCase("robot", f"the {study.name} study compares its own presets "
+                          f"({', '.join(options.own_robots)}); it takes no --robot")
+    source = args.robot or options.default_robot
+    robot = checked_robot(source) if source else None
+    default = args.robot is None or args.robot == options.default_robot
     stem = Path(args.robot).stem if args.robot else ""
     if not args.out and args.robot not in PRESET_NAMES and stem in PRESET_NAMES:
         raise InvalidCase("out", f"the robot file {args.robot} is named like the preset "
                           f"{stem!r}, whose report folder it would replace; pass --out")
-    folder = args.out or Path("reports") / (args.name if default else f"{args.name}_{stem}")
+    folder = args.out or Path("reports") / (study.name if default else f"{study.name}_{stem}")
     _check_folder("out", folder)
-    progress = _progress(args)
-    robot_spec = args.robot or "aras3"
-    if args.name == "paper":
-        from cdpr_sym.studies.paper import run_paper_study
+    request = StudyRequest(robot=robot, source=source, pairs=args.pairs, seed=args.seed,
+                           progress=_progress(args))
+    return request, folder
 
-        claims = run_paper_study(folder, robot=robot)
-        value: Any = [claim.__dict__ for claim in claims]
-        lines = [f"{c.verdict:<13} {c.source:<11} {c.claim}" for c in claims]
-    elif args.name == "compare":
-        from cdpr_sym.studies.compare import run_compare_study
 
-        value = run_compare_study(folder, robot=robot_spec, pairs=args.pairs, seed=args.seed,
-                                  progress=progress)
-        lines = [f"{name:<10} feasible {100 * row['feasible']:5.1f} %  converged "
-                 f"{100 * row['converged']:5.1f} %" for name, row in value["sweep"].items()]
-    elif args.name == "rigid":
-        from cdpr_sym.studies.rigid import ROBOTS, best_design, run_rigid_study
-
-        robots = (args.robot,) if args.robot else ROBOTS
-        value = run_rigid_study(folder, pairs=args.pairs, seed=args.seed, robots=robots,
-                                progress=progress)
-        lines = []
-        for name, summary in value.items():
-            best = best_design(summary["sweep"])
-            lines.append(f"{name:<10} best {best}: meets target on "
-                         f"{100 * summary['sweep'][best]['meets_target']:5.1f} % of pairs")
-    elif args.name == "redundant":
-        from cdpr_sym.studies.redundant import run_redundant_study
-
-        value = run_redundant_study(folder, pairs=args.pairs, seed=args.seed,
-                                    progress=progress)
-        lines = [f"{name:<9} {design:<7} meets target {100 * row['meets_target']:5.1f} % "
-                 f"(same pairs)" for name in ("aras3", "spatial4")
-                 for design, row in value["same_pairs"][name].items()]
-    elif args.name == "robustness":
-        from cdpr_sym.studies.robustness import run_robustness_study
-
-        value = run_robustness_study(robot, folder, pairs=args.pairs, seed=args.seed,
-                                     progress=progress)
-        lines = [f"{design:<8} meets target: " + ", ".join(
-            f"{effect} {_percent(row[design]['meets_target'])}" for effect, row in value.items())
-            for design in next(iter(value.values()))]
-    else:
-        from cdpr_sym.studies.designs import run_designs_study
-
-        value = run_designs_study(folder, robot=robot_spec, pairs=args.pairs, seed=args.seed,
-                                  progress=progress)
-        table = value["meets_target"]
-        lines = [f"{name:<10} meets target: nominal {100 * table['1.0'][name]:5.1f} %, "
-                 f"mass +10 % {100 * table['1.1'][name]:5.1f} %, "
-                 f"mass -10 % {100 * table['0.9'][name]:5.1f} %" for name in table["1.0"]]
-    out.result({"study": args.name, "report": str(folder / "report.md"), "result": value},
-               [*lines, f"report: {folder / 'report.md'}"])
+def study_command(args: argparse.Namespace, out: Output) -> int:
+    study = study_by_name(args.name)
+    request, folder = check_study_args(study, args)
+    result = study.run(folder, request)
+    report = folder / REPORT_FILE
+    out.result({"study": study.name, "report": str(report), "result": study.as_json(result)},
+               [*study.summary_lines(result), f"report: {report}"])
     return 0
-
-
-def _percent(value: float | None) -> str:
-    """A share as a percentage, or a dash when nothing was counted."""
-    return "–" if value is None else f"{100 * value:.1f} %"
 
 
 def check_workspace_args(args: argparse.Namespace) -> tuple[Robot, np.ndarray | None]:
@@ -269,20 +229,10 @@ def report_command(args: argparse.Namespace, out: Output) -> int:
         path = write_sweep_report(args.results, args.out)
         out.result({"report": str(path)}, [f"report: {path}"])
         return 0
-    module, function = STUDY_REPORTS[args.kind]
-    study, runs = args.results / "study.json", args.results / "runs" / "index.json"
-    if not study.exists():
-        raise InvalidCase("results", f"{args.results} holds no computed {args.kind} study "
-                          "(no study.json); run 'cdpr-sym study' first")
-    data = read_json(study)
-    kind = data.get("study") if isinstance(data, dict) else None
-    if kind != args.kind:
-        raise InvalidCase("results", f"{args.results} holds a {kind} study, not {args.kind}")
-    if not runs.exists() and args.kind not in STUDIES_WITHOUT_RUNS:
-        raise InvalidCase("results", f"{args.results} has no stored runs (runs/ is not kept "
-                          f"in git); run 'cdpr-sym study {args.kind}' to compute them")
-    getattr(importlib.import_module(module), function)(args.results)
-    path = args.results / "report.md"
+    study = study_by_name(args.kind)
+    study.check_folder(args.results)
+    study.report(args.results)
+    path = args.results / REPORT_FILE
     out.result({"report": str(path)}, [f"report: {path}"])
     return 0
 

@@ -9,19 +9,10 @@ from cdpr_sym.closed_loop.case import TRAJECTORY_BUDGET_BYTES
 from cdpr_sym.control import CONTROLLERS, DESCRIPTIONS
 from cdpr_sym.robot import PRESET_NAMES
 from cdpr_sym.studies.bench import MAX_SECONDS
+from cdpr_sym.studies.registry import STUDY_NAMES
 from cdpr_sym.sweep.config import FORMATS, MAX_PAIRS
 from cdpr_sym.version import __version__
 from cdpr_sym.workspace import MAX_GRID_POSES
-
-#: Studies whose report is rebuilt from their stored files: module and function.
-STUDY_REPORTS = {"paper": ("cdpr_sym.studies.paper", "write_paper_report"),
-                 "compare": ("cdpr_sym.studies.compare", "write_compare_report"),
-                 "designs": ("cdpr_sym.studies.designs", "write_designs_report"),
-                 "rigid": ("cdpr_sym.studies.rigid", "write_rigid_report"),
-                 "redundant": ("cdpr_sym.studies.redundant", "write_redundant_report"),
-                 "robustness": ("cdpr_sym.studies.robustness", "write_robustness_report")}
-#: Studies whose report needs no stored runs (only their tables and JSON files).
-STUDIES_WITHOUT_RUNS = ("redundant", "robustness")
 
 #: Most local worker processes of a sweep.
 MAX_WORKERS = 256
@@ -99,9 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
                      "appended to a name without it)")
 
     study = command("study", "run a study and write its report", progress=True)
-    study.add_argument("name", choices=["paper", "compare", "designs", "rigid", "redundant",
-                                          "robustness"],
-                       help="the study")
+    study.add_argument("name", choices=STUDY_NAMES, help="the study")
     study.add_argument("--robot", help=f"{_ROBOT_HELP} (default aras3; the paper's claims are "
                        "about aras3, others are judged on their case; rigid: planar3 and "
                        "spatial6 unless given; redundant compares its own presets and takes "
@@ -149,7 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--dask", metavar="ADDRESS", help="run on an existing Dask scheduler")
 
     report = command("report", "build a report from stored results")
-    report.add_argument("kind", choices=["sweep", *STUDY_REPORTS],
+    report.add_argument("kind", choices=["sweep", *STUDY_NAMES],
                         help="sweep: a sweep table; a study name: a computed study's folder")
     report.add_argument("results", type=Path,
                         help="sweep results (CSV file or Parquet folder), or a study's folder")

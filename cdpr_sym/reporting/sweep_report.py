@@ -8,30 +8,15 @@ from typing import Any
 from matplotlib.figure import Figure
 
 from cdpr_sym.errors import CdprError, InvalidCase
-from cdpr_sym.reporting.format import number, share
+from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results.judging import OUTCOMES, outcome, summarise
 from cdpr_sym.results.store import load_table, write_json
 from cdpr_sym.robot import Robot
 
 
 def summary_table(summary: dict[str, dict[str, Any]]) -> str:
-    """Markdown table of :func:`summarise`."""
-    lines = ["| controller | runs | feasible | converged (1 cm, horizon) | both | meets target* "
-             "| median settle [s] | median TV [N] | median largest step [N] | median min α "
-             "| runs with infeasible steps | stopped/failed |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for name, s in summary.items():
-        lines.append(
-            f"| {name} | {s['runs']} | {share(s['feasible'])} | {share(s['converged'])} | "
-            f"{share(s['feasible_and_converged'])} | {share(s['meets_target'])} | "
-            f"{number(s['median_settle_s'])} | {number(s['median_total_variation'])} | "
-            f"{number(s['median_max_step'])} | {number(s['median_min_alpha'])} | "
-            f"{s['runs_with_infeasible_steps']} | {s['stopped_or_failed']} |")
-    lines.append("")
-    lines.append("\\* target: tensions in the box for t > 0, settled within 5 s, no tension "
-                 "change above 1 N per step and a first command within 1 N of the static "
-                 "tension.")
-    return "\n".join(lines)
+    """Markdown table of :func:`summarise`, with the target's footnote (no final newline)."""
+    return render_report("sweep_table.md.j2", summary=summary).removesuffix("\n")
 
 
 def feasibility_maps(rows: list[dict[str, Any]], path: Path, *, axes: tuple[int, int] = (0, 1),
@@ -101,16 +86,11 @@ def write_sweep_report(results: Path, out_dir: Path) -> Path:
     for a, b in planes:
         figure = f"maps_{names[a]}{names[b]}.png"
         feasibility_maps(rows, out_dir / figure, axes=(a, b), names=names)
-        figures += [f"![Outcome by start and goal, {names[a]}-{names[b]}]({figure})", ""]
+        figures.append((f"{names[a]}-{names[b]}", figure))
     write_json(out_dir / "summary.json", summary)
     config = meta.get("config", {})
-    text = "\n".join([
-        "# Sweep report", "",
-        f"Results `{results.name}`: robot `{config.get('robot')}`, {config.get('pairs')} pairs "
-        f"(seed {config.get('seed')}), {config.get('duration')} s runs at "
-        f"{1 / config['dt'] if config.get('dt') else '?'} Hz, plant mass x "
-        f"{config.get('mass_scale')}.", "",
-        summary_table(summary), "", *figures,
-    ])
-    (out_dir / "report.md").write_text(text)
+    rate = 1 / config["dt"] if config.get("dt") else "?"
+    (out_dir / "report.md").write_text(render_report(
+        "sweep.md.j2", results=results.name, config=config, rate=rate, summary=summary,
+        figures=figures))
     return out_dir / "report.md"

@@ -70,12 +70,12 @@ def load_arrays(path: str | Path) -> dict[str, np.ndarray]:
     return arrays
 
 
-def write_json(path: Path, value: Any) -> Path:
-    """``value`` as indented JSON (numpy scalars and arrays as numbers and lists), written
-    to a temporary file beside ``path`` and renamed over it, so a reader never meets half a
-    file."""
+def write_json(path: Path, value: Any, *, indent: int | None = 2) -> Path:
+    """``value`` as indented JSON (numpy scalars and arrays as numbers and lists; on one
+    line with ``indent=None``), written to a temporary file beside ``path`` and renamed over
+    it, so a reader never meets half a file."""
     with _replaced_atomically(path, sync=False) as handle:
-        handle.write(json.dumps(value, indent=2, default=json_default) + "\n")
+        handle.write(json.dumps(value, indent=indent, default=json_default) + "\n")
     return path
 
 

@@ -1,6 +1,8 @@
 """Studies: what the toolkit measures and reports, each computed into files first.
 
-``paper``, ``compare``, ``designs`` and ``rigid`` follow :mod:`~cdpr_sym.studies.outline`
-(runs and sweeps stored, the report rebuilt from them); ``workspace`` maps the static
-workspace; ``bench`` times the toolkit.
+``paper``, ``compare``, ``designs``, ``rigid``, ``redundant`` and ``robustness`` are
+:class:`~cdpr_sym.studies.interface.Study` objects, found by name in
+:mod:`~cdpr_sym.studies.registry` (runs and sweeps stored, condensed into small aggregate
+files, the report rebuilt from those); ``workspace`` maps the static workspace; ``bench``
+times the toolkit.
 """

@@ -3,7 +3,7 @@
 Every design's whole 1 ms step (law and RK4 plant, in the compiled loop) is a run's wall time
 over its steps: an upper bound of the law's own cost. A design that optimises at its own
 rate (NMPC) adds its solves, whose median and worst wall-clock time (the call included)
-each run records.
+each run records. The reports print them with ``reporting/templates/costs.md.j2``.
 """
 
 from __future__ import annotations
@@ -40,15 +40,3 @@ def control_costs(robot: Robot, names: Iterable[str]) -> dict[str, dict[str, Any
                         solves=record["samples"])
         costs[name] = cost
     return costs
-
-
-def cost_table(costs: dict[str, dict[str, Any]]) -> list[str]:
-    """Markdown lines of :func:`control_costs`."""
-    lines = ["| design | whole 1 ms step, law + plant [µs] | solve, median [ms] | "
-             "solve, worst [ms] |", "|---|---|---|---|"]
-    for name, cost in costs.items():
-        median = cost.get("solve_ms_median")
-        lines.append(f"| {name} | {cost['step_us']:.2f} | "
-                     + ("-" if median is None else f"{median:.3f}") + " | "
-                     + ("-" if median is None else f"{cost['solve_ms_max']:.2f}") + " |")
-    return lines

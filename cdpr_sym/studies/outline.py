@@ -1,11 +1,13 @@
-"""What every study shares: runs and sweeps stored as files, and a report built from them.
+"""What every study shares: runs and sweeps stored as files, and ``study.json``.
 
-A study has two halves. ``compute`` simulates and writes its results into the study's
-folder: each case run as ``runs/<name>.npz`` (:meth:`Trajectory.save`, listed in
-``runs/index.json``), each sweep as a CSV table with its sidecar, and whatever else it
-measured as ``study.json``. ``write_report`` then rebuilds the report (``report.md``, its
-figures and summary) from those files alone, so a report can be redrawn without simulating
-again (``cdpr-sym report <study> <folder>``).
+A study (:class:`~cdpr_sym.studies.interface.Study`) has two halves. ``compute`` simulates
+and writes its results into the study's folder: each case run as ``runs/<name>.npz``
+(:meth:`Trajectory.save`, listed in ``runs/index.json``), each sweep as a CSV table with its
+sidecar, and whatever else it measured as ``study.json``. The report step then condenses
+those files into small aggregates (``summary.json`` and the like) and figures, and writes
+``report.md`` from ``study.json`` and the aggregates alone, so a report can be redrawn
+without simulating again, and its text rebuilt where only the aggregates are kept
+(``cdpr-sym report <study> <folder>``).
 """
 
 from __future__ import annotations
@@ -19,10 +21,12 @@ from cdpr_sym.control import controller_by_name
 from cdpr_sym.results import Trajectory
 from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
+from cdpr_sym.studies.interface import STUDY_FILE
 from cdpr_sym.sweep import SweepConfig, run_sweep
 
 RUNS = "runs"
-STUDY_FILE = "study.json"
+#: The aggregate most studies condense their runs and sweeps into, for the report.
+SUMMARY_FILE = "summary.json"
 
 
 def case_runs(robot: Robot, names: Iterable[str], **options: Any) -> dict[str, Trajectory]:
@@ -53,13 +57,14 @@ def study_sweep(config: SweepConfig, table: Path, *, progress: bool) -> None:
     run_sweep(config, table, progress=progress, restart_if_stale=True)
 
 
-def write_study(folder: Path, kind: str, robot: Robot | None, **measured: Any) -> None:
+def write_study(folder: Path, kind: str, robot: Robot | None, *, indent: int | None = 2,
+                **measured: Any) -> None:
     """``study.json``: which study, the robot description, and what the study measured
-    besides runs."""
+    besides runs (``indent=None``: on one line, for a large one)."""
     folder.mkdir(parents=True, exist_ok=True)
     write_json(folder / STUDY_FILE, {"study": kind,
                                      "robot": None if robot is None else robot.as_dict(),
-                                     **measured})
+                                     **measured}, indent=indent)
 
 
 def read_study(folder: Path) -> dict[str, Any]:

@@ -7,9 +7,11 @@ by 5 s, no tension step or start jump above 1 N), judged on the *true* tension i
 Shares count only the pairs whose start and goal the true plant (its mass and anchors) can
 hold at rest with tensions in the box; the report says how many each effect excludes.
 
-``compute`` writes ``runs.json`` (one row per run) and ``study.json`` (pairs, seed and every
-effect's specification, drawn values included); ``write_robustness_report`` rebuilds the
-report from them alone.
+``compute`` writes ``runs.json`` (one row per run; not kept in git) and ``study.json``
+(pairs, seed and every effect's specification, drawn values included). The report step
+condenses the runs into ``summary.json`` (shares and reasons per effect and design) and
+``shares.png``, and writes ``report.md`` (``reporting/templates/robustness.md.j2``) from
+``study.json`` and ``summary.json`` alone; which design is best where is decided here.
 """
 
 from __future__ import annotations
@@ -26,12 +28,13 @@ import numpy as np
 from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.control import controller_by_name
-from cdpr_sym.reporting.format import share
+from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results import SETTLE_TOLERANCE
 from cdpr_sym.results.judging import SETTLE_WITHIN, STEP_LIMIT, meets_target
 from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
-from cdpr_sym.studies.outline import read_study, write_study
+from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyOptions, StudyRequest
+from cdpr_sym.studies.outline import SUMMARY_FILE, read_study, write_study
 from cdpr_sym.workspace import sample_static_workspace
 
 #: The designs compared: the paper's l2, its clipped PD baseline, the two smooth ones and
@@ -131,9 +134,10 @@ def compute_robustness_study(robot: Robot, out_dir: Path, *, pairs: int = 200, s
     scan = _damping_scan(robot, starts[:SCAN_PAIRS], goals[:SCAN_PAIRS], progress)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / RUNS_FILE, rows)
-    write_study(out_dir, "robustness", robot, pairs=pairs, seed=seed, designs=list(DESIGNS),
-                duration=DURATION, dt=DT, effects=specs, damping_scan=scan,
-                starts=starts.tolist(), goals=goals.tolist())
+    # every run's specification makes it about 0.5 MB: on one line, half the indented size
+    write_study(out_dir, "robustness", robot, indent=None, pairs=pairs, seed=seed,
+                designs=list(DESIGNS), duration=DURATION, dt=DT, effects=specs,
+                damping_scan=scan, starts=starts.tolist(), goals=goals.tolist())
 
 
 def _damping_scan(robot: Robot, starts: np.ndarray, goals: np.ndarray, progress: bool
@@ -230,14 +234,9 @@ def _share(rows: list[dict[str, Any]]) -> float | None:
 
 
 def write_robustness_report(out_dir: Path) -> dict[str, Any]:
-    """``report.md``, ``summary.json`` and ``shares.png`` from the stored runs."""
-    study = read_study(out_dir)
-    rows = read_json(out_dir / RUNS_FILE)
-    table = summary(rows)
-    write_json(out_dir / "summary.json", table)
-    _figure(table, out_dir / "shares.png")
-    (out_dir / "report.md").write_text(_markdown(study, table), encoding="utf-8")
-    return table
+    """``report.md`` from the stored files alone (with the stored runs: ``summary.json``
+    and ``shares.png`` from them first). Returns the summary table."""
+    return STUDY.report(out_dir)
 
 
 def _figure(table: dict[str, Any], path: Path) -> Path:
@@ -264,113 +263,95 @@ def _figure(table: dict[str, Any], path: Path) -> Path:
     return path
 
 
-def _findings(study: dict[str, Any], table: dict[str, Any]) -> list[str]:
-    """Statements read off the table and the damping scan."""
-    lines = []
+def best_by_effect(table: dict[str, Any], key: str = "meets_target"
+                   ) -> dict[str, dict[str, Any]]:
+    """Per effect with a share: the design with the largest ``key`` share and that share
+    (``design``, ``share``); effects where no design has one are left out."""
+    out = {}
     for effect, row in table.items():
-        shares = {d: v["meets_target"] for d, v in row.items() if v["meets_target"] is not None}
-        if not shares:
-            continue
-        best = max(shares, key=shares.get)
-        lines.append(f"- {effect}: best {best}, {share(shares[best])} of held pairs."
-                     if shares[best] > 0 else f"- {effect}: no design meets the target.")
-    for effect, row in table.items():
-        readable = {d: v["meets_target_readable"] for d, v in row.items()
-                    if v.get("readable", v["held"]) < v["held"]
-                    and v["meets_target_readable"] is not None}
-        if readable:
-            best = max(readable, key=readable.get)
-            lines.append(f"- {effect}, over the pairs whose goal the encoders read within "
-                         f"{100 * SETTLE_TOLERANCE:g} cm: best {best}, "
-                         f"{share(readable[best])}.")
-    scan = study.get("damping_scan")
-    if scan:
-        values = ", ".join(f"{c:g}" for c in scan["cable_damping"])
-        lines += ["", f"**Winch damping scan** (winches alone, {scan['pairs']} of the pairs, "
-                  f"cable damping c_EA = {values} N s; the default is "
-                  f"{Actuation().cable_damping:g} N s):", ""]
-        for design in study["designs"]:
-            cells = ", ".join("–" if v is None else share(v) for v in scan[design])
-            lines.append(f"- {design}: {cells}")
-        lines += ["", "An explanation, not a measurement: the controllers feed back the "
-                  "platform's state while the winches drive it through elastic cables, so "
-                  "the drum-cable mode (about 75 Hz for 4 m cables with the default drum) "
-                  "sits inside their loop, behind the sample-and-hold and the torque loop, "
-                  "and its damping decides whether the loop is stable at all. `smooth-lp` "
-                  "low-passes its command (three first-order stages at 15 Hz), so its loop "
-                  "gain at the mode is small, and keeps it 1 N inside the box, room for the "
-                  "true tension to lag or overshoot (never past the static tension, so every "
-                  "goal stays holdable); it passes whatever the damping, at a small price "
-                  "on the ideal plant (the filter's lag). With encoders the unfiltered "
-                  "designs fail even on rigid cables: the quantised readings, "
-                  "differentiated, reach the command as tension steps (`ida-ref-obs` "
-                  "doubly so, through its observer)."]
-    return lines
+        shares = {d: v[key] for d, v in row.items() if v[key] is not None}
+        if shares:
+            best = max(shares, key=shares.get)
+            out[effect] = {"design": best, "share": shares[best]}
+    return out
 
 
-def _readable_table(table: dict[str, Any], designs: list[str]) -> list[str]:
-    """Shares over the held pairs whose goal the encoders read within 1 cm, for the
-    effects where some goal is misread that far (a controller converging on its reading
-    then stops more than 1 cm from the goal, whatever it does)."""
-    effects = [e for e in table
-               if table[e][designs[0]].get("readable", table[e][designs[0]]["held"])
-               < table[e][designs[0]]["held"]]
-    if not effects:
-        return []
-    lines = ["", f"With encoders, anchor errors and cable stretch move the pose the controller "
-             f"reads: at rest at the goal the reading is off by {100 * SETTLE_TOLERANCE:g} cm "
-             "or more on some pairs, which no feedback on that reading can meet. Shares over "
-             "the held pairs read within that:", "",
-             "| design | " + " | ".join(effects) + " |", "|---|" + "---|" * len(effects)]
-    for design in designs:
-        cells = [share(table[e][design]["meets_target_readable"])
-                 if table[e][design]["meets_target_readable"] is not None else "–"
-                 for e in effects]
-        lines.append(f"| {design} | " + " | ".join(cells) + " |")
-    lines.append("| pairs read within 1 cm | " + " | ".join(
-        f"{table[e][designs[0]]['readable']} / {table[e][designs[0]]['held']}"
-        for e in effects) + " |")
-    return lines
+def _misread(value: dict[str, Any]) -> bool:
+    """Whether some held pair's goal was read 1 cm off or more (rows stored before read
+    errors count as read)."""
+    return value.get("readable", value["held"]) < value["held"]
 
 
-def _markdown(study: dict[str, Any], table: dict[str, Any]) -> str:
-    robot: Robot = study["robot"]
-    effects = list(table)
-    designs = study["designs"]
-    lines = [f"# Robustness: the designs on {robot.name} as built", "",
-             f"{study['pairs']} start/goal pairs (seed {study['seed']}) from the static "
-             f"workspace, {study['duration']:g} s at {1 / study['dt']:g} Hz. A run meets the "
-             "target when the *true* cable tension stays in "
-             f"[{robot.t_min:g}, {robot.t_max:g}] N for t > 0, the end-effector is within "
-             "1 cm of the goal by 5 s, and no tension step or start jump exceeds 1 N. Shares "
-             "are over the pairs whose start and goal the true plant can hold at rest with "
-             "tensions in the box (`held`). Before the move the controller held the robot "
-             "with the model's static tension; with winches the true tension cannot jump, "
-             "so a jumping command shows as a tension step.", "",
-             "| design | " + " | ".join(effects) + " |",
-             "|---|" + "---|" * len(effects)]
-    for design in designs:
-        cells = [share(table[e][design]["meets_target"])
-                 if table[e][design]["meets_target"] is not None else "–" for e in effects]
-        lines.append(f"| {design} | " + " | ".join(cells) + " |")
-    lines.append("| pairs held | " + " | ".join(
-        f"{table[e][designs[0]]['held']} / {table[e][designs[0]]['pairs']}"
-        for e in effects) + " |")
-    lines += _readable_table(table, designs)
-    lines += ["", "![shares](shares.png)", "", "## Findings", "", *_findings(study, table),
-              "", "## The effects", ""]
-    for name, spec in study["effects"].items():
-        lines.append(f"- **{name}**: {spec['description']}.")
-    lines += ["", "## Why runs miss the target", "",
-              "Held pairs only; each run counted once, under the first criterion it misses.",
-              ""]
-    for effect in effects:
-        for design in designs:
-            misses = table[effect][design]["misses"]
-            if misses:
-                text = ", ".join(f"{reason}: {count}" for reason, count in misses.items())
-                lines.append(f"- {effect} / {design}: {text}")
-    lines += ["", "The specification of every run (mass factor, anchor offsets, winch, "
-              "sensing and delay values) is stored in `study.json` beside the runs "
-              "(`runs.json`).", ""]
-    return "\n".join(lines)
+def best_readable_by_effect(table: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """:func:`best_by_effect` over the pairs read within 1 cm, among the designs with a
+    misread pair under that effect."""
+    misread = {effect: {d: v for d, v in row.items() if _misread(v)}
+               for effect, row in table.items()}
+    return best_by_effect({effect: row for effect, row in misread.items() if row},
+                          "meets_target_readable")
+
+
+def misread_effects(table: dict[str, Any], designs: list[str]) -> list[str]:
+    """The effects under which some goal is misread by 1 cm or more (a controller
+    converging on its reading then stops that far from the goal, whatever it does)."""
+    return [effect for effect in table if _misread(table[effect][designs[0]])]
+
+
+def readable_table(table: dict[str, Any], designs: list[str]) -> str:
+    """The shares over the held pairs whose goal the encoders read within 1 cm, for the
+    :func:`misread_effects` (empty when there are none)."""
+    misread = misread_effects(table, designs)
+    if not misread:
+        return ""
+    return render_report("robustness_readable.md.j2", table=table, designs=designs,
+                         misread=misread, tolerance=SETTLE_TOLERANCE)
+
+
+class RobustnessStudy(Study):
+    """``cdpr-sym study robustness``: every design under each effect of the robot as built."""
+
+    name = "robustness"
+    options = StudyOptions()
+    runs_note = f"{RUNS_FILE} is not kept in git"
+
+    def compute(self, folder: Path, request: StudyRequest) -> None:
+        compute_robustness_study(request.robot, folder, pairs=request.pairs,
+                                 seed=request.seed, progress=request.progress)
+
+    def run_files(self, folder: Path) -> list[Path]:
+        return [folder / RUNS_FILE]
+
+    def aggregate_files(self, folder: Path) -> list[Path]:
+        return [folder / SUMMARY_FILE]
+
+    def aggregate(self, folder: Path) -> None:
+        table = summary(read_json(folder / RUNS_FILE))
+        write_json(folder / SUMMARY_FILE, table)
+        _figure(table, folder / "shares.png")
+
+    def render(self, folder: Path) -> dict[str, Any]:
+        study = read_study(folder)
+        table = read_json(folder / SUMMARY_FILE)
+        designs = study["designs"]
+        (folder / REPORT_FILE).write_text(render_report(
+            "robustness.md.j2", robot=study["robot"], pairs=study["pairs"],
+            seed=study["seed"], duration=study["duration"], dt=study["dt"], designs=designs,
+            effects=list(table), effect_specs=study["effects"], table=table,
+            misread=misread_effects(table, designs), best=best_by_effect(table),
+            best_readable=best_readable_by_effect(table), scan=study.get("damping_scan"),
+            default_damping=Actuation().cable_damping, tolerance=SETTLE_TOLERANCE),
+            encoding="utf-8")
+        return table
+
+    def summary_lines(self, result: dict[str, Any]) -> list[str]:
+        return [f"{design:<8} meets target: " + ", ".join(
+            f"{effect} {_percent(row[design]['meets_target'])}"
+            for effect, row in result.items()) for design in next(iter(result.values()))]
+
+
+def _percent(value: float | None) -> str:
+    """A share as a percentage, or a dash when nothing was counted."""
+    return "–" if value is None else f"{100 * value:.1f} %"
+
+
+STUDY = RobustnessStudy()

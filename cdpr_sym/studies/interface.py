@@ -1,0 +1,166 @@
+"""What every study is to the command line: its options, a compute step, a report step.
+
+A study computes into a folder first (``compute``): per-run files, which the study
+regenerates and git does not keep (``runs/*.npz``, sweep tables, ``runs.json``), and
+``study.json``. The report step then works from files alone: with the per-run files at
+hand it condenses them into small aggregate files (``aggregate``: ``summary.json`` and the
+like, and the figures), and it always writes ``report.md`` from ``study.json`` and the
+aggregate files (``render``). A clean checkout holds ``study.json``, the aggregates and
+the figures, so ``cdpr-sym report NAME reports/NAME`` rebuilds the report's text there too.
+
+This module imports nothing heavy: the command line reads it to build its parser.
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from cdpr_sym.errors import InvalidCase
+
+if TYPE_CHECKING:
+    from cdpr_sym.robot import Robot
+
+#: The file naming a computed study (its kind, the robot and what it measured besides runs).
+STUDY_FILE = "study.json"
+#: The report every study writes into its folder.
+REPORT_FILE = "report.md"
+
+
+@dataclasses.dataclass(frozen=True)
+class StudyOptions:
+    """What a study takes from the command line.
+
+    Every study takes ``--pairs`` and ``--seed`` (checked the same way; a study that draws no
+    pairs ignores them) and ``--out``.
+
+    Attributes
+    ----------
+    robot : bool
+        Whether ``--robot`` (a preset name or a robot TOML file) is accepted.
+    default_robot : str or None
+        The preset run without ``--robot``; None: the study runs :attr:`own_robots`.
+    own_robots : tuple of str
+        The presets the study runs itself (without ``--robot``, or always when
+        :attr:`robot` is False).
+    """
+
+    robot: bool = True
+    default_robot: str | None = "aras3"
+    own_robots: tuple[str, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class StudyRequest:
+    """The checked options of one run of a study.
+
+    Attributes
+    ----------
+    robot : Robot or None
+        The robot to study, its case checked; None: the study's own robots.
+    source : str or None
+        How it was named (a preset name or a robot file, for sweep workers to load), or
+        None with :attr:`robot`.
+    pairs : int
+        Start/goal pairs of the study's sweeps.
+    seed : int
+        Seed of the pair draw (>= 0).
+    progress : bool
+        Whether to show progress while computing.
+    """
+
+    robot: Robot | None
+    source: str | None
+    pairs: int = 200
+    seed: int = 0
+    progress: bool = True
+
+
+class Study(abc.ABC):
+    """One study: its name and options, how it computes, and how it reports.
+
+    Subclasses set :attr:`name` and :attr:`options` and write :meth:`compute`,
+    :meth:`run_files`, :meth:`aggregate_files`, :meth:`aggregate`, :meth:`render` and
+    :meth:`summary_lines`; :meth:`report` and :meth:`run` are the same for every study.
+    """
+
+    name: ClassVar[str]
+    options: ClassVar[StudyOptions] = StudyOptions()
+    #: Where the per-run files are (for the message when they are missing).
+    runs_note: ClassVar[str] = "runs/ is not kept in git"
+
+    @abc.abstractmethod
+    def compute(self, folder: Path, request: StudyRequest) -> None:
+        """Simulate and write the per-run files and ``study.json`` into ``folder``."""
+
+    @abc.abstractmethod
+    def run_files(self, folder: Path) -> list[Path]:
+        """The per-run files :meth:`aggregate` reads (``study.json`` may name them)."""
+
+    @abc.abstractmethod
+    def aggregate_files(self, folder: Path) -> list[Path]:
+        """The small files :meth:`aggregate` writes and :meth:`render` reads."""
+
+    @abc.abstractmethod
+    def aggregate(self, folder: Path) -> None:
+        """Condense the per-run files into the aggregate files, and draw the figures."""
+
+    @abc.abstractmethod
+    def render(self, folder: Path) -> Any:
+        """Write ``report.md`` from ``study.json`` and the aggregate files alone; return
+        the study's result (what ``--json`` prints and :meth:`summary_lines` reads)."""
+
+    @abc.abstractmethod
+    def summary_lines(self, result: Any) -> list[str]:
+        """The short lines the command line prints for ``result``."""
+
+    def as_json(self, result: Any) -> Any:
+        """``result`` as plain JSON values (it is one already, unless overridden)."""
+        return result
+
+    def has_runs(self, folder: Path) -> bool:
+        """Whether every per-run file is in ``folder``."""
+        return all(path.exists() for path in self.run_files(folder))
+
+    def report(self, folder: Path) -> Any:
+        """``report.md`` (and the aggregates and figures, when the per-run files are
+        there) from the files in ``folder``; returns the study's result.
+
+        Raises
+        ------
+        InvalidCase
+            ``results``: neither the per-run files nor the aggregate files are there.
+        """
+        folder = Path(folder)
+        if self.has_runs(folder):
+            self.aggregate(folder)
+        elif not all(path.exists() for path in self.aggregate_files(folder)):
+            raise InvalidCase("results", f"{folder} has no stored runs ({self.runs_note}); "
+                              f"run 'cdpr-sym study {self.name}' to compute them")
+        return self.render(folder)
+
+    def run(self, folder: Path, request: StudyRequest) -> Any:
+        """Compute into ``folder``, then report from the files; returns the result."""
+        self.compute(folder, request)
+        return self.report(folder)
+
+    def check_folder(self, folder: Path) -> None:
+        """Refuse, naming ``results``, a folder that holds no computed study of this kind.
+
+        Raises
+        ------
+        InvalidCase
+            No ``study.json``, a damaged one, or one of another study.
+        """
+        from cdpr_sym.results.store import read_json
+
+        study = Path(folder) / STUDY_FILE
+        if not study.exists():
+            raise InvalidCase("results", f"{folder} holds no computed {self.name} study "
+                              "(no study.json); run 'cdpr-sym study' first")
+        data = read_json(study)
+        kind = data.get("study") if isinstance(data, dict) else None
+        if kind != self.name:
+            raise InvalidCase("results", f"{folder} holds a {kind} study, not {self.name}")
