@@ -42,8 +42,10 @@ def test_the_default_lane_count_is_the_machines_register(aras3, build_options):
     assert lanes == native_lanes(require_compiler()) and lanes in LANE_COUNTS
 
 
-@pytest.mark.parametrize("controller", ["pd", "l2"])
-@pytest.mark.parametrize("lanes", [1, pytest.param(2, marks=pytest.mark.slow), 4, 8])
+@pytest.mark.parametrize(("lanes", "controller"), [
+    (1, "pd"), (4, "pd"), (8, "pd"), (4, "l2"),
+    *(pytest.param(lanes, "l2", marks=pytest.mark.slow) for lanes in (1, 8)),
+    *(pytest.param(2, name, marks=pytest.mark.slow) for name in ("pd", "l2"))])
 def test_a_partial_block_repeats_each_pair_alone(lanes, controller, aras3, rng,
                                                  build_options):
     simulator = get_simulator(aras3, CONTROLLERS[controller], build_options=build_options)
