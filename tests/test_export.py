@@ -474,7 +474,7 @@ def test_bench_export_measures_calls_per_second():
 
 @pytest.mark.slow
 def test_the_bench_of_a_planning_controller_times_code_built_with_o2(monkeypatch):
-    from cdpr_sym.export import package
+    from cdpr_sym.export import bench
 
     commands = []
 
@@ -482,7 +482,7 @@ def test_the_bench_of_a_planning_controller_times_code_built_with_o2(monkeypatch
         commands.append([str(part) for part in command])
         return run_command(command, **options)
 
-    monkeypatch.setattr(package, "run_command", recording)
+    monkeypatch.setattr(bench, "run_command", recording)
     assert bench_export("planar2", "smooth", min_seconds=0.03) > 1e3
     *compiles, timing = commands
     assert len(timing) == 1 and timing[0].endswith("bench")  # the program, run once
