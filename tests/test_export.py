@@ -689,6 +689,24 @@ def test_unknown_controller_or_robot_raises_unknown_name(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+def test_a_law_argument_the_exporter_does_not_know_raises_invalid_case(tmp_path, monkeypatch):
+    """A law with an argument that ``<prefix>_control`` has no declaration for is refused
+    as the controller's fault, naming the argument, and no file is written."""
+    from cdpr_sym.export import description
+
+    def law_with_a_gain(model, controller):
+        law = law_function(model, controller)
+        inputs = law.sx_in()
+        return ca.Function(law.name(), [*inputs, ca.SX.sym("gain")], law.call(inputs),
+                           [*law.name_in(), "gain"], law.name_out())
+
+    monkeypatch.setattr(description, "law_function", law_with_a_gain)
+    with pytest.raises(InvalidCase, match=r"^controller: .*\['gain'\]") as raised:
+        export_c("planar2", "pd", tmp_path / "pkg")
+    assert raised.value.field == "controller"
+    assert not any((tmp_path / "pkg").iterdir())
+
+
 def test_existing_file_as_out_dir_raises_invalid_case(tmp_path):
     existing = tmp_path / "file"
     existing.write_text("keep me")

@@ -26,6 +26,7 @@ from cdpr_sym.control import (
     initial_memory_function,
     law_function,
 )
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export.documentation import (
     ARGUMENT_DOCS,
     C_FLAG_DOCS,
@@ -342,12 +343,30 @@ def _context(robot: Robot, controller: Controller, prefix: str, entries: list[En
 def control_arguments(law: ca.Function, layout: StepLayout, upper: str) -> _Control:
     """The arguments of ``<prefix>_control`` from the law's inputs and outputs.
 
-    ``upper`` is the prefix of the package's macros, which an output's safe value may name.
+    Parameters
+    ----------
+    law : casadi.Function
+        The control law (:func:`cdpr_sym.control.law_function`).
+    layout : StepLayout
+        The step's layout, for the lengths of the arguments.
+    upper : str
+        The prefix of the package's macros, which an output's safe value may name.
+
+    Returns
+    -------
+    _Control
+        The law's generated symbol and its arguments, inputs then outputs.
+
+    Raises
+    ------
+    InvalidCase
+        The law has an argument without a declaration here (field ``controller``).
     """
     names = (*law.name_in(), *law.name_out())
     unknown = [name for name in names if name not in _CONTROL_ARGUMENTS]
     if unknown:
-        raise RuntimeError(f"the C exporter does not know the law arguments {unknown}")
+        raise InvalidCase("controller", f"the control law has arguments that the C exporter "
+                          f"does not know: {unknown} (it knows {list(_CONTROL_ARGUMENTS)})")
     # a stateless law has an empty memory: no memory, dt or memory_next in its C signature
     unused = frozenset() if layout.n_memory else _STATEFUL_ARGUMENTS
     lengths = {"n": layout.n, "m": layout.cables, "nj": layout.n_j, "nmem": layout.n_memory,
