@@ -16,8 +16,8 @@ from cdpr_sym.control import (
     initial_memory_function,
     law_function,
 )
-from cdpr_sym.export.description import control_arguments
 from cdpr_sym.export.package import export_c
+from cdpr_sym.export.signatures import control_arguments
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot, resolve_robot
 

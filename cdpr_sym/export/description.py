@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import re
-from typing import Any, NamedTuple
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -26,15 +26,23 @@ from cdpr_sym.control import (
     initial_memory_function,
     law_function,
 )
-from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export.documentation import (
     ARGUMENT_DOCS,
     C_FLAG_DOCS,
-    CONTROL_DOCS,
     FLAG_DOCS,
     MODEL_DOCS,
+    field_list,
+    unit,
+    words,
 )
 from cdpr_sym.export.nmpc import solver_description, solver_functions
+from cdpr_sym.export.signatures import (
+    CASE,
+    CArgument,
+    Wrapper,
+    control_arguments,
+    parameter_arguments,
+)
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.model.forward_kinematics import (
     FK_ITERATIONS,
@@ -66,60 +74,6 @@ CONTROL_STATUSES = {
 }
 
 
-class _Spec(NamedTuple):
-    """How one argument of ``<prefix>_control`` is declared (see :class:`_CArgument`); its
-    words are :data:`~cdpr_sym.export.documentation.CONTROL_DOCS`."""
-
-    c_type: str
-    length: str | None  # "n" (coordinates), "m" (cables), "nj", "nmem"; None: a scalar
-    optional: bool = False
-    case_default: bool = False
-    by_value: bool = False
-    safe: str = "0.0"  # an output's element i in the safe command ({upper}: the C macro prefix)
-
-
-#: Arguments of ``<prefix>_control`` by the law's input / output names.
-_CONTROL_ARGUMENTS = {
-    "q": _Spec("double", "n"),
-    "dq": _Spec("double", "n"),
-    "q_goal": _Spec("double", "n"),
-    "k": _Spec("double", "n", optional=True, case_default=True),
-    "r_d": _Spec("double", "n", optional=True, case_default=True),
-    "memory": _Spec("double", "nmem"),
-    "dt": _Spec("double", None, by_value=True),
-    "tau": _Spec("double", "m", safe="{upper}_T_MIN"),
-    "alpha": _Spec("double", None, optional=True),
-    "beta": _Spec("double", None, optional=True),
-    "j": _Spec("double", "nj", optional=True),
-    "flags": _Spec("int", None, optional=True),
-    "memory_next": _Spec("double", "nmem", safe="memory[i]"),
-}
-#: Arguments of a stateless law (empty memory) left out of its C signature.
-_STATEFUL_ARGUMENTS = frozenset({"memory", "dt", "memory_next"})
-
-
-@dataclasses.dataclass(frozen=True)
-class _CArgument:
-    """One argument of an exported C function, as ``templates/macros.j2`` declares it."""
-
-    name: str
-    direction: str  # "in" or "out"
-    length: int | None  # array length; None: a scalar, by pointer unless by_value
-    doc: str
-    c_type: str = "double"
-    matrix: tuple[int, int] | None = None  # (rows, cols) of a row-major matrix
-    optional: bool = False  # may be NULL
-    case_default: bool = False  # NULL stands for the robot's case value
-    by_value: bool = False
-    used: bool = True  # False: not in the C signature; CasADi gets NULL
-    safe: str = "0.0"  # an output's element i in _control's safe command (a C expression)
-
-    @property
-    def required(self) -> bool:
-        """Whether the function returns -1 when this argument is NULL."""
-        return self.used and not self.optional and not self.by_value
-
-
 @dataclasses.dataclass(frozen=True)
 class _Macro:
     """``#define <PREFIX>_<name> <value>``, with an optional comment."""
@@ -130,31 +84,11 @@ class _Macro:
 
 
 @dataclasses.dataclass(frozen=True)
-class _Function:
-    """One plain wrapper ``<prefix>_<name>`` of the generated function ``symbol``."""
-
-    name: str
-    symbol: str
-    summary: str
-    operations: int
-    inputs: tuple[_CArgument, ...]
-    outputs: tuple[_CArgument, ...]
-
-
-@dataclasses.dataclass(frozen=True)
-class _Control:
-    """``<prefix>_control``: the law's arguments, inputs then outputs in CasADi's order."""
-
-    symbol: str
-    arguments: tuple[_CArgument, ...]
-
-
-@dataclasses.dataclass(frozen=True)
 class Entry:
     """One exported function: what CasADi generates and how its wrapper is described."""
 
     function: ca.Function
-    description: _Function
+    description: Wrapper
 
     @property
     def name(self) -> str:
@@ -224,8 +158,9 @@ def describe(robot: Robot, controller: Controller, prefix: str, *, avoid_stack: 
     Raises
     ------
     InvalidCase
-        The law has an argument that ``<prefix>_control`` does not know (field
-        ``controller``).
+        The law has an argument that ``<prefix>_control`` does not know, or the step a field
+        without a declared unit (:func:`cdpr_sym.export.documentation.unit`); field
+        ``controller``.
     """
     model = SymbolicModel(robot)
     layout = step_layout(model, controller)
@@ -240,44 +175,49 @@ def describe(robot: Robot, controller: Controller, prefix: str, *, avoid_stack: 
 # -- consistent functions -----------------------------------------------------------------
 def _entries(model: SymbolicModel, controller: Controller, prefix: str) -> list[Entry]:
     layout = step_layout(model, controller)
+    fields = layout_fields(layout)
+    docs = words(ARGUMENT_DOCS, x=field_list(fields["x"]), log=field_list(fields["log"]))
     entries = [
-        _entry("control", law_function(model, controller), prefix, "One control step"),
+        _entry("control", law_function(model, controller), prefix, "One control step", docs),
         _entry("step", step_function(model, controller), prefix,
                f"One closed-loop period of dt = p[P_DT] s: the tension of the control law, "
                f"held over one RK4 step of the plant (x: {layout.x.size}, p: {layout.p.size}, "
-               f"log: {layout.log.size} doubles; x and x_next must not overlap)"),
+               f"log: {layout.log.size} doubles; x and x_next must not overlap)", docs),
     ]
     if layout.n_memory:
         entries.append(_entry(
             "initial_memory", initial_memory_function(model, controller), prefix,
             "The controller's internal state at the start of a move (its plan, computed once "
-            "per move; put it into x[X_MEMORY] or pass it to _control)"))
+            "per move; put it into x[X_MEMORY] or pass it to _control)", docs))
     for name, function in model.functions.items():
         entries.append(_entry(name, function, prefix, MODEL_DOCS.get(
-            name, f"model term {name} (see cdpr_sym.model.SymbolicModel)")))
+            name, f"model term {name} (see cdpr_sym.model.SymbolicModel)"), docs))
     entries.append(_entry(
         "forward_kinematics", forward_kinematics_function(model), prefix,
         f"forward kinematics: the pose q whose cable lengths are `lengths`, by {FK_ITERATIONS} "
-        f"Newton steps from q_guess (the previous pose), residual tolerance {FK_TOLERANCE:g} m"))
+        f"Newton steps from q_guess (the previous pose), residual tolerance {FK_TOLERANCE:g} m",
+        docs))
     return entries
 
 
-def _entry(name: str, function: ca.Function, prefix: str, summary: str) -> Entry:
-    """``function`` renamed ``<prefix>_cg_<name>`` with dense, row-major outputs."""
+def _entry(name: str, function: ca.Function, prefix: str, summary: str,
+           docs: dict[str, str]) -> Entry:
+    """``function`` renamed ``<prefix>_cg_<name>`` with dense, row-major outputs; ``docs``
+    are the words of its arguments by name (an argument without any gets ``summary``)."""
     inputs = function.sx_in()
     outputs = [ca.densify(out.T) if out.size1() > 1 and out.size2() > 1 else ca.densify(out)
                for out in function.call(inputs)]
     renamed = ca.Function(f"{prefix}_cg_{name}", inputs, outputs, function.name_in(),
                           function.name_out(), {"cse": True})
 
-    def argument(index: int, is_input: bool) -> _CArgument:
+    def argument(index: int, is_input: bool) -> CArgument:
         label = (function.name_in if is_input else function.name_out)(index)
         rows, cols = (function.size_in if is_input else function.size_out)(index)
         documented = is_input or name in ("step", "initial_memory", "forward_kinematics")
-        return _CArgument(_C_NAMES.get(label, label), "in" if is_input else "out", rows * cols,
-                         ARGUMENT_DOCS.get(label, summary) if documented else summary,
+        return CArgument(_C_NAMES.get(label, label), "in" if is_input else "out", rows * cols,
+                         docs.get(label, summary) if documented else summary,
                          matrix=(rows, cols) if rows > 1 and cols > 1 else None)
-    return Entry(renamed, _Function(
+    return Entry(renamed, Wrapper(
         name, renamed.name(), summary, renamed.n_instructions(),
         tuple(argument(i, True) for i in range(function.n_in())),
         tuple(argument(i, False) for i in range(function.n_out()))))
@@ -292,6 +232,7 @@ def _context(robot: Robot, controller: Controller, prefix: str, entries: list[En
     (``initial_memory``) in ``<prefix>_plan.c``, the others in ``<prefix>.c``.
     """
     upper, n, m = prefix.upper(), robot.n, robot.m
+    fields = layout_fields(layout)
     functions = [entry.description for entry in entries[1:]]
     generated = [entry.function for entry in entries]
     return {
@@ -305,12 +246,14 @@ def _context(robot: Robot, controller: Controller, prefix: str, entries: list[En
             _Macro("M", m, "cables: length of tau, one tension per cable"),
             _Macro("NJ", robot.n_j, "free entries of J_d, n(n-1)/2"),
             _Macro("NMEM", layout.n_memory, "the controller's internal state"),
-            _Macro("NX", layout.x.size, "step state x = [q, dq, memory, status]"),
+            _Macro("NX", layout.x.size,
+                   f"step state x = [{field_list(fields['x'], units=False)}]"),
             _Macro("NP", layout.p.size, f"step parameters p, see {upper}_P_*"),
-            _Macro("NLOG", layout.log.size, "step log = [tau, alpha, beta, j, flags]"),
+            _Macro("NLOG", layout.log.size,
+                   f"step log = [{field_list(fields['log'], units=False)}]"),
             _Macro("T_MIN", robot.t_min, "tension bounds, N"), _Macro("T_MAX", robot.t_max)],
-        "layout": [*_offsets("X", layout.x, keep=("memory",)), *_offsets("P", layout.p),
-                   *_offsets("LOG", layout.log, keep=layout.log.names)],
+        "layout": [*_offsets("X", layout.x, fields["x"]), *_offsets("P", layout.p, fields["p"]),
+                   *_offsets("LOG", layout.log, fields["log"])],
         "flags": [_Macro(name.upper(), bit, FLAG_DOCS.get(name, name))
                   for bit, name in sorted(FLAG_NAMES.items())],
         "c_flags": [_Macro(name.upper(), bit, C_FLAG_DOCS[name])
@@ -326,69 +269,39 @@ def _context(robot: Robot, controller: Controller, prefix: str, entries: list[En
             _Macro("SZ_IW", max(1, *(f.sz_iw() for f in generated))),
             _Macro("SZ_W", max(1, *(f.sz_w() for f in generated)))],
         "case": {field: np.asarray(getattr(robot, field), dtype=float).tolist()
-                 for field in ("start", "goal", "k", "r_d")},
+                 for field in CASE},
+        "case_units": {field: unit(quantity) for field, quantity in CASE.items()},
         "control": control_arguments(entries[0].function, layout, upper),
-        "parameters": [
-            *(_CArgument(name, "in", n, "", optional=True, case_default=True)
-              for name in ("q_goal", "k", "r_d")),
-            _CArgument("dt", "in", None, "", by_value=True),
-            _CArgument("mass_scale", "in", None, "", by_value=True),
-            _CArgument("slack", "in", None, "", c_type="int", by_value=True),
-            _CArgument("p", "out", layout.p.size, "")],
+        "parameters": parameter_arguments(layout.p, fields["p"]),
         "functions": functions,
         "planner": next((f for f in functions if f.name == "initial_memory"), None),
     }
 
 
-def control_arguments(law: ca.Function, layout: StepLayout, upper: str) -> _Control:
-    """The arguments of ``<prefix>_control`` from the law's inputs and outputs.
+def layout_fields(layout: StepLayout) -> dict[str, tuple[str, ...]]:
+    """The fields of x, p and log that a package documents and gives an offset macro, in
+    order: those with entries, and also x's memory and every field of the log when empty.
 
     Parameters
     ----------
-    law : casadi.Function
-        The control law (:func:`cdpr_sym.control.law_function`).
     layout : StepLayout
-        The step's layout, for the lengths of the arguments.
-    upper : str
-        The prefix of the package's macros, which an output's safe value may name.
+        The step's declared layout.
 
     Returns
     -------
-    _Control
-        The law's generated symbol and its arguments, inputs then outputs.
-
-    Raises
-    ------
-    InvalidCase
-        The law has an argument without a declaration here (field ``controller``).
+    dict of str to tuple of str
+        The field names by vector, ``"x"``, ``"p"`` and ``"log"``.
     """
-    names = (*law.name_in(), *law.name_out())
-    unknown = [name for name in names if name not in _CONTROL_ARGUMENTS]
-    if unknown:
-        raise InvalidCase("controller", f"the control law has arguments that the C exporter "
-                          f"does not know: {unknown} (it knows {list(_CONTROL_ARGUMENTS)})")
-    # a stateless law has an empty memory: no memory, dt or memory_next in its C signature
-    unused = frozenset() if layout.n_memory else _STATEFUL_ARGUMENTS
-    lengths = {"n": layout.n, "m": layout.cables, "nj": layout.n_j, "nmem": layout.n_memory,
-               None: None}
-
-    def argument(name: str, direction: str) -> _CArgument:
-        spec = _CONTROL_ARGUMENTS[name]
-        return _CArgument(name, direction, lengths[spec.length], CONTROL_DOCS[name],
-                         c_type=spec.c_type, optional=spec.optional,
-                         case_default=spec.case_default, by_value=spec.by_value,
-                         used=name not in unused, safe=spec.safe.format(upper=upper))
-    return _Control(law.name(), (*(argument(name, "in") for name in law.name_in()),
-                                *(argument(name, "out") for name in law.name_out())))
+    def shown(fields: Fields, keep: tuple[str, ...]) -> tuple[str, ...]:
+        return tuple(name for name in fields.names if fields.width(name) or name in keep)
+    return {"x": shown(layout.x, ("memory",)), "p": shown(layout.p, ()),
+            "log": shown(layout.log, layout.log.names)}
 
 
-def _offsets(tag: str, fields: Fields, keep: tuple[str, ...] = ()) -> list[_Macro]:
-    """``<tag>_<FIELD>`` offset macros of the fields with entries (or in ``keep``).
-
-    The goal's macro is P_GOAL.
-    """
-    return [_Macro(f"{tag}_{'goal' if name == 'q_goal' else name}".upper(), offset)
-            for name, offset in fields.offsets().items() if fields.width(name) or name in keep]
+def _offsets(tag: str, fields: Fields, names: tuple[str, ...]) -> list[_Macro]:
+    """``<tag>_<FIELD>`` offset macros of the fields ``names``. The goal's macro is P_GOAL."""
+    return [_Macro(f"{tag}_{'goal' if name == 'q_goal' else name}".upper(), fields.offset(name))
+            for name in names]
 
 
 def _names(robot: Robot, controller: Controller) -> dict[str, str]:

@@ -155,7 +155,8 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
         :func:`cdpr_sym.control.check_cables`), or the controller is an NMPC whose solver
         is not the real-time iteration (field ``solver``, see
         :func:`cdpr_sym.export.nmpc.check_exportable`), or the control law has an argument
-        that ``<prefix>_control`` does not declare (field ``controller``).
+        that ``<prefix>_control`` does not declare, or the step a field without a declared
+        unit (field ``controller``).
 
     Notes
     -----
