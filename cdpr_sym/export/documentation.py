@@ -67,8 +67,8 @@ _FORCE = {POSITION: "N", ANGLE: "N m"}
 _MOMENTUM = {POSITION: "kg m/s", ANGLE: "kg m^2/s"}
 _COORDINATE = Unit(POSITION, ANGLE)
 _VELOCITY = Unit(f"{POSITION}/s", f"{ANGLE}/s")
-_STIFFNESS = Unit(*(f"{_FORCE[unit]}/{unit}" for unit in (POSITION, ANGLE)))
-_DAMPING = Unit(*(f"{_FORCE[unit]} s/{unit}" for unit in (POSITION, ANGLE)))
+_STIFFNESS = Unit(*(f"{_FORCE[coordinate]}/{coordinate}" for coordinate in (POSITION, ANGLE)))
+_DAMPING = Unit(*(f"{_FORCE[coordinate]} s/{coordinate}" for coordinate in (POSITION, ANGLE)))
 _TENSION = Unit("N")
 
 #: The unit of every documented quantity by name (None: a count, a ratio or a bit set).
