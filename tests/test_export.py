@@ -478,7 +478,7 @@ def test_bench_export_measures_calls_per_second():
 
 @pytest.mark.slow
 def test_the_bench_of_a_planning_controller_times_code_built_with_o2(monkeypatch):
-    from cdpr_sym.export import package
+    from cdpr_sym.export import bench
 
     commands = []
 
@@ -486,7 +486,7 @@ def test_the_bench_of_a_planning_controller_times_code_built_with_o2(monkeypatch
         commands.append([str(part) for part in command])
         return run_command(command, **options)
 
-    monkeypatch.setattr(package, "run_command", recording)
+    monkeypatch.setattr(bench, "run_command", recording)
     assert bench_export("planar2", "smooth", min_seconds=0.03) > 1e3
     *compiles, timing = commands
     assert len(timing) == 1 and timing[0].endswith("bench")  # the program, run once
@@ -691,6 +691,24 @@ def test_unknown_controller_or_robot_raises_unknown_name(tmp_path):
     with pytest.raises(UnknownName, match="unknown robot 'nowhere'"):
         export_c("nowhere", "l2", tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_law_argument_the_exporter_does_not_know_raises_invalid_case(tmp_path, monkeypatch):
+    """A law with an argument that ``<prefix>_control`` has no declaration for is refused
+    as the controller's fault, naming the argument, and no file is written."""
+    from cdpr_sym.export import description
+
+    def law_with_a_gain(model, controller):
+        law = law_function(model, controller)
+        inputs = law.sx_in()
+        return ca.Function(law.name(), [*inputs, ca.SX.sym("gain")], law.call(inputs),
+                           [*law.name_in(), "gain"], law.name_out())
+
+    monkeypatch.setattr(description, "law_function", law_with_a_gain)
+    with pytest.raises(InvalidCase, match=r"^controller: .*\['gain'\]") as raised:
+        export_c("planar2", "pd", tmp_path / "pkg")
+    assert raised.value.field == "controller"
+    assert not any((tmp_path / "pkg").iterdir())
 
 
 def test_existing_file_as_out_dir_raises_invalid_case(tmp_path):

@@ -10,7 +10,12 @@ import re
 
 import pytest
 
+from cdpr_sym import InvalidCase, SymbolicModel, controller_by_name, preset
+from cdpr_sym.closed_loop import Fields, StepLayout, step_layout
 from cdpr_sym.export import ExportResult, export_c
+from cdpr_sym.export.description import layout_fields
+from cdpr_sym.export.documentation import field_list
+from cdpr_sym.export.signatures import parameter_arguments
 
 
 @pytest.fixture(scope="module")
@@ -156,3 +161,87 @@ def test_the_planner_is_declared_with_the_argument_names_it_documents(header):
     assert declaration == ("int cdpr_planar2_smooth_initial_memory(const double q0[2], "
                            "const double q_goal[2], const double k[2], const double r_d[2], "
                            "double memory[5], cdpr_planar2_smooth_work *work)")
+
+
+# -- the layout tables: every field of the declared layout, with its unit -------------------
+#: The unit of every field a step layout declares, written out by hand: positions, then
+#: angles where they differ (None: no unit).
+FIELD_UNITS = {
+    "q": ("m", "rad"), "dq": ("m/s", "rad/s"), "memory": None, "applied": ("N",),
+    "status": None, "q_goal": ("m", "rad"), "k": ("N/m", "N m/rad"),
+    "r_d": ("N s/m", "N m s/rad"), "dt": ("s",), "mass_scale": None, "slack": None,
+    "rate_limit": ("N/s",), "tau": ("N",), "alpha": None, "beta": ("N",),
+    "j": ("N s/m", "N m s/rad"), "flags": None,
+}
+
+
+@pytest.fixture(scope="module")
+def layout() -> StepLayout:
+    return step_layout(SymbolicModel(preset("planar2")), controller_by_name("smooth"))
+
+
+def _listed(fields: Fields, keep: tuple[str, ...] = ()) -> list[str]:
+    """``name (unit, unit)`` of every field with entries (or in ``keep``), in order."""
+    return [f"{name} ({', '.join(FIELD_UNITS[name])})" if FIELD_UNITS[name] else name
+            for name in fields.names if fields.width(name) or name in keep]
+
+
+def _bracket(text: str, opening: str) -> list[str]:
+    """The comma-separated items of the ``[...]`` that follows ``opening`` in ``text``,
+    commas inside parentheses kept."""
+    inside = text[text.index(opening) + len(opening):]
+    inside = inside[: inside.index("]")]
+    return [item.strip() for item in re.split(r",\s*(?![^()]*\))", inside)]
+
+
+def test_the_step_lists_every_field_of_x_and_the_log_with_its_unit(header, layout):
+    comment = _comment_above(header, "int cdpr_planar2_smooth_step(")
+    assert _bracket(comment, "x[10]: state [") == _listed(layout.x, keep=("memory",))
+    assert _bracket(comment, "log_out[6]: this period's [") == _listed(
+        layout.log, keep=layout.log.names)
+    comments = {name: comment for name, (_, comment) in _defines(header).items()}
+    assert _bracket(comments["NX"], "x = [") == [
+        item.split(" (")[0] for item in _listed(layout.x, keep=("memory",))]
+    assert _bracket(comments["NLOG"], "log = [") == [
+        item.split(" (")[0] for item in _listed(layout.log, keep=layout.log.names)]
+
+
+def test_the_parameters_function_takes_and_documents_every_field_of_p(header, layout):
+    fields = [name for name in layout.p.names if layout.p.width(name)]
+    declaration = _declaration(header, "void cdpr_planar2_smooth_parameters(")
+    assert re.findall(r"(\w+)(?:\[\d+\])?(?:, |\))", declaration) == [*fields, "p"]
+    comment = _comment_above(header, "void cdpr_planar2_smooth_parameters(")
+    case = re.search(r"above\)\. ([\w, ]+): ([^(]+) \(([^)]+) for angles\), each NULL for the "
+                     r"robot's case values; ", comment)
+    names, positions, angles = (part.split(", ") for part in case.groups())
+    assert names == ["q_goal", "k", "r_d"]
+    assert positions == [FIELD_UNITS[name][0] for name in names]
+    assert angles == [FIELD_UNITS[name][1] for name in names]
+    others = comment[case.end():].removesuffix(".").split("; ")
+    assert [piece.split(":")[0].strip() for piece in others] == fields[len(names):]
+    for name, piece in zip(fields[len(names):], others, strict=True):
+        if FIELD_UNITS[name]:
+            assert piece.endswith(f", {FIELD_UNITS[name][0]}"), piece
+
+
+def test_the_case_arrays_state_their_units(header):
+    units = dict(re.findall(r"_case_(\w+)\[CDPR_PLANAR2_SMOOTH_N\];\s+/\* (.*) \*/", header))
+    assert units == {"start": "m (rad for angles)", "goal": "m (rad for angles)",
+                     "k": "N/m (N m/rad for angles)", "r_d": "N s/m (N m s/rad for angles)"}
+
+
+def test_every_field_a_layout_can_declare_is_documented_with_its_unit():
+    """A rate-limited layout has the fields an export does not (yet) have: the applied
+    tension in x and the rate limit in p; each has its unit and words all the same."""
+    model = SymbolicModel(preset("planar2"))
+    layout = step_layout(model, controller_by_name("smooth"), rate_limited=True)
+    fields = layout_fields(layout)
+    assert "applied" in fields["x"] and "rate_limit" in fields["p"]
+    for vector in (layout.x, layout.p, layout.log):
+        assert set(vector.names) <= set(FIELD_UNITS)
+    assert field_list(fields["x"]).split(", ")[-3:] == ["memory", "applied (N)", "status"]
+    rate_limit = next(a for a in parameter_arguments(layout.p, fields["p"])
+                      if a.name == "rate_limit")
+    assert rate_limit.by_value and rate_limit.doc.endswith(", N/s")
+    with pytest.raises(InvalidCase, match=r"^controller: the step's field or argument 'mystery'"):
+        field_list(["q", "mystery"])
