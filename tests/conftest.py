@@ -109,3 +109,30 @@ def draw_states(robot: Robot, rng: np.random.Generator, count: int, *,
 def random_states() -> Callable[..., tuple[np.ndarray, np.ndarray]]:
     """The state sampler :func:`draw_states` (call it with a robot, a generator, a count)."""
     return draw_states
+
+
+#: Cases of quick checks that each compile a model of their own (about 4-6 s here) while
+#: their sibling cases check the same behaviour: they run with the slow checks (CI runs
+#: them), so that the quick suite stays near three minutes on two cores.
+SLOW_CASES = frozenset({
+    "tests/test_box_designs.py::test_fast_path_matches_cvxpy_clarabel_model[box-planar2]",
+    "tests/test_box_designs.py::test_box_design_alpha_is_maximal[aras3]",
+    "tests/test_rigid_designs.py::"
+    "test_controllers_equal_law_3_written_in_momentum_by_the_oracle[spatial6-l2]",
+    "tests/test_rigid_designs.py::"
+    "test_controllers_equal_law_3_written_in_momentum_by_the_oracle[spatial6-pd]",
+})
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark :data:`SLOW_CASES` slow before ``-m`` selects (a case that no longer exists
+    is an error, so the list cannot rot)."""
+    found = {item.nodeid for item in items}
+    if config.rootpath / "tests" == Path(__file__).parent and len(items) > 1000:
+        missing = SLOW_CASES - found
+        if missing:
+            raise pytest.UsageError(f"SLOW_CASES names cases that do not exist: {missing}")
+    for item in items:
+        if item.nodeid in SLOW_CASES:
+            item.add_marker(pytest.mark.slow)

@@ -173,6 +173,7 @@ def test_offsets_of_the_wrong_shape_are_refused_before_a_run(aras3, build_option
     assert raised.value.field == "anchor_offsets"
 
 
+@pytest.mark.slow  # ~5 s
 def test_a_robot_with_more_cables_reads_its_pose_despite_stretch_and_anchor_errors(
         rng, build_options):
     """m > n: the readings of stretched cables and moved anchors fit no pose exactly; the

@@ -42,7 +42,8 @@ def test_batch_parameters_equal_each_runs_own(aras3, rng, build_options):
     assert np.array_equal(p, alone)
 
 
-@pytest.mark.parametrize("robot_name", ["aras3", "planar4", "spatial6"])
+@pytest.mark.parametrize("robot_name", ["aras3", "planar4",
+                                        pytest.param("spatial6", marks=pytest.mark.slow)])
 def test_static_tensions_in_one_call_equal_one_pose_at_a_time(robot_name, rng, build_options):
     robot = preset(robot_name)
     simulator = get_simulator(robot, CONTROLLERS["pd-td" if robot.m > robot.n else "pd"],

@@ -150,6 +150,7 @@ def test_a_robot_of_the_same_name_with_other_data_is_generated_again(aras3, tmp_
     assert np.allclose(tensions[1], 1.5 * tensions[0], rtol=1e-12)
 
 
+@pytest.mark.slow  # ~4 s: builds three libraries of its own
 def test_a_rate_limit_or_another_lane_count_is_another_recipe(aras3, tmp_path):
     options = BuildOptions(cache_dir=tmp_path)
     plain = Simulator(aras3, CONTROLLERS["pd"], build_options=options)

@@ -85,6 +85,7 @@ def _compare_with_the_qp(problems, lo: float, hi: float) -> dict[str, float]:
     return counts
 
 
+@pytest.mark.slow  # ~3.5 s; random W of the same sizes stay in the quick suite
 def test_agrees_with_the_qp_on_ipanema8(rng, random_states):
     robot = preset("ipanema8")
     problems = preset_problems("ipanema8", rng, 160, random_states, spread=10.0)

@@ -215,6 +215,7 @@ def test_package_builds_with_cmake_and_example_prints_the_same(package, tmp_path
     assert _run([tmp_path / "example"]) == _run([built.result.out_dir / "example"])
 
 
+@pytest.mark.slow  # ~4 s; the package's CMake build and CTest stay in the quick suite
 def test_cmake_install_gives_a_package_for_find_package(package, tmp_path):
     """A consumer project finds the installed package and links <prefix>::<prefix>."""
     built, cmake = package("aras3", "l2"), _tool("cmake")
@@ -412,7 +413,8 @@ def test_every_controller_and_preset_builds_strict_and_reproduces_simulation(tmp
 
 
 @pytest.mark.parametrize(("robot_name", "controller"),
-                         [("aras3", "linf"), ("planar2", "l2"),
+                         [pytest.param("aras3", "linf", marks=pytest.mark.slow),
+                          ("planar2", "l2"),
                           pytest.param("planar2", "smooth", marks=pytest.mark.slow)])
 def test_other_designs_match_python_law(package, robot_name, controller, rng, random_states,
                                         tmp_path):
@@ -429,6 +431,7 @@ def test_other_designs_match_python_law(package, robot_name, controller, rng, ra
         assert _relative_error(c_out[name], python[name]) <= TOLERANCE, name
 
 
+@pytest.mark.slow  # ~4 s
 def test_two_robots_link_into_one_program(package, tmp_path):
     presets = Path(__file__).parents[1] / "cdpr_sym" / "robot" / "presets"
     toml = (presets / "planar2.toml").read_text()

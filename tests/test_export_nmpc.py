@@ -63,6 +63,7 @@ def aras3_nmpc(tmp_path_factory):
     return _build("aras3", "nmpc", tmp_path_factory.mktemp("nmpc") / "pkg")
 
 
+@pytest.mark.slow  # the package's build (~12 s) is shared by the slow checks
 def test_the_example_equals_the_python_closed_loop(aras3_nmpc, aras3):
     printed = _printed(run([aras3_nmpc.out_dir / "example"]))
     assert printed["counts"][0] == 500  # 10 s at 50 Hz
@@ -106,6 +107,7 @@ def _harness(package, body: str, folder: Path) -> str:
     return run([program])
 
 
+@pytest.mark.slow  # the package's build (~12 s) is shared by the slow checks
 def test_a_state_that_is_not_finite_holds_the_last_command_and_is_flagged(aras3_nmpc,
                                                                           tmp_path):
     """No plan from NaN: the rate is 0, the sample flagged; the next finite state solves."""
@@ -126,6 +128,7 @@ def test_a_state_that_is_not_finite_holds_the_last_command_and_is_flagged(aras3_
     assert lines[2] == "-1"  # a NULL pointer
 
 
+@pytest.mark.slow  # the package's build (~12 s) is shared by the slow checks
 def test_one_sample_writes_the_rate_and_the_shifted_warm_start_of_the_python_problem(
         aras3_nmpc, aras3, tmp_path):
     """From rest at the case's start: the first rate in the memory, and the guess and
@@ -156,6 +159,7 @@ def test_one_sample_writes_the_rate_and_the_shifted_warm_start_of_the_python_pro
     assert np.count_nonzero(multipliers) > 0  # some bound or row is active
 
 
+@pytest.mark.slow  # the package's build (~12 s) is shared by the slow checks
 def test_the_solver_neither_prints_nor_allocates(aras3_nmpc):
     objects = run([tool("nm"), "-u", aras3_nmpc.out_dir / f"{aras3_nmpc.prefix}_nmpc.o"])
     undefined = {symbol.split("@")[0] for symbol in objects.split()
@@ -166,6 +170,7 @@ def test_the_solver_neither_prints_nor_allocates(aras3_nmpc):
                              path.read_text())
 
 
+@pytest.mark.slow  # the package's build (~12 s) is shared by the slow checks
 def test_the_manifest_and_result_name_the_solver_files(aras3_nmpc):
     assert aras3_nmpc.nmpc_source.exists() and aras3_nmpc.nmpc_generated.exists()
     assert {aras3_nmpc.nmpc_source, aras3_nmpc.nmpc_generated} <= set(aras3_nmpc.paths)

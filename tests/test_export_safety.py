@@ -253,6 +253,7 @@ def test_finite_states_keep_status_ok_and_the_python_law(built, controller, rng,
     assert package.macro("CONTROL_OK") == 0  # the status has its name
 
 
+@pytest.mark.slow  # builds every design's package (~11 s)
 def test_header_and_readme_document_the_flags_statuses_and_safe_command(built):
     """New bits above every Python flag; named statuses; the safe command in both texts."""
     package = built("smooth")
@@ -296,7 +297,8 @@ REFUSED_PREFIXES = {"main": "main.c", "Main": "main.c", "all": "CMake reserves",
                     "_": "C identifier", "p" * 300: "300 characters"}
 
 
-@pytest.mark.parametrize("prefix", BUILDING_PREFIXES)
+@pytest.mark.parametrize("prefix", [BUILDING_PREFIXES[0], *(
+    pytest.param(prefix, marks=pytest.mark.slow) for prefix in BUILDING_PREFIXES[1:])])
 def test_prefixes_that_clashed_build_with_make_and_cmake(prefix, tmp_path, capsys):
     """example: the CMake example target; m, c: make's -L. -lm / -lc found the package."""
     out = tmp_path / "pkg"

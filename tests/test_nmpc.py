@@ -135,7 +135,8 @@ def test_real_time_iteration_converges_to_the_ipopt_solution(aras3, aras3_model)
                                [:, states], atol=2e-4)
 
 
-@pytest.mark.parametrize("name", [pytest.param("aras3", marks=pytest.mark.slow), "planar4"])
+@pytest.mark.slow  # ~10 s each
+@pytest.mark.parametrize("name", ["aras3", "planar4"])
 def test_every_solved_step_keeps_the_box_and_the_rate(name, rng, build_options):
     robot = preset(name)
     model = SymbolicModel(robot)
@@ -211,6 +212,7 @@ def test_a_failed_solve_falls_back_flagged_and_bounded(aras3, build_options, mon
     assert np.abs(np.diff(run.tau, axis=0)).max() <= 0.8 + 1e-9
 
 
+@pytest.mark.slow  # ~10 s
 def test_a_wrong_success_is_retried_with_the_other_scaling(aras3, build_options):
     """The first real-time iteration is made to return a point 1 N above the tension box
     with a "success": the check must reject it and the unscaled retry solve the sample,
@@ -235,6 +237,7 @@ def test_a_wrong_success_is_retried_with_the_other_scaling(aras3, build_options)
     assert not np.any(run.flags & FLAG_INFEASIBLE)
 
 
+@pytest.mark.slow  # ~10 s
 def test_it_reaches_the_papers_goal_smoothly(build_options):
     run = simulate("aras3", "nmpc", duration=5.0, build_options=build_options)
     metrics = run.metrics()

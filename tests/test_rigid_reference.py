@@ -98,7 +98,7 @@ def _initial_state(geometry: RigidGeometry) -> tuple[FloatArray, FloatArray]:
     return q0, np.array([0.3, -0.2, 0.4, 2.0, -1.5, 3.0])
 
 
-@pytest.mark.parametrize("spatial", [False, True])
+@pytest.mark.parametrize("spatial", [False, pytest.param(True, marks=pytest.mark.slow)])
 def test_free_fall_is_ballistic(spatial: bool) -> None:
     geometry, q, _ = _free_run(spatial, 9.81)
     q0, dq0 = _initial_state(geometry)
@@ -121,7 +121,7 @@ def test_planar_free_fall_acceleration_is_exactly_g() -> None:
         np.testing.assert_allclose(c_ddot, [0.0, -geometry.gravity], rtol=0.0, atol=1e-12)
 
 
-@pytest.mark.parametrize("gravity", [0.0, 9.81])
+@pytest.mark.parametrize("gravity", [pytest.param(0.0, marks=pytest.mark.slow), 9.81])
 def test_torque_free_tumbling_conserves_energy_and_momentum(gravity: float) -> None:
     geometry, q, dq = _free_run(True, gravity)
     q0, dq0 = _initial_state(geometry)
@@ -143,7 +143,7 @@ def test_torque_free_tumbling_conserves_energy_and_momentum(gravity: float) -> N
     assert np.linalg.norm(spin_end - spin_start) > 0.1
 
 
-@pytest.mark.parametrize("spatial", [False, True])
+@pytest.mark.parametrize("spatial", [False, pytest.param(True, marks=pytest.mark.slow)])
 def test_energy_balance_under_constant_tensions(spatial: bool) -> None:
     rng = np.random.default_rng(SEED)
     geometry = _spatial_geometry(rng) if spatial else _planar_geometry()

@@ -127,15 +127,14 @@ def test_filter_gain_is_that_of_first_order_stages():
     cutoff = 15.0
     tau, dt = ca.SX.sym("tau", 1), ca.SX.sym("dt")
     stages = ca.SX.sym("stages", FILTER_STAGES)
-    step = ca.Function("f", [tau, stages, dt], list(filter_command(tau, stages, cutoff, dt)))
+    y, stages_next = filter_command(tau, stages, cutoff, dt)
+    step = ca.Function("f", [stages, tau, dt], [stages_next, y])
     times = np.arange(0.0, 2.0, 1e-4)
+    run = step.mapaccum("run", len(times))  # the stages carried from step to step, one call
     for frequency in (3.0, 15.0, 75.0):
-        state, out = np.zeros(FILTER_STAGES), []
-        for t in times:
-            y, state = step(np.sin(2 * np.pi * frequency * t), state, 1e-4)
-            state = np.array(state).ravel()
-            out.append(float(y))
-        amplitude = np.abs(np.array(out)[times > 1.0]).max()
+        _, out = run(np.zeros(FILTER_STAGES), np.sin(2 * np.pi * frequency * times)[None, :],
+                     np.full((1, len(times)), 1e-4))
+        amplitude = np.abs(np.array(out).ravel()[times > 1.0]).max()
         expected = (1 + (frequency / cutoff) ** 2) ** (-FILTER_STAGES / 2)
         assert amplitude == pytest.approx(expected, rel=0.02), frequency
 

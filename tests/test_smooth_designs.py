@@ -172,7 +172,7 @@ def test_mass_scale_changes_the_plant_not_the_controller(pairs):
     assert heavy.q[20, -1] < nominal.q[20, -1]
 
 
-@pytest.mark.parametrize("name", ["planar3", "spatial6"])
+@pytest.mark.parametrize("name", ["planar3", pytest.param("spatial6", marks=pytest.mark.slow)])
 def test_smooth_tracks_its_plan_on_rigid_bodies(name, request, build_options):
     """Exact feed-forward M ddq_r + C dq_r: the body follows the minimum-jerk plan closely
     (with the point-mass feed-forward m ddq_r instead it strays by 0.2-0.3 m or rad)."""

@@ -49,6 +49,7 @@ def test_loading_a_file_that_is_no_trajectory_is_refused(tmp_path):
         Trajectory.load(path)
 
 
+@pytest.mark.slow  # ~7 s; the report's text is rebuilt in the quick suite
 def test_paper_report_is_rebuilt_from_the_stored_runs_alone(paper_folder, monkeypatch):
     claims = write_paper_report(paper_folder)
     first = (paper_folder / "report.md").read_text()
