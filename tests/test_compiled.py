@@ -75,9 +75,11 @@ def _assert_same_outputs(compiled: ca.Function, symbolic: ca.Function, args) -> 
     assert len(got) == len(want) == symbolic.n_out()
     for g, w in zip(got, want, strict=True):
         g, w = np.array(g.full()), np.array(w.full())
-        # compiled with re-association allowed: relative, with a small absolute floor scaled
-        # by the output's largest entry (j of the paper's LS reaches 1e3-1e4 at creeping
-        # speed, and its normal equations amplify round-off by their condition number)
+        # compiled and virtual machine round each operation as written, but the library's
+        # sqrt, sin and cos may differ from CasADi's in the last place: relative, with a small
+        # absolute floor scaled by the output's largest entry (j of the paper's LS reaches
+        # 1e3-1e4 at creeping speed, and its normal equations amplify round-off by their
+        # condition number)
         np.testing.assert_allclose(g, w, rtol=1e-12,
                                    atol=1e-11 * max(1.0, np.abs(w).max(initial=0.0)))
 

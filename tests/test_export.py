@@ -189,12 +189,9 @@ def _example_output(text: str) -> dict[str, np.ndarray]:
 
 
 def _reference_run(robot, controller: str):
-    """The Python closed loop, evaluated exactly as written (CasADi's virtual machine).
-
-    The default compiled simulator reassociates floating-point sums (its BuildOptions
-    flags); on trajectories that ride the tension bounds that moves the final state by up to
-    1e-5 m after 10 s, so the bit-level reference is the virtual machine.
-    """
+    """The Python closed loop on CasADi's virtual machine: a reference independent of the
+    compiled simulator (which gives the same bits, every operation rounded as written, and
+    is compared too)."""
     return simulate(robot, controller_by_name(controller), duration=10.0,
                     build_options=BuildOptions(backend="casadi"))
 

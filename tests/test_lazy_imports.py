@@ -46,7 +46,7 @@ def test_a_misspelt_name_is_an_attribute_error():
 
 #: What a sweep of an ideal plant with a closed-form controller never runs.
 NOT_FOR_A_SWEEP = ("cdpr_sym.as_built.static", "cdpr_sym.closed_loop.adaptive",
-                   "cdpr_sym.closed_loop.sampled",
+                   "cdpr_sym.closed_loop.sampled", "cdpr_sym.model.forward_kinematics",
                    "cdpr_sym.export", "cdpr_sym.reporting", "cdpr_sym.studies.outline",
                    "cvxpy", "matplotlib", "tqdm")
 

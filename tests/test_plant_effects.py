@@ -55,7 +55,19 @@ def test_the_as_built_layout_is_the_effects_fields_in_registry_order(structure, 
                 if structure.actuation else []) + [("pending", structure.delay * m)] + (
         [("q_read", n), ("dq_read", n)] if structure.sensing else [])
     assert declared == expected
+    assert layout.plant_p == (((("actuation", 8),) if structure.actuation else ())
+                              + ((("sensing", 3),) if structure.sensing else ())
+                              + ((("anchor_offsets", m * 3),) if structure.anchors else ()))
     assert layout.plant_log == (("tension", m),)
+
+
+def test_a_rate_limit_on_an_as_built_plant_is_refused(aras3, build_options):
+    from cdpr_sym.closed_loop import Simulator
+    from cdpr_sym.errors import InvalidCase
+
+    with pytest.raises(InvalidCase, match=r"^plant: an as-built plant limits the tension"):
+        Simulator(aras3, CONTROLLERS["pd"], build_options=build_options, rate_limited=True,
+                  as_built=AsBuiltStructure(actuation=True))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -77,9 +89,9 @@ def _step(model, effects, x, p):
     return np.array(x_next).ravel(), np.array(log).ravel()
 
 
-def test_a_new_effect_composes_with_the_step(aras3):
+def test_a_new_effect_composes_with_the_step(aras3, build_options):
     model = SymbolicModel(aras3)
-    simulator = get_simulator(aras3, CONTROLLERS["pd"])
+    simulator = get_simulator(aras3, CONTROLLERS["pd"], build_options=build_options)
     x = simulator.initial_state(aras3.start, aras3.goal, aras3.k, aras3.r_d)
     x[model.n: 2 * model.n] = [0.1, -0.2, 0.3]
     p = simulator.parameters(aras3.goal, aras3.k, aras3.r_d, 1e-3, Plant())

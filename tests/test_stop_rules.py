@@ -1,6 +1,6 @@
 """The simulation's stop rule for leaving the frame, face by face, against the numpy oracle.
 
-The rule (closed_loop/step.py): a step whose next state has a coordinate below the frame's
+The rule (closed_loop/stops.py): a step whose next state has a coordinate below the frame's
 lower bound or above its upper bound raises ``left_frame`` and freezes the state, so the
 returned trajectory ends at the last sample inside the frame, t = k dt, with the k commands
 computed up to it. The oracle integrates the same sampled-data loop in numpy (PD held over

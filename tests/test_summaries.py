@@ -1,5 +1,7 @@
 """Sweep rows reduced in compiled code against the metrics of the stored runs."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -98,4 +100,4 @@ def test_squared_errors_add_coordinates_in_index_order(rng):
             expected += value * value
         assert total == expected
     assert squared_errors(offsets[0]) == squared_errors(offsets[:1])[0]
-    np.testing.assert_array_equal(errors(offsets), np.sqrt(squared_errors(offsets)))
+    assert errors(offsets[0]) == math.sqrt(squared_errors(offsets[0]))

@@ -71,8 +71,8 @@ def test_sweep_rows_equal_runs_of_their_pair_alone(local_sweep, build_options):
         start = np.array([float(row[f"start_{i}"]) for i in range(robot.n)])
         goal = np.array([float(row[f"goal_{i}"]) for i in range(robot.n)])
         # the sweep advances runs in vectorised blocks; a block of one pair repeats a row
-        # exactly (lanes are independent), while a single run agrees to round-off, which
-        # the chattering box design amplifies (tests/test_batch.py compares the two)
+        # exactly (lanes are independent, and a single run gives the same bits:
+        # tests/test_batch.py compares the two)
         simulator = get_simulator(robot, controller_by_name(row["controller"]),
                                   build_options=build_options)
         [run] = run_many(simulator, [start], [goal], robot.k, robot.r_d,

@@ -13,6 +13,7 @@ from cdpr_sym.codegen import (
     resolve_lanes,
     vector_build_options,
 )
+from cdpr_sym.codegen.build import EXACT_FLAGS
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import PRESET_NAMES, preset
@@ -27,9 +28,10 @@ from cdpr_sym.workspace import (
     wrench_function,
 )
 
-#: Compiled without re-association (the default flags allow it), both builds evaluate
-#: CasADi's instructions in the same order, IEEE operation by operation: equal to the bit.
-IN_ORDER = ("-O2",)
+#: Compiled with every operation rounded as written (the default flags: no re-association,
+#: no fused multiply-add, which plain -O2 would allow on arm64), both builds evaluate
+#: CasADi's instructions IEEE operation by operation: equal to the bit.
+IN_ORDER = EXACT_FLAGS
 #: Presets whose classifiers build in a few seconds; the 6-DOF platforms take about a
 #: minute (the slow suite).
 QUICK = [name for name in PRESET_NAMES if name not in ("spatial6", "ipanema8")]

@@ -21,6 +21,7 @@ import numpy as np
 
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.codegen import BuildOptions, build
+from cdpr_sym.control import capabilities
 from cdpr_sym.control.flags import FLAG_INFEASIBLE
 from cdpr_sym.control.nmpc import Nmpc, NmpcProblem
 from cdpr_sym.errors import InvalidCase
@@ -33,9 +34,10 @@ Advance = Callable[[np.ndarray, np.ndarray, int], int]
 def steps_per_sample(design: Nmpc, dt: float) -> int:
     """Control steps of ``dt`` s per solve; raise :class:`InvalidCase` (``dt``) unless they
     divide the design's period."""
-    ratio = round(design.period / dt)
-    if ratio < 1 or abs(ratio * dt - design.period) > 1e-9 * design.period:
-        raise InvalidCase("dt", f"the NMPC solves every {design.period:g} s; dt = {dt:g} s "
+    period = capabilities(design).sample_period
+    ratio = round(period / dt)
+    if ratio < 1 or abs(ratio * dt - period) > 1e-9 * period:
+        raise InvalidCase("dt", f"the NMPC solves every {period:g} s; dt = {dt:g} s "
                           f"must divide it")
     return ratio
 

@@ -143,6 +143,9 @@ class Simulator:
                  rate_limited: bool = False, as_built: AsBuiltStructure | None = None
                  ) -> None:
         check_cables(controller, robot.n, robot.m)
+        if rate_limited and as_built is not None:
+            raise InvalidCase("plant", "an as-built plant limits the tension through its "
+                              "winches; build its simulator without rate_limited")
         self.robot = robot
         self.controller = controller
         self.model = SymbolicModel(robot)
@@ -152,8 +155,6 @@ class Simulator:
         #: The plant's effects (:mod:`cdpr_sym.closed_loop.effects`), in layout order.
         self.effects = plant_effects(rate_limited=rate_limited, as_built=as_built)
         self.layout = plant_layout(self.model, controller, self.effects)
-        #: The as-built plant in numbers (None for the ideal plant).
-        self.readout = AsBuiltReadout(self.model) if as_built is not None else None
         #: The robot and controller part of every run's record, built once.
         self._described = described(robot, controller)
         #: initial_memory mapped over a number of runs, by that number (built on first use).
@@ -186,6 +187,13 @@ class Simulator:
         generated on first use: a run whose compiled library is found by its recipe never
         needs it."""
         return step_function(self.model, self.controller, effects=self.effects)
+
+    @functools.cached_property
+    def readout(self) -> AsBuiltReadout:
+        """The as-built plant in numbers (its static tension, lengths and encoder reading;
+        each function built on first use): for this simulator's plant, and for the
+        robustness study's questions about the plants it compares."""
+        return AsBuiltReadout(self.model)
 
     @functools.cached_property
     def law(self) -> ca.Function:
@@ -263,12 +271,12 @@ class Simulator:
     def true_static_tension(self, q: np.ndarray, plant: Plant) -> np.ndarray:
         """The tension (N) holding the as-built ``plant`` at rest at ``q``: its mass and
         anchors (m > n: the default distribution of its weight)."""
-        return self._as_built_readout().true_static(q, plant)[0]
+        return self.readout.true_static(q, plant)[0]
 
     def true_static_held(self, q: np.ndarray, plant: Plant) -> bool:
         """Whether the as-built ``plant`` can be held at rest at ``q`` with tensions in
         [T_min, T_max] (m > n: by the default distribution, which can miss a tension)."""
-        return self._as_built_readout().true_static(q, plant)[1]
+        return self.readout.true_static(q, plant)[1]
 
     def read_offset(self, q: np.ndarray, plant: Plant) -> np.ndarray:
         """Where the encoders place the as-built ``plant`` held at rest at ``q``, minus ``q``
@@ -279,18 +287,11 @@ class Simulator:
         spec = plant.as_built
         if spec is None or spec.sensing is None:
             return np.zeros(self.robot.n)
-        readout = self._as_built_readout()
+        readout = self.readout
         # the cables carry the true static tension
         reading = readout.encoder_reading(q, readout.true_static(q, plant)[0], plant)
         read = readout.read_pose(reading, q, spec.sensing)
         return np.full(self.robot.n, np.nan) if read is None else read - q
-
-    def _as_built_readout(self) -> AsBuiltReadout:
-        """The as-built plant's numbers (built for an ideal-plant simulator too, which the
-        robustness study asks about the plants it compares)."""
-        if self.readout is None:
-            self.readout = AsBuiltReadout(self.model)
-        return self.readout
 
     def rollout(self, x0: np.ndarray, p: np.ndarray, n_steps: int
                 ) -> tuple[np.ndarray, np.ndarray]:
@@ -426,7 +427,7 @@ class Simulator:
         # of a run's Python time
         x = self.layout.x.split(states[: last + 1])
         log = self.layout.split_log(logs[:last])
-        if self.as_built is not None:  # judged on the cables' true tension
+        if "tension" in self.layout.log.names:  # judged on the cables' true tension
             log["command"] = log["tau"]
             log["tau"] = self.layout.log.split(logs[:last])["tension"]
         return Trajectory(
@@ -554,10 +555,13 @@ def controller_identifier(controller: Controller) -> str:
 
 
 #: Simulators kept for reuse in this process, most recently used last: a sweep over many
-#: robots or plants once kept every one (and its loaded libraries) for the process's life.
+#: robots or plants once kept every one (its CasADi graphs and library handles) for the
+#: process's life. (A loaded shared library stays mapped: ctypes never unloads one.)
 _SIMULATORS: collections.OrderedDict[tuple, Simulator] = collections.OrderedDict()
-#: Most simulators kept (each holds its loaded libraries, a few MB at most).
+#: Most simulators kept.
 SIMULATOR_CACHE_SIZE = 32
+#: Guards the cache: a Dask worker's threads share it.
+_SIMULATORS_LOCK = threading.Lock()
 
 
 def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
@@ -587,15 +591,20 @@ def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
     """
     key = (robot_key(robot), controller, chunk, build_options,
            build_options.resolved_backend(), rate_limited, as_built)
-    simulator = _SIMULATORS.get(key)
-    if simulator is None:
-        simulator = Simulator(robot, controller, chunk=chunk, build_options=build_options,
-                              rate_limited=rate_limited, as_built=as_built)
-        _SIMULATORS[key] = simulator
+    with _SIMULATORS_LOCK:
+        simulator = _SIMULATORS.get(key)
+        if simulator is not None:
+            _SIMULATORS.move_to_end(key)
+            return simulator
+    # built outside the lock (it may compile for seconds); two threads asking at once
+    # may both build, and the cache keeps one
+    simulator = Simulator(robot, controller, chunk=chunk, build_options=build_options,
+                          rate_limited=rate_limited, as_built=as_built)
+    with _SIMULATORS_LOCK:
+        simulator = _SIMULATORS.setdefault(key, simulator)
+        _SIMULATORS.move_to_end(key)
         while len(_SIMULATORS) > SIMULATOR_CACHE_SIZE:
             _SIMULATORS.popitem(last=False)
-    else:
-        _SIMULATORS.move_to_end(key)
     return simulator
 
 

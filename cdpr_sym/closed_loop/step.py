@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from cdpr_sym.closed_loop.effects import PlantEffect, StepBuild, plant_effects
+from cdpr_sym.closed_loop.effects import PlantEffect, RateLimit, StepBuild, plant_effects
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import applied_tension, plant_rhs
 from cdpr_sym.closed_loop.stops import (
@@ -45,7 +45,7 @@ def plant_layout(model: SymbolicModel, controller: Controller,
                  effects: tuple[PlantEffect, ...]) -> StepLayout:
     """The layout of the step of ``controller`` on ``model`` with the plant ``effects``:
     the ideal plant's fields, then each effect's, in registry order."""
-    rate_limited = any(effect.name == "rate_limit" for effect in effects)
+    rate_limited = any(isinstance(effect, RateLimit) for effect in effects)
     return StepLayout(model.n, model.n_j, controller.memory_size(model), rate_limited,
                       model.m if model.m != model.n else None,
                       plant_x=_fields(effect.state_fields(model) for effect in effects),

@@ -103,9 +103,9 @@ class Controller(Protocol):
              r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
         """One control step at the state (q, dq): the law and the next memory."""
 
-    def capabilities(self) -> Capabilities:
-        """What the controller supports and needs beyond its law (optional: read through
-        :func:`capabilities`, which defaults to :data:`SQUARE_STEPWISE`)."""
+    # Optional (so not part of the runtime-checkable protocol): ``capabilities() ->
+    # Capabilities``, what the controller supports beyond its law, read through
+    # :func:`capabilities`, which defaults to :data:`SQUARE_STEPWISE`.
 
 
 class StatelessLaw:

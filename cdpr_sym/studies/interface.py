@@ -61,8 +61,8 @@ class StudyRequest:
     robot : Robot or None
         The robot to study, its case checked; None: the study's own robots.
     source : str or None
-        How it was named (a preset name or a robot file, for sweep workers to load), or
-        None with :attr:`robot`.
+        How it was named (a preset name or a robot file, which a sweep's sidecar records to
+        check a resume against), or None with :attr:`robot`.
     pairs : int
         Start/goal pairs of the study's sweeps.
     seed : int

@@ -6,9 +6,9 @@ registers holds doubles, :func:`~cdpr_sym.codegen.native_lanes`: 4 with AVX2, 8 
 AVX-512) and compiled with the host's vector instructions; a loop in C
 (``templates/classify_lanes.c.j2``) feeds it the poses a block of lanes at a time, so a whole
 batch is one call from Python. It returns what
-:class:`~cdpr_sym.workspace.mapped.MappedEvaluator` returns, to round-off (the compiler may
-re-associate either build's sums differently; built without re-association, both equal
-CasADi's virtual machine bit for bit). :func:`pose_evaluator` picks it wherever it can be
+:class:`~cdpr_sym.workspace.mapped.MappedEvaluator` returns, bit for bit with the default
+flags (every operation rounded as written, :data:`~cdpr_sym.codegen.build.EXACT_FLAGS`),
+as CasADi's virtual machine does. :func:`pose_evaluator` picks it wherever it can be
 built and falls back to the mapped evaluator elsewhere.
 """
 

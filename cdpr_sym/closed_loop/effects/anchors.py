@@ -22,7 +22,6 @@ class AnchorErrors(PlantEffect):
     (m d, row-major, m); the as-built plant's geometry reads them (:func:`offsets`)."""
 
     name: ClassVar[str] = "anchors"
-    as_built: ClassVar[bool] = True
 
     @classmethod
     def select(cls, *, rate_limited: bool, as_built: AsBuiltStructure | None

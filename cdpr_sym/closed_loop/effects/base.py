@@ -100,14 +100,11 @@ class PlantEffect:
 
     Subclasses are frozen dataclasses whose fields are what the generated code depends on
     (the numbers are parameters), registered with
-    :func:`~cdpr_sym.closed_loop.effects.register`.
+    :data:`~cdpr_sym.closed_loop.effects.REGISTRY`.
     """
 
     #: The registry name (also the key of :meth:`StepBuild.find` and of the scratch space).
     name: ClassVar[str] = ""
-    #: Whether the effect's plant is the robot as built (judged on the cables' true tension,
-    #: logged as ``tension``): the as-built effects' plants log it, the ideal one does not.
-    as_built: ClassVar[bool] = False
 
     @classmethod
     def select(cls, *, rate_limited: bool, as_built: AsBuiltStructure | None
@@ -164,9 +161,6 @@ class PlantEffect:
         """Values of this effect's state fields at the start of a move."""
         return {}
 
-    def record(self) -> dict[str, object]:
-        """What the generated code depends on, as plain values (a library's recipe)."""
-        return {"effect": self.name, **dataclasses.asdict(self)}
 
 
 @dataclasses.dataclass

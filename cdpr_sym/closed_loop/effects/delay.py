@@ -24,7 +24,6 @@ class Delay(PlantEffect):
     """
 
     name: ClassVar[str] = "delay"
-    as_built: ClassVar[bool] = True
     #: Control periods between the controller's command and the cables.
     delay: int = 0
 

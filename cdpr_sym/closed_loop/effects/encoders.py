@@ -33,7 +33,6 @@ class Encoders(PlantEffect):
     ``sensing`` (:data:`~cdpr_sym.as_built.SENSING_PARAMETERS`)."""
 
     name: ClassVar[str] = "encoders"
-    as_built: ClassVar[bool] = True
 
     @classmethod
     def select(cls, *, rate_limited: bool, as_built: AsBuiltStructure | None

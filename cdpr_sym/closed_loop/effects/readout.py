@@ -3,8 +3,10 @@ the pose forward kinematics gives for a reading (the numeric twins of its step).
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING
 
+import casadi as ca
 import numpy as np
 
 from cdpr_sym.as_built import Sensing
@@ -35,15 +37,25 @@ class AsBuiltReadout:
     """
 
     def __init__(self, model: SymbolicModel) -> None:
-        # imported with the first as-built plant: a sweep of the ideal plant never loads
-        # its static tension or forward kinematics
+        self.model = model
+
+    @functools.cached_property
+    def _true_static(self) -> ca.Function:
+        # imported with the first as-built number asked for: a sweep of the ideal plant
+        # never loads the plant's static tension or forward kinematics
         from cdpr_sym.as_built.static import true_static_function
+
+        return true_static_function(self.model)
+
+    @functools.cached_property
+    def _true_geometry(self) -> ca.Function:
+        return true_geometry_function(self.model.robot)
+
+    @functools.cached_property
+    def _forward_kinematics(self) -> ca.Function:
         from cdpr_sym.model.forward_kinematics import forward_kinematics_function
 
-        self.model = model
-        self._true_static = true_static_function(model)
-        self._true_geometry = true_geometry_function(model.robot)
-        self._forward_kinematics = forward_kinematics_function(model, tolerance=1.0)
+        return forward_kinematics_function(self.model, tolerance=1.0)
 
     def true_static(self, q: np.ndarray, plant: Plant) -> tuple[np.ndarray, bool]:
         """The tension (N) holding ``plant`` at rest at ``q`` (its mass and anchors; m > n:

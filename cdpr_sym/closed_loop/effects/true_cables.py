@@ -20,6 +20,7 @@ import casadi as ca
 from cdpr_sym.as_built.geometry import true_geometry_function
 from cdpr_sym.closed_loop.effects.anchors import offsets as anchor_offsets
 from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StepBuild
+from cdpr_sym.closed_loop.effects.winches import Winches
 from cdpr_sym.model import SymbolicModel, rk4
 
 if TYPE_CHECKING:
@@ -32,7 +33,6 @@ class TrueCables(PlantEffect):
     control period."""
 
     name: ClassVar[str] = "true_cables"
-    as_built: ClassVar[bool] = True
     substeps: int = 2
 
     @classmethod
@@ -59,7 +59,7 @@ class TrueDynamics:
         self.geometry = true_geometry_function(build.model.robot)
         self.offsets = anchor_offsets(build)
         self.mass_scale = build.par["mass_scale"]
-        self.winches = build.find("winches")
+        self.winches = build.find(Winches.name)
         self.actuation = None if self.winches is None else build.par["actuation"]
         self.substeps = substeps
         self.fields = ("q", "dq") if self.winches is None else ("q", "dq",

@@ -34,7 +34,6 @@ class Winches(PlantEffect):
     (:data:`~cdpr_sym.as_built.ACTUATION_PARAMETERS`)."""
 
     name: ClassVar[str] = "winches"
-    as_built: ClassVar[bool] = True
     drive_fields: ClassVar[tuple[str, ...]] = DRIVE_FIELDS
 
     @classmethod
