@@ -106,5 +106,4 @@ def check_cables(controller: Controller, n: int, m: int) -> None:
                      if capabilities(design).any_cables]
         raise InvalidCase("controller", f"{controller.name} needs as many cables as degrees "
                           f"of freedom (it inverts W), got {m} cables for n = {n}; use "
-                          f"{', '.join(redundant)} (a design of your own declares what it "
-                          f"runs in capabilities())")
+                          f"{', '.join(redundant)}")
