@@ -35,9 +35,12 @@ _BODY_FIELDS = ("attachments", "inertia", "center_of_mass")
 #: The external wrench box: it shapes the wrench-feasible workspace and never a run.
 WRENCH_FIELDS = ("external_force", "external_moment")
 
+#: What a calibration adds to a robot file: the encoders' zero errors.
+CALIBRATION_FIELDS = ("encoder_offsets",)
+
 #: Optional fields left out of :meth:`Robot.as_dict` when not given, so a robot without
 #: them keeps the description (and the sweep identities) it had before they existed.
-_OPTIONAL_FIELDS = (*_BODY_FIELDS, *WRENCH_FIELDS)
+_OPTIONAL_FIELDS = (*_BODY_FIELDS, *WRENCH_FIELDS, *CALIBRATION_FIELDS)
 
 #: Longest robot name, characters (it heads reports and names generated code).
 MAX_NAME_LENGTH = 100
@@ -88,6 +91,10 @@ class Robot:
         Omitted: no external force.
     external_moment : ndarray, shape (1,) or (3,), optional
         Rigid bodies: half-widths of the box of external moments (world axes), N m.
+    encoder_offsets : ndarray, shape (m,), optional
+        What each winch encoder reads beyond the cable's unstretched length, m: a reading
+        minus this is the length the model's forward kinematics take. A calibration
+        (:mod:`cdpr_sym.calibration`) estimates it; omitted, the encoders read true lengths.
 
     Notes
     -----
@@ -112,6 +119,7 @@ class Robot:
     center_of_mass: np.ndarray | None = None
     external_force: np.ndarray | None = None
     external_moment: np.ndarray | None = None
+    encoder_offsets: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         _check_name(self.name)
@@ -131,6 +139,7 @@ class Robot:
             _set(self, field, _float_scalar(field, getattr(self, field)))
         self._check_physics()
         self._check_external_wrench()
+        self._check_encoder_offsets()
         self._check_frame()
         if self.kind == "spatial":
             self._check_pitch_range()
@@ -312,6 +321,15 @@ class Robot:
             if np.any(vector < 0):
                 raise InvalidRobot(name, f"expected half-widths >= 0, got {vector.tolist()}")
             _set(self, field, vector)
+
+    def _check_encoder_offsets(self) -> None:
+        if self.encoder_offsets is None:
+            return
+        offsets = _float_array("encoders.offsets", self.encoder_offsets, ndim=1)
+        if offsets.shape != (self.m,):
+            raise InvalidRobot("encoders.offsets", f"expected {self.m} values (one per cable, "
+                               f"m), got {offsets.shape[0]}")
+        _set(self, "encoder_offsets", offsets)
 
     def _check_frame(self) -> None:
         if np.any(self.frame_lower >= self.frame_upper):

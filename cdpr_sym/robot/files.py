@@ -25,6 +25,7 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
     _check_known_fields(data, source)
     body = data.get("body", {})
     wrench = data.get("wrench", {})
+    encoders = data.get("encoders", {})
     if "body" in data and "attachments" not in body:
         raise InvalidRobot("body.attachments", f"required field missing in {source} (a [body] "
                            "table makes the end-effector a rigid body)")
@@ -52,16 +53,17 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
         attachments=body.get("attachments"), inertia=body.get("inertia"),
         center_of_mass=body.get("center_of_mass"),
         external_force=wrench.get("force"), external_moment=wrench.get("moment"),
+        encoder_offsets=encoders.get("offsets"),
     )
 
 
 #: The robot-file layout: top-level fields, and the fields of each table.
 FILE_FIELDS = {"": {"name", "mass", "gravity", "anchors", "tension", "frame", "case", "body",
-                    "wrench"},
+                    "wrench", "encoders"},
                "tension": {"min", "max"}, "frame": {"lower", "upper"},
                "case": {"start", "goal", "k", "r_d"},
                "body": {"attachments", "inertia", "center_of_mass"},
-               "wrench": {"force", "moment"}}
+               "wrench": {"force", "moment"}, "encoders": {"offsets"}}
 
 
 def _check_known_fields(data: dict[str, Any], source: str) -> None:
@@ -231,3 +233,45 @@ def resolve_robot(name_or_path: Robot | str | Path) -> Robot:
     raise UnknownName(
         f"unknown robot {str(name_or_path)!r}; expected a preset "
         f"({', '.join(PRESET_NAMES)}) or a path to a .toml file")
+
+
+def _toml_value(value: Any) -> str:
+    """A number, text or (nested) list of numbers in TOML; floats keep every digit
+    (``repr``), so a written robot loads back equal."""
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(item) for item in value) + "]"
+    return repr(float(value))
+
+
+def _toml_rows(rows: list[list[float]]) -> str:
+    """An array of rows, one row per line (anchors, attachments)."""
+    return "[\n" + "".join(f"    {_toml_value(row)},\n" for row in rows) + "]"
+
+
+def robot_file_text(robot: Robot, *, comment: str = "") -> str:
+    """The robot-file TOML of ``robot`` (README, "Robot files"): :func:`load_robot` reads
+    it back into an equal robot. ``comment`` (lines of text) heads the file as ``#`` lines."""
+    data = robot.as_dict()
+    lines = [f"# {line}" for line in comment.splitlines()]
+    lines += [f"name = {_toml_value(robot.name)}", f"mass = {_toml_value(robot.mass)}",
+              f"gravity = {_toml_value(robot.gravity)}",
+              f"anchors = {_toml_rows(data['anchors'])}", "",
+              "[tension]", f"min = {_toml_value(robot.t_min)}", f"max = {_toml_value(robot.t_max)}",
+              "", "[frame]", f"lower = {_toml_value(data['frame_lower'])}",
+              f"upper = {_toml_value(data['frame_upper'])}", "", "[case]"]
+    lines += [f"{key} = {_toml_value(data[field])}" for key, field in
+              (("start", "start"), ("goal", "goal"), ("k", "k"), ("r_d", "r_d"))]
+    if robot.attachments is not None:
+        lines += ["", "[body]", f"attachments = {_toml_rows(data['attachments'])}",
+                  f"inertia = {_toml_value(data['inertia'])}",
+                  f"center_of_mass = {_toml_value(data['center_of_mass'])}"]
+    wrench = [(key, data[field]) for key, field in (("force", "external_force"),
+                                                   ("moment", "external_moment"))
+              if field in data]
+    if wrench:
+        lines += ["", "[wrench]", *(f"{key} = {_toml_value(value)}" for key, value in wrench)]
+    if robot.encoder_offsets is not None:
+        lines += ["", "[encoders]", f"offsets = {_toml_value(data['encoder_offsets'])}"]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,375 @@
+"""Estimating the geometry from a campaign: weighted nonlinear least squares in the errors
+in variables, its covariance, and the Cramér-Rao bound.
+
+The estimate minimises the sum of squared weighted residuals of
+:mod:`cdpr_sym.calibration.information` over theta and every pose's own unknowns at once
+(Levenberg-Marquardt with Marquardt's diagonal scaling, the residuals and Jacobian evaluated
+from the CasADi graph), with the gauge fixed by the inner constraints of
+:mod:`cdpr_sym.calibration.gauge`, held exactly: theta = theta_nominal + C^T z, with C an
+orthonormal basis of the directions the constraints leave free. Where no tension is
+measured, each cable's stretch uses the tension that holds the current estimate of the pose
+at rest (:func:`~cdpr_sym.calibration.measurement.static_tension_function`); the estimate is
+repeated with the tensions of the last one until theta moves by less than a nanometre.
+
+Under Gaussian noise of the stated standard deviations, the estimate's covariance is the
+inverse of the Fisher information J^T J in the gauge-free coordinates (so it is the
+covariance in the stated frame); evaluated at the true geometry and poses instead of the
+estimate, the same formula is the Cramér-Rao bound of the campaign
+(:func:`cramer_rao_bound`), the smallest covariance any unbiased estimator can reach.
+``sigma0`` is the a posteriori factor sqrt(cost / (rows - unknowns)): near 1 when the noise
+is what the campaign says.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Any
+
+import numpy as np
+
+from cdpr_sym.calibration.campaign import Campaign
+from cdpr_sym.calibration.gauge import gauge_complement
+from cdpr_sym.calibration.identifiability import Identifiability, identifiability
+from cdpr_sym.calibration.information import PoseBlocks, own_size, pose_blocks
+from cdpr_sym.calibration.measurement import MeasurementModel, Unknowns, static_tension_function
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot import Robot
+
+#: Levenberg-Marquardt: most iterations, and the step (m or rad) below which it has converged.
+MAX_ITERATIONS, STEP_TOLERANCE = 100, 1e-12
+#: Most passes of re-modelled tensions, and the move of theta (m) that ends them.
+MAX_PASSES, PASS_TOLERANCE = 6, 1e-9
+
+
+@dataclasses.dataclass(frozen=True)
+class Calibration:
+    """A calibrated geometry and how well it is known.
+
+    Attributes
+    ----------
+    robot : Robot
+        The nominal robot with the estimated anchors (and attachments) and encoder offsets.
+    theta : ndarray, shape (p,)
+        The estimate, m (:meth:`MeasurementModel.names` names each entry).
+    names : list of str
+    covariance : ndarray, shape (p, p)
+        Its covariance in the stated frame, m^2 (from the stated noise).
+    poses : ndarray, shape (N, n)
+        The estimated poses (m; rad).
+    tensions : ndarray, shape (N, m)
+        The tensions the stretch used at each pose (estimated or modelled), N.
+    kind : str
+        The campaign kind.
+    residual_rms : dict
+        Root mean square of the unweighted residuals: ``reading`` (m), and ``position`` (m),
+        ``angle`` (rad) or ``tension`` (N) where measured.
+    sigma0 : float
+        sqrt(weighted cost / degrees of freedom); about 1 when the noise is as stated.
+    iterations : int
+        Levenberg-Marquardt iterations, over all passes.
+    identifiability : Identifiability
+    """
+
+    robot: Robot
+    theta: np.ndarray
+    names: list[str]
+    covariance: np.ndarray
+    poses: np.ndarray
+    tensions: np.ndarray
+    kind: str
+    residual_rms: dict[str, float]
+    sigma0: float
+    iterations: int
+    identifiability: Identifiability
+
+    @property
+    def std(self) -> np.ndarray:
+        """Standard deviation of each entry of theta, m."""
+        return np.sqrt(np.clip(np.diag(self.covariance), 0, None))
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain numbers, for JSON."""
+        return {"kind": self.kind, "poses": len(self.poses),
+                "estimates": {name: {"value": float(value), "std": float(std)}
+                              for name, value, std in zip(self.names, self.theta, self.std,
+                                                          strict=True)},
+                "residual_rms": self.residual_rms, "sigma0": self.sigma0,
+                "iterations": self.iterations,
+                "identifiability": self.identifiability.as_dict()}
+
+
+@functools.lru_cache(maxsize=16)
+def _static_tension(model: MeasurementModel):
+    return static_tension_function(model)
+
+
+def modelled_tensions(model: MeasurementModel, theta: np.ndarray, poses: np.ndarray
+                      ) -> np.ndarray:
+    """The tension (N) holding each pose at rest with theta's geometry, (N, m)."""
+    function = _static_tension(model).map(len(poses))
+    return np.array(function(poses.T, theta)).T
+
+
+class _Problem:
+    """The stacked least-squares problem of one campaign in the gauge-free unknowns
+    x = (z, each pose's own unknowns), theta = reference + C^T z with C an orthonormal
+    basis of the complement of the gauge motions (the inner constraints hold exactly)."""
+
+    def __init__(self, model: MeasurementModel, campaign: Campaign,
+                 reference: np.ndarray) -> None:
+        self.model, self.campaign = model, campaign
+        self.kind = campaign.kind
+        self.own = own_size(model, self.kind)
+        self.basis = gauge_complement(model, self.kind)
+        self.reference = reference
+
+    def x_of(self, theta: np.ndarray, own: np.ndarray) -> np.ndarray:
+        return np.concatenate([self.basis @ (theta - self.reference), own.ravel()])
+
+    def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        free = len(self.basis)
+        theta = self.reference + self.basis.T @ x[:free]
+        return theta, x[free:].reshape(self.campaign.size, self.own)
+
+    def blocks(self, x: np.ndarray, modelled: np.ndarray) -> PoseBlocks:
+        theta, own = self.split(x)
+        return pose_blocks(self.model, self.campaign, theta, own, modelled)
+
+    def stacked(self, x: np.ndarray, modelled: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """All residuals and the Jacobian in x (pose blocks on the diagonal)."""
+        blocks = self.blocks(x, modelled)
+        count, rows, _ = blocks.theta.shape
+        free = len(self.basis)
+        J = np.zeros((count * rows, free + count * self.own))
+        J[:, :free] = blocks.theta.reshape(count * rows, -1) @ self.basis.T
+        for k in range(count):
+            J[k * rows:(k + 1) * rows, free + k * self.own:free + (k + 1) * self.own] = \
+                blocks.own[k]
+        return blocks.residuals.ravel(), J
+
+    def covariance(self, blocks: PoseBlocks) -> np.ndarray:
+        """theta's covariance (m^2): C^T (J_z^T J_z)^+ C with J_z the reduced Jacobian in z."""
+        reduced = blocks.reduced() @ self.basis.T
+        return self.basis.T @ np.linalg.pinv(reduced.T @ reduced, rcond=1e-15,
+                                             hermitian=True) @ self.basis
+
+
+def _levenberg_marquardt(problem: _Problem, x: np.ndarray, modelled: np.ndarray
+                         ) -> tuple[np.ndarray, int]:
+    """Minimise the stacked cost from x; returns (x, iterations)."""
+    r, J = problem.stacked(x, modelled)
+    cost, damping = float(r @ r), 1e-3
+    for iteration in range(1, MAX_ITERATIONS + 1):
+        scale = np.maximum(np.linalg.norm(J, axis=0), 1e-12)
+        while True:
+            augmented = np.vstack([J, np.sqrt(damping) * np.diag(scale)])
+            rhs = np.concatenate([-r, np.zeros(len(x))])
+            step = np.linalg.lstsq(augmented, rhs, rcond=None)[0]
+            trial = x + step
+            r_new, J_new = problem.stacked(trial, modelled)
+            cost_new = float(r_new @ r_new)
+            if np.isfinite(cost_new) and cost_new <= cost:
+                x, r, J, cost = trial, r_new, J_new, cost_new
+                damping = max(damping / 3, 1e-12)
+                break
+            damping *= 4
+            if damping > 1e12:
+                return x, iteration
+        if np.abs(step).max() < STEP_TOLERANCE or damping > 1e12:
+            return x, iteration
+    return x, MAX_ITERATIONS
+
+
+def initial_poses(model: MeasurementModel, campaign: Campaign, theta: np.ndarray
+                  ) -> np.ndarray:
+    """Starting poses: the tracker's, else the least-squares pose of each reading (offsets
+    removed, stretch added back where the tensions are given) on the nominal geometry, by
+    Gauss-Newton from several guesses (the frame's centre, the case's start and goal, 24
+    workspace poses), keeping the best fit near the frame: from one default guess forward
+    kinematics fails on most poses of a large frame."""
+    if campaign.poses is not None:
+        return np.array(campaign.poses, dtype=float)
+    from cdpr_sym.workspace import sample_static_workspace
+
+    robot = model.robot
+    lengths = campaign.readings - theta[model.slices()["offsets"]]
+    if campaign.tensions is not None and np.isfinite(model.stiffness):
+        lengths = lengths * (1 + campaign.tensions / model.stiffness)  # stretched back
+    guesses = np.vstack([0.5 * (robot.frame_lower + robot.frame_upper), robot.start,
+                         robot.goal, sample_static_workspace(robot, 24,
+                                                             np.random.default_rng(0),
+                                                             margin=0.1)])
+    fit = _pose_fit(model)
+    # a pose read with the nominal geometry may lie a little outside the frame (a small
+    # platform's orientation moves far for a millimetre of length); a mirror image lies
+    # far outside
+    span = robot.frame_upper - robot.frame_lower
+    lower, upper = robot.frame_lower - 0.5 * span, robot.frame_upper + 0.5 * span
+    out = np.empty((campaign.size, model.n))
+    for k, reading in enumerate(lengths):
+        best, best_misfit = None, np.inf
+        for guess in guesses:
+            q, misfit = _gauss_newton_pose(fit, theta, reading, guess)
+            inside = np.all((q > lower) & (q < upper))
+            if inside and misfit < best_misfit:
+                best, best_misfit = q, misfit
+            if best_misfit < POSE_MISFIT / 5:
+                break  # a good fit: the readings' offsets and stretch allow no better
+        if best is None or best_misfit > POSE_MISFIT:
+            raise InvalidCase("readings", f"no pose of the nominal robot near its frame fits "
+                              f"the readings of row {k + 1} within {POSE_MISFIT:g} m")
+        out[k] = best
+    return out
+
+
+#: Largest misfit (m, largest cable) of a starting pose found from the readings alone.
+POSE_MISFIT = 0.05
+
+
+@functools.lru_cache(maxsize=16)
+def _pose_fit(model: MeasurementModel):
+    """(q, theta, reading) -> (l(q; theta) - reading, its Jacobian in q)."""
+    import casadi as ca
+
+    q, theta = ca.SX.sym("q", model.n), ca.SX.sym("theta", model.size)
+    reading = ca.SX.sym("reading", model.m)
+    misfit = model.lengths(q, theta) - reading
+    return ca.Function("pose_fit", [q, theta, reading], [misfit, ca.jacobian(misfit, q)])
+
+
+def _gauss_newton_pose(fit, theta: np.ndarray, reading: np.ndarray, q: np.ndarray,
+                       iterations: int = 40) -> tuple[np.ndarray, float]:
+    """The least-squares pose from ``q`` (halving steps that do not lower the misfit), and
+    its largest misfit (m)."""
+    r, J = (np.array(v) for v in fit(q, theta, reading))
+    r = r.ravel()
+    for _ in range(iterations):
+        if not np.all(np.isfinite(J)):
+            break
+        step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        for _ in range(20):
+            trial = q + step
+            r_new, J_new = (np.array(v) for v in fit(trial, theta, reading))
+            if np.all(np.isfinite(r_new)) and r_new.ravel() @ r_new.ravel() <= r @ r:
+                break
+            step = step / 2
+        else:
+            break
+        q, r, J = trial, r_new.ravel(), J_new
+        if np.abs(step).max() < 1e-10:
+            break
+    return q, float(np.abs(r).max())
+
+
+def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns = Unknowns()
+              ) -> Calibration:
+    """Estimate the anchors and encoder offsets (and attachments) of ``robot`` from
+    ``campaign``.
+
+    Parameters
+    ----------
+    robot : Robot
+        The nominal robot: the starting geometry, and the frame's reference for a campaign
+        with a gauge (:mod:`cdpr_sym.calibration.gauge`).
+    campaign : Campaign
+    unknowns : Unknowns
+
+    Returns
+    -------
+    Calibration
+
+    Raises
+    ------
+    InvalidCase
+        The campaign does not fit the robot, has fewer measurements than unknowns, or
+        (``readings``) a reading fits no pose of the nominal robot.
+    """
+    campaign.check_robot(robot.n, robot.m)
+    model = MeasurementModel(robot, unknowns, campaign.stiffness)
+    check_size(model, campaign)
+    theta = model.nominal(robot.encoder_offsets)
+    problem = _Problem(model, campaign, theta)
+    poses = initial_poses(model, campaign, theta)
+    own = np.hstack([poses, campaign.tensions]) if campaign.kind == "load cells" else poses
+    x = problem.x_of(theta, own)
+    modelled, iterations = _modelled(model, campaign, theta, poses), 0
+    for _ in range(MAX_PASSES):
+        x_new, used = _levenberg_marquardt(problem, x, modelled)
+        iterations += used
+        moved = np.abs(problem.split(x_new)[0] - problem.split(x)[0]).max()
+        x = x_new
+        if campaign.tensions is not None or not np.isfinite(model.stiffness):
+            break  # the stretch's tensions are data, not the estimate's
+        theta, own = problem.split(x)
+        modelled = _modelled(model, campaign, theta, own[:, :model.n])
+        if moved < PASS_TOLERANCE:
+            break
+    return _result(problem, x, modelled, iterations)
+
+
+def check_size(model: MeasurementModel, campaign: Campaign) -> None:
+    """Refuse a campaign with fewer measurements than unknowns (before any solve)."""
+    kind = campaign.kind
+    per_pose = model.m + (model.n if kind == "tracker" else 0) + (
+        model.m + model.n if kind == "load cells" else 0)
+    unknowns = model.size + campaign.size * own_size(model, kind)
+    gauge = model.size - len(gauge_complement(model, kind))
+    if campaign.size * per_pose + gauge < unknowns:
+        needed = int(np.ceil((model.size - gauge) / max(per_pose - own_size(model, kind), 1)))
+        raise InvalidCase("readings", f"{campaign.size} poses give {campaign.size * per_pose} "
+                          f"measurements for {unknowns - gauge} unknowns; a {kind} campaign "
+                          f"of this robot needs at least {needed} poses")
+
+
+def _modelled(model: MeasurementModel, campaign: Campaign, theta: np.ndarray,
+              poses: np.ndarray) -> np.ndarray:
+    if campaign.tensions is not None:
+        return np.array(campaign.tensions, dtype=float)
+    if not np.isfinite(model.stiffness):
+        return np.zeros((campaign.size, model.m))
+    return modelled_tensions(model, theta, poses)
+
+
+def _result(problem: _Problem, x: np.ndarray, modelled: np.ndarray, iterations: int
+            ) -> Calibration:
+    model, campaign = problem.model, problem.campaign
+    theta, own = problem.split(x)
+    blocks = problem.blocks(x, modelled)
+    covariance = problem.covariance(blocks)
+    residuals = blocks.residuals
+    dof = max(residuals.size - x.size, 1)
+    tensions = own[:, model.n:] if campaign.kind == "load cells" else modelled
+    return Calibration(
+        robot=model.robot_with(theta), theta=theta, names=model.names(),
+        covariance=covariance, poses=own[:, :model.n], tensions=tensions,
+        kind=campaign.kind, residual_rms=_rms(model, campaign, residuals),
+        sigma0=float(np.sqrt((residuals ** 2).sum() / dof)), iterations=iterations,
+        identifiability=identifiability(model, campaign.kind, blocks, own[:, :model.n]))
+
+
+def _rms(model: MeasurementModel, campaign: Campaign, residuals: np.ndarray
+         ) -> dict[str, float]:
+    """Unweighted residual RMS by measurement kind."""
+    noise, m, n = campaign.noise, model.m, model.n
+    out = {"reading": float(np.sqrt(np.mean(residuals[:, :m] ** 2))) * noise.reading}
+    if campaign.kind == "tracker":
+        units = np.array(model.robot.coordinate_units)
+        pose = residuals[:, m:m + n]
+        out["position"] = float(np.sqrt(np.mean(pose[:, units == "m"] ** 2))) * noise.position
+        if (units == "rad").any():
+            out["angle"] = float(np.sqrt(np.mean(pose[:, units == "rad"] ** 2))) * noise.angle
+    if campaign.kind == "load cells":
+        out["tension"] = float(np.sqrt(np.mean(residuals[:, m:2 * m] ** 2))) * noise.tension
+    return out
+
+
+def cramer_rao_bound(robot: Robot, campaign: Campaign, theta: np.ndarray, poses: np.ndarray,
+                     tensions: np.ndarray, *, unknowns: Unknowns = Unknowns()) -> np.ndarray:
+    """The Cramér-Rao bound of theta (m^2, (p, p)) for ``campaign``'s kind, pose count and
+    noise, at the true geometry ``theta``, poses and tensions (N, the stretch's), in the
+    frame of the gauge constraints: the inverse Fisher information."""
+    model = MeasurementModel(robot, unknowns, campaign.stiffness)
+    problem = _Problem(model, campaign, model.nominal())
+    own = np.hstack([poses, tensions]) if campaign.kind == "load cells" else poses
+    return problem.covariance(problem.blocks(problem.x_of(theta, own), tensions))

@@ -1,0 +1,108 @@
+"""The weighted residuals of a campaign and their Jacobian, pose by pose.
+
+Every measurement becomes a residual divided by its standard deviation, so that a sum of
+squares is the negative log-likelihood (up to a constant) under independent Gaussian
+noise, and the Jacobian's Gram matrix is the Fisher information:
+
+* encoder reading i at pose k: (h_i(q_k, theta, T_k) - reading_ki) / sigma_reading,
+  h the measurement model (1) of :mod:`cdpr_sym.calibration.measurement`;
+* ``tracker``: (q_k - pose_k) / sigma (position or angle), the errors in variables: the
+  poses are unknowns too, measured with noise like everything else;
+* ``load cells``: the tensions T_k are unknowns measured by (T_k - tension_k) / sigma_T,
+  and the statics (2) hold to sigma_T / :data:`STATICS_TIGHTNESS` (a penalty tight enough to
+  act as the equation, loose enough to keep the least squares well conditioned).
+
+A pose's unknowns (its q_k, and T_k with load cells) enter only that pose's residuals, so
+the Jacobian is theta's columns beside a block diagonal; :func:`pose_blocks` returns the
+blocks, which the estimator assembles and the identifiability report and the pose planner
+reduce pose by pose (eliminating a pose's own unknowns).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.calibration.campaign import Campaign
+from cdpr_sym.calibration.measurement import MeasurementModel
+
+#: How much tighter than a load cell's noise the statics residual is held.
+STATICS_TIGHTNESS = 1e3
+
+
+@dataclasses.dataclass(frozen=True)
+class PoseBlocks:
+    """The weighted residuals of N poses: r (N, k), dr/dtheta (N, k, p) and dr/d(the
+    pose's own unknowns) (N, k, u)."""
+
+    residuals: np.ndarray
+    theta: np.ndarray
+    own: np.ndarray
+
+    def reduced(self) -> np.ndarray:
+        """dr/dtheta with each pose's own unknowns eliminated (projected out of its block),
+        stacked: (N k, p). Its Gram matrix is theta's Fisher information."""
+        blocks = []
+        for A, B in zip(self.theta, self.own, strict=True):
+            basis, singular, _ = np.linalg.svd(B, full_matrices=False)
+            basis = basis[:, singular > singular[0] * 1e-12]
+            blocks.append(A - basis @ (basis.T @ A))
+        return np.concatenate(blocks)
+
+
+def own_size(model: MeasurementModel, kind: str) -> int:
+    """Unknowns of one pose: q (n), and with load cells its tensions (m)."""
+    return model.n + (model.m if kind == "load cells" else 0)
+
+
+@functools.lru_cache(maxsize=16)
+def _pose_function(model: MeasurementModel, kind: str) -> ca.Function:
+    """(own, theta, modelled T, reading, pose, tension, sigmas) -> (r, dr/dtheta, dr/down)
+    of one pose; ``sigmas`` = (reading, position, angle, tension)."""
+    n, m = model.n, model.m
+    own, theta = ca.SX.sym("own", own_size(model, kind)), ca.SX.sym("theta", model.size)
+    modelled, reading = ca.SX.sym("T_model", m), ca.SX.sym("reading", m)
+    pose, tension, sigma = ca.SX.sym("pose", n), ca.SX.sym("tension", m), ca.SX.sym("s", 4)
+    q = own[:n]
+    used = own[n:] if kind == "load cells" else modelled
+    parts = [(model.reading(q, theta, used) - reading) / sigma[0]]
+    if kind == "tracker":
+        scale = ca.vertcat(*[sigma[2] if unit == "rad" else sigma[1]
+                             for unit in model.robot.coordinate_units])
+        parts.append((q - pose) / scale)
+    if kind == "load cells":
+        parts.append((used - tension) / sigma[3])
+        parts.append(model.statics(q, theta, used) * (STATICS_TIGHTNESS / sigma[3]))
+    r = ca.vertcat(*parts)
+    return ca.Function("calibration_pose", [own, theta, modelled, reading, pose, tension, sigma],
+                       [r, ca.jacobian(r, theta), ca.jacobian(r, own)], {"cse": True})
+
+
+def pose_blocks(model: MeasurementModel, campaign: Campaign, theta: np.ndarray,
+                own: np.ndarray, modelled: np.ndarray) -> PoseBlocks:
+    """The weighted residuals and Jacobian blocks of every pose of ``campaign``.
+
+    Parameters
+    ----------
+    theta : ndarray, shape (p,)
+    own : ndarray, shape (N, u)
+        Each pose's own unknowns: q (n) and, with load cells, T (m).
+    modelled : ndarray, shape (N, m)
+        Tensions (N) for the stretch where none are measured (ignored with load cells).
+    """
+    kind, count = campaign.kind, campaign.size
+    function = _pose_function(model, kind).map(count)
+    noise = campaign.noise
+    sigmas = np.array([noise.reading, noise.position, noise.angle, noise.tension])
+    poses = campaign.poses if campaign.poses is not None else np.zeros((count, model.n))
+    tensions = campaign.tensions if campaign.tensions is not None else np.zeros((count, model.m))
+    r, A, B = function(own.T, theta, modelled.T, campaign.readings.T, poses.T, tensions.T,
+                       sigmas)
+    rows = r.shape[0]
+    residuals = np.array(r).T
+    dtheta = np.array(A).reshape(rows, count, model.size).transpose(1, 0, 2)
+    down = np.array(B).reshape(rows, count, own.shape[1]).transpose(1, 0, 2)
+    return PoseBlocks(residuals, dtheta, down)
