@@ -8,15 +8,16 @@ measurements at static poses, with their covariance and an identifiability repor
 * :mod:`~cdpr_sym.calibration.gauge`: what no measurement fixes, and how the frame is fixed;
 * :mod:`~cdpr_sym.calibration.estimate`: the estimate, its covariance, the Cramér-Rao bound;
 * :mod:`~cdpr_sym.calibration.identifiability`: what is identified, named in words;
-* :mod:`~cdpr_sym.calibration.simulated`: the campaign a known truth would give.
+* :mod:`~cdpr_sym.calibration.simulated`: the campaign a known truth would give;
+* :mod:`~cdpr_sym.calibration.plan`: D-optimal calibration poses;
+* :mod:`~cdpr_sym.calibration.table`: the measurement CSV, read and checked.
+
+The stage sits between the model and the closed loop: it reads the model's kinematics and
+writes a :class:`~cdpr_sym.robot.Robot` (anchors, attachments, encoder offsets) that every
+later stage takes like any other.
 """
 
-from cdpr_sym.calibration.campaign import KINDS, Campaign, Noise
-from cdpr_sym.calibration.estimate import Calibration, calibrate, cramer_rao_bound
-from cdpr_sym.calibration.identifiability import Identifiability, gauge_free
-from cdpr_sym.calibration.measurement import MeasurementModel, Unknowns
-from cdpr_sym.calibration.simulated import Truth, simulate_campaign, true_tensions
+import lazy_loader
 
-__all__ = ["KINDS", "Calibration", "Campaign", "Identifiability", "MeasurementModel", "Noise",
-           "Truth", "Unknowns", "calibrate", "cramer_rao_bound", "gauge_free",
-           "simulate_campaign", "true_tensions"]
+# Names are imported on first use (the stub beside this file lists them)
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

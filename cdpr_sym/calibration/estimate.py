@@ -294,6 +294,7 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns = Unknowns
     own = np.hstack([poses, campaign.tensions]) if campaign.kind == "load cells" else poses
     x = problem.x_of(theta, own)
     modelled, iterations = _modelled(model, campaign, theta, poses), 0
+    _check_identified(model, campaign, problem.blocks(x, modelled), poses)
     for _ in range(MAX_PASSES):
         x_new, used = _levenberg_marquardt(problem, x, modelled)
         iterations += used
@@ -306,6 +307,18 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns = Unknowns
         if moved < PASS_TOLERANCE:
             break
     return _result(problem, x, modelled, iterations)
+
+
+def _check_identified(model: MeasurementModel, campaign: Campaign, blocks: PoseBlocks,
+                      poses: np.ndarray) -> None:
+    """Refuse, before the solve, a campaign that leaves some direction of the geometry
+    (other than its gauge) unidentified at the starting point, naming it."""
+    report = identifiability(model, campaign.kind, blocks, poses)
+    if report.problems:
+        names = "; ".join(d.name for d in report.problems)
+        free = report.rank + len(report.problems)
+        raise InvalidCase("readings", f"the campaign cannot identify {names} (rank "
+                          f"{report.rank} of {free}); measure at poses that differ more")
 
 
 def check_size(model: MeasurementModel, campaign: Campaign) -> None:

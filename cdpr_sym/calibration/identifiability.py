@@ -1,19 +1,20 @@
 """Which directions of the geometry a campaign identifies, and which it cannot, in words.
 
 theta's Fisher information, with each pose's own unknowns eliminated, is F = J_r^T J_r
-(:meth:`~cdpr_sym.calibration.information.PoseBlocks.reduced`). Its singular value
+(:meth:`~cdpr_sym.calibration.information.PoseBlocks.reduced`). The gauge motions of the
+campaign (:mod:`cdpr_sym.calibration.gauge`) are set apart; on the rest, the singular value
 decomposition J_r = U S V^T gives, for each right singular vector v_j (a direction in theta,
-metres), the standard deviation 1 / s_j of the geometry along it. A direction with s_j below
-:data:`RANK_TOLERANCE` s_max is not identified at all (the rank is the count above it); one
-whose standard deviation exceeds ``weak`` (default 1 mm) is weakly identified.
+metres), the standard deviation 1 / s_j of the geometry along it. A direction is not
+identified when s_j is zero to round-off (below :data:`RANK_TOLERANCE` s_max; the rank
+counts the others) or its standard deviation exceeds :data:`UNIDENTIFIED_STD`; weakly
+identified when it exceeds ``weak`` (default 1 mm).
 
-Each such direction is named from a dictionary of candidate motions: the gauge motions of
-:mod:`cdpr_sym.calibration.gauge` ("all anchors and poses shifted together along x"), each
-anchor moved along its mean cable direction against its encoder offset ("anchor 3 along its
-cable"), and every single parameter ("anchor 2 z", "offset 1"). A candidate lying in the
-unidentified subspace (its component there at least :data:`NAMED_FRACTION`) is named as
-unidentified; a weak direction takes the name of its closest candidate when the two are
-aligned that well, else the parameters that make up most of it.
+Each tier is named as a subspace from a dictionary of candidate motions: each anchor moved
+along its mean cable direction against its encoder offset ("anchor 3 along its cable"),
+across its cable, and every single parameter ("anchor 2 z", "offset 1"). A candidate lying
+in the subspace (its component there at least :data:`NAMED_FRACTION`) is named with its own
+standard deviation; what the named ones leave unexplained is named by the parameters that
+make up most of it.
 """
 
 from __future__ import annotations
@@ -37,6 +38,9 @@ RANK_TOLERANCE = 1e-9
 NAMED_FRACTION = 0.95
 #: Default standard deviation (m) above which an identified direction is weak.
 WEAK_STD = 1e-3
+#: Standard deviation (m) from which a direction counts as not identified at all: a frame's
+#: geometry known no better than a metre is not known.
+UNIDENTIFIED_STD = 1.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -90,11 +94,12 @@ class Identifiability:
         """The report in words."""
         out = [f"rank {self.rank} of {self.parameters}, condition number {self.condition:.3g}"]
         for d in self.unidentified:
+            felt = "" if d.std == float("inf") else f" ({1e3 * d.std:.3g} mm)"
             if d.gauge:
-                felt = "" if d.std == float("inf") else f" (the data alone: {1e3 * d.std:.3g} mm)"
-                out.append(f"  gauge, fixed by the nominal frame: {d.name}{felt}")
+                out.append(f"  gauge, fixed by the nominal frame: {d.name}"
+                           + (f" (the data alone:{felt[1:]}" if felt else ""))
             else:
-                out.append(f"  NOT identified: {d.name}")
+                out.append(f"  NOT identified: {d.name}{felt}")
         for d in self.weak:
             out.append(f"  weak ({1e3 * d.std:.3g} mm): {d.name}")
         return out
@@ -121,11 +126,29 @@ def candidates(model: MeasurementModel, kind: str, poses: np.ndarray
         vector[where["offsets"].start + i] = -np.linalg.norm(direction)
         out.append((vector / np.linalg.norm(vector), f"anchor {i + 1} along its cable, "
                     f"against offset {i + 1}", False))
+        for across, how in _across(direction):
+            vector = np.zeros(model.size)
+            vector[where["anchors"].start + i * d:where["anchors"].start + (i + 1) * d] = across
+            out.append((vector, f"anchor {i + 1} across its cable, {how}", False))
     for index, name in enumerate(model.names()):
         unit = np.zeros(model.size)
         unit[index] = 1.0
         out.append((unit, name, False))
     return out
+
+
+def _across(direction: np.ndarray) -> list[tuple[np.ndarray, str]]:
+    """Unit directions square to a cable's ``direction``: horizontal and in the cable's
+    vertical plane (3-D); in the plane (2-D)."""
+    along = direction / np.linalg.norm(direction)
+    if len(along) == 2:
+        return [(np.array([-along[1], along[0]]), "in the plane")]
+    horizontal = np.cross(along, [0.0, 0.0, 1.0])
+    if np.linalg.norm(horizontal) < 1e-9:  # a vertical cable
+        horizontal = np.array([1.0, 0.0, 0.0])
+    horizontal /= np.linalg.norm(horizontal)
+    return [(horizontal, "horizontally"),
+            (np.cross(horizontal, along), "in its vertical plane")]
 
 
 def _world_points(model: MeasurementModel, poses: np.ndarray, cable: int) -> np.ndarray:
@@ -146,8 +169,12 @@ def identifiability(model: MeasurementModel, kind: str, blocks: PoseBlocks,
 
     The gauge motions of the campaign's kind are set apart first: each is reported with the
     standard deviation the data alone would give it (inf for an exact symmetry; finite
-    where, say, cable stretch feels a tilt), and the rank, condition number and the other
-    directions are those of theta's information on the complement of the gauge."""
+    where, say, cable stretch feels a tilt). The rank, condition number and the other
+    directions are those of theta's information on the complement of the gauge: a
+    direction is not identified when its singular value is zero to round-off or its
+    standard deviation exceeds :data:`UNIDENTIFIED_STD`, weak when it exceeds ``weak``.
+    Each tier is named as a subspace (:func:`_name_subspace`), every named direction with
+    its own standard deviation sqrt(c^T C c), C the covariance."""
     reduced = blocks.reduced()
     gauge = [(v / np.linalg.norm(v), name) for v, name in gauge_directions(model, kind)]
     complement = gauge_complement(model, kind)
@@ -159,15 +186,16 @@ def identifiability(model: MeasurementModel, kind: str, blocks: PoseBlocks,
     rank = int(identified.sum())
     condition = float(values[0] / values[identified][-1]) if rank else float("inf")
     directions = right @ complement  # back in theta
-    named = candidates(model, kind, poses)
+    with np.errstate(divide="ignore"):
+        stds = np.where(identified, 1 / np.where(identified, values, 1.0), np.inf)
+    covariance = (directions[identified].T / values[identified] ** 2) @ directions[identified]
+    named = [c for c in candidates(model, kind, poses) if not c[2]]
     unidentified = [Direction(name, _std(reduced, vector, scale), True)
                     for vector, name in gauge]
-    null = directions[~identified]
-    if len(null):
-        unidentified += _name_subspace(null, [c for c in named if not c[2]])
-    weak_directions = [Direction(_name_direction(vector, named), float(1 / value), False)
-                       for value, vector in zip(values[identified], directions[identified],
-                                                strict=True) if 1 / value > weak]
+    lost = stds >= UNIDENTIFIED_STD
+    unidentified += _name_subspace(directions[lost], named, covariance, stds[lost])
+    faint = (stds > weak) & ~lost
+    weak_directions = _name_subspace(directions[faint], named, covariance, stds[faint])
     return Identifiability(model.size, rank, condition, values, unidentified, weak_directions)
 
 
@@ -185,26 +213,40 @@ def gauge_free(model: MeasurementModel, kind: str, error: np.ndarray) -> np.ndar
     return error - basis.T @ (basis @ error)
 
 
-def _name_subspace(null: np.ndarray, named: list[tuple[np.ndarray, str, bool]]
-                   ) -> list[Direction]:
-    """Names of the candidates lying in the subspace spanned by the rows of ``null``
-    (orthonormal), gauge motions first; then, for what they leave unexplained, the
+def _name_subspace(space: np.ndarray, named: list[tuple[np.ndarray, str, bool]],
+                   covariance: np.ndarray, stds: np.ndarray) -> list[Direction]:
+    """Names for the subspace spanned by the rows of ``space`` (orthonormal, standard
+    deviations ``stds``): the candidates lying in it, each with its standard deviation
+    (inf outside the identified part); then, for what they leave unexplained, the
     parameters making up most of it."""
-    found, basis = [], np.zeros((0, null.shape[1]))
-    for vector, name, gauge in sorted(named, key=lambda item: not item[2]):
-        if np.linalg.norm(null @ vector) < NAMED_FRACTION:
+    found, basis = [], np.zeros((0, space.shape[1] if len(space) else 0))
+    if not len(space):
+        return found
+    for vector, name, _ in named:
+        unit = vector / np.linalg.norm(vector)
+        if np.linalg.norm(space @ unit) < NAMED_FRACTION:
             continue
-        rest = vector - basis.T @ (basis @ vector) if len(basis) else vector
-        if np.linalg.norm(rest) < 0.1:
-            continue  # already explained by those named
+        rest = unit - basis.T @ (basis @ unit) if len(basis) else unit
+        if np.linalg.norm(rest) < 0.3:
+            continue  # mostly explained by those named already
         basis = np.vstack([basis, rest / np.linalg.norm(rest)])
-        found.append(Direction(name, float("inf"), gauge))
-    if len(basis) < len(null):
-        leftover = null - (null @ basis.T) @ basis if len(basis) else null
-        _, _, v = np.linalg.svd(leftover)
-        for vector in v[:len(null) - len(basis)]:
-            found.append(Direction(_name_direction(vector, named), float("inf"), False))
+        found.append(Direction(name, _candidate_std(unit, space, covariance, stds), False))
+    if len(basis) < len(space):
+        leftover = space - (space @ basis.T) @ basis if len(basis) else space
+        _, _, rows = np.linalg.svd(leftover)
+        for vector in rows[:len(space) - len(basis)]:
+            found.append(Direction(_name_direction(vector, named),
+                                   _candidate_std(vector, space, covariance, stds), False))
     return found
+
+
+def _candidate_std(unit: np.ndarray, space: np.ndarray, covariance: np.ndarray,
+                   stds: np.ndarray) -> float:
+    """sqrt(c^T C c) along ``unit``; inf when it leans on a direction not identified."""
+    components = space @ unit
+    if np.any(~np.isfinite(stds) & (np.abs(components) > 1e-6)):
+        return float("inf")
+    return float(np.sqrt(max(unit @ covariance @ unit, 0.0)))
 
 
 def _name_direction(vector: np.ndarray, named: list[tuple[np.ndarray, str, bool]]) -> str:

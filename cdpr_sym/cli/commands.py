@@ -13,8 +13,10 @@ import dataclasses
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from cdpr_sym.cli.calibrate import calibrate_command
 from cdpr_sym.cli.output import Output, quantity, yes_no
 from cdpr_sym.cli.parser import MAX_WORKERS
+from cdpr_sym.cli.robots import checked_robot
 from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
 from cdpr_sym.codegen import BuildOptions
@@ -30,14 +32,6 @@ if TYPE_CHECKING:
     import numpy as np
 
     from cdpr_sym.sweep import SweepConfig
-
-
-def checked_robot(name_or_path: str) -> Robot:
-    """The robot, with its own case checked (start and goal regular, goal holdable), so a
-    bad robot file is refused before any long work."""
-    robot = resolve_robot(name_or_path)
-    Case.of(robot)
-    return robot
 
 
 def _progress(args: argparse.Namespace) -> bool:
@@ -264,4 +258,4 @@ def _check_folder(field: str, folder: Path) -> None:
 
 HANDLERS = {"simulate": simulate_command, "study": study_command, "bench": bench_command,
             "workspace": workspace_command, "sweep": sweep_command, "report": report_command,
-            "export-c": export_command}
+            "export-c": export_command, "calibrate": calibrate_command}

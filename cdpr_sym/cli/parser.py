@@ -159,4 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--force", action="store_true",
                         help="write into --out even if it holds other files")
     export.add_argument("--prefix", help="C prefix of every symbol (default cdpr_ROBOT_CTRL)")
+    from cdpr_sym.cli.calibrate import add_parser as add_calibrate
+
+    add_calibrate(command)
     return parser

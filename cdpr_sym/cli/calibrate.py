@@ -1,0 +1,158 @@
+"""``cdpr-sym calibrate``: a robot file from a measurement table, or the poses to measure.
+
+Every option and the whole table are checked before the solve (one line naming the field,
+exit status 2); the calibrated robot file is written only after the solve succeeds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from cdpr_sym.cli.output import Output
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot import Robot
+
+#: Most poses ``--plan`` chooses.
+MAX_PLAN_POSES = 1000
+
+
+def add_parser(command) -> None:
+    """The ``calibrate`` command's options."""
+    parser = command("calibrate", "estimate anchors and encoder offsets from measurements "
+                     "at static poses (or, with --plan, choose the poses)")
+    parser.add_argument("--robot", default="aras3", help="the nominal robot: a preset or a "
+                        "robot file")
+    parser.add_argument("--measurements", type=Path, help="CSV table: length_1..length_m "
+                        "(m), optionally the pose (the robot's coordinate names; m, rad) "
+                        "and tension_1..tension_m (N)")
+    parser.add_argument("--out", type=Path, help="the calibrated robot file (.toml); with "
+                      "--plan, the poses' CSV (default: printed)")
+    parser.add_argument("--cable-stiffness", type=float, default=1e5,
+                        help="axial cable stiffness EA, N, for the stretch (inf: rigid)")
+    parser.add_argument("--reading-noise", type=float, default=1e-5 / math.sqrt(12),
+                        help="encoder reading standard deviation, m")
+    parser.add_argument("--pose-noise", type=float, default=1e-4,
+                        help="tracker position standard deviation, m")
+    parser.add_argument("--angle-noise", type=float, default=1e-3,
+                        help="tracker angle standard deviation, rad")
+    parser.add_argument("--tension-noise", type=float, default=0.5,
+                        help="load cell standard deviation, N")
+    parser.add_argument("--load-cells", action="store_true",
+                        help="the tension columns are load-cell measurements (default: "
+                        "the commanded tensions)")
+    parser.add_argument("--attachments", action="store_true",
+                        help="also estimate the body's attachment points (rigid bodies)")
+    parser.add_argument("--plan", action="store_true",
+                        help="choose D-optimal calibration poses instead of calibrating")
+    parser.add_argument("--poses", type=int, help="--plan: how many poses")
+    parser.add_argument("--kind", default="tracker", choices=["tracker", "self", "load-cells"],
+                        help="--plan: the campaign the poses are for")
+    parser.add_argument("--seed", type=int, default=0, help="--plan: seed of the candidates")
+
+
+def _noise(args: argparse.Namespace):
+    from cdpr_sym.calibration import Noise
+
+    values = {"reading": args.reading_noise, "position": args.pose_noise,
+              "angle": args.angle_noise, "tension": args.tension_noise}
+    for field, value in values.items():
+        if not (math.isfinite(value) and value > 0):
+            raise InvalidCase(f"{field}_noise", f"expected a positive standard deviation, got "
+                              f"{value}")
+    return Noise(**values)
+
+
+def _stiffness(value: float) -> float:
+    if not value > 0:  # NaN too
+        raise InvalidCase("cable_stiffness", f"expected a positive EA in N (inf: rigid), got "
+                          f"{value}")
+    return value
+
+
+def _robot(name: str) -> Robot:
+    from cdpr_sym.cli.robots import checked_robot
+
+    return checked_robot(name)
+
+
+def calibrate_command(args: argparse.Namespace, out: Output) -> int:
+    if args.plan:
+        return _plan(args, out)
+    from cdpr_sym.calibration import Unknowns, calibrate
+    from cdpr_sym.calibration.table import campaign_from_table
+    from cdpr_sym.robot.files import robot_file_text
+
+    robot = _robot(args.robot)
+    if args.measurements is None:
+        raise InvalidCase("measurements", "expected a measurement table (or --plan)")
+    if args.out is None or args.out.suffix != ".toml":
+        raise InvalidCase("out", f"expected the calibrated robot file's path ending .toml, "
+                          f"got {args.out}")
+    if args.out.exists() and args.out.is_dir():
+        raise InvalidCase("out", f"{args.out} is a folder")
+    if not args.out.parent.exists():
+        raise InvalidCase("out", f"no folder {args.out.parent} to write into")
+    if args.attachments and robot.kind == "point":
+        raise InvalidCase("attachments", "a point mass has no attachment points")
+    campaign = campaign_from_table(args.measurements, robot, noise=_noise(args),
+                                  stiffness=_stiffness(args.cable_stiffness),
+                                  load_cells=args.load_cells)
+    result = calibrate(robot, campaign, unknowns=Unknowns(attachments=args.attachments))
+    comment = (f"{robot.name} calibrated by cdpr-sym from {args.measurements.name}: "
+               f"{campaign.size} poses, {campaign.kind} campaign, sigma0 "
+               f"{result.sigma0:.3g}\nreading residual RMS "
+               f"{1e3 * result.residual_rms['reading']:.4g} mm")
+    args.out.write_text(robot_file_text(result.robot, comment=comment), encoding="utf-8")
+    lines = [f"{robot.name}: {campaign.kind} campaign, {campaign.size} poses, "
+             f"{result.iterations} iterations, sigma0 {result.sigma0:.3g}",
+             *(f"  residual RMS {key:<9} {value:.4g}" for key, value in
+               result.residual_rms.items()),
+             *result.identifiability.lines()]
+    lines += [f"  {name:<14} {value:+.6f} m  +- {1e3 * std:.3f} mm" for name, value, std in
+              zip(result.names, result.theta, result.std, strict=True)]
+    lines.append(f"robot file: {args.out}")
+    out.result({**result.as_dict(), "robot_file": str(args.out)}, lines)
+    return 0
+
+
+def _plan(args: argparse.Namespace, out: Output) -> int:
+    from cdpr_sym.calibration.plan import anchor_accuracy, plan_poses
+    from cdpr_sym.calibration.table import write_poses
+    from cdpr_sym.workspace import sample_static_workspace
+
+    robot = _robot(args.robot)
+    if args.poses is None or not 0 < args.poses <= MAX_PLAN_POSES:
+        raise InvalidCase("poses", f"expected a number of poses in 1..{MAX_PLAN_POSES}, got "
+                          f"{args.poses}")
+    if args.seed < 0:
+        raise InvalidCase("seed", f"expected a seed >= 0, got {args.seed}")
+    if args.out is not None and args.out.is_dir():
+        raise InvalidCase("out", f"{args.out} is a folder")
+    kind = args.kind.replace("-", " ")
+    if kind == "self" and robot.m <= robot.n:
+        raise InvalidCase("kind", "self-calibration needs more cables than degrees of freedom")
+    noise, stiffness = _noise(args), _stiffness(args.cable_stiffness)
+    poses = plan_poses(robot, args.poses, kind=kind, stiffness=stiffness, noise=noise,
+                       seed=args.seed)
+    text = write_poses(poses, robot)
+    chosen = anchor_accuracy(robot, poses, kind=kind, stiffness=stiffness, noise=noise)
+    drawn = sample_static_workspace(robot, args.poses, np.random.default_rng(args.seed + 1),
+                                    margin=0.05)
+    random = anchor_accuracy(robot, drawn, kind=kind, stiffness=stiffness, noise=noise)
+    summary = {"poses": poses.tolist(), "anchor_rms_bound": chosen,
+               "anchor_rms_bound_random": random}
+    if args.out is not None:
+        args.out.write_text(text, encoding="utf-8")
+    lines = [f"{args.poses} D-optimal {kind} poses: the Cramér-Rao bound of the anchors is "
+             f"{1e3 * chosen:.3g} mm RMS ({1e3 * random:.3g} mm at as many random poses)"]
+    if args.out is not None:
+        lines.append(f"poses: {args.out}")
+    elif not getattr(args, "json", False):
+        sys.stdout.write(text)
+    out.result(summary, lines)
+    return 0
