@@ -2,8 +2,9 @@
 quantised cable lengths by forward kinematics, and the velocity from a filtered difference.
 
 Each control period: the encoders read the cable lengths (the paid-out, unstretched lengths
-r theta with winches; the geometric ones without), rounded to the resolution; forward
-kinematics with the controller's model, from the previous estimate, gives the pose; a
+r theta with winches; the geometric ones without), rounded to the resolution, less the
+model's encoder offsets where a calibration gave them; forward kinematics with the
+controller's model, from the previous estimate, gives the pose; a
 first-order filtered difference quotient the velocity. A pose that no forward kinematics
 explains within :func:`reading_bound` stops the run (``"lost_pose"``), as a real controller
 that lost its pose must.
@@ -55,6 +56,7 @@ class Encoders(PlantEffect):
         exact = build.dynamics.encoder_lengths(build.z)
         step = ca.fmax(resolution, 1e-300)
         reading = ca.if_else(resolution > 0, step * ca.floor(exact / step + 0.5), exact)
+        reading = corrected(model, reading)
         # the solver's own residual test is left wide open: reading_bound decides
         q_read, ok, residual = forward_kinematics_expression(model, reading, state["q_read"],
                                                              tolerance=1.0)
@@ -82,6 +84,15 @@ class Encoders(PlantEffect):
         fits (the first step then stops the run)."""
         read = start.read_pose(start.encoder_reading())
         return {"q_read": start.start if read is None else read, "dq_read": start.dq0}
+
+
+def corrected(model: SymbolicModel, reading):
+    """An encoder ``reading`` (m) less the model's encoder offsets
+    (:attr:`~cdpr_sym.robot.Robot.encoder_offsets`, from a calibration): the lengths the
+    model's forward kinematics take. Unchanged (the same expression) without offsets."""
+    offsets = model.robot.encoder_offsets
+    return reading if offsets is None else reading - (ca.DM(offsets) if isinstance(
+        reading, ca.SX) else offsets)
 
 
 def reading_bound(n: int, m: int, resolution, consistency):

@@ -11,7 +11,7 @@ import numpy as np
 
 from cdpr_sym.as_built import Sensing
 from cdpr_sym.as_built.geometry import true_geometry_function
-from cdpr_sym.closed_loop.effects.encoders import reading_bound
+from cdpr_sym.closed_loop.effects.encoders import corrected, reading_bound
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
@@ -80,9 +80,11 @@ class AsBuiltReadout:
     def read_pose(self, reading: np.ndarray, guess: np.ndarray, sensing: Sensing
                   ) -> np.ndarray | None:
         """The pose forward kinematics gives from ``guess`` for encoder ``reading`` (m),
-        rounded to the resolution; None when no pose fits within the reading bound."""
+        rounded to the resolution, less the model's encoder offsets; None when no pose fits
+        within the reading bound."""
         if sensing.resolution > 0:
             reading = sensing.resolution * np.floor(reading / sensing.resolution + 0.5)
+        reading = corrected(self.model, reading)
         q, ok, residual = self._forward_kinematics(reading, guess)
         bound = reading_bound(self.model.n, self.model.m, sensing.resolution,
                               sensing.consistency)
