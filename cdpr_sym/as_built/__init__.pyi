@@ -1,6 +1,7 @@
 # The names this package exports, read by type checkers and by lazy_loader at import
 # time: each is imported from its module on first use (see __init__.py).
 
+from .draw import DEFAULT_DRAW, AsBuiltDraw, load_as_built_draw
 from .spec import (
     ACTUATION_PARAMETERS,
     FRICTION_SPEED,
@@ -13,5 +14,6 @@ from .spec import (
 )
 from .static import true_static_function
 
-__all__ = ["ACTUATION_PARAMETERS", "FRICTION_SPEED", "MAX_DELAY", "SENSING_PARAMETERS",
-           "Actuation", "AsBuilt", "AsBuiltStructure", "Sensing", "true_static_function"]
+__all__ = ["ACTUATION_PARAMETERS", "DEFAULT_DRAW", "FRICTION_SPEED", "MAX_DELAY",
+           "SENSING_PARAMETERS", "Actuation", "AsBuilt", "AsBuiltDraw", "AsBuiltStructure",
+           "Sensing", "load_as_built_draw", "true_static_function"]

@@ -1,0 +1,177 @@
+"""A distribution of robots as built, from which each start/goal pair draws its own.
+
+:class:`AsBuiltDraw` states how far the robot as built may differ from its model: a mass
+error and anchor errors drawn uniformly per pair, and the winches, encoders and delay every
+draw shares. :data:`DEFAULT_DRAW` is the robustness study's combined "as built"
+specification; a TOML file (:func:`load_as_built_draw`) states another:
+
+.. code-block:: toml
+
+    mass_error = 0.10      # plant mass uniform in model mass x [0.9, 1.1]
+    anchor_error = 0.005   # each anchor coordinate uniform in +-5 mm
+    delay = 1              # control periods
+    substeps = 2
+    torque_margin = 1.5    # winch torque limit r T_max x 1.5 (when [actuation] gives none)
+
+    [actuation]            # the fields of Actuation; leave the table out for rigid cables
+    cable_damping = 4.0
+
+    [sensing]              # the fields of Sensing; leave it out for exact state feedback
+    resolution = 1e-5
+
+A draw is (mass scale, :class:`AsBuilt`); pair p of a sweep or study with seed s draws from
+``numpy.random.default_rng([s, p, crc32("as built")])``, mass first, then the offsets (m, d)
+row by row.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+import zlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cdpr_sym.as_built.spec import MAX_DELAY, Actuation, AsBuilt, Sensing
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot import Robot
+
+#: The tag that seeds the "as built" draws apart from other draws of the same pair.
+DRAW_TAG = zlib.crc32(b"as built")
+#: Largest as-built file read, bytes.
+MAX_FILE_BYTES = 1 << 16
+
+
+@dataclasses.dataclass(frozen=True)
+class AsBuiltDraw:
+    """How a robot as built differs from its model, per pair.
+
+    Parameters
+    ----------
+    mass_error : float
+        Largest relative mass error: the plant's mass is uniform in the model's times
+        [1 - e, 1 + e]. Default 0.10.
+    anchor_error : float
+        Largest anchor error per coordinate, m, uniform. Default 0.005 m.
+    actuation : Actuation or None
+        Winches (None: rigid cables). Default :class:`Actuation` with the torque limit set
+        from ``torque_margin``.
+    sensing : Sensing or None
+        Encoders (None: exact state). Default :class:`Sensing`.
+    delay : int
+        Command delay, control periods. Default 1.
+    substeps : int
+        RK4 steps per control period. Default 2.
+    torque_margin : float
+        Where ``actuation`` has no torque limit: r T_max times this. Default 1.5.
+    """
+
+    mass_error: float = 0.10
+    anchor_error: float = 0.005
+    actuation: Actuation | None = dataclasses.field(default_factory=Actuation)
+    sensing: Sensing | None = dataclasses.field(default_factory=Sensing)
+    delay: int = 1
+    substeps: int = 2
+    torque_margin: float = 1.5
+
+    def __post_init__(self) -> None:
+        for field, top in (("mass_error", 0.9), ("anchor_error", 0.1)):
+            value = getattr(self, field)
+            if not (isinstance(value, (int, float)) and not isinstance(value, bool)
+                    and 0 <= value <= top):
+                raise InvalidCase(field, f"expected a number in 0..{top:g}, got {value!r}")
+        if not (isinstance(self.torque_margin, (int, float)) and self.torque_margin > 0
+                and math.isfinite(self.torque_margin)):
+            raise InvalidCase("torque_margin", f"expected a positive factor, got "
+                              f"{self.torque_margin!r}")
+        AsBuilt(delay=self.delay, substeps=self.substeps)  # checks both
+
+    def drive(self, robot: Robot) -> Actuation | None:
+        """The winches of ``robot``'s draws: a torque limit of r T_max x margin unless set."""
+        if self.actuation is None or self.actuation.torque_limit is not None:
+            return self.actuation
+        limit = self.torque_margin * robot.t_max * self.actuation.drum_radius
+        return dataclasses.replace(self.actuation, torque_limit=limit)
+
+    def draw(self, rng: np.random.Generator, robot: Robot) -> tuple[float, AsBuilt]:
+        """One robot as built: (mass scale, :class:`AsBuilt`)."""
+        mass_scale = float(rng.uniform(1 - self.mass_error, 1 + self.mass_error))
+        offsets = rng.uniform(-self.anchor_error, self.anchor_error, (robot.m, robot.dimension))
+        return mass_scale, AsBuilt(actuation=self.drive(robot), sensing=self.sensing,
+                                   delay=self.delay, anchor_offsets=offsets,
+                                   substeps=self.substeps)
+
+    def draw_pair(self, robot: Robot, seed: int, pair: int) -> tuple[float, AsBuilt]:
+        """Pair ``pair``'s draw of a sweep or study seeded ``seed``."""
+        return self.draw(np.random.default_rng([seed, pair, DRAW_TAG]), robot)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain numbers (an unlimited torque as None), for a record."""
+        return {"mass_error": self.mass_error, "anchor_error": self.anchor_error,
+                "actuation": dataclasses.asdict(self.actuation) if self.actuation else None,
+                "sensing": dataclasses.asdict(self.sensing) if self.sensing else None,
+                "delay": self.delay, "substeps": self.substeps,
+                "torque_margin": self.torque_margin}
+
+
+#: The robustness study's combined "as built" specification.
+DEFAULT_DRAW = AsBuiltDraw()
+
+_TOP_FIELDS = {"mass_error", "anchor_error", "delay", "substeps", "torque_margin",
+               "actuation", "sensing"}
+
+
+def as_built_draw_from_dict(data: dict[str, Any], source: str = "<dict>") -> AsBuiltDraw:
+    """An :class:`AsBuiltDraw` from the file layout (see the module notes); unknown or
+    misspelt fields are refused naming them."""
+    unknown = sorted(set(data) - _TOP_FIELDS)
+    if unknown:
+        raise InvalidCase(unknown[0], f"unknown field in {source}; expected one of "
+                          f"{', '.join(sorted(_TOP_FIELDS))}")
+    parts: dict[str, Any] = {key: value for key, value in data.items()
+                             if key not in ("actuation", "sensing")}
+    for table, kind in (("actuation", Actuation), ("sensing", Sensing)):
+        if table not in data:
+            parts[table] = None
+            continue
+        fields = data[table]
+        if not isinstance(fields, dict):
+            raise InvalidCase(table, f"expected a table in {source}")
+        known = {f.name for f in dataclasses.fields(kind)}
+        bad = sorted(set(fields) - known)
+        if bad:
+            raise InvalidCase(f"{table}.{bad[0]}", f"unknown field in {source}; expected one "
+                              f"of {', '.join(sorted(known))}")
+        try:
+            parts[table] = kind(**fields)
+        except InvalidCase as wrong:
+            raise InvalidCase(f"{table}.{wrong.field}", wrong.message) from None
+        except TypeError as wrong:
+            raise InvalidCase(table, f"{wrong} in {source}") from None
+    if not isinstance(parts.get("delay", 1), int) or parts.get("delay", 1) > MAX_DELAY:
+        raise InvalidCase("delay", f"expected a whole number of periods in 0..{MAX_DELAY}")
+    return AsBuiltDraw(**parts)
+
+
+def load_as_built_draw(name_or_path: str | Path) -> AsBuiltDraw:
+    """``default`` (:data:`DEFAULT_DRAW`) or an as-built TOML file."""
+    if str(name_or_path) == "default":
+        return DEFAULT_DRAW
+    path = Path(name_or_path)
+    if not path.is_file():
+        raise InvalidCase("as_built", f"expected 'default' or an as-built TOML file; no file "
+                          f"at {path}")
+    if path.stat().st_size > MAX_FILE_BYTES:
+        raise InvalidCase("as_built", f"{path} is larger than {MAX_FILE_BYTES >> 10} KiB")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InvalidCase("as_built", f"{path} is not a UTF-8 text file") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as bad:
+        raise InvalidCase("as_built", f"{path} is not valid TOML: {bad}") from None
+    return as_built_draw_from_dict(data, str(path))
