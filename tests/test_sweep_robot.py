@@ -167,7 +167,7 @@ def test_a_damaged_description_is_refused_naming_its_digest():
                    preset("planar2"))
     state = job.__getstate__()
     damaged = pickle.loads(pickle.dumps(job))
-    damaged.__setstate__((state[0], state[1].replace("1.0", "1.5", 1), state[2]))
+    damaged.__setstate__((state[0], state[1].replace("1.0", "1.5", 1), *state[2:]))
     with pytest.raises(InvalidCase) as refused:
         _ = damaged.robot
     assert refused.value.field == "robot"

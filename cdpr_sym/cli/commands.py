@@ -22,7 +22,7 @@ from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import Controller, controller_by_name
 from cdpr_sym.errors import InvalidCase, InvalidRobot
-from cdpr_sym.results.trajectory import save_path
+from cdpr_sym.results.trajectory import Trajectory, save_path
 from cdpr_sym.robot import PRESET_NAMES, Robot, resolve_robot
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyRequest
 from cdpr_sym.studies.registry import study_by_name
@@ -31,6 +31,7 @@ from cdpr_sym.sweep.config import check_pairs, check_seed
 if TYPE_CHECKING:
     import numpy as np
 
+    from cdpr_sym.as_built import AsBuiltDraw
     from cdpr_sym.sweep import SweepConfig
 
 
@@ -54,6 +55,30 @@ class SimulateInput:
     case: Case
     plant: Plant
     save: Path | None
+    as_built: AsBuiltDraw | None = None
+
+
+def check_as_built_args(args: argparse.Namespace, robot: Robot) -> AsBuiltDraw | None:
+    """The as-built specification of ``--as-built`` (None without it), checked with
+    ``--calibration`` and the control period before any work: no other plant option beside
+    it (the draw sets the mass), a calibration only on a robot as built that can take it."""
+    from cdpr_sym.as_built import load_as_built_draw
+    from cdpr_sym.closed_loop.drawn import check_calibration
+
+    if args.as_built is None:
+        if args.calibration != "none":
+            raise InvalidCase("calibration", "a calibration needs a robot as built "
+                              "(--as-built default or a file)")
+        return None
+    for field, default in (("mass_scale", 1.0), ("slack", False), ("rate_limit", None)):
+        if getattr(args, field, default) != default:
+            raise InvalidCase(field, "the as-built draw sets the plant; leave it out")
+    draw = load_as_built_draw(args.as_built)
+    check_calibration(args.calibration, robot, draw)
+    check_seed(args.seed)
+    _, spec = draw.draw_pair(robot, args.seed, 0)
+    spec.check_period(args.dt)
+    return draw
 
 
 def check_simulate_args(args: argparse.Namespace) -> SimulateInput:
@@ -69,15 +94,40 @@ def check_simulate_args(args: argparse.Namespace) -> SimulateInput:
     plant = Plant(mass_scale=args.mass_scale, slack=args.slack, rate_limit=args.rate_limit)
     case = Case.of(robot, start=args.start, goal=args.goal, k=args.k, r_d=args.r_d)
     save = save_path(args.save, field="save") if args.save is not None else None
-    return SimulateInput(robot, controller, case, plant, save)
+    draw = check_as_built_args(args, robot)
+    return SimulateInput(robot, controller, case, plant, save, draw)
+
+
+def _as_built_run(checked: SimulateInput, args: argparse.Namespace
+                  ) -> tuple[Trajectory, dict[str, object]]:
+    """The run on the drawn robot as built (calibrated first if asked), and what to report
+    beside its metrics: ``held`` (the true plant holds start and goal in the box), the draw
+    and the calibration."""
+    from cdpr_sym.closed_loop import get_simulator
+    from cdpr_sym.closed_loop.drawn import drawn_robot
+
+    drawn = drawn_robot(checked.robot, checked.as_built, args.seed, 0, args.calibration)
+    case = checked.case
+    simulator = get_simulator(drawn.model, checked.controller,
+                              as_built=drawn.plant.as_built.structure(),
+                              build_options=BuildOptions(backend=args.backend))
+    held = all(simulator.true_static_held(q, drawn.plant) for q in (case.start, case.goal))
+    run = simulator.run(case.start, case.goal, case.k, case.r_d, duration=args.duration,
+                        dt=args.dt, plant=drawn.plant)
+    return run, {"held": held, "as_built": drawn.record, "calibration": args.calibration}
 
 
 def simulate_command(args: argparse.Namespace, out: Output) -> int:
     checked = check_simulate_args(args)
     robot = checked.robot
-    run = simulate(robot, checked.controller, start=checked.case.start, goal=checked.case.goal,
-                   k=checked.case.k, r_d=checked.case.r_d, duration=args.duration, dt=args.dt,
-                   plant=checked.plant, build_options=BuildOptions(backend=args.backend))
+    drawn: dict[str, object] = {}
+    if checked.as_built is not None:
+        run, drawn = _as_built_run(checked, args)
+    else:
+        run = simulate(robot, checked.controller, start=checked.case.start,
+                       goal=checked.case.goal, k=checked.case.k, r_d=checked.case.r_d,
+                       duration=args.duration, dt=args.dt, plant=checked.plant,
+                       build_options=BuildOptions(backend=args.backend))
     m = run.metrics()
     saved = run.save(checked.save) if checked.save else None
     angles = "rad" in robot.coordinate_units
@@ -92,9 +142,17 @@ def simulate_command(args: argparse.Namespace, out: Output) -> int:
              f"  largest step         {quantity(m['max_tension_step'], 'N')} per control period",
              f"  min alpha            {quantity(m['min_alpha'])}",
              f"  stopped              {m['stop_reason'] or 'no'}"]
+    if drawn:
+        lines += [f"  as built             seed {args.seed}, mass x "
+                  f"{drawn['as_built']['mass_scale']:.4f}, calibration {args.calibration}",
+                  f"  held                 {yes_no(drawn['held'])} (the true plant holds "
+                  "start and goal in the box)"]
+        if "anchor_rms_error" in drawn["as_built"]:
+            lines.append(f"  anchors calibrated   "
+                         f"{1e3 * drawn['as_built']['anchor_rms_error']:.3f} mm RMS off")
     if saved:
         lines.append(f"  trajectory           {saved}")
-    out.result({**m, "robot": robot.name, "controller": args.controller,
+    out.result({**m, **drawn, "robot": robot.name, "controller": args.controller,
                 "saved": str(saved) if saved else None}, lines)
     return 0
 
@@ -201,9 +259,18 @@ def check_sweep_args(args: argparse.Namespace) -> SweepConfig:
     # this robot's layout gives a tighter budget than the config's own check (pairs, seed,
     # controllers, timing and mass_scale are checked by SweepConfig)
     check_timing(args.duration, args.dt, values_per_step=minimal_values_per_step(robot))
+    as_built = None
+    if args.as_built is not None:
+        check_as_built_args(args, robot)
+        as_built = (args.as_built if args.as_built == "default"
+                    else str(Path(args.as_built).resolve()))
+    elif args.calibration != "none":
+        raise InvalidCase("calibration", "a calibration needs a robot as built "
+                          "(--as-built default or a file)")
     return SweepConfig(robot=source, pairs=args.pairs, seed=args.seed,
                        controllers=tuple(n.strip() for n in args.controllers.split(",") if n),
-                       duration=args.duration, dt=args.dt, mass_scale=args.mass_scale)
+                       duration=args.duration, dt=args.dt, mass_scale=args.mass_scale,
+                       as_built=as_built, calibration=args.calibration)
 
 
 def sweep_command(args: argparse.Namespace, out: Output) -> int:

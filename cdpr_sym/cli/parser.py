@@ -47,6 +47,18 @@ def _common(*, progress: bool = False) -> argparse.ArgumentParser:
     return common
 
 
+def _as_built_options(parser: argparse.ArgumentParser, seeded: str) -> None:
+    """``--as-built`` and ``--calibration`` (simulate and sweep)."""
+    parser.add_argument("--as-built", metavar="SPEC",
+                        help="run on the robot as built: 'default' (the robustness study's "
+                        f"specification) or an as-built TOML file, drawn from the seed for "
+                        f"{seeded}")
+    parser.add_argument("--calibration", default="none", choices=["none", "tracker", "self"],
+                        help="with --as-built: calibrate the drawn robot first (a simulated "
+                        "tracker campaign, or the encoders alone for more cables than "
+                        "degrees of freedom) and give the controller the calibrated model")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser of ``cdpr-sym``."""
     parser = argparse.ArgumentParser(
@@ -83,11 +95,13 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--slack", action="store_true",
                      help="the plant applies max(tau, 0): a cable cannot push")
     sim.add_argument("--rate-limit", type=float, help="actuator tension-rate limit, N/s")
+    sim.add_argument("--seed", type=int, default=0, help="with --as-built: seed of the draw")
     sim.add_argument("--backend", default="auto", choices=["auto", "c", "casadi"],
                      help="generated C, or CasADi's virtual machine (auto: C if a compiler "
                      "is found)")
     sim.add_argument("--save", type=Path, help="write the trajectory to an .npz file (.npz is "
                      "appended to a name without it)")
+    _as_built_options(sim, "the draw")
 
     study = command("study", "run a study and write its report", progress=True)
     study.add_argument("name", choices=STUDY_NAMES, help="the study")
@@ -136,6 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--workers", type=int,
                        help=f"local processes (default: all cores; at most {MAX_WORKERS})")
     sweep.add_argument("--dask", metavar="ADDRESS", help="run on an existing Dask scheduler")
+    _as_built_options(sweep, "each pair")
 
     report = command("report", "build a report from stored results")
     report.add_argument("kind", choices=["sweep", *STUDY_NAMES],

@@ -20,37 +20,69 @@ _TYPED_METRICS = {"tension_feasible": "bool", "converged": "bool", "fallback_ste
                   "infeasible_steps": "int64", "stop_reason": "string"}
 
 
-def sweep_columns(n: int) -> list[str]:
+#: What a calibrated as-built row adds (m, and sigma0 without unit).
+CALIBRATION_COLUMNS = ("anchor_rms_error", "anchor_rms_std", "offset_max_error", "sigma0")
+
+
+def as_built_columns(m: int, d: int, *, calibrated: bool) -> dict[str, str]:
+    """The columns a sweep on the robot as built adds, with their types: ``held`` (the true
+    plant holds start and goal with tensions in the box), ``read_error`` (how far the
+    encoders misplace the goal at rest, m), the draw (``mass_scale``;
+    ``anchor_offset_<cable>_<axis>``, true minus nominal, m) and, calibrated, the
+    calibration's :data:`CALIBRATION_COLUMNS`.
+
+    Parameters
+    ----------
+    m, d : int
+        Cables and world dimension of the robot.
+    calibrated : bool
+        Whether each pair is calibrated before its runs.
+    """
+    axes = ("x", "y", "z") if d == 3 else ("x", "z")
+    columns = {"held": "bool", "read_error": "float64", "mass_scale": "float64"}
+    columns.update({f"anchor_offset_{i + 1}_{axis}": "float64" for i in range(m)
+                    for axis in axes})
+    if calibrated:
+        columns.update(dict.fromkeys(CALIBRATION_COLUMNS, "float64"))
+    return columns
+
+
+def sweep_columns(n: int, extra: dict[str, str] | None = None) -> list[str]:
     """The columns of a sweep table for an n-DOF robot, in table order (a CSV header).
 
     Parameters
     ----------
     n : int
         Degrees of freedom: the number of ``start_i`` and of ``goal_i`` columns.
+    extra : dict, optional
+        Columns between the outcome and the metrics (a sweep on the robot as built:
+        :func:`as_built_columns`).
 
     Returns
     -------
     list of str
         ``pair``, ``controller``, ``start_0`` .. ``start_{n-1}``, ``goal_0`` ..
-        ``goal_{n-1}``, ``status``, ``error``, then the scalar metrics.
+        ``goal_{n-1}``, ``status``, ``error``, the extra columns, then the scalar metrics.
     """
     axes = [f"{i}" for i in range(n)]
     return [*_LEADING, *[f"start_{a}" for a in axes], *[f"goal_{a}" for a in axes],
-            *_OUTCOME, *SCALAR_METRICS]
+            *_OUTCOME, *(extra or {}), *SCALAR_METRICS]
 
 
-def sweep_column_types(n: int) -> dict[str, str]:
+def sweep_column_types(n: int, extra: dict[str, str] | None = None) -> dict[str, str]:
     """The columns of :func:`sweep_columns` with their stored (Parquet) types, in table order.
 
     Parameters
     ----------
     n : int
         Degrees of freedom of the robot.
+    extra : dict, optional
+        As in :func:`sweep_columns`, with their types.
 
     Returns
     -------
     dict of str to str
         Each column's type: ``int64``, ``float64``, ``bool`` or ``string``.
     """
-    fixed = {**_LEADING, **_OUTCOME, **_TYPED_METRICS}
-    return {name: fixed.get(name, "float64") for name in sweep_columns(n)}
+    fixed = {**_LEADING, **_OUTCOME, **_TYPED_METRICS, **(extra or {})}
+    return {name: fixed.get(name, "float64") for name in sweep_columns(n, extra)}

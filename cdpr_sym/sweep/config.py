@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -14,6 +14,9 @@ from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import PRESET_NAMES, Robot, preset, resolve_robot
 from cdpr_sym.workspace import WorkspaceEvaluator, sample_static_workspace
+
+if TYPE_CHECKING:
+    from cdpr_sym.as_built import AsBuiltDraw
 
 #: Most start/goal pairs of a sweep (its pairs and items are held in memory).
 MAX_PAIRS = 100_000
@@ -66,6 +69,13 @@ class SweepConfig:
         Plant mass / model mass.
     margin : float
         Share of the frame size kept free on each side when drawing poses.
+    as_built : str, optional
+        Run on the robot as built: ``default`` (:data:`~cdpr_sym.as_built.DEFAULT_DRAW`) or
+        an as-built TOML file (recorded by its absolute path); pair p draws its own robot
+        from ``seed`` and p (:mod:`cdpr_sym.as_built.draw`). None: the ideal plant.
+    calibration : str
+        With ``as_built``: ``none``, ``tracker`` or ``self``, a calibration of each drawn
+        robot before its runs (:mod:`cdpr_sym.closed_loop.drawn`).
     """
 
     robot: str
@@ -76,6 +86,8 @@ class SweepConfig:
     dt: float = 1e-3
     mass_scale: float = 1.0
     margin: float = 0.05
+    as_built: str | None = None
+    calibration: str = "none"
 
     def __post_init__(self) -> None:
         check_pairs(self.pairs)
@@ -90,9 +102,42 @@ class SweepConfig:
                               "each controller gives one row per pair")
         check_timing(self.duration, self.dt)  # each run's size, before any is started
         Plant(mass_scale=self.mass_scale)
+        if self.as_built is None and self.calibration != "none":
+            raise InvalidCase("calibration", "a calibration needs a robot as built "
+                              "(as_built 'default' or a file)")
+        if self.as_built is not None and self.mass_scale != 1.0:
+            raise InvalidCase("mass_scale", "the as-built draw sets the plant's mass; leave "
+                              "mass_scale at 1")
+        if self.calibration not in ("none", "tracker", "self"):
+            raise InvalidCase("calibration", f"expected none, tracker or self, got "
+                              f"{self.calibration!r}")
+        draw = self.draw()  # a missing or malformed file is refused here, before any run
+        if draw is not None:
+            _, spec = draw.draw_pair(resolve_robot(self.robot), self.seed, 0)
+            spec.check_period(self.dt)
 
     def as_dict(self) -> dict[str, Any]:
-        return {**dataclasses.asdict(self), "controllers": list(self.controllers)}
+        """The configuration as plain values; a sweep of the ideal plant leaves out the
+        as-built fields (its sidecar reads as before they existed)."""
+        out = {**dataclasses.asdict(self), "controllers": list(self.controllers)}
+        if self.as_built is None:
+            del out["as_built"], out["calibration"]
+        return out
+
+    def draw(self) -> AsBuiltDraw | None:
+        """The as-built specification (read from its file), or None."""
+        from cdpr_sym.as_built import load_as_built_draw
+
+        return None if self.as_built is None else load_as_built_draw(self.as_built)
+
+    def extra_columns(self, robot: Robot) -> dict[str, str] | None:
+        """The columns an as-built sweep adds (:func:`as_built_columns`), or None."""
+        from cdpr_sym.results.sweep_columns import as_built_columns
+
+        if self.as_built is None:
+            return None
+        return as_built_columns(robot.m, robot.dimension,
+                                calibrated=self.calibration != "none")
 
 
 def robot_reference(robot: Robot | str | Path) -> tuple[Robot, str]:

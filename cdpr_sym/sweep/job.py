@@ -50,13 +50,15 @@ class SweepJob:
         SHA-256 of ``description``: names the robot in each worker's cache.
     """
 
-    __slots__ = ("_robot", "config", "description", "digest")
+    __slots__ = ("_robot", "config", "description", "digest", "draw")
 
     def __init__(self, config: SweepConfig, robot: Robot) -> None:
         self.config = config
         self.description = robot_key(robot)
         self.digest = description_digest(self.description)
         self._robot: Robot | None = robot
+        #: The as-built specification, read once here (None: the ideal plant)
+        self.draw = config.draw()
 
     @property
     def robot(self) -> Robot:
@@ -66,11 +68,11 @@ class SweepJob:
             self._robot = _rebuilt(self.digest, self.description)
         return self._robot
 
-    def __getstate__(self) -> tuple[SweepConfig, str, str]:
-        return self.config, self.description, self.digest
+    def __getstate__(self) -> tuple[Any, ...]:
+        return self.config, self.description, self.digest, self.draw
 
-    def __setstate__(self, state: tuple[SweepConfig, str, str]) -> None:
-        self.config, self.description, self.digest = state
+    def __setstate__(self, state: tuple[Any, ...]) -> None:
+        self.config, self.description, self.digest, self.draw = state
         self._robot = None
 
     def __repr__(self) -> str:

@@ -140,8 +140,9 @@ def check_identity(config: SweepConfig, identity: dict[str, Any], out: Path,
 
 
 def done_rows(config: SweepConfig, out: Path, format: str, starts: np.ndarray,
-              goals: np.ndarray) -> set[tuple[int, str]]:
-    """The (pair, controller) rows already stored, after repairing a damaged CSV table."""
+              goals: np.ndarray, extra: dict[str, str] | None = None) -> set[tuple[int, str]]:
+    """The (pair, controller) rows already stored, after repairing a damaged CSV table
+    (whose header has the ``extra`` columns of an as-built sweep)."""
     if format == "parquet":
         if out.exists() and not out.is_dir():
             raise InvalidCase("out", f"{out} is a file, not a Parquet dataset folder; "
@@ -153,16 +154,16 @@ def done_rows(config: SweepConfig, out: Path, format: str, starts: np.ndarray,
     if out.is_dir():
         raise InvalidCase("out", f"{out} is a folder (a Parquet sweep?), not a CSV file; "
                           "choose another --out or the format it was written in")
-    return _repaired_csv(config, out, starts, goals)
+    return _repaired_csv(config, out, starts, goals, extra)
 
 
-def _repaired_csv(config: SweepConfig, out: Path, starts: np.ndarray, goals: np.ndarray
-                  ) -> set[tuple[int, str]]:
+def _repaired_csv(config: SweepConfig, out: Path, starts: np.ndarray, goals: np.ndarray,
+                  extra: dict[str, str] | None = None) -> set[tuple[int, str]]:
     """Keep the valid rows of a CSV table (rewriting it when anything else is in it)."""
     records, torn = read_csv_records(out)
     if not records and not torn:
         return set()
-    header = sweep_columns(starts.shape[1])
+    header = sweep_columns(starts.shape[1], extra)
     kept: list[list[str]] = []
     rejected: list[list[str]] = []
     done: set[tuple[int, str]] = set()

@@ -42,7 +42,11 @@ from cdpr_sym.results.store import (
     require_parquet,
     sidecar_path,
 )
-from cdpr_sym.results.sweep_columns import sweep_column_types, sweep_columns
+from cdpr_sym.results.sweep_columns import (
+    CALIBRATION_COLUMNS,
+    sweep_column_types,
+    sweep_columns,
+)
 from cdpr_sym.robot import WRENCH_FIELDS, Robot, resolve_robot
 from cdpr_sym.sweep.config import FORMATS, SweepConfig, check_chunk_size, draw_pairs
 from cdpr_sym.sweep.job import SweepJob
@@ -60,6 +64,8 @@ from cdpr_sym.sweep.workers import (
 
 if TYPE_CHECKING:
     from tqdm import tqdm
+
+    from cdpr_sym.as_built import AsBuiltDraw
 
 _RUN_FAILURES = (CdprError, RuntimeError, ValueError, FloatingPointError)
 #: Most rows per chunk of work on local processes: a chunk is the unit of progress and of
@@ -101,6 +107,33 @@ def run_group(robot: Robot, controller_name: str, starts: np.ndarray, goals: np.
     return [_row(summary) for summary in summaries]
 
 
+def run_as_built(robot: Robot, draw: AsBuiltDraw, config: SweepConfig, pair: int,
+                 controller_name: str, start: np.ndarray, goal: np.ndarray
+                 ) -> dict[str, Any]:
+    """One run on pair ``pair``'s robot as built (calibrated first when the sweep says so),
+    judged on the true tensions, with ``held``, ``read_error`` and the draw."""
+    from cdpr_sym.closed_loop.drawn import drawn_robot
+
+    try:
+        drawn = drawn_robot(robot, draw, config.seed, pair, config.calibration)
+        simulator = get_simulator(drawn.model, controller_by_name(controller_name),
+                                  as_built=drawn.plant.as_built.structure())
+        held = all(simulator.true_static_held(q, drawn.plant) for q in (start, goal))
+        read_error = float(np.linalg.norm(simulator.read_offset(goal, drawn.plant)))
+        run = simulator.run(start, goal, robot.k, robot.r_d, duration=config.duration,
+                            dt=config.dt, plant=drawn.plant)
+    except _RUN_FAILURES as failure:
+        return _error_row(failure)
+    record = drawn.record
+    axes = ("x", "y", "z") if robot.dimension == 3 else ("x", "z")
+    offsets = {f"anchor_offset_{i + 1}_{axis}": value
+               for i, row in enumerate(record["anchor_offsets"])
+               for axis, value in zip(axes, row, strict=True)}
+    extra = {key: record[key] for key in CALIBRATION_COLUMNS if key in record}
+    return {**_row(run), "held": held, "read_error": read_error,
+            "mass_scale": record["mass_scale"], **offsets, **extra}
+
+
 def _row(run: Trajectory | RunSummary) -> dict[str, Any]:
     row: dict[str, Any] = {"status": "ok" if run.stop_reason is None else "stopped",
                            "error": ""}
@@ -132,6 +165,11 @@ def _run_rows(job: SweepJob, runs: Runs) -> list[dict[str, Any]]:
     """The metric rows of ``runs`` in their order, each controller's runs advanced together
     (on the job's robot: no file is read here)."""
     config, robot = job.config, job.robot
+    if job.draw is not None:
+        return [run_as_built(robot, job.draw, config, pair, name, start, goal)
+                for pair, name, start, goal in zip(runs.pairs.tolist(),
+                                                   runs.controllers.tolist(), runs.starts,
+                                                   runs.goals, strict=True)]
     rows: list[dict[str, Any]] = [{} for _ in range(len(runs))]
     for name in dict.fromkeys(runs.controllers.tolist()):
         indices = np.flatnonzero(runs.controllers == name)
@@ -158,7 +196,8 @@ def run_items_csv(job: SweepJob,
     it; the lines equal what ``csv.DictWriter`` writes for the same rows."""
     runs = as_runs(work)
     rows = run_items(job, runs)
-    names = sweep_columns(runs.starts.shape[1]) if len(runs) else []
+    names = (sweep_columns(runs.starts.shape[1], job.config.extra_columns(job.robot))
+             if len(runs) else [])
     buffer = io.StringIO()
     csv.writer(buffer).writerows([[row.get(name, "") for name in names] for row in rows])
     return CsvChunk(len(rows), buffer.getvalue())
@@ -177,12 +216,17 @@ def _versions() -> dict[str, str]:
 
 
 def _identity(config: SweepConfig, robot: Robot) -> dict[str, Any]:
-    """What a row depends on besides the config: robot data, controller options, versions."""
+    """What a row depends on besides the config: robot data, controller options, versions
+    (and, as built, the specification drawn from, as read from its file)."""
     described = {key: value for key, value in robot.as_dict().items()
                  if key not in WRENCH_FIELDS}  # no run depends on the wrench box
-    return {"robot": described, "versions": _versions(),
-            "controller_options": {name: controller_by_name(name).options()
-                                   for name in config.controllers}}
+    identity = {"robot": described, "versions": _versions(),
+                "controller_options": {name: controller_by_name(name).options()
+                                       for name in config.controllers}}
+    draw = config.draw()
+    if draw is not None:
+        identity["as_built"] = draw.as_dict()
+    return identity
 
 
 def _check_format(format: str) -> None:
@@ -268,13 +312,14 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
     with exclusive_output(out):
         _check_output(config, robot, out, format, restart_if_stale)
         starts, goals = draw_pairs(robot, config)
-        done = done_rows(config, out, format, starts, goals)
+        extra = config.extra_columns(robot)
+        done = done_rows(config, out, format, starts, goals, extra)
         runs = pending_runs(config.controllers, starts, goals, done)
         _check_disk_space(out, len(runs), robot.n)
         client = dask_client(dask_address, dask_timeout) if dask_address and len(runs) else None
         try:
-            if len(runs) and client is None:
-                _warm_cache(robot, config.controllers)
+            if len(runs) and client is None and config.calibration == "none":
+                _warm_cache(robot, config.controllers, config.draw())
             workers = workers or (_cluster_threads(client) if client else os.cpu_count() or 1)
             largest = chunk_size or (DASK_CHUNK_ROWS if client else LOCAL_CHUNK_ROWS)
             # chunks shrink to a tenth of the largest at the end (each costs ~2.5 ms of Python)
@@ -285,7 +330,7 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
             job = SweepJob(config, robot)
             results = (dask_map(client, work, job, parts) if client
                        else local_map(work, job, parts, workers))
-            _collect(results, out, format, robot.n, len(runs), progress)
+            _collect(results, out, format, robot.n, len(runs), progress, extra)
         finally:
             if client is not None:
                 client.close()
@@ -324,13 +369,13 @@ def _check_disk_space(out: Path, rows: int, n: int) -> None:
 
 
 def _collect(results: Iterable[list[dict[str, Any]] | CsvChunk], out: Path, format: str, n: int,
-             total: int, progress: bool) -> None:
+             total: int, progress: bool, extra: dict[str, str] | None = None) -> None:
     """Write rows as they arrive (only this process writes); turn an interruption into
     :class:`Interrupted` saying what was kept."""
     written = 0
     try:
         with progress_bar(total, enabled=progress) as bar, sigterm_interrupts(), \
-                _row_sink(out, format, n) as sink:
+                _row_sink(out, format, n, extra) as sink:
             for rows in results:
                 sink(rows)
                 count = rows.rows if isinstance(rows, CsvChunk) else len(rows)
@@ -346,12 +391,12 @@ def _collect(results: Iterable[list[dict[str, Any]] | CsvChunk], out: Path, form
 
 
 @contextlib.contextmanager
-def _row_sink(out: Path, format: str, n: int
+def _row_sink(out: Path, format: str, n: int, extra: dict[str, str] | None = None
               ) -> Iterator[Callable[[list | CsvChunk], None]]:
     """A function that stores a list of rows (or, for CSV, a :class:`CsvChunk` already
     formatted) durably: a Parquet part, or CSV lines appended and flushed."""
     if format == "parquet":
-        types = sweep_column_types(n)
+        types = sweep_column_types(n, extra)
 
         def store_part(rows: list) -> None:
             if rows:
@@ -360,7 +405,8 @@ def _row_sink(out: Path, format: str, n: int
         yield store_part
         return
     with open(out, "a", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=sweep_columns(n), extrasaction="ignore")
+        writer = csv.DictWriter(handle, fieldnames=sweep_columns(n, extra),
+                                extrasaction="ignore")
         if handle.tell() == 0:
             writer.writeheader()
             handle.flush()
@@ -375,8 +421,10 @@ def _row_sink(out: Path, format: str, n: int
         yield append_rows
 
 
-def _warm_cache(robot: Robot, names: Sequence[str]) -> None:
+def _warm_cache(robot: Robot, names: Sequence[str], draw: AsBuiltDraw | None = None) -> None:
     """Compile each controller once in this process so workers only load the library (and
-    a library that cannot be built stops the sweep here, in one line, not in every row)."""
+    a library that cannot be built stops the sweep here, in one line, not in every row).
+    A calibrated sweep builds per pair (each pair's model is its own) and skips this."""
+    structure = None if draw is None else draw.draw_pair(robot, 0, 0)[1].structure()
     for name in names:
-        get_simulator(robot, CONTROLLERS[name])
+        get_simulator(robot, CONTROLLERS[name], as_built=structure)

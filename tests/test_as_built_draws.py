@@ -1,0 +1,135 @@
+"""Robots as built drawn per pair: the specification file, the draw's definition, and
+sweeps and single runs on them (calibrated first or not)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import zlib
+
+import numpy as np
+import pytest
+
+from cdpr_sym import preset
+from cdpr_sym.as_built import DEFAULT_DRAW, Actuation, AsBuiltDraw, Sensing, load_as_built_draw
+from cdpr_sym.cli import main
+from cdpr_sym.closed_loop import get_simulator
+from cdpr_sym.closed_loop.drawn import drawn_robot
+from cdpr_sym.control import controller_by_name
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.sweep import SweepConfig, run_sweep
+
+
+def test_pair_p_draws_mass_then_offsets_from_its_own_seeded_generator():
+    robot = preset("aras3")
+    mass_scale, spec = DEFAULT_DRAW.draw_pair(robot, 7, 3)
+    rng = np.random.default_rng([7, 3, zlib.crc32(b"as built")])
+    assert mass_scale == rng.uniform(0.9, 1.1)
+    np.testing.assert_array_equal(spec.anchor_offsets, rng.uniform(-0.005, 0.005, (3, 3)))
+    assert spec.actuation.torque_limit == pytest.approx(1.5 * robot.t_max * 0.03)
+    assert spec.sensing == Sensing() and spec.delay == 1
+
+
+def test_an_as_built_file_states_another_specification(tmp_path):
+    path = tmp_path / "lab.toml"
+    path.write_text("mass_error = 0.02\nanchor_error = 0.001\ndelay = 0\n"
+                    "[actuation]\ncable_stiffness = 2e5\ntorque_limit = 5.0\n"
+                    "[sensing]\nresolution = 2e-5\n")
+    draw = load_as_built_draw(path)
+    assert draw == AsBuiltDraw(mass_error=0.02, anchor_error=0.001, delay=0,
+                               actuation=Actuation(cable_stiffness=2e5, torque_limit=5.0),
+                               sensing=Sensing(resolution=2e-5))
+    assert load_as_built_draw("default") is DEFAULT_DRAW
+    path.write_text("mass_error = 0.02\n")  # no tables: rigid cables, exact state
+    assert load_as_built_draw(path).actuation is None
+
+
+@pytest.mark.parametrize("text, field", [
+    ("mass_eror = 0.1\n", "mass_eror"), ("[sensing]\nresolutoin = 1e-5\n", "sensing.resolutoin"),
+    ("[actuation]\ninertia = -1.0\n", "actuation.inertia"), ("anchor_error = 2.0\n",
+                                                             "anchor_error"),
+    ("delay = 1000\n", "delay"), ("mass_error = \n", "as_built"),
+])
+def test_a_bad_as_built_file_is_refused_naming_the_field(tmp_path, text, field):
+    path = tmp_path / "lab.toml"
+    path.write_text(text)
+    with pytest.raises(InvalidCase) as refused:
+        load_as_built_draw(path)
+    assert refused.value.field == field
+
+
+def _rows(path):
+    with open(path, newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_an_as_built_sweep_row_carries_held_and_its_draw_and_resumes(tmp_path):
+    robot = preset("aras3")
+    config = SweepConfig(robot="aras3", controllers=("smooth-lp", "pd-sat"), pairs=3,
+                         duration=1.0, as_built="default")
+    out = run_sweep(config, tmp_path / "s.csv", workers=1, progress=False)
+    rows = _rows(out)
+    assert len(rows) == 6
+    simulator = get_simulator(robot, controller_by_name("smooth-lp"),
+                              as_built=DEFAULT_DRAW.draw_pair(robot, 0, 0)[1].structure())
+    for row in rows:
+        pair = int(row["pair"])
+        drawn = drawn_robot(robot, DEFAULT_DRAW, 0, pair)
+        assert float(row["mass_scale"]) == drawn.plant.mass_scale
+        assert float(row["anchor_offset_2_y"]) == drawn.plant.as_built.anchor_offsets[1, 1]
+        start = np.array([float(row[f"start_{i}"]) for i in range(3)])
+        goal = np.array([float(row[f"goal_{i}"]) for i in range(3)])
+        held = simulator.true_static_held(start, drawn.plant) and \
+            simulator.true_static_held(goal, drawn.plant)
+        assert row["held"] == str(held)
+        if row["controller"] == "smooth-lp":
+            run = simulator.run(start, goal, robot.k, robot.r_d, duration=1.0, dt=1e-3,
+                                plant=drawn.plant)
+            assert float(row["final_error"]) == run.metrics()["final_error"]
+    run_sweep(config, out, workers=1, progress=False)  # nothing left to run
+    assert len(_rows(out)) == 6
+    sidecar = json.loads(out.with_name("s.csv.json").read_text())
+    assert sidecar["identity"]["as_built"]["anchor_error"] == 0.005
+
+
+def test_a_calibrated_sweep_runs_each_pair_on_its_own_calibrated_model(tmp_path):
+    robot = preset("aras3")
+    config = SweepConfig(robot="aras3", controllers=("smooth-lp",), pairs=1, duration=1.0,
+                         as_built="default", calibration="tracker")
+    row = _rows(run_sweep(config, tmp_path / "s.csv", workers=1, progress=False))[0]
+    drawn = drawn_robot(robot, DEFAULT_DRAW, 0, 0, "tracker")
+    assert drawn.model.encoder_offsets is not None
+    assert float(row["anchor_rms_error"]) == drawn.record["anchor_rms_error"] < 1e-3
+    true_anchors = robot.anchors + DEFAULT_DRAW.draw_pair(robot, 0, 0)[1].anchor_offsets
+    np.testing.assert_allclose(drawn.model.anchors + drawn.plant.as_built.anchor_offsets,
+                               true_anchors, rtol=0, atol=1e-15)
+    simulator = get_simulator(drawn.model, controller_by_name("smooth-lp"),
+                              as_built=drawn.plant.as_built.structure())
+    start = np.array([float(row[f"start_{i}"]) for i in range(3)])
+    goal = np.array([float(row[f"goal_{i}"]) for i in range(3)])
+    run = simulator.run(start, goal, robot.k, robot.r_d, duration=1.0, dt=1e-3,
+                        plant=drawn.plant)
+    assert float(row["final_error"]) == run.metrics()["final_error"]
+
+
+def test_simulate_as_built_reports_held_and_the_draw(capsys):
+    status = main(["simulate", "--json", "--robot", "aras3", "--controller", "smooth-lp",
+                   "--duration", "0.5", "--as-built", "default", "--seed", "4"])
+    result = json.loads(capsys.readouterr().out)
+    assert status == 0
+    assert result["held"] is True and result["calibration"] == "none"
+    assert result["as_built"]["mass_scale"] == DEFAULT_DRAW.draw_pair(preset("aras3"), 4,
+                                                                      0)[0]
+
+
+@pytest.mark.parametrize("argv, field", [
+    (["--calibration", "tracker"], "calibration"),
+    (["--as-built", "default", "--calibration", "self"], "calibration"),
+    (["--as-built", "default", "--mass-scale", "1.1"], "mass_scale"),
+    (["--as-built", "missing.toml"], "as_built"),
+    (["--as-built", "default", "--dt", "0.01"], "substeps"),
+])
+def test_simulate_refuses_bad_as_built_options_naming_them(capsys, argv, field):
+    status = main(["simulate", "--robot", "aras3", *argv])
+    err = capsys.readouterr().err
+    assert status == 2 and f"error: {field}:" in err
