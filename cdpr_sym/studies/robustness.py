@@ -7,6 +7,11 @@ by 5 s, no tension step or start jump above 1 N), judged on the *true* tension i
 Shares count only the pairs whose start and goal the true plant (its mass and anchors) can
 hold at rest with tensions in the box; the report says how many each effect excludes.
 
+The last column calibrates first: on each pair's as-built draw (the "as built" column's own
+plant) a simulated laser-tracker campaign (:mod:`cdpr_sym.calibration`) at D-optimal poses
+estimates the anchors and encoder offsets, and the designs run with the calibrated robot as
+their model on the same true plant (one build per draw, so only :data:`CALIBRATED_DESIGNS`).
+
 ``compute`` writes ``runs.json`` (one row per run; not kept in git) and ``study.json``
 (pairs, seed and every effect's specification, drawn values included). The report step
 condenses the runs into ``summary.json`` (shares and reasons per effect and design) and
@@ -26,7 +31,9 @@ from typing import Any
 import numpy as np
 
 from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
+from cdpr_sym.as_built.draw import DEFAULT_DRAW
 from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.closed_loop.drawn import SELF_POSES, TRACKER_NOISE, TRACKER_POSES, drawn_robot
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results import SETTLE_TOLERANCE
@@ -43,12 +50,26 @@ DESIGNS = ("pd-sat", "l2", "smooth", "ida-ref", "ida-ref-obs", "smooth-lp", "nmp
 #: Run length and control period, s (the target asks for 1 cm within 5 s).
 DURATION, DT = 6.0, 1e-3
 #: Mass error (fraction), anchor error (m) and command delay (periods) of the spec.
-MASS_ERROR, ANCHOR_ERROR, DELAY = 0.10, 0.005, 1
+MASS_ERROR, ANCHOR_ERROR, DELAY = (DEFAULT_DRAW.mass_error, DEFAULT_DRAW.anchor_error,
+                                   DEFAULT_DRAW.delay)
 #: Winch torque limit as a multiple of r T_max (the drive can hold T_max with margin).
-TORQUE_MARGIN = 1.5
+TORQUE_MARGIN = DEFAULT_DRAW.torque_margin
 #: Margin of the frame kept clear when drawing poses, as a fraction of its span.
 FRAME_MARGIN = 0.05
 RUNS_FILE = "runs.json"
+#: The calibrated columns (the second for more cables than degrees of freedom only), and
+#: the designs they run (each draw is a new model, so a new build of every design: the
+#: best as-built designs only).
+CALIBRATED = "as built, calibrated (tracker)"
+SELF_CALIBRATED = "as built, self-calibrated"
+CALIBRATED_DESIGNS = ("smooth", "ida-ref-obs", "smooth-lp")
+_DESIGNS_NOTE = f"designs {', '.join(CALIBRATED_DESIGNS)} only (a build per draw)"
+_CAMPAIGNS = {
+    "tracker": f"as built, with the model calibrated first: {TRACKER_POSES} D-optimal static "
+    f"poses measured by a tracker of {1e3 * TRACKER_NOISE:g} mm per coordinate and by the "
+    f"encoders; {_DESIGNS_NOTE}",
+    "self": f"as built, with the model calibrated first from the encoders alone at "
+    f"{SELF_POSES} D-optimal static poses; {_DESIGNS_NOTE}"}
 #: Cable damping values c_EA (N s) of the winch scan, and the pairs it runs on.
 DAMPING_SCAN, SCAN_PAIRS = (4.0, 10.0, 20.0, 40.0, 80.0), 40
 
@@ -64,7 +85,7 @@ class Effect:
 
 def winch_drive(robot: Robot) -> Actuation:
     """The default winch with a torque limit of :data:`TORQUE_MARGIN` r T_max."""
-    return Actuation(torque_limit=TORQUE_MARGIN * robot.t_max * Actuation().drum_radius)
+    return DEFAULT_DRAW.drive(robot)
 
 
 def _offsets(rng: np.random.Generator, robot: Robot) -> np.ndarray:
@@ -72,12 +93,13 @@ def _offsets(rng: np.random.Generator, robot: Robot) -> np.ndarray:
 
 
 def _as_built(rng: np.random.Generator, robot: Robot, damping: float | None = None) -> Plant:
-    drive = winch_drive(robot)
+    """The combined specification's draw (:data:`~cdpr_sym.as_built.DEFAULT_DRAW`)."""
+    spec = DEFAULT_DRAW
     if damping is not None:
-        drive = dataclasses.replace(drive, cable_damping=damping)
-    return Plant(mass_scale=float(rng.uniform(1 - MASS_ERROR, 1 + MASS_ERROR)),
-                 as_built=AsBuilt(actuation=drive, sensing=Sensing(), delay=DELAY,
-                                  anchor_offsets=_offsets(rng, robot)))
+        spec = dataclasses.replace(spec, actuation=dataclasses.replace(
+            spec.actuation, cable_damping=damping))
+    mass_scale, as_built = spec.draw(rng, robot)
+    return Plant(mass_scale=mass_scale, as_built=as_built)
 
 
 #: The cable damping (N s) of the second combined column: one at which winches alone stop
@@ -131,6 +153,13 @@ def compute_robustness_study(robot: Robot, out_dir: Path, *, pairs: int = 200, s
             if progress:
                 print(f"robustness: {effect.name} / {design}", file=sys.stderr, flush=True)
             rows += _effect_rows(robot, design, effect.name, plants, starts, goals)
+    for effect, kind in calibrated_effects(robot).items():
+        if progress:
+            print(f"robustness: {effect}", file=sys.stderr, flush=True)
+        calibrated_rows, calibrations = calibrated_column(robot, effect, kind, starts, goals,
+                                                          seed)
+        rows += calibrated_rows
+        specs[effect] = {"description": _CAMPAIGNS[kind], "calibrations": calibrations}
     scan = _damping_scan(robot, starts[:SCAN_PAIRS], goals[:SCAN_PAIRS], progress)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / RUNS_FILE, rows)
@@ -138,6 +167,46 @@ def compute_robustness_study(robot: Robot, out_dir: Path, *, pairs: int = 200, s
     write_study(out_dir, "robustness", robot, indent=None, pairs=pairs, seed=seed,
                 designs=list(DESIGNS), duration=DURATION, dt=DT, effects=specs,
                 damping_scan=scan, starts=starts.tolist(), goals=goals.tolist())
+
+
+def _calibrated_pair(task: tuple) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """One pair of a calibrated column (in a worker process): calibrate, then run."""
+    robot, effect, kind, start, goal, seed, index = task
+    drawn = drawn_robot(robot, DEFAULT_DRAW, seed, index, kind)
+    rows = []
+    for design in CALIBRATED_DESIGNS:
+        rows += _effect_rows(drawn.model, design, effect, [drawn.plant], [start], [goal],
+                             first=index)
+    record = {key: value for key, value in drawn.record.items() if key != "anchor_offsets"}
+    return rows, {**record, "read_error": rows[0]["read_error"]}
+
+
+def calibrated_column(robot: Robot, effect: str, kind: str, starts: np.ndarray,
+                      goals: np.ndarray, seed: int, workers: int = 2
+                      ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """Rows of a calibrated column (``kind`` ``tracker`` or ``self``; pair by pair, in
+    ``workers`` processes: each pair builds its own controllers) and each pair's
+    calibration record. The plants are the "as built" column's own draws."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    tasks = [(robot, effect, kind, start, goal, seed, index)
+             for index, (start, goal) in enumerate(zip(starts, goals, strict=True))]
+    rows, records = [], []
+    with ProcessPoolExecutor(workers) as pool:
+        for pair_rows, record in pool.map(_calibrated_pair, tasks):
+            rows += pair_rows
+            records.append(record)
+    order = {design: k for k, design in enumerate(DESIGNS)}
+    rows.sort(key=lambda row: (order[row["design"]], row["pair"]))
+    return rows, records
+
+
+def calibrated_effects(robot: Robot) -> dict[str, str]:
+    """The calibrated columns of ``robot``, by name: the campaign kind each runs."""
+    out = {CALIBRATED: "tracker"}
+    if robot.m > robot.n:
+        out[SELF_CALIBRATED] = "self"
+    return out
 
 
 def _damping_scan(robot: Robot, starts: np.ndarray, goals: np.ndarray, progress: bool
@@ -165,9 +234,10 @@ def _tag(name: str) -> int:
 
 
 def _effect_rows(robot: Robot, design: str, effect: str, plants: list[Plant],
-                 starts: np.ndarray, goals: np.ndarray) -> list[dict[str, Any]]:
-    """One row per pair: whether the true plant holds start and goal, and the run's
-    verdict on the true tensions."""
+                 starts: np.ndarray, goals: np.ndarray, first: int = 0
+                 ) -> list[dict[str, Any]]:
+    """One row per pair (numbered from ``first``): whether the true plant holds start and
+    goal, and the run's verdict on the true tensions."""
     structure = plants[0].as_built.structure()
     simulator = get_simulator(robot, controller_by_name(design), as_built=structure)
     rows = []
@@ -178,7 +248,7 @@ def _effect_rows(robot: Robot, design: str, effect: str, plants: list[Plant],
         run = simulator.run(start, goal, robot.k, robot.r_d, duration=DURATION, dt=DT,
                             plant=plant)
         metrics = {**run.metrics(), "status": "ok" if run.stop_reason is None else "stopped"}
-        rows.append({"effect": effect, "design": design, "pair": index, "held": held,
+        rows.append({"effect": effect, "design": design, "pair": first + index, "held": held,
                      "read_error": read_error,
                      "status": metrics["status"], "stop_reason": run.stop_reason,
                      "tension_feasible": bool(metrics["tension_feasible"]),
@@ -294,7 +364,14 @@ def best_readable_by_effect(table: dict[str, Any]) -> dict[str, dict[str, Any]]:
 def misread_effects(table: dict[str, Any], designs: list[str]) -> list[str]:
     """The effects under which some goal is misread by 1 cm or more (a controller
     converging on its reading then stops that far from the goal, whatever it does)."""
-    return [effect for effect in table if _misread(table[effect][designs[0]])]
+    return [effect for effect in table if _misread(table[effect][counting(table)[effect]])]
+
+
+def counting(table: dict[str, Any]) -> dict[str, str]:
+    """Per effect, a design that ran under it (the pair counts are the same for all that
+    did; the calibrated column runs only some designs)."""
+    return {effect: next((d for d, v in row.items() if v["pairs"]), next(iter(row)))
+            for effect, row in table.items()}
 
 
 def readable_table(table: dict[str, Any], designs: list[str]) -> str:
@@ -304,7 +381,8 @@ def readable_table(table: dict[str, Any], designs: list[str]) -> str:
     if not misread:
         return ""
     return render_report("robustness_readable.md.j2", table=table, designs=designs,
-                         misread=misread, tolerance=SETTLE_TOLERANCE)
+                         misread=misread, tolerance=SETTLE_TOLERANCE,
+                         counted=counting(table))
 
 
 class RobustnessStudy(Study):
@@ -339,6 +417,7 @@ class RobustnessStudy(Study):
             effects=list(table), effect_specs=study["effects"], table=table,
             misread=misread_effects(table, designs), best=best_by_effect(table),
             best_readable=best_readable_by_effect(table), scan=study.get("damping_scan"),
+            counted=counting(table), calibration=calibration_summary(study),
             default_damping=Actuation().cable_damping, tolerance=SETTLE_TOLERANCE),
             encoding="utf-8")
         return table
@@ -347,6 +426,31 @@ class RobustnessStudy(Study):
         return [f"{design:<8} meets target: " + ", ".join(
             f"{effect} {_percent(row[design]['meets_target'])}"
             for effect, row in result.items()) for design in next(iter(result.values()))]
+
+
+def calibration_summary(study: dict[str, Any]) -> dict[str, Any] | None:
+    """The calibrated column's campaigns in a few numbers (mm): median and largest RMS
+    anchor error left, median estimated standard deviation, largest encoder offset
+    estimated (the plant's are zero), median sigma0, and the goals read 1 cm off or more."""
+    records = study["effects"].get(CALIBRATED, {}).get("calibrations")
+    if not records:
+        return None
+    return campaign_summary(records)
+
+
+def campaign_summary(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """:func:`calibration_summary` of one column's records."""
+
+    def column(key: str) -> np.ndarray:
+        return np.array([record[key] for record in records], dtype=float)
+
+    errors = 1e3 * column("anchor_rms_error")
+    return {"campaigns": len(records), "median_error_mm": float(np.median(errors)),
+            "max_error_mm": float(errors.max()),
+            "median_std_mm": float(np.median(1e3 * column("anchor_rms_std"))),
+            "max_offset_mm": float(1e3 * column("offset_max_error").max()),
+            "median_sigma0": float(np.median(column("sigma0"))),
+            "misread": int(np.sum(~(column("read_error") < SETTLE_TOLERANCE)))}
 
 
 def _percent(value: float | None) -> str:
