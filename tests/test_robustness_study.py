@@ -12,8 +12,9 @@ import json
 import numpy as np
 import pytest
 
-from cdpr_sym.as_built import AsBuilt
+from cdpr_sym.as_built import DEFAULT_DRAW, AsBuilt
 from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.closed_loop.drawn import drawn_robot
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.studies import robustness
 
@@ -81,7 +82,17 @@ def test_a_small_study_stores_what_its_report_says(aras3, tmp_path):
     table = robustness.run_robustness_study(aras3, tmp_path, pairs=3, seed=5, progress=False)
     rows = json.loads((tmp_path / "runs.json").read_text())
     study = json.loads((tmp_path / "study.json").read_text())
-    assert len(rows) == 3 * len(robustness.EFFECTS) * len(robustness.DESIGNS)
+    calibrated = robustness.calibrated_effects(aras3)
+    assert len(rows) == 3 * (len(robustness.EFFECTS) * len(robustness.DESIGNS)
+                             + len(calibrated) * len(robustness.CALIBRATED_DESIGNS))
+    # the calibrated column runs on the "as built" column's plants, calibrated pair by pair
+    records = study["effects"][robustness.CALIBRATED]["calibrations"]
+    drawn = drawn_robot(aras3, DEFAULT_DRAW, 5, 2, "tracker")
+    assert records[2]["anchor_rms_error"] == drawn.record["anchor_rms_error"]
+    assert drawn.plant.mass_scale == study["effects"]["as built"]["plants"][2]["mass_scale"]
+    mine = [r for r in rows if r["effect"] == robustness.CALIBRATED]
+    assert {r["design"] for r in mine} == set(robustness.CALIBRATED_DESIGNS)
+    assert table[robustness.CALIBRATED]["pd-sat"]["meets_target"] is None
     for effect in robustness.EFFECTS:
         for design in robustness.DESIGNS:
             mine = [r for r in rows if r["effect"] == effect.name and r["design"] == design]

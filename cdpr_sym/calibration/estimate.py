@@ -4,12 +4,12 @@ in variables, its covariance, and the Cramér-Rao bound.
 The estimate minimises the sum of squared weighted residuals of
 :mod:`cdpr_sym.calibration.information` over theta and every pose's own unknowns at once
 (Levenberg-Marquardt with Marquardt's diagonal scaling, the residuals and Jacobian evaluated
-from the CasADi graph), with the gauge fixed by the inner constraints of
-:mod:`cdpr_sym.calibration.gauge`, held exactly: theta = theta_nominal + C^T z, with C an
-orthonormal basis of the directions the constraints leave free. Where no tension is
-measured, each cable's stretch uses the tension that holds the current estimate of the pose
-at rest (:func:`~cdpr_sym.calibration.measurement.static_tension_function`); the estimate is
-repeated with the tensions of the last one until theta moves by less than a nanometre.
+from the CasADi graph, each step a Cholesky solve of the damped normal equations), with the
+gauge fixed by the inner constraints of :mod:`cdpr_sym.calibration.gauge`, held exactly:
+theta = theta_nominal + C^T z, with C an orthonormal basis of the directions the
+constraints leave free. Where no tension is given (m = n), each cable's stretch uses the
+tension that holds the pose at rest, W(q; theta)^{-1} grad V(q), as part of the
+measurement model, so the Jacobian carries its derivatives too.
 
 Under Gaussian noise of the stated standard deviations, the estimate's covariance is the
 inverse of the Fisher information J^T J in the gauge-free coordinates (so it is the
@@ -31,15 +31,19 @@ import numpy as np
 from cdpr_sym.calibration.campaign import Campaign
 from cdpr_sym.calibration.gauge import gauge_complement
 from cdpr_sym.calibration.identifiability import Identifiability, identifiability
-from cdpr_sym.calibration.information import PoseBlocks, own_size, pose_blocks
+from cdpr_sym.calibration.information import (
+    PoseBlocks,
+    own_size,
+    pose_blocks,
+    statics_tension,
+)
 from cdpr_sym.calibration.measurement import MeasurementModel, Unknowns, static_tension_function
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
 
-#: Levenberg-Marquardt: most iterations, and the step (m or rad) below which it has converged.
-MAX_ITERATIONS, STEP_TOLERANCE = 100, 1e-12
-#: Most passes of re-modelled tensions, and the move of theta (m) that ends them.
-MAX_PASSES, PASS_TOLERANCE = 6, 1e-9
+#: Levenberg-Marquardt: most iterations, most trials of one, and the step (relative to the
+#: largest unknown) below which it has converged.
+MAX_ITERATIONS, MAX_TRIALS, STEP_TOLERANCE = 100, 12, 1e-12
 
 
 @dataclasses.dataclass(frozen=True)
@@ -157,28 +161,48 @@ class _Problem:
 
 def _levenberg_marquardt(problem: _Problem, x: np.ndarray, modelled: np.ndarray
                          ) -> tuple[np.ndarray, int]:
-    """Minimise the stacked cost from x; returns (x, iterations)."""
+    """Minimise the stacked cost from x; returns (x, iterations).
+
+    Each iteration solves (J^T J + mu D) dx = -J^T r by Cholesky, D the diagonal of J^T J
+    (Marquardt's scaling: the step does not depend on the units), raising mu fourfold
+    while the trial does not lower the cost (at most :data:`MAX_TRIALS` times: then no step
+    can lower it and x is a minimum to round-off) and lowering it tenfold after a success
+    (from 1e-6: the nominal geometry is a good start, so the steps are nearly Gauss-Newton
+    ones from the first). It stops when a step moves no unknown by more than :data:`STEP_TOLERANCE`
+    relative to the largest, or the cost falls by less than a part in 1e14."""
     r, J = problem.stacked(x, modelled)
-    cost, damping = float(r @ r), 1e-3
+    cost, damping = float(r @ r), 1e-6
     for iteration in range(1, MAX_ITERATIONS + 1):
-        scale = np.maximum(np.linalg.norm(J, axis=0), 1e-12)
-        while True:
-            augmented = np.vstack([J, np.sqrt(damping) * np.diag(scale)])
-            rhs = np.concatenate([-r, np.zeros(len(x))])
-            step = np.linalg.lstsq(augmented, rhs, rcond=None)[0]
+        gradient, normal = J.T @ r, J.T @ J
+        scale = np.maximum(np.diag(normal), 1e-300)
+        for _ in range(MAX_TRIALS):
+            step = _damped_step(normal, scale, damping, gradient)
             trial = x + step
             r_new, J_new = problem.stacked(trial, modelled)
             cost_new = float(r_new @ r_new)
             if np.isfinite(cost_new) and cost_new <= cost:
-                x, r, J, cost = trial, r_new, J_new, cost_new
-                damping = max(damping / 3, 1e-12)
                 break
             damping *= 4
-            if damping > 1e12:
-                return x, iteration
-        if np.abs(step).max() < STEP_TOLERANCE or damping > 1e12:
+        else:
+            return x, iteration
+        fall = cost - cost_new
+        x, r, J, cost = trial, r_new, J_new, cost_new
+        damping = max(damping / 10, 1e-12)
+        if (np.abs(step).max() <= STEP_TOLERANCE * (1 + np.abs(x).max())
+                or fall <= 1e-14 * (cost + fall)):
             return x, iteration
     return x, MAX_ITERATIONS
+
+
+def _damped_step(normal: np.ndarray, scale: np.ndarray, damping: float,
+                 gradient: np.ndarray) -> np.ndarray:
+    """-(N + mu diag(s))^{-1} g by Cholesky (least squares where it fails)."""
+    matrix = normal + damping * np.diag(scale)
+    try:
+        factor = np.linalg.cholesky(matrix)
+    except np.linalg.LinAlgError:
+        return -np.linalg.lstsq(matrix, gradient, rcond=None)[0]
+    return -np.linalg.solve(factor.T, np.linalg.solve(factor, gradient))
 
 
 def initial_poses(model: MeasurementModel, campaign: Campaign, theta: np.ndarray
@@ -206,21 +230,24 @@ def initial_poses(model: MeasurementModel, campaign: Campaign, theta: np.ndarray
     # far outside
     span = robot.frame_upper - robot.frame_lower
     lower, upper = robot.frame_lower - 0.5 * span, robot.frame_upper + 0.5 * span
-    out = np.empty((campaign.size, model.n))
-    for k, reading in enumerate(lengths):
-        best, best_misfit = None, np.inf
-        for guess in guesses:
-            q, misfit = _gauss_newton_pose(fit, theta, reading, guess)
-            inside = np.all((q > lower) & (q < upper))
-            if inside and misfit < best_misfit:
-                best, best_misfit = q, misfit
-            if best_misfit < POSE_MISFIT / 5:
-                break  # a good fit: the readings' offsets and stretch allow no better
-        if best is None or best_misfit > POSE_MISFIT:
-            raise InvalidCase("readings", f"no pose of the nominal robot near its frame fits "
-                              f"the readings of row {k + 1} within {POSE_MISFIT:g} m")
-        out[k] = best
-    return out
+    best = np.full((campaign.size, model.n), np.nan)
+    best_misfit = np.full(campaign.size, np.inf)
+    for guess in guesses:
+        # only the poses no guess has fitted as well as their offsets and stretch allow
+        open_rows = np.flatnonzero(~(best_misfit < POSE_MISFIT / 5))
+        if not open_rows.size:
+            break
+        q, misfit = _gauss_newton_poses(fit.map(open_rows.size), theta, lengths[open_rows],
+                                        guess)
+        inside = np.all((q > lower) & (q < upper), axis=1)
+        better = inside & (misfit < best_misfit[open_rows])
+        best[open_rows[better]] = q[better]
+        best_misfit[open_rows[better]] = misfit[better]
+    bad = np.flatnonzero(~(best_misfit <= POSE_MISFIT))
+    if bad.size:
+        raise InvalidCase("readings", f"no pose of the nominal robot near its frame fits "
+                          f"the readings of row {bad[0] + 1} within {POSE_MISFIT:g} m")
+    return best
 
 
 #: Largest misfit (m, largest cable) of a starting pose found from the readings alone.
@@ -238,28 +265,39 @@ def _pose_fit(model: MeasurementModel):
     return ca.Function("pose_fit", [q, theta, reading], [misfit, ca.jacobian(misfit, q)])
 
 
-def _gauss_newton_pose(fit, theta: np.ndarray, reading: np.ndarray, q: np.ndarray,
-                       iterations: int = 40) -> tuple[np.ndarray, float]:
-    """The least-squares pose from ``q`` (halving steps that do not lower the misfit), and
-    its largest misfit (m)."""
-    r, J = (np.array(v) for v in fit(q, theta, reading))
-    r = r.ravel()
+def _gauss_newton_poses(fit, theta: np.ndarray, lengths: np.ndarray, guess: np.ndarray,
+                        iterations: int = 20) -> tuple[np.ndarray, np.ndarray]:
+    """The least-squares pose of every row of ``lengths`` from ``guess``, all at once:
+    Gauss-Newton steps (lightly damped), each halved up to 8 times until it lowers that
+    pose's misfit; (poses (N, n), largest misfit per pose (m))."""
+    count, n = len(lengths), len(guess)
+
+    def evaluate(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r, J = fit(q.T, theta, lengths.T)
+        return (np.array(r).T, np.array(J).reshape(-1, count, n).transpose(1, 0, 2))
+
+    q = np.tile(guess, (count, 1))
+    r, J = evaluate(q)
+    cost = np.einsum("ij,ij->i", r, r)
     for _ in range(iterations):
-        if not np.all(np.isfinite(J)):
-            break
-        step = np.linalg.lstsq(J, -r, rcond=None)[0]
-        for _ in range(20):
+        normal = np.einsum("kij,kil->kjl", J, J) + 1e-12 * np.eye(n)
+        step = -np.linalg.solve(normal, np.einsum("kij,ki->kj", J, r)[..., None])[..., 0]
+        step[~np.isfinite(step).all(axis=1)] = 0.0
+        moved = np.zeros(count, dtype=bool)
+        for _ in range(8):
             trial = q + step
-            r_new, J_new = (np.array(v) for v in fit(trial, theta, reading))
-            if np.all(np.isfinite(r_new)) and r_new.ravel() @ r_new.ravel() <= r @ r:
+            r_new, J_new = evaluate(trial)
+            cost_new = np.einsum("ij,ij->i", r_new, r_new)
+            take = ~moved & np.isfinite(cost_new) & (cost_new <= cost)
+            q[take], r[take], J[take], cost[take] = (trial[take], r_new[take], J_new[take],
+                                                     cost_new[take])
+            moved |= take
+            step[~moved] /= 2
+            if moved.all():
                 break
-            step = step / 2
-        else:
+        if np.abs(step[moved]).max(initial=0.0) < 1e-10:
             break
-        q, r, J = trial, r_new.ravel(), J_new
-        if np.abs(step).max() < 1e-10:
-            break
-    return q, float(np.abs(r).max())
+    return q, np.abs(r).max(axis=1)
 
 
 def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns = Unknowns()
@@ -293,19 +331,9 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns = Unknowns
     poses = initial_poses(model, campaign, theta)
     own = np.hstack([poses, campaign.tensions]) if campaign.kind == "load cells" else poses
     x = problem.x_of(theta, own)
-    modelled, iterations = _modelled(model, campaign, theta, poses), 0
+    modelled = _given_tensions(model, campaign)
     _check_identified(model, campaign, problem.blocks(x, modelled), poses)
-    for _ in range(MAX_PASSES):
-        x_new, used = _levenberg_marquardt(problem, x, modelled)
-        iterations += used
-        moved = np.abs(problem.split(x_new)[0] - problem.split(x)[0]).max()
-        x = x_new
-        if campaign.tensions is not None or not np.isfinite(model.stiffness):
-            break  # the stretch's tensions are data, not the estimate's
-        theta, own = problem.split(x)
-        modelled = _modelled(model, campaign, theta, own[:, :model.n])
-        if moved < PASS_TOLERANCE:
-            break
+    x, iterations = _levenberg_marquardt(problem, x, modelled)
     return _result(problem, x, modelled, iterations)
 
 
@@ -335,13 +363,12 @@ def check_size(model: MeasurementModel, campaign: Campaign) -> None:
                           f"of this robot needs at least {needed} poses")
 
 
-def _modelled(model: MeasurementModel, campaign: Campaign, theta: np.ndarray,
-              poses: np.ndarray) -> np.ndarray:
+def _given_tensions(model: MeasurementModel, campaign: Campaign) -> np.ndarray:
+    """The tensions the stretch takes as data (N, (N, m)): the campaign's; zeros where the
+    stretch needs none (rigid cables) or takes the statics' (m = n: part of the model)."""
     if campaign.tensions is not None:
         return np.array(campaign.tensions, dtype=float)
-    if not np.isfinite(model.stiffness):
-        return np.zeros((campaign.size, model.m))
-    return modelled_tensions(model, theta, poses)
+    return np.zeros((campaign.size, model.m))
 
 
 def _result(problem: _Problem, x: np.ndarray, modelled: np.ndarray, iterations: int
@@ -352,7 +379,12 @@ def _result(problem: _Problem, x: np.ndarray, modelled: np.ndarray, iterations: 
     covariance = problem.covariance(blocks)
     residuals = blocks.residuals
     dof = max(residuals.size - x.size, 1)
-    tensions = own[:, model.n:] if campaign.kind == "load cells" else modelled
+    if campaign.kind == "load cells":
+        tensions = own[:, model.n:]
+    elif statics_tension(model, campaign):
+        tensions = modelled_tensions(model, theta, own[:, :model.n])
+    else:
+        tensions = modelled
     return Calibration(
         robot=model.robot_with(theta), theta=theta, names=model.names(),
         covariance=covariance, poses=own[:, :model.n], tensions=tensions,

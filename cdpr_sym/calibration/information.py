@@ -58,16 +58,29 @@ def own_size(model: MeasurementModel, kind: str) -> int:
     return model.n + (model.m if kind == "load cells" else 0)
 
 
+def statics_tension(model: MeasurementModel, campaign: Campaign) -> bool:
+    """Whether the stretch's tension is the statics' W(q; theta)^{-1} grad V(q), part of the
+    measurement model (differentiated with it): m = n, elastic cables, none given."""
+    return (campaign.tensions is None and campaign.kind != "load cells"
+            and np.isfinite(model.stiffness) and model.m == model.n)
+
+
 @functools.lru_cache(maxsize=16)
-def _pose_function(model: MeasurementModel, kind: str) -> ca.Function:
-    """(own, theta, modelled T, reading, pose, tension, sigmas) -> (r, dr/dtheta, dr/down)
-    of one pose; ``sigmas`` = (reading, position, angle, tension)."""
+def _pose_function(model: MeasurementModel, kind: str, from_statics: bool) -> ca.Function:
+    """(own, theta, given T, reading, pose, tension, sigmas) -> (r, dr/dtheta, dr/down) of
+    one pose; ``sigmas`` = (reading, position, angle, tension). The stretch's tension is
+    the pose's own unknown (load cells), the statics' (``from_statics``) or the given one."""
     n, m = model.n, model.m
     own, theta = ca.SX.sym("own", own_size(model, kind)), ca.SX.sym("theta", model.size)
     modelled, reading = ca.SX.sym("T_model", m), ca.SX.sym("reading", m)
     pose, tension, sigma = ca.SX.sym("pose", n), ca.SX.sym("tension", m), ca.SX.sym("s", 4)
     q = own[:n]
-    used = own[n:] if kind == "load cells" else modelled
+    if kind == "load cells":
+        used = own[n:]
+    elif from_statics:
+        used = model.static_tension(q, theta)
+    else:
+        used = modelled
     parts = [(model.reading(q, theta, used) - reading) / sigma[0]]
     if kind == "tracker":
         scale = ca.vertcat(*[sigma[2] if unit == "rad" else sigma[1]
@@ -91,10 +104,11 @@ def pose_blocks(model: MeasurementModel, campaign: Campaign, theta: np.ndarray,
     own : ndarray, shape (N, u)
         Each pose's own unknowns: q (n) and, with load cells, T (m).
     modelled : ndarray, shape (N, m)
-        Tensions (N) for the stretch where none are measured (ignored with load cells).
+        Tensions (N) for the stretch where none are measured and the statics do not give
+        them (:func:`statics_tension`); ignored otherwise.
     """
     kind, count = campaign.kind, campaign.size
-    function = _pose_function(model, kind).map(count)
+    function = _pose_function(model, kind, statics_tension(model, campaign)).map(count)
     noise = campaign.noise
     sigmas = np.array([noise.reading, noise.position, noise.angle, noise.tension])
     poses = campaign.poses if campaign.poses is not None else np.zeros((count, model.n))

@@ -163,6 +163,21 @@ class MeasurementModel:
         return ca.Function("encoder_reading", [q, theta, tension], [reading],
                            ["q", "theta", "T"], ["reading"])
 
+    def static_tension(self, q: ca.SX, theta: ca.SX) -> ca.SX:
+        """The tension (N) holding q at rest with theta's geometry, as the as-built plant
+        holds it: W^{-1} grad V for m = n; the default distribution for m > n
+        (:func:`cdpr_sym.as_built.static.true_static_function`)."""
+        from cdpr_sym.distribution import AUTO, distribute
+
+        robot = self.robot
+        lengths = _lengths(self._geometry(theta), q)
+        W = -ca.jacobian(lengths, q).T
+        com = kinematics.center_of_mass(robot, q)
+        weight = robot.mass * robot.gravity * ca.jacobian(com[-1], q).T
+        if self.m > self.n:
+            return distribute(AUTO, W, weight, robot.t_min, robot.t_max)[0]
+        return ca.solve(W, weight)
+
     @functools.cached_property
     def statics(self) -> ca.Function:
         """(q (n), theta (p), T (m)) -> W(q; theta) T - grad V(q) (n): equation (2), N
@@ -188,19 +203,8 @@ def _lengths(geometry: _SymbolicGeometry, q: ca.SX) -> ca.SX:
 
 
 def static_tension_function(model: MeasurementModel) -> ca.Function:
-    """(q (n), theta (p)) -> T (m), N: the tension holding q at rest with theta's
-    geometry, as the as-built plant holds it (W^{-1} grad V for m = n; the default
-    distribution for m > n, :func:`cdpr_sym.as_built.static.true_static_function`)."""
-    from cdpr_sym.distribution import AUTO, distribute
-
-    robot = model.robot
+    """(q (n), theta (p)) -> T (m), N: :meth:`MeasurementModel.static_tension` as a
+    function."""
     q, theta = ca.SX.sym("q", model.n), ca.SX.sym("theta", model.size)
-    lengths = _lengths(model._geometry(theta), q)
-    W = -ca.jacobian(lengths, q).T
-    com = kinematics.center_of_mass(robot, q)
-    weight = robot.mass * robot.gravity * ca.jacobian(com[-1], q).T
-    if model.m > model.n:
-        tension, _ = distribute(AUTO, W, weight, robot.t_min, robot.t_max)
-    else:
-        tension = ca.solve(W, weight)
-    return ca.Function("static_tension", [q, theta], [tension], ["q", "theta"], ["T"])
+    return ca.Function("static_tension", [q, theta], [model.static_tension(q, theta)],
+                       ["q", "theta"], ["T"])
