@@ -1,9 +1,9 @@
 """cdpr_sym: symbolic modelling, generated C and tension-feasible control of CDPRs.
 
 The package follows the flow of the work, one folder a stage: ``robot`` (the description)
-→ ``model`` (CasADi) → ``calibration`` (the geometry as built, from measurements)
-→ ``codegen`` (generated C) → ``control`` (the laws) → ``results`` (trajectories and their
-files) → ``closed_loop`` (simulation) → ``workspace``, ``sweep``
+→ ``model`` (CasADi) → ``codegen`` (generated C) → ``control`` (the laws) → ``results``
+(trajectories and their files) → ``closed_loop`` (simulation) → ``workspace``
+→ ``calibration`` (the geometry as built, from measurements) → ``sweep``
 → ``reporting``, ``studies``, ``export`` → ``cli``.
 """
 

@@ -12,9 +12,9 @@ import pytest
 
 from cdpr_sym import preset
 from cdpr_sym.as_built import DEFAULT_DRAW, Actuation, AsBuiltDraw, Sensing, load_as_built_draw
+from cdpr_sym.calibration.drawn import drawn_robot
 from cdpr_sym.cli import main
 from cdpr_sym.closed_loop import get_simulator
-from cdpr_sym.closed_loop.drawn import drawn_robot
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.sweep import SweepConfig, run_sweep

@@ -167,17 +167,80 @@ def test_a_robot_file_keeps_its_encoder_offsets_and_refuses_a_wrong_count():
 
 
 def test_the_controller_subtracts_its_encoder_offsets_before_forward_kinematics():
-    """A robot whose model says each encoder reads 2 mm long reads the pose the lengths
-    2 mm shorter give: read_offset moves by -J_a^{-1} (2 mm), J_a = dl/dq (numpy)."""
+    """A robot whose model says each encoder reads 2 mm long: on a plant whose encoders do
+    (the default) the correction cancels; on one whose encoders read true lengths
+    (``encoder_offsets`` -2 mm relative to the model) the pose read moves by
+    -J_a^{-1} (2 mm), J_a = dl/dq (numpy)."""
     robot = preset("aras3")
     shifted = robot.with_case(encoder_offsets=np.full(3, 2e-3))
-    plant = Plant(as_built=AsBuilt(sensing=Sensing(resolution=0.0)))
-    structure = plant.as_built.structure()
     design = controller_by_name("smooth")
-    plain = get_simulator(robot, design, as_built=structure).read_offset(robot.goal, plant)
-    read = get_simulator(shifted, design, as_built=structure).read_offset(robot.goal, plant)
+    as_modelled = Plant(as_built=AsBuilt(sensing=Sensing(resolution=0.0)))
+    true_lengths = Plant(as_built=AsBuilt(sensing=Sensing(resolution=0.0),
+                                          encoder_offsets=np.full(3, -2e-3)))
+    structure = as_modelled.as_built.structure()
+    plain = get_simulator(robot, design, as_built=structure).read_offset(robot.goal,
+                                                                         as_modelled)
+    simulator = get_simulator(shifted, design, as_built=structure)
     assert np.abs(plain).max() < 1e-12
+    assert np.abs(simulator.read_offset(robot.goal, as_modelled)).max() < 1e-12
     units = (robot.goal - robot.anchors) / np.linalg.norm(robot.goal - robot.anchors,
                                                           axis=1)[:, None]
     expected = -np.linalg.solve(units, np.full(3, 2e-3))
-    np.testing.assert_allclose(read, expected, rtol=1e-3)
+    np.testing.assert_allclose(simulator.read_offset(robot.goal, true_lengths), expected,
+                               rtol=1e-3)
+
+
+def test_a_run_reads_its_plants_encoder_offsets_every_period():
+    """The step's encoders (not only the start's reading): a plant whose encoders read
+    1 mm long on every cable settles where the true lengths are 1 mm shorter."""
+    robot = preset("aras3")
+    design = controller_by_name("smooth")
+    exact = AsBuilt(sensing=Sensing(resolution=0.0))
+    long = AsBuilt(sensing=Sensing(resolution=0.0), encoder_offsets=np.full(3, 1e-3))
+    simulator = get_simulator(robot, design, as_built=exact.structure())
+    final = {}
+    for name, spec in (("exact", exact), ("long", long)):
+        run = simulator.run(robot.start, robot.goal, robot.k, robot.r_d, duration=6.0,
+                            dt=1e-3, plant=Plant(as_built=spec))
+        final[name] = run.q[-1]
+    lengths = {name: np.linalg.norm(robot.anchors - q, axis=1) for name, q in final.items()}
+    np.testing.assert_allclose(lengths["exact"] - lengths["long"], 1e-3, atol=2e-5)
+
+
+@pytest.mark.parametrize("poses, words", [("2", "needs at least 4 poses"),
+                                          ("201", "expected a number of poses in 1..200")])
+def test_plan_refuses_pose_counts_that_cannot_calibrate_or_would_not_end(capsys, poses,
+                                                                        words):
+    status, _, err = _run(capsys, "calibrate", "--plan", "--robot", "aras3", "--poses", poses)
+    assert status == 2 and words in err
+
+
+def _strict(text: str) -> dict:
+    def refuse(constant: str) -> None:
+        raise ValueError(f"{constant} is not JSON")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_json_output_is_strict_json_even_with_gauge_motions(capsys, tmp_path):
+    """ipanema8 from its encoders alone: the gauge motions have no standard deviation, which
+    JSON writes as null, not Infinity."""
+    robot = preset("ipanema8")
+    rng = np.random.default_rng(SEED)
+    truth = Truth(anchor_offsets=rng.uniform(-5e-3, 5e-3, robot.anchors.shape),
+                  encoder_offsets=rng.uniform(-5e-3, 5e-3, robot.m), stiffness=1e5)
+    at = sample_static_workspace(robot, 20, rng, margin=0.05)
+    campaign = simulate_campaign(robot, truth, at, rng, kind="self")
+    header = [f"length_{i + 1}" for i in range(8)] + [f"tension_{i + 1}" for i in range(8)]
+    lines = [",".join(header)] + [",".join(repr(float(v)) for v in [*r, *t])
+                                  for r, t in zip(campaign.readings, campaign.tensions,
+                                                  strict=True)]
+    (tmp_path / "m.csv").write_text("\ufeff" + "\n".join(lines) + "\n")  # a spreadsheet's BOM
+    status, text, err = _run(capsys, "calibrate", "--json", "--robot", "ipanema8",
+                             "--measurements", str(tmp_path / "m.csv"), "--out",
+                             str(tmp_path / "c.toml"))
+    assert status == 0, err
+    result = _strict(text)
+    gauge = [d for d in result["identifiability"]["unidentified"] if d["gauge"]]
+    assert len(gauge) == 6 and all(d["std"] is None for d in gauge)
+    assert result["kind"] == "self"

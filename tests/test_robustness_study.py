@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from cdpr_sym.as_built import DEFAULT_DRAW, AsBuilt
+from cdpr_sym.calibration.drawn import drawn_robot
 from cdpr_sym.closed_loop import Plant, get_simulator
-from cdpr_sym.closed_loop.drawn import drawn_robot
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.studies import robustness
 

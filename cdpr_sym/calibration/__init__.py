@@ -10,11 +10,13 @@ measurements at static poses, with their covariance and an identifiability repor
 * :mod:`~cdpr_sym.calibration.identifiability`: what is identified, named in words;
 * :mod:`~cdpr_sym.calibration.simulated`: the campaign a known truth would give;
 * :mod:`~cdpr_sym.calibration.plan`: D-optimal calibration poses;
-* :mod:`~cdpr_sym.calibration.table`: the measurement CSV, read and checked.
+* :mod:`~cdpr_sym.calibration.table`: the measurement CSV, read and checked;
+* :mod:`~cdpr_sym.calibration.drawn`: a pair's robot as built, calibrated before its run.
 
-The stage sits between the model and the closed loop: it reads the model's kinematics and
-writes a :class:`~cdpr_sym.robot.Robot` (anchors, attachments, encoder offsets) that every
-later stage takes like any other.
+The stage sits above the workspace (it draws candidate poses there) and the closed loop (a
+pair's robot as built, calibrated, :mod:`~cdpr_sym.calibration.drawn`, is a plant of it): it
+reads the model's kinematics and writes a :class:`~cdpr_sym.robot.Robot` (anchors,
+attachments, encoder offsets) that every stage takes like any other.
 """
 
 import lazy_loader

@@ -117,6 +117,14 @@ class Campaign:
                               f"{self.tension_source!r}")
         if self.tension_source == "load cells" and self.tensions is None:
             raise InvalidCase("tensions", "a load-cell campaign needs the measured tensions")
+        if self.tension_source == "load cells" and self.poses is not None:
+            raise InvalidCase("load_cells", "a campaign with measured poses is a tracker "
+                              "campaign, whose tensions count as commanded; load cells "
+                              "calibrate without poses")
+        if self.tensions is not None and (self.tensions < 0).any():
+            row, cable = np.argwhere(self.tensions < 0)[0]
+            raise InvalidCase("tensions", f"row {row + 1}: tension_{cable + 1} = "
+                              f"{self.tensions[row, cable]:g} N; a cable only pulls (>= 0)")
         if not (isinstance(self.stiffness, (int, float)) and self.stiffness > 0):
             raise InvalidCase("stiffness", f"expected a positive EA in N (inf: rigid "
                               f"cables), got {self.stiffness!r}")

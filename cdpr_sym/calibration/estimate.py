@@ -43,7 +43,7 @@ from cdpr_sym.robot import Robot
 
 #: Levenberg-Marquardt: most iterations, most trials of one, and the step (relative to the
 #: largest unknown) below which it has converged.
-MAX_ITERATIONS, MAX_TRIALS, STEP_TOLERANCE = 100, 12, 1e-12
+MAX_ITERATIONS, MAX_TRIALS, STEP_TOLERANCE = 300, 12, 1e-12
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,8 +71,10 @@ class Calibration:
     sigma0 : float
         sqrt(weighted cost / degrees of freedom); about 1 when the noise is as stated.
     iterations : int
-        Levenberg-Marquardt iterations, over all passes.
+        Levenberg-Marquardt iterations.
     identifiability : Identifiability
+    unknowns : Unknowns
+        What theta holds (with the weight error where the statics give the tension).
     """
 
     robot: Robot
@@ -86,10 +88,12 @@ class Calibration:
     sigma0: float
     iterations: int
     identifiability: Identifiability
+    unknowns: Unknowns = dataclasses.field(default_factory=Unknowns)
 
     @property
     def std(self) -> np.ndarray:
-        """Standard deviation of each entry of theta, m."""
+        """Standard deviation of each entry of theta, m (the weight error's
+        dimensionless)."""
         return np.sqrt(np.clip(np.diag(self.covariance), 0, None))
 
     def as_dict(self) -> dict[str, Any]:
@@ -159,9 +163,9 @@ class _Problem:
                                              hermitian=True) @ self.basis
 
 
-def _levenberg_marquardt(problem: _Problem, x: np.ndarray, modelled: np.ndarray
-                         ) -> tuple[np.ndarray, int]:
-    """Minimise the stacked cost from x; returns (x, iterations).
+def _levenberg_marquardt(problem: _Problem, x: np.ndarray, given: np.ndarray
+                         ) -> tuple[np.ndarray, int, bool]:
+    """Minimise the stacked cost from x; returns (x, iterations, converged).
 
     Each iteration solves (J^T J + mu D) dx = -J^T r by Cholesky, D the diagonal of J^T J
     (Marquardt's scaling: the step does not depend on the units), raising mu fourfold
@@ -170,7 +174,7 @@ def _levenberg_marquardt(problem: _Problem, x: np.ndarray, modelled: np.ndarray
     (from 1e-6: the nominal geometry is a good start, so the steps are nearly Gauss-Newton
     ones from the first). It stops when a step moves no unknown by more than :data:`STEP_TOLERANCE`
     relative to the largest, or the cost falls by less than a part in 1e14."""
-    r, J = problem.stacked(x, modelled)
+    r, J = problem.stacked(x, given)
     cost, damping = float(r @ r), 1e-6
     for iteration in range(1, MAX_ITERATIONS + 1):
         gradient, normal = J.T @ r, J.T @ J
@@ -178,20 +182,20 @@ def _levenberg_marquardt(problem: _Problem, x: np.ndarray, modelled: np.ndarray
         for _ in range(MAX_TRIALS):
             step = _damped_step(normal, scale, damping, gradient)
             trial = x + step
-            r_new, J_new = problem.stacked(trial, modelled)
+            r_new, J_new = problem.stacked(trial, given)
             cost_new = float(r_new @ r_new)
             if np.isfinite(cost_new) and cost_new <= cost:
                 break
             damping *= 4
         else:
-            return x, iteration
+            return x, iteration, np.isfinite(cost)
         fall = cost - cost_new
         x, r, J, cost = trial, r_new, J_new, cost_new
         damping = max(damping / 10, 1e-12)
         if (np.abs(step).max() <= STEP_TOLERANCE * (1 + np.abs(x).max())
                 or fall <= 1e-14 * (cost + fall)):
-            return x, iteration
-    return x, MAX_ITERATIONS
+            return x, iteration, True
+    return x, MAX_ITERATIONS, False
 
 
 def _damped_step(normal: np.ndarray, scale: np.ndarray, damping: float,
@@ -237,8 +241,15 @@ def initial_poses(model: MeasurementModel, campaign: Campaign, theta: np.ndarray
         open_rows = np.flatnonzero(~(best_misfit < POSE_MISFIT / 5))
         if not open_rows.size:
             break
-        q, misfit = _gauss_newton_poses(fit.map(open_rows.size), theta, lengths[open_rows],
-                                        guess)
+        mapped = fit.map(open_rows.size)
+        if robot.kind != "point":
+            # the position first, the angles held (a rigid body's angles are weakly seen
+            # by its lengths, and a full step from far away can spin it off), then all
+            q, _ = _gauss_newton_poses(mapped, theta, lengths[open_rows], guess,
+                                       free=np.arange(model.n) < robot.dimension)
+            q, misfit = _gauss_newton_poses(mapped, theta, lengths[open_rows], q)
+        else:
+            q, misfit = _gauss_newton_poses(mapped, theta, lengths[open_rows], guess)
         inside = np.all((q > lower) & (q < upper), axis=1)
         better = inside & (misfit < best_misfit[open_rows])
         best[open_rows[better]] = q[better]
@@ -266,17 +277,21 @@ def _pose_fit(model: MeasurementModel):
 
 
 def _gauss_newton_poses(fit, theta: np.ndarray, lengths: np.ndarray, guess: np.ndarray,
-                        iterations: int = 20) -> tuple[np.ndarray, np.ndarray]:
-    """The least-squares pose of every row of ``lengths`` from ``guess``, all at once:
-    Gauss-Newton steps (lightly damped), each halved up to 8 times until it lowers that
-    pose's misfit; (poses (N, n), largest misfit per pose (m))."""
-    count, n = len(lengths), len(guess)
+                        iterations: int = 20, free: np.ndarray | None = None
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """The least-squares pose of every row of ``lengths`` from ``guess`` (one pose, or one
+    per row), all at once: Gauss-Newton steps (lightly damped) on the ``free`` coordinates
+    (default all), each halved up to 8 times until it lowers that pose's misfit; (poses
+    (N, n), largest misfit per pose (m))."""
+    count, n = len(lengths), guess.shape[-1]
+    keep = np.ones(n, dtype=bool) if free is None else free
 
     def evaluate(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r, J = fit(q.T, theta, lengths.T)
-        return (np.array(r).T, np.array(J).reshape(-1, count, n).transpose(1, 0, 2))
+        J = np.array(J).reshape(-1, count, n).transpose(1, 0, 2)
+        return np.array(r).T, J * keep
 
-    q = np.tile(guess, (count, 1))
+    q = np.broadcast_to(guess, (count, n)).copy()
     r, J = evaluate(q)
     cost = np.einsum("ij,ij->i", r, r)
     for _ in range(iterations):
@@ -300,7 +315,18 @@ def _gauss_newton_poses(fit, theta: np.ndarray, lengths: np.ndarray, guess: np.n
     return q, np.abs(r).max(axis=1)
 
 
-def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns = Unknowns()
+def default_unknowns(robot: Robot, campaign: Campaign, attachments: bool = False
+                     ) -> Unknowns:
+    """The anchors and offsets (and ``attachments``), with the weight error wherever the
+    stretch's tension comes from the statics (m = n, elastic cables, no tensions given):
+    the platform's true weight is as uncertain as the geometry (a 10 % heavier one biased
+    aras3's anchors by 0.34 mm, twice their standard deviation, when it was assumed)."""
+    weight = (robot.m == robot.n and np.isfinite(campaign.stiffness)
+              and campaign.tensions is None and campaign.kind != "load cells")
+    return Unknowns(attachments=attachments, weight=weight)
+
+
+def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns | None = None
               ) -> Calibration:
     """Estimate the anchors and encoder offsets (and attachments) of ``robot`` from
     ``campaign``.
@@ -311,7 +337,8 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns = Unknowns
         The nominal robot: the starting geometry, and the frame's reference for a campaign
         with a gauge (:mod:`cdpr_sym.calibration.gauge`).
     campaign : Campaign
-    unknowns : Unknowns
+    unknowns : Unknowns, optional
+        Default :func:`default_unknowns`.
 
     Returns
     -------
@@ -320,10 +347,12 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns = Unknowns
     Raises
     ------
     InvalidCase
-        The campaign does not fit the robot, has fewer measurements than unknowns, or
-        (``readings``) a reading fits no pose of the nominal robot.
+        The campaign does not fit the robot, has fewer measurements than unknowns, leaves
+        some direction unidentified, or (``readings``) a reading fits no pose of the nominal
+        robot, or the solve does not converge.
     """
     campaign.check_robot(robot.n, robot.m)
+    unknowns = unknowns or default_unknowns(robot, campaign)
     model = MeasurementModel(robot, unknowns, campaign.stiffness)
     check_size(model, campaign)
     theta = model.nominal(robot.encoder_offsets)
@@ -331,36 +360,68 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns = Unknowns
     poses = initial_poses(model, campaign, theta)
     own = np.hstack([poses, campaign.tensions]) if campaign.kind == "load cells" else poses
     x = problem.x_of(theta, own)
-    modelled = _given_tensions(model, campaign)
-    _check_identified(model, campaign, problem.blocks(x, modelled), poses)
-    x, iterations = _levenberg_marquardt(problem, x, modelled)
-    return _result(problem, x, modelled, iterations)
+    given = _given_tensions(model, campaign)
+    start = problem.blocks(x, given)
+    _check_plausible(model, campaign, start)
+    _check_identified(model, campaign, start, poses)
+    x, iterations, converged = _levenberg_marquardt(problem, x, given)
+    if not converged:
+        raise InvalidCase("readings", f"the estimate did not converge in {iterations} "
+                          "iterations; the campaign identifies the geometry too weakly "
+                          "(see its identifiability report: calibrate with more poses, or "
+                          "measure them)")
+    result = _result(problem, x, given, iterations)
+    _refuse_problems(result.identifiability, "the estimate")
+    return result
+
+
+def _check_plausible(model: MeasurementModel, campaign: Campaign, blocks: PoseBlocks
+                     ) -> None:
+    """Refuse readings that the nominal robot at the starting poses misses by more than
+    :data:`POSE_MISFIT` (a column swapped, a wrong unit): no calibration is that far off."""
+    misfit = np.abs(blocks.residuals[:, :model.m]) * campaign.noise.reading
+    bad = np.argwhere(~(misfit <= POSE_MISFIT))
+    if bad.size:
+        row, cable = bad[0]
+        raise InvalidCase("readings", f"row {row + 1}: length_{cable + 1} differs from the "
+                          f"nominal robot's at the measured pose by {misfit[row, cable]:.3g} m "
+                          f"(more than {POSE_MISFIT:g} m: a swapped column or a wrong unit?)")
 
 
 def _check_identified(model: MeasurementModel, campaign: Campaign, blocks: PoseBlocks,
                       poses: np.ndarray) -> None:
     """Refuse, before the solve, a campaign that leaves some direction of the geometry
     (other than its gauge) unidentified at the starting point, naming it."""
-    report = identifiability(model, campaign.kind, blocks, poses)
+    _refuse_problems(identifiability(model, campaign.kind, blocks, poses), "the campaign")
+
+
+def _refuse_problems(report: Identifiability, what: str) -> None:
+    """InvalidCase (``readings``) naming the directions ``report`` finds unidentified."""
     if report.problems:
         names = "; ".join(d.name for d in report.problems)
-        free = report.rank + len(report.problems)
-        raise InvalidCase("readings", f"the campaign cannot identify {names} (rank "
-                          f"{report.rank} of {free}); measure at poses that differ more")
+        raise InvalidCase("readings", f"{what} cannot identify {names} (rank {report.rank} "
+                          f"of {len(report.singular_values)}; a standard deviation of "
+                          "1 m or more counts as none); measure at poses that differ more")
+
+
+def least_poses(model: MeasurementModel, kind: str) -> int:
+    """Fewest poses of a ``kind`` campaign whose measurements are at least its unknowns
+    (the gauge's aside): each pose brings m readings (and n tracker coordinates, or m
+    tensions and n statics) and its own n (and m) unknowns."""
+    per_pose = model.m + (model.n if kind == "tracker" else 0) + (
+        model.m + model.n if kind == "load cells" else 0)
+    net = per_pose - own_size(model, kind)
+    gauge = model.size - len(gauge_complement(model, kind))
+    return int(np.ceil((model.size - gauge) / max(net, 1)))
 
 
 def check_size(model: MeasurementModel, campaign: Campaign) -> None:
-    """Refuse a campaign with fewer measurements than unknowns (before any solve)."""
-    kind = campaign.kind
-    per_pose = model.m + (model.n if kind == "tracker" else 0) + (
-        model.m + model.n if kind == "load cells" else 0)
-    unknowns = model.size + campaign.size * own_size(model, kind)
-    gauge = model.size - len(gauge_complement(model, kind))
-    if campaign.size * per_pose + gauge < unknowns:
-        needed = int(np.ceil((model.size - gauge) / max(per_pose - own_size(model, kind), 1)))
-        raise InvalidCase("readings", f"{campaign.size} poses give {campaign.size * per_pose} "
-                          f"measurements for {unknowns - gauge} unknowns; a {kind} campaign "
-                          f"of this robot needs at least {needed} poses")
+    """Refuse a campaign with fewer poses than its unknowns need (before any solve)."""
+    needed = least_poses(model, campaign.kind)
+    if campaign.size < needed:
+        raise InvalidCase("readings", f"{campaign.size} poses are too few: a "
+                          f"{campaign.kind} campaign of this robot ({model.size} unknowns and "
+                          f"each pose's own) needs at least {needed} poses")
 
 
 def _given_tensions(model: MeasurementModel, campaign: Campaign) -> np.ndarray:
@@ -371,11 +432,11 @@ def _given_tensions(model: MeasurementModel, campaign: Campaign) -> np.ndarray:
     return np.zeros((campaign.size, model.m))
 
 
-def _result(problem: _Problem, x: np.ndarray, modelled: np.ndarray, iterations: int
+def _result(problem: _Problem, x: np.ndarray, given: np.ndarray, iterations: int
             ) -> Calibration:
     model, campaign = problem.model, problem.campaign
     theta, own = problem.split(x)
-    blocks = problem.blocks(x, modelled)
+    blocks = problem.blocks(x, given)
     covariance = problem.covariance(blocks)
     residuals = blocks.residuals
     dof = max(residuals.size - x.size, 1)
@@ -384,13 +445,15 @@ def _result(problem: _Problem, x: np.ndarray, modelled: np.ndarray, iterations: 
     elif statics_tension(model, campaign):
         tensions = modelled_tensions(model, theta, own[:, :model.n])
     else:
-        tensions = modelled
+        tensions = given
     return Calibration(
         robot=model.robot_with(theta), theta=theta, names=model.names(),
         covariance=covariance, poses=own[:, :model.n], tensions=tensions,
         kind=campaign.kind, residual_rms=_rms(model, campaign, residuals),
         sigma0=float(np.sqrt((residuals ** 2).sum() / dof)), iterations=iterations,
-        identifiability=identifiability(model, campaign.kind, blocks, own[:, :model.n]))
+        identifiability=identifiability(model, campaign.kind, blocks, own[:, :model.n],
+                                        theta=theta),
+        unknowns=model.unknowns)
 
 
 def _rms(model: MeasurementModel, campaign: Campaign, residuals: np.ndarray
@@ -410,10 +473,13 @@ def _rms(model: MeasurementModel, campaign: Campaign, residuals: np.ndarray
 
 
 def cramer_rao_bound(robot: Robot, campaign: Campaign, theta: np.ndarray, poses: np.ndarray,
-                     tensions: np.ndarray, *, unknowns: Unknowns = Unknowns()) -> np.ndarray:
+                     tensions: np.ndarray, *, unknowns: Unknowns | None = None) -> np.ndarray:
     """The Cramér-Rao bound of theta (m^2, (p, p)) for ``campaign``'s kind, pose count and
-    noise, at the true geometry ``theta``, poses and tensions (N, the stretch's), in the
-    frame of the gauge constraints: the inverse Fisher information."""
+    noise, at the true geometry ``theta`` (of ``unknowns``, default
+    :func:`default_unknowns`, as :func:`calibrate` estimates it), poses and tensions (N,
+    the stretch's where given), in the frame of the gauge constraints: the inverse Fisher
+    information."""
+    unknowns = unknowns or default_unknowns(robot, campaign)
     model = MeasurementModel(robot, unknowns, campaign.stiffness)
     problem = _Problem(model, campaign, model.nominal())
     own = np.hstack([poses, tensions]) if campaign.kind == "load cells" else poses

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from cdpr_sym.calibration.measurement import MeasurementModel
+from cdpr_sym.errors import InvalidCase
 
 _AXES = {2: ("x", "z"), 3: ("x", "y", "z")}
 
@@ -50,13 +51,17 @@ def _rotations(points: np.ndarray, axes: tuple[int, ...]) -> list[tuple[np.ndarr
     return out
 
 
-def gauge_directions(model: MeasurementModel, kind: str) -> list[tuple[np.ndarray, str]]:
+def gauge_directions(model: MeasurementModel, kind: str, theta: np.ndarray | None = None
+                     ) -> list[tuple[np.ndarray, str]]:
     """The gauge motions of a ``kind`` campaign (:data:`~cdpr_sym.calibration.campaign.KINDS`)
-    as directions in theta (unnormalised), each with a name in words."""
+    as directions in theta (unnormalised), each with a name in words: rigid motions of the
+    anchors (and attachments) of ``theta`` (default the nominal ones), to first order."""
+    check_kind(kind)
     if kind == "tracker":
         return []
     where = model.slices()
-    robot = model.robot
+    theta = model.nominal() if theta is None else theta
+    anchors = theta[where["anchors"]].reshape(model.m, model.d)
     out = []
 
     def place(part: str, vector: np.ndarray) -> np.ndarray:
@@ -65,22 +70,39 @@ def gauge_directions(model: MeasurementModel, kind: str) -> list[tuple[np.ndarra
         return full
 
     rotation_axes = (0, 1, 2) if kind == "self" else (2,)
-    for vector, axis in _translations(robot.anchors):
+    for vector, axis in _translations(anchors):
         out.append((place("anchors", vector),
                     f"all anchors and poses shifted together along {axis}"))
-    if kind == "self" or robot.dimension == 3:
-        for vector, axis in _rotations(robot.anchors, rotation_axes):
+    if kind == "self" or model.d == 3:
+        for vector, axis in _rotations(anchors, rotation_axes):
             if kind == "self" or axis == "z":
                 out.append((place("anchors", vector),
                             f"all anchors and poses turned together about {axis}"))
     if "attachments" in where and kind == "self":
-        for vector, axis in _translations(robot.attachments):
+        attachments = theta[where["attachments"]].reshape(model.m, model.d)
+        for vector, axis in _translations(attachments):
             out.append((place("attachments", vector),
                         f"all attachments shifted along body {axis} (the body frame moved)"))
-        for vector, axis in _rotations(robot.attachments, (0, 1, 2)):
+        for vector, axis in _rotations(attachments, (0, 1, 2)):
             out.append((place("attachments", vector),
                         f"all attachments turned about body {axis} (the body frame turned)"))
     return out
+
+
+def check_kind(kind: str) -> str:
+    """``kind`` if it is a campaign kind, else InvalidCase naming ``kind``."""
+    from cdpr_sym.calibration.campaign import KINDS
+
+    if kind not in KINDS:
+        raise InvalidCase("kind", f"expected one of {', '.join(KINDS)}, got {kind!r}")
+    return kind
+
+
+def gauge_free(model: MeasurementModel, kind: str, error: np.ndarray) -> np.ndarray:
+    """``error`` (a change of theta, m) without its components along the campaign's gauge
+    motions (at the nominal geometry): what the data can tell about it."""
+    basis = gauge_basis(model, kind)
+    return error - basis.T @ (basis @ error)
 
 
 def gauge_basis(model: MeasurementModel, kind: str) -> np.ndarray:

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpr_sym.calibration.gauge import gauge_basis, gauge_complement, gauge_directions
+from cdpr_sym.calibration.gauge import gauge_complement, gauge_directions
 from cdpr_sym.calibration.measurement import MeasurementModel
 
 if TYPE_CHECKING:
@@ -85,20 +85,26 @@ class Identifiability:
         return [d for d in self.unidentified if not d.gauge]
 
     def as_dict(self) -> dict[str, Any]:
+        """Plain values for JSON (an unbounded standard deviation as None)."""
+        def direction(d: Direction) -> dict[str, Any]:
+            return {"name": d.name, "std": d.std if np.isfinite(d.std) else None,
+                    "gauge": d.gauge}
+
         return {"parameters": self.parameters, "rank": self.rank,
-                "condition": self.condition,
-                "unidentified": [dataclasses.asdict(d) for d in self.unidentified],
-                "weak": [dataclasses.asdict(d) for d in self.weak]}
+                "condition": self.condition if np.isfinite(self.condition) else None,
+                "unidentified": [direction(d) for d in self.unidentified],
+                "weak": [direction(d) for d in self.weak]}
 
     def lines(self) -> list[str]:
         """The report in words."""
         out = [f"rank {self.rank} of {self.parameters}, condition number {self.condition:.3g}"]
         for d in self.unidentified:
-            felt = "" if d.std == float("inf") else f" ({1e3 * d.std:.3g} mm)"
             if d.gauge:
-                out.append(f"  gauge, fixed by the nominal frame: {d.name}"
-                           + (f" (the data alone:{felt[1:]}" if felt else ""))
+                felt = ("" if d.std == float("inf")
+                        else f" (the data alone: {1e3 * d.std:.3g} mm)")
+                out.append(f"  gauge, fixed by the nominal frame: {d.name}{felt}")
             else:
+                felt = "" if d.std == float("inf") else f" ({1e3 * d.std:.3g} mm)"
                 out.append(f"  NOT identified: {d.name}{felt}")
         for d in self.weak:
             out.append(f"  weak ({1e3 * d.std:.3g} mm): {d.name}")
@@ -164,7 +170,8 @@ def _world_points(model: MeasurementModel, poses: np.ndarray, cable: int) -> np.
 
 
 def identifiability(model: MeasurementModel, kind: str, blocks: PoseBlocks,
-                    poses: np.ndarray, *, weak: float = WEAK_STD) -> Identifiability:
+                    poses: np.ndarray, *, weak: float = WEAK_STD,
+                    theta: np.ndarray | None = None) -> Identifiability:
     """The identifiability report of a campaign from its Jacobian blocks at ``poses``.
 
     The gauge motions of the campaign's kind are set apart first: each is reported with the
@@ -174,10 +181,14 @@ def identifiability(model: MeasurementModel, kind: str, blocks: PoseBlocks,
     direction is not identified when its singular value is zero to round-off or its
     standard deviation exceeds :data:`UNIDENTIFIED_STD`, weak when it exceeds ``weak``.
     Each tier is named as a subspace (:func:`_name_subspace`), every named direction with
-    its own standard deviation sqrt(c^T C c), C the covariance."""
-    reduced = blocks.reduced()
-    gauge = [(v / np.linalg.norm(v), name) for v, name in gauge_directions(model, kind)]
-    complement = gauge_complement(model, kind)
+    its own standard deviation sqrt(c^T C c), C the covariance. The gauge motions are those
+    of ``theta`` (the estimate; default the nominal geometry), where the Jacobian is. The
+    weight error (dimensionless, where estimated) is eliminated like the poses: the report
+    is about the geometry, in metres."""
+    reduced = _without_weight(model, blocks.reduced())
+    gauge = [(v / np.linalg.norm(v), name)
+             for v, name in gauge_directions(model, kind, theta)]
+    complement = _geometric(model, gauge_complement(model, kind))
     _, singular, right = np.linalg.svd(reduced @ complement.T, full_matrices=True)
     values = np.zeros(len(complement))
     values[:len(singular)] = singular
@@ -189,7 +200,8 @@ def identifiability(model: MeasurementModel, kind: str, blocks: PoseBlocks,
     with np.errstate(divide="ignore"):
         stds = np.where(identified, 1 / np.where(identified, values, 1.0), np.inf)
     covariance = (directions[identified].T / values[identified] ** 2) @ directions[identified]
-    named = [c for c in candidates(model, kind, poses) if not c[2]]
+    named = [c for c in candidates(model, kind, poses)
+             if not c[2] and np.all(c[0][~model.geometric()] == 0)]
     unidentified = [Direction(name, _std(reduced, vector, scale), True)
                     for vector, name in gauge]
     lost = stds >= UNIDENTIFIED_STD
@@ -199,18 +211,36 @@ def identifiability(model: MeasurementModel, kind: str, blocks: PoseBlocks,
     return Identifiability(model.size, rank, condition, values, unidentified, weak_directions)
 
 
+def _without_weight(model: MeasurementModel, reduced: np.ndarray) -> np.ndarray:
+    """The reduced Jacobian with the weight error eliminated (its column projected out of
+    the others, then zero)."""
+    if not model.unknowns.weight:
+        return reduced
+    index = model.slices()["weight"].start
+    column = reduced[:, index].copy()
+    size = float(column @ column)
+    if size > 0:
+        reduced = reduced - np.outer(column, column @ reduced) / size
+    reduced[:, index] = 0.0
+    return reduced
+
+
+def _geometric(model: MeasurementModel, complement: np.ndarray) -> np.ndarray:
+    """``complement`` (orthonormal rows) without the weight error's axis."""
+    if not model.unknowns.weight:
+        return complement
+    keep = model.geometric()
+    rows = complement.copy()
+    rows[:, ~keep] = 0.0
+    _, singular, right = np.linalg.svd(rows, full_matrices=False)
+    return right[singular > 0.5]
+
+
 def _std(reduced: np.ndarray, direction: np.ndarray, scale: float) -> float:
     """1 / |J_r v| (m): the standard deviation along the unit ``direction``; inf at
     round-off level."""
     size = float(np.linalg.norm(reduced @ direction))
     return float("inf") if size <= RANK_TOLERANCE * scale else 1 / size
-
-
-def gauge_free(model: MeasurementModel, kind: str, error: np.ndarray) -> np.ndarray:
-    """``error`` (a change of theta, m) without its components along the campaign's gauge
-    motions: what the data can tell about it."""
-    basis = gauge_basis(model, kind)
-    return error - basis.T @ (basis @ error)
 
 
 def _name_subspace(space: np.ndarray, named: list[tuple[np.ndarray, str, bool]],

@@ -72,7 +72,7 @@ def _pose_function(model: MeasurementModel, kind: str, from_statics: bool) -> ca
     the pose's own unknown (load cells), the statics' (``from_statics``) or the given one."""
     n, m = model.n, model.m
     own, theta = ca.SX.sym("own", own_size(model, kind)), ca.SX.sym("theta", model.size)
-    modelled, reading = ca.SX.sym("T_model", m), ca.SX.sym("reading", m)
+    given, reading = ca.SX.sym("T_given", m), ca.SX.sym("reading", m)
     pose, tension, sigma = ca.SX.sym("pose", n), ca.SX.sym("tension", m), ca.SX.sym("s", 4)
     q = own[:n]
     if kind == "load cells":
@@ -80,7 +80,7 @@ def _pose_function(model: MeasurementModel, kind: str, from_statics: bool) -> ca
     elif from_statics:
         used = model.static_tension(q, theta)
     else:
-        used = modelled
+        used = given
     parts = [(model.reading(q, theta, used) - reading) / sigma[0]]
     if kind == "tracker":
         scale = ca.vertcat(*[sigma[2] if unit == "rad" else sigma[1]
@@ -90,12 +90,12 @@ def _pose_function(model: MeasurementModel, kind: str, from_statics: bool) -> ca
         parts.append((used - tension) / sigma[3])
         parts.append(model.statics(q, theta, used) * (STATICS_TIGHTNESS / sigma[3]))
     r = ca.vertcat(*parts)
-    return ca.Function("calibration_pose", [own, theta, modelled, reading, pose, tension, sigma],
+    return ca.Function("calibration_pose", [own, theta, given, reading, pose, tension, sigma],
                        [r, ca.jacobian(r, theta), ca.jacobian(r, own)], {"cse": True})
 
 
 def pose_blocks(model: MeasurementModel, campaign: Campaign, theta: np.ndarray,
-                own: np.ndarray, modelled: np.ndarray) -> PoseBlocks:
+                own: np.ndarray, given: np.ndarray) -> PoseBlocks:
     """The weighted residuals and Jacobian blocks of every pose of ``campaign``.
 
     Parameters
@@ -103,9 +103,9 @@ def pose_blocks(model: MeasurementModel, campaign: Campaign, theta: np.ndarray,
     theta : ndarray, shape (p,)
     own : ndarray, shape (N, u)
         Each pose's own unknowns: q (n) and, with load cells, T (m).
-    modelled : ndarray, shape (N, m)
-        Tensions (N) for the stretch where none are measured and the statics do not give
-        them (:func:`statics_tension`); ignored otherwise.
+    given : ndarray, shape (N, m)
+        Tensions (N) for the stretch where they are data (commanded), neither unknowns
+        (load cells) nor the statics' (:func:`statics_tension`); ignored otherwise.
     """
     kind, count = campaign.kind, campaign.size
     function = _pose_function(model, kind, statics_tension(model, campaign)).map(count)
@@ -113,7 +113,7 @@ def pose_blocks(model: MeasurementModel, campaign: Campaign, theta: np.ndarray,
     sigmas = np.array([noise.reading, noise.position, noise.angle, noise.tension])
     poses = campaign.poses if campaign.poses is not None else np.zeros((count, model.n))
     tensions = campaign.tensions if campaign.tensions is not None else np.zeros((count, model.m))
-    r, A, B = function(own.T, theta, modelled.T, campaign.readings.T, poses.T, tensions.T,
+    r, A, B = function(own.T, theta, given.T, campaign.readings.T, poses.T, tensions.T,
                        sigmas)
     rows = r.shape[0]
     residuals = np.array(r).T

@@ -42,9 +42,16 @@ class Unknowns:
     attachments : bool
         Also estimate the body attachment points b_i (rigid bodies only). Anchors and
         encoder offsets are always estimated.
+    weight : bool
+        Also estimate the weight's relative error w (dimensionless; the last entry of
+        theta): where the stretch's tension is the statics' (m = n, none given), the
+        cables hold (1 + w) W^{-1} grad V, so a platform heavier than its model does not
+        bias the geometry. Its only trace is the stretch, so it is estimated coarsely
+        (a few per cent); the calibrated robot keeps its mass.
     """
 
     attachments: bool = False
+    weight: bool = False
 
 
 class _SymbolicGeometry:
@@ -85,6 +92,10 @@ class MeasurementModel:
         if unknowns.attachments and robot.kind == "point":
             raise InvalidCase("attachments", "a point mass has no attachment points to "
                               "estimate; every cable meets at the point")
+        if unknowns.weight and not (robot.m == robot.n and np.isfinite(stiffness)):
+            raise InvalidCase("weight", "the weight error shows only through the stretch "
+                              "of elastic cables under the statics' tension (as many cables "
+                              "as degrees of freedom)")
         if not stiffness > 0:
             raise InvalidCase("stiffness", f"expected a positive axial stiffness EA in N "
                               f"(inf: rigid cables), got {stiffness}")
@@ -95,14 +106,20 @@ class MeasurementModel:
     @property
     def size(self) -> int:
         """Number of unknowns p = len(theta)."""
-        return self.m * self.d + self.m + (self.m * self.d if self.unknowns.attachments else 0)
+        return (self.m * self.d + self.m + (self.m * self.d if self.unknowns.attachments else 0)
+                + (1 if self.unknowns.weight else 0))
 
     def slices(self) -> dict[str, slice]:
-        """Where each part lies in theta: ``anchors``, ``offsets`` (and ``attachments``)."""
+        """Where each part lies in theta: ``anchors``, ``offsets`` (and ``attachments``,
+        ``weight``)."""
         md = self.m * self.d
         out = {"anchors": slice(0, md), "offsets": slice(md, md + self.m)}
+        end = md + self.m
         if self.unknowns.attachments:
-            out["attachments"] = slice(md + self.m, 2 * md + self.m)
+            out["attachments"] = slice(end, end + md)
+            end += md
+        if self.unknowns.weight:
+            out["weight"] = slice(end, end + 1)
         return out
 
     def nominal(self, encoder_offsets: np.ndarray | None = None) -> np.ndarray:
@@ -113,6 +130,8 @@ class MeasurementModel:
         parts = [robot.anchors.ravel(), offsets]
         if self.unknowns.attachments:
             parts.append(robot.attachments.ravel())
+        if self.unknowns.weight:
+            parts.append(np.zeros(1))
         return np.concatenate(parts)
 
     def names(self) -> list[str]:
@@ -123,11 +142,21 @@ class MeasurementModel:
         if self.unknowns.attachments:
             names += [f"attachment {i + 1} {axes[k]}" for i in range(self.m)
                       for k in range(self.d)]
+        if self.unknowns.weight:
+            names.append("weight error")
         return names
+
+    def geometric(self) -> np.ndarray:
+        """Which entries of theta are lengths (m): all but the weight error."""
+        keep = np.ones(self.size, dtype=bool)
+        if self.unknowns.weight:
+            keep[self.slices()["weight"]] = False
+        return keep
 
     def robot_with(self, theta: np.ndarray) -> Robot:
         """The robot with theta's geometry and encoder offsets (a file loads it)."""
-        part = {name: np.asarray(theta[where]) for name, where in self.slices().items()}
+        part = {name: np.asarray(theta[where]) for name, where in self.slices().items()
+                if name != "weight"}
         changes = {"anchors": part["anchors"].reshape(self.m, self.d),
                    "encoder_offsets": part["offsets"]}
         if "attachments" in part:
@@ -163,17 +192,25 @@ class MeasurementModel:
         return ca.Function("encoder_reading", [q, theta, tension], [reading],
                            ["q", "theta", "T"], ["reading"])
 
+    def _statics_terms(self, q: ca.SX, theta: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """W(q; theta) and the weight's generalized force (1 + w) grad V(q), N; q must be
+        a purely symbolic SX (W is differentiated)."""
+        robot = self.robot
+        W = -ca.jacobian(_lengths(self._geometry(theta), q), q).T
+        com = kinematics.center_of_mass(robot, q)
+        weight = robot.mass * robot.gravity * ca.jacobian(com[-1], q).T
+        if self.unknowns.weight:
+            weight = weight * (1 + theta[self.slices()["weight"]])
+        return W, weight
+
     def static_tension(self, q: ca.SX, theta: ca.SX) -> ca.SX:
-        """The tension (N) holding q at rest with theta's geometry, as the as-built plant
-        holds it: W^{-1} grad V for m = n; the default distribution for m > n
-        (:func:`cdpr_sym.as_built.static.true_static_function`)."""
+        """The tension (N) holding q at rest with theta's geometry (and weight error), as
+        the as-built plant holds it: W^{-1} grad V for m = n; the default distribution for
+        m > n (:func:`cdpr_sym.as_built.static.true_static_function`)."""
         from cdpr_sym.distribution import AUTO, distribute
 
         robot = self.robot
-        lengths = _lengths(self._geometry(theta), q)
-        W = -ca.jacobian(lengths, q).T
-        com = kinematics.center_of_mass(robot, q)
-        weight = robot.mass * robot.gravity * ca.jacobian(com[-1], q).T
+        W, weight = self._statics_terms(q, theta)
         if self.m > self.n:
             return distribute(AUTO, W, weight, robot.t_min, robot.t_max)[0]
         return ca.solve(W, weight)
@@ -184,10 +221,7 @@ class MeasurementModel:
         (N m for angles)."""
         q, theta = ca.SX.sym("q", self.n), ca.SX.sym("theta", self.size)
         tension = ca.SX.sym("T", self.m)
-        lengths = _lengths(self._geometry(theta), q)
-        W = -ca.jacobian(lengths, q).T
-        com = kinematics.center_of_mass(self.robot, q)
-        weight = self.robot.mass * self.robot.gravity * ca.jacobian(com[-1], q).T
+        W, weight = self._statics_terms(q, theta)
         return ca.Function("statics_residual", [q, theta, tension], [W @ tension - weight],
                            ["q", "theta", "T"], ["residual"])
 

@@ -5,9 +5,9 @@ F_k = J_k^T J_k to theta, J_k its weighted Jacobian with the pose's own unknowns
 (:meth:`~cdpr_sym.calibration.information.PoseBlocks.reduced`), evaluated on the nominal
 geometry. A set of poses is D-optimal when it maximises log det of the summed information on
 the gauge-free directions (the volume of the confidence ellipsoid shrinks with it). The set
-is grown greedily (each step adds the candidate raising log det the most; the determinant
-is kept finite by a ridge of 1e-9 of the mean eigenvalue until the set identifies every
-direction) and then improved by exchanges (swap a chosen pose for a candidate while that
+is grown greedily (each step adds the candidate raising log det the most; a ridge of 1e-9
+of the mean eigenvalue keeps the determinant finite while the set is too small to identify
+every direction) and then improved by exchanges (swap a chosen pose for a candidate while that
 raises log det), a standard pair of heuristics for this submodular-like objective.
 """
 
@@ -17,7 +17,8 @@ import numpy as np
 
 from cdpr_sym.calibration.campaign import Campaign, Noise
 from cdpr_sym.calibration.estimate import modelled_tensions
-from cdpr_sym.calibration.gauge import gauge_complement
+from cdpr_sym.calibration.gauge import check_kind, gauge_complement
+from cdpr_sym.calibration.identifiability import RANK_TOLERANCE
 from cdpr_sym.calibration.information import pose_blocks
 from cdpr_sym.calibration.measurement import MeasurementModel
 from cdpr_sym.robot import Robot
@@ -31,7 +32,10 @@ EXCHANGE_SWEEPS = 3
 
 def pose_information(model: MeasurementModel, kind: str, poses: np.ndarray,
                      noise: Noise = Noise()) -> np.ndarray:
-    """Each pose's Fisher information on the gauge-free coordinates z, (N, p - g, p - g)."""
+    """Each pose's Fisher information on the gauge-free coordinates z, (N, p - g, p - g),
+    with the stretch's tensions those holding the nominal robot at each pose (data, not
+    differentiated: their derivatives change a bound by well under 1 %)."""
+    check_kind(kind)
     count = len(poses)
     theta = model.nominal()
     tensions = (modelled_tensions(model, theta, poses) if np.isfinite(model.stiffness)
@@ -89,9 +93,10 @@ def plan_poses(robot: Robot, count: int, *, kind: str = "tracker", stiffness: fl
                noise: Noise = Noise(), seed: int = 0, candidates: int = CANDIDATES
                ) -> np.ndarray:
     """``count`` D-optimal calibration poses of ``robot`` for a ``kind`` campaign, chosen
-    among ``candidates`` static-workspace poses drawn with ``seed``; (count, n)."""
+    among ``candidates`` (at least 4 ``count``) static-workspace poses drawn with ``seed``;
+    (count, n)."""
     rng = np.random.default_rng(seed)
-    pool = sample_static_workspace(robot, candidates, rng, margin=MARGIN)
+    pool = sample_static_workspace(robot, max(candidates, 4 * count), rng, margin=MARGIN)
     model = MeasurementModel(robot, stiffness=stiffness)
     chosen = choose_poses(pose_information(model, kind, pool, noise), count)
     return pool[chosen]
@@ -100,10 +105,14 @@ def plan_poses(robot: Robot, count: int, *, kind: str = "tracker", stiffness: fl
 def anchor_accuracy(robot: Robot, poses: np.ndarray, *, kind: str = "tracker",
                     stiffness: float = 1e5, noise: Noise = Noise()) -> float:
     """The Cramér-Rao bound's RMS anchor error (m) of a campaign at ``poses`` on the nominal
-    geometry: sqrt(trace(C_anchors) / (m d)), C the bound's anchor block."""
+    geometry: sqrt(trace(C_anchors) / (m d)), C the bound's anchor block; inf when the poses
+    leave some direction unidentified (a zero eigenvalue of the information, to round-off)."""
     model = MeasurementModel(robot, stiffness=stiffness)
     basis = gauge_complement(model, kind)
     information = pose_information(model, kind, poses, noise).sum(axis=0)
-    covariance = basis.T @ np.linalg.pinv(information, hermitian=True) @ basis
+    eigenvalues = np.linalg.eigvalsh(information)
+    if eigenvalues[0] <= RANK_TOLERANCE ** 2 * eigenvalues[-1]:
+        return float("inf")
+    covariance = basis.T @ np.linalg.inv(information) @ basis
     anchors = model.slices()["anchors"]
     return float(np.sqrt(np.trace(covariance[anchors, anchors]) / (robot.m * robot.dimension)))

@@ -19,6 +19,7 @@ import numpy as np
 
 from cdpr_sym.calibration.campaign import Campaign, Noise
 from cdpr_sym.calibration.estimate import modelled_tensions
+from cdpr_sym.calibration.gauge import check_kind
 from cdpr_sym.calibration.measurement import MeasurementModel, Unknowns
 from cdpr_sym.robot import Robot
 
@@ -51,13 +52,17 @@ class Truth:
         return Unknowns(attachments=self.attachment_offsets is not None)
 
     def theta(self, robot: Robot, unknowns: Unknowns | None = None) -> np.ndarray:
-        """The true theta (m) of :class:`MeasurementModel` ``(robot, unknowns)``."""
+        """The true theta (m; the weight error dimensionless) of :class:`MeasurementModel`
+        ``(robot, unknowns)`` (default: the anchors, offsets and, where drawn, the
+        attachments)."""
         unknowns = unknowns or self.unknowns()
         parts = [(robot.anchors + self.anchor_offsets).ravel(), np.asarray(self.encoder_offsets)]
         if unknowns.attachments:
             offsets = (np.zeros_like(robot.attachments) if self.attachment_offsets is None
                        else self.attachment_offsets)
             parts.append((robot.attachments + offsets).ravel())
+        if unknowns.weight:
+            parts.append(np.array([self.mass_scale - 1.0]))
         return np.concatenate(parts)
 
 
@@ -90,6 +95,7 @@ def simulate_campaign(robot: Robot, truth: Truth, poses: np.ndarray, rng: np.ran
         The tracker's and load cells' standard deviations; default :class:`Noise` with the
         reading's set to the rounding's, resolution / sqrt(12).
     """
+    check_kind(kind)
     noise = noise or Noise(reading=max(resolution, 1e-9) / math.sqrt(12))
     poses = np.asarray(poses, dtype=float)
     tensions = true_tensions(robot, truth, poses)

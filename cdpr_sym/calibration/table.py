@@ -34,7 +34,9 @@ def tension_columns(robot: Robot) -> list[str]:
 
 def read_table(path: Path, robot: Robot) -> dict[str, np.ndarray]:
     """The table's ``readings`` (N, m), and ``poses`` (N, n) / ``tensions`` (N, m) where
-    given, checked against ``robot``; InvalidCase (field ``measurements``) otherwise."""
+    given, checked against ``robot``; InvalidCase (field ``measurements``) otherwise. A
+    "row" in a message counts the data rows (1 = the first under the header); a "line"
+    counts the file's lines."""
     rows, header = _rows(path)
     known = [*length_columns(robot), *robot.coordinate_names, *tension_columns(robot)]
     for name in header:
@@ -64,23 +66,25 @@ def _rows(path: Path) -> tuple[list[list[str]], list[str]]:
     if size > MAX_TABLE_BYTES:
         raise InvalidCase("measurements", f"{path} is larger than {MAX_TABLE_BYTES >> 20} MiB")
     try:
-        with path.open(newline="", encoding="utf-8") as handle:
-            table = [row for row in csv.reader(handle) if row]
+        # utf-8-sig: a spreadsheet's UTF-8 export starts with a byte-order mark
+        with path.open(newline="", encoding="utf-8-sig") as handle:
+            numbered = [(reader.line_num, row) for reader in [csv.reader(handle)]
+                        for row in reader if row]
     except UnicodeDecodeError:
         raise InvalidCase("measurements", f"{path} is not a UTF-8 CSV file") from None
     except csv.Error as bad:
         raise InvalidCase("measurements", f"{path} is not a CSV table: {bad}") from None
-    if len(table) < 2:
+    if len(numbered) < 2:
         raise InvalidCase("measurements", f"{path} has no rows under its header")
-    header = [name.strip() for name in table[0]]
+    header = [name.strip() for name in numbered[0][1]]
     duplicates = sorted({name for name in header if header.count(name) > 1})
     if duplicates:
         raise InvalidCase("measurements", f"column {duplicates[0]!r} appears twice in {path}")
-    for number, row in enumerate(table[1:], start=2):
+    for number, row in numbered[1:]:
         if len(row) != len(header):
             raise InvalidCase("measurements", f"line {number} of {path} has {len(row)} "
                               f"cells, the header {len(header)}")
-    return table[1:], header
+    return [row for _, row in numbered[1:]], header
 
 
 def _columns(path: Path, rows: list[list[str]], header: list[str], names: list[str], *,
@@ -100,7 +104,7 @@ def _columns(path: Path, rows: list[list[str]], header: list[str], names: list[s
         for j, name in enumerate(names):
             cell = row[header.index(name)].strip()
             try:
-                value = float(cell)
+                value = math.nan if "_" in cell else float(cell)  # no 1_000 digit groups
             except ValueError:
                 value = math.nan
             if not math.isfinite(value):

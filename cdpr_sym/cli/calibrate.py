@@ -17,8 +17,8 @@ from cdpr_sym.cli.output import Output
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
 
-#: Most poses ``--plan`` chooses.
-MAX_PLAN_POSES = 1000
+#: Most poses ``--plan`` chooses (each greedy step scores every candidate).
+MAX_PLAN_POSES = 200
 
 
 def add_parser(command) -> None:
@@ -113,15 +113,19 @@ def calibrate_command(args: argparse.Namespace, out: Output) -> int:
              *(f"  residual RMS {key:<9} {value:.4g}" for key, value in
                result.residual_rms.items()),
              *result.identifiability.lines()]
-    lines += [f"  {name:<14} {value:+.6f} m  +- {1e3 * std:.3f} mm" for name, value, std in
-              zip(result.names, result.theta, result.std, strict=True)]
+    for name, value, std in zip(result.names, result.theta, result.std, strict=True):
+        lines.append(f"  {name:<14} {100 * value:+.2f} %  +- {100 * std:.2f} %"
+                     if name == "weight error" else
+                     f"  {name:<14} {value:+.6f} m  +- {1e3 * std:.3f} mm")
     lines.append(f"robot file: {args.out}")
     out.result({**result.as_dict(), "robot_file": str(args.out)}, lines)
     return 0
 
 
 def _plan(args: argparse.Namespace, out: Output) -> int:
-    from cdpr_sym.calibration.plan import anchor_accuracy, plan_poses
+    from cdpr_sym.calibration import MeasurementModel
+    from cdpr_sym.calibration.estimate import least_poses
+    from cdpr_sym.calibration.plan import MARGIN, anchor_accuracy, plan_poses
     from cdpr_sym.calibration.table import write_poses
     from cdpr_sym.workspace import sample_static_workspace
 
@@ -137,19 +141,29 @@ def _plan(args: argparse.Namespace, out: Output) -> int:
     if kind == "self" and robot.m <= robot.n:
         raise InvalidCase("kind", "self-calibration needs more cables than degrees of freedom")
     noise, stiffness = _noise(args), _stiffness(args.cable_stiffness)
+    needed = least_poses(MeasurementModel(robot, stiffness=stiffness), kind)
+    if args.poses < needed:
+        raise InvalidCase("poses", f"a {kind} campaign of {robot.name} needs at least "
+                          f"{needed} poses, got {args.poses}")
     poses = plan_poses(robot, args.poses, kind=kind, stiffness=stiffness, noise=noise,
                        seed=args.seed)
-    text = write_poses(poses, robot)
     chosen = anchor_accuracy(robot, poses, kind=kind, stiffness=stiffness, noise=noise)
+    if not np.isfinite(chosen):
+        raise InvalidCase("poses", f"no {args.poses} poses of a {kind} campaign identify "
+                          f"{robot.name}'s anchors and offsets (the identifiability report "
+                          "of 'calibrate' names what stays unknown)")
+    text = write_poses(poses, robot)
     drawn = sample_static_workspace(robot, args.poses, np.random.default_rng(args.seed + 1),
-                                    margin=0.05)
+                                    margin=MARGIN)
     random = anchor_accuracy(robot, drawn, kind=kind, stiffness=stiffness, noise=noise)
     summary = {"poses": poses.tolist(), "anchor_rms_bound": chosen,
-               "anchor_rms_bound_random": random}
+               "anchor_rms_bound_random": random if np.isfinite(random) else None}
     if args.out is not None:
         args.out.write_text(text, encoding="utf-8")
+    against = (f"{1e3 * random:.3g} mm" if np.isfinite(random)
+               else "none: they leave some direction unidentified")
     lines = [f"{args.poses} D-optimal {kind} poses: the Cramér-Rao bound of the anchors is "
-             f"{1e3 * chosen:.3g} mm RMS ({1e3 * random:.3g} mm at as many random poses)"]
+             f"{1e3 * chosen:.3g} mm RMS (at as many random poses: {against})"]
     if args.out is not None:
         lines.append(f"poses: {args.out}")
     elif not getattr(args, "json", False):

@@ -63,7 +63,7 @@ def check_as_built_args(args: argparse.Namespace, robot: Robot) -> AsBuiltDraw |
     ``--calibration`` and the control period before any work: no other plant option beside
     it (the draw sets the mass), a calibration only on a robot as built that can take it."""
     from cdpr_sym.as_built import load_as_built_draw
-    from cdpr_sym.closed_loop.drawn import check_calibration
+    from cdpr_sym.calibration.drawn import check_calibration
 
     if args.as_built is None:
         if args.calibration != "none":
@@ -103,8 +103,8 @@ def _as_built_run(checked: SimulateInput, args: argparse.Namespace
     """The run on the drawn robot as built (calibrated first if asked), and what to report
     beside its metrics: ``held`` (the true plant holds start and goal in the box), the draw
     and the calibration."""
+    from cdpr_sym.calibration.drawn import drawn_robot
     from cdpr_sym.closed_loop import get_simulator
-    from cdpr_sym.closed_loop.drawn import drawn_robot
 
     drawn = drawn_robot(checked.robot, checked.as_built, args.seed, 0, args.calibration)
     case = checked.case

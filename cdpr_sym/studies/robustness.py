@@ -32,8 +32,8 @@ import numpy as np
 
 from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
 from cdpr_sym.as_built.draw import DEFAULT_DRAW
+from cdpr_sym.calibration.drawn import SELF_POSES, TRACKER_NOISE, TRACKER_POSES, drawn_robot
 from cdpr_sym.closed_loop import Plant, get_simulator
-from cdpr_sym.closed_loop.drawn import SELF_POSES, TRACKER_NOISE, TRACKER_POSES, drawn_robot
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results import SETTLE_TOLERANCE

@@ -75,7 +75,7 @@ class SweepConfig:
         from ``seed`` and p (:mod:`cdpr_sym.as_built.draw`). None: the ideal plant.
     calibration : str
         With ``as_built``: ``none``, ``tracker`` or ``self``, a calibration of each drawn
-        robot before its runs (:mod:`cdpr_sym.closed_loop.drawn`).
+        robot before its runs (:mod:`cdpr_sym.calibration.drawn`).
     """
 
     robot: str

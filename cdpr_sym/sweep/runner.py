@@ -112,7 +112,7 @@ def run_as_built(robot: Robot, draw: AsBuiltDraw, config: SweepConfig, pair: int
                  ) -> dict[str, Any]:
     """One run on pair ``pair``'s robot as built (calibrated first when the sweep says so),
     judged on the true tensions, with ``held``, ``read_error`` and the draw."""
-    from cdpr_sym.closed_loop.drawn import drawn_robot
+    from cdpr_sym.calibration.drawn import drawn_robot
 
     try:
         drawn = drawn_robot(robot, draw, config.seed, pair, config.calibration)

@@ -9,8 +9,10 @@ robot, describing the same true plant relative to it. A tracker campaign measure
 :data:`TRACKER_POSES` D-optimal poses with :data:`TRACKER_NOISE` per coordinate; a
 self-calibration (more cables than degrees of freedom) reads :data:`SELF_POSES` D-optimal
 poses with the encoders alone, at the tensions the controller commands (taken as
-delivered). The plant's encoders have no zero error (they are homed exactly); the
-calibration does not know that and estimates their offsets too.
+delivered). The plant's encoders err as the nominal robot says (not at all, unless its
+file gives offsets); the calibration does not know that and estimates their offsets too,
+and the plant keeps its true ones (its ``encoder_offsets`` relative to the calibrated
+model's).
 """
 
 from __future__ import annotations
@@ -111,7 +113,12 @@ def calibrated_model(robot: Robot, plant: Plant, kind: str, seed: int, pair: int
 
     spec = plant.as_built
     stiffness = spec.actuation.cable_stiffness if spec.actuation else np.inf
-    truth = Truth(anchor_offsets=spec.anchor_offsets, encoder_offsets=np.zeros(robot.m),
+    # the plant's encoders err as the nominal robot says (none, unless it has offsets)
+    true_offsets = (np.zeros(robot.m) if robot.encoder_offsets is None
+                    else np.asarray(robot.encoder_offsets))
+    if spec.encoder_offsets is not None:
+        true_offsets = true_offsets + spec.encoder_offsets
+    truth = Truth(anchor_offsets=spec.anchor_offsets, encoder_offsets=true_offsets,
                   stiffness=stiffness, mass_scale=plant.mass_scale)
     resolution = spec.sensing.resolution
     noise = Noise(reading=max(resolution, 1e-9) / np.sqrt(12), position=TRACKER_NOISE)
@@ -122,11 +129,12 @@ def calibrated_model(robot: Robot, plant: Plant, kind: str, seed: int, pair: int
     result = calibrate(robot, campaign)
     left = robot.anchors + spec.anchor_offsets - result.robot.anchors
     md = robot.m * robot.dimension
+    offsets_left = true_offsets - result.robot.encoder_offsets
     record = {"anchor_rms_error": float(np.sqrt(np.mean(left ** 2))),
               "anchor_rms_std": float(np.sqrt(np.trace(result.covariance[:md, :md]) / md)),
-              "offset_max_error": float(np.abs(result.robot.encoder_offsets).max()),
+              "offset_max_error": float(np.abs(offsets_left).max()),
               "sigma0": result.sigma0}
-    relative = dataclasses.replace(spec, anchor_offsets=left)
+    relative = dataclasses.replace(spec, anchor_offsets=left, encoder_offsets=offsets_left)
     return result.robot, dataclasses.replace(plant, as_built=relative), record
 
 
