@@ -56,7 +56,8 @@ def test_the_as_built_layout_is_the_effects_fields_in_registry_order(structure, 
         [("q_read", n), ("dq_read", n)] if structure.sensing else [])
     assert declared == expected
     assert layout.plant_p == (((("actuation", 8),) if structure.actuation else ())
-                              + ((("sensing", 3),) if structure.sensing else ())
+                              + ((("sensing", 3), ("encoder_offsets", m))
+                                 if structure.sensing else ())
                               + ((("anchor_offsets", m * 3),) if structure.anchors else ()))
     assert layout.plant_log == (("tension", m),)
 

@@ -208,6 +208,10 @@ class AsBuilt:
         :data:`MAX_DELAY`).
     anchor_offsets : ndarray, shape (m, d), optional
         True anchor position minus the model's, per cable, m.
+    encoder_offsets : ndarray, shape (m,), optional
+        With sensing: each encoder's true zero error minus the model's
+        (:attr:`~cdpr_sym.robot.Robot.encoder_offsets`), m. None: the encoders err exactly
+        as the model says (its offsets, or none), so the controller's correction cancels.
     substeps : int
         RK4 steps per control period; default 2 (h = 0.5 ms at 1 kHz: 500 Hz torque loop
         times h is 1.6, inside RK4's stability limit of 2.8; against 64 substeps the runs of
@@ -221,6 +225,7 @@ class AsBuilt:
     delay: int = 0
     anchor_offsets: Any = None
     substeps: int = 2
+    encoder_offsets: Any = None
 
     def __post_init__(self) -> None:
         if not (_whole(self.delay) and 0 <= self.delay <= MAX_DELAY):
@@ -239,6 +244,16 @@ class AsBuilt:
                                   "array in m")
             offsets.setflags(write=False)
             object.__setattr__(self, "anchor_offsets", offsets)
+        if self.encoder_offsets is not None:
+            if self.sensing is None:
+                raise InvalidCase("encoder_offsets", "encoder offsets need sensing (the "
+                                  "controller reads no encoder without it)")
+            offsets = np.asarray(self.encoder_offsets, dtype=float)
+            if offsets.ndim != 1 or not np.isfinite(offsets).all():
+                raise InvalidCase("encoder_offsets", "expected finite values, one per cable, "
+                                  "in m")
+            offsets.setflags(write=False)
+            object.__setattr__(self, "encoder_offsets", offsets)
 
     def check_period(self, dt: float) -> None:
         """Raise :class:`InvalidCase` (``substeps``) when, at the control period ``dt``
@@ -266,6 +281,9 @@ class AsBuilt:
         if self.anchor_offsets is not None and self.anchor_offsets.shape != (cables, dimension):
             raise InvalidCase("anchor_offsets", f"expected shape ({cables}, {dimension}), got "
                               f"{self.anchor_offsets.shape}")
+        if self.encoder_offsets is not None and self.encoder_offsets.shape != (cables,):
+            raise InvalidCase("encoder_offsets", f"expected {cables} values, got "
+                              f"{self.encoder_offsets.shape[0]}")
 
     def as_dict(self) -> dict[str, Any]:
         """Plain numbers and lists, for a run's record."""
@@ -273,4 +291,6 @@ class AsBuilt:
                 "sensing": dataclasses.asdict(self.sensing) if self.sensing else None,
                 "delay": self.delay, "substeps": self.substeps,
                 "anchor_offsets": (None if self.anchor_offsets is None
-                                   else self.anchor_offsets.tolist())}
+                                   else self.anchor_offsets.tolist()),
+                "encoder_offsets": (None if self.encoder_offsets is None
+                                    else self.encoder_offsets.tolist())}

@@ -72,13 +72,14 @@ class Fields:
         return {name: vector[part] for name, part in self._slices.items()}
 
     def pack(self, values: Mapping[str, object]) -> np.ndarray:
-        """A numeric vector from one value (scalar or array) per field."""
+        """A numeric vector from one value per field: an array of its size, or a float,
+        which fills every entry of the field."""
         # gathered as Python floats and converted once: a third faster than concatenating
         # an array per field, and every run packs two vectors
         flat: list[float] = []
         for name, size in self.fields:
             value = values[name]
-            entries = ([value] if isinstance(value, float)
+            entries = ([value] * size if isinstance(value, float)
                        else np.asarray(value, dtype=float).ravel().tolist())
             if len(entries) != size:
                 raise ValueError(f"field {name}: expected {size} values, got {len(entries)}")

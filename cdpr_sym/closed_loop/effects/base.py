@@ -191,13 +191,18 @@ class StartContext:
         return len(self.static_tension)
 
     @functools.cached_property
-    def _reading(self) -> np.ndarray:
-        return self.readout.encoder_reading(self.start, self.static_tension, self.plant)
+    def _unstretched(self) -> np.ndarray:
+        return self.readout.unstretched_lengths(self.start, self.static_tension, self.plant)
+
+    def unstretched_lengths(self) -> np.ndarray:
+        """The cables' unstretched lengths at the start, m (stretched by the static tension
+        where they are elastic)."""
+        return self._unstretched
 
     def encoder_reading(self) -> np.ndarray:
-        """What the encoders read at the start, m (the cables stretched by the static
-        tension where they are elastic)."""
-        return self._reading
+        """What the encoders count at the start, m (the unstretched lengths plus their zero
+        errors, before rounding)."""
+        return self.readout.encoder_reading(self.start, self.static_tension, self.plant)
 
     def read_pose(self, reading: np.ndarray) -> np.ndarray | None:
         """The pose read from ``reading`` starting from the start pose, or None."""

@@ -1,9 +1,10 @@
 """Encoder sensing (:class:`~cdpr_sym.as_built.Sensing`): the controller reads the pose from
 quantised cable lengths by forward kinematics, and the velocity from a filtered difference.
 
-Each control period: the encoders read the cable lengths (the paid-out, unstretched lengths
-r theta with winches; the geometric ones without), rounded to the resolution, less the
-model's encoder offsets where a calibration gave them; forward kinematics with the
+Each control period: the encoders count the cable lengths (the paid-out, unstretched lengths
+r theta with winches; the geometric ones without) plus their zero errors (the model's
+encoder offsets plus the plant's difference from them), rounded to the resolution; the
+controller subtracts the model's offsets; forward kinematics with the
 controller's model, from the previous estimate, gives the pose; a
 first-order filtered difference quotient the velocity. A pose that no forward kinematics
 explains within :func:`reading_bound` stops the run (``"lost_pose"``), as a real controller
@@ -30,8 +31,9 @@ if TYPE_CHECKING:
 
 @dataclasses.dataclass(frozen=True)
 class Encoders(PlantEffect):
-    """The states ``q_read``, ``dq_read`` (the last estimates) and the parameter
-    ``sensing`` (:data:`~cdpr_sym.as_built.SENSING_PARAMETERS`)."""
+    """The states ``q_read``, ``dq_read`` (the last estimates) and the parameters
+    ``sensing`` (:data:`~cdpr_sym.as_built.SENSING_PARAMETERS`) and ``encoder_offsets``
+    (the plant's zero errors relative to the model's, m)."""
 
     name: ClassVar[str] = "encoders"
 
@@ -44,7 +46,7 @@ class Encoders(PlantEffect):
         return (("q_read", model.n), ("dq_read", model.n))
 
     def parameter_fields(self, model: SymbolicModel) -> FieldList:
-        return (("sensing", len(SENSING_PARAMETERS)),)
+        return (("sensing", len(SENSING_PARAMETERS)), ("encoder_offsets", model.m))
 
     def read(self, build: StepBuild, q: ca.SX, dq: ca.SX) -> tuple[ca.SX, ca.SX]:
         # imported where a step with encoders is built: a sweep of the ideal plant never
@@ -53,7 +55,8 @@ class Encoders(PlantEffect):
 
         model, state, sensing = build.model, build.state, build.par["sensing"]
         resolution, cutoff, consistency = sensing[0], sensing[1], sensing[2]
-        exact = build.dynamics.encoder_lengths(build.z)
+        exact = raw_reading(model, build.dynamics.encoder_lengths(build.z),
+                            build.par["encoder_offsets"])
         step = ca.fmax(resolution, 1e-300)
         reading = ca.if_else(resolution > 0, step * ca.floor(exact / step + 0.5), exact)
         reading = corrected(model, reading)
@@ -76,7 +79,10 @@ class Encoders(PlantEffect):
         return {"q_read": memo["q_read"], "dq_read": memo["dq_read"]}
 
     def parameter_values(self, plant: Plant) -> dict[str, object]:
-        return {"sensing": plant.as_built.sensing.parameters()}
+        spec = plant.as_built
+        offsets = spec.encoder_offsets
+        return {"sensing": spec.sensing.parameters(),
+                "encoder_offsets": 0.0 if offsets is None else offsets}
 
     def start_values(self, start: StartContext) -> dict[str, object]:
         """What the encoders read before the move, so the first velocity estimate compares
@@ -84,6 +90,16 @@ class Encoders(PlantEffect):
         fits (the first step then stops the run)."""
         read = start.read_pose(start.encoder_reading())
         return {"q_read": start.start if read is None else read, "dq_read": start.dq0}
+
+
+def raw_reading(model: SymbolicModel, lengths, relative):
+    """What the encoders count for unstretched ``lengths`` (m): the lengths plus each
+    encoder's true zero error, the model's offsets plus ``relative`` (true minus model,
+    :attr:`~cdpr_sym.as_built.AsBuilt.encoder_offsets`). Numbers or CasADi expressions."""
+    offsets = model.robot.encoder_offsets
+    if offsets is not None:
+        lengths = lengths + (ca.DM(offsets) if isinstance(lengths, ca.SX) else offsets)
+    return lengths + relative
 
 
 def corrected(model: SymbolicModel, reading):

@@ -11,7 +11,7 @@ import numpy as np
 
 from cdpr_sym.as_built import Sensing
 from cdpr_sym.as_built.geometry import true_geometry_function
-from cdpr_sym.closed_loop.effects.encoders import corrected, reading_bound
+from cdpr_sym.closed_loop.effects.encoders import corrected, raw_reading, reading_bound
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
@@ -68,14 +68,22 @@ class AsBuiltReadout:
         lengths, _ = self._true_geometry(q, anchor_offsets(self.model, plant))
         return np.array(lengths).ravel()
 
-    def encoder_reading(self, q: np.ndarray, tension: np.ndarray, plant: Plant) -> np.ndarray:
-        """What the encoders read (m) with ``plant`` at rest at ``q`` and its cables carrying
-        ``tension`` (N): with winches the unstretched length l0 = l / (1 + T / EA)."""
-        reading = self.true_lengths(q, plant)
+    def unstretched_lengths(self, q: np.ndarray, tension: np.ndarray, plant: Plant
+                            ) -> np.ndarray:
+        """The cables' unstretched lengths (m) with ``plant`` at rest at ``q`` carrying
+        ``tension`` (N): l0 = l / (1 + T / EA) with winches, else l."""
+        lengths = self.true_lengths(q, plant)
         spec = plant.as_built
         if spec is not None and spec.actuation is not None:
-            reading = reading / (1 + tension / spec.actuation.cable_stiffness)
-        return reading
+            lengths = lengths / (1 + tension / spec.actuation.cable_stiffness)
+        return lengths
+
+    def encoder_reading(self, q: np.ndarray, tension: np.ndarray, plant: Plant) -> np.ndarray:
+        """What the encoders count (m, before rounding) with ``plant`` at rest at ``q``
+        carrying ``tension`` (N): the unstretched lengths plus their zero errors."""
+        spec = plant.as_built
+        relative = 0.0 if spec is None or spec.encoder_offsets is None else spec.encoder_offsets
+        return raw_reading(self.model, self.unstretched_lengths(q, tension, plant), relative)
 
     def read_pose(self, reading: np.ndarray, guess: np.ndarray, sensing: Sensing
                   ) -> np.ndarray | None:

@@ -71,7 +71,7 @@ class Winches(PlantEffect):
 
     def start_values(self, start: StartContext) -> dict[str, object]:
         """At rest, each cable stretched to carry the static tension (its payout the
-        encoders' reading), the drums still, the motors' torque holding the tension."""
+        unstretched length), the drums still, the motors' torque holding the tension."""
         drive = start.plant.as_built.actuation
-        return {"payout": start.encoder_reading(), "drum_speed": np.zeros(start.cables),
+        return {"payout": start.unstretched_lengths(), "drum_speed": np.zeros(start.cables),
                 "motor_torque": drive.drum_radius * start.static_tension}
