@@ -377,23 +377,27 @@ def test_a_noise_that_is_not_a_positive_deviation_is_refused(field, value):
 
 def test_a_heavier_platform_does_not_bias_the_anchors_when_its_weight_is_estimated():
     """m = n: the stretch's tension is the statics' for the model's weight. A platform 10 %
-    heavier stretched its cables 10 % more; assuming the nominal weight biased aras3's
-    anchors by about twice their standard deviation, estimating the weight error does not."""
+    heavier stretches its cables 10 % more: assuming the nominal weight leaves aras3's
+    anchors twice their standard deviation off (RMS over three campaigns); estimating the
+    weight error with them leaves them within it, and finds the 10 %."""
     robot = preset("aras3")
-    rng = np.random.default_rng(SEED)
-    truth = dataclasses.replace(_truth(robot, rng), mass_scale=1.1)
     poses = plan_poses(robot, 20, stiffness=STIFFNESS)
-    campaign = simulate_campaign(robot, truth, poses, rng, noise=Noise(reading=1e-7,
-                                                                       position=1e-6),
-                                 resolution=0.0)
     anchors = slice(0, 9)
-    fixed = calibrate(robot, campaign, unknowns=Unknowns())
-    bias = _anchor_rms(robot, fixed.theta[anchors] - truth.theta(robot)[anchors])
-    estimated = calibrate(robot, campaign)
-    assert estimated.unknowns.weight and estimated.names[-1] == "weight error"
-    left = _anchor_rms(robot, estimated.theta[anchors] - truth.theta(robot)[anchors])
-    assert bias > 1e-4 and left < bias / 50
-    assert estimated.theta[-1] == pytest.approx(0.1, abs=1e-3)
+    fixed_errors, errors, stds = [], [], []
+    for draw in range(3):
+        rng = np.random.default_rng([SEED, draw])
+        truth = dataclasses.replace(_truth(robot, rng), mass_scale=1.1)
+        campaign = simulate_campaign(robot, truth, poses, rng)
+        fixed = calibrate(robot, campaign, unknowns=Unknowns())
+        fixed_errors.append(fixed.theta[anchors] - truth.theta(robot)[anchors])
+        estimated = calibrate(robot, campaign)
+        assert estimated.unknowns.weight and estimated.names[-1] == "weight error"
+        assert abs(estimated.theta[-1] - 0.1) < 3 * estimated.std[-1]
+        errors.append(estimated.theta[anchors] - truth.theta(robot)[anchors])
+        stds.append(estimated.std[anchors])
+    std = np.sqrt(np.mean(np.square(stds)))
+    assert np.sqrt(np.mean(np.square(fixed_errors))) > 1.5 * std
+    assert np.sqrt(np.mean(np.square(errors))) < 1.3 * std
 
 
 def test_load_cells_with_measured_poses_and_negative_tensions_are_refused():
@@ -430,3 +434,17 @@ def test_the_gauge_motions_of_the_estimate_are_exact_symmetries():
     gauge = [d for d in result.identifiability.unidentified if d.gauge]
     assert len(gauge) == 3 and all(d.std == np.inf for d in gauge)
     assert result.identifiability.as_dict()["unidentified"][0]["std"] is None
+
+
+def test_a_fit_far_noisier_than_stated_is_refused_not_written():
+    """ipanema8 from its encoders at 15 poses (two over the least): the poses read from the
+    nominal geometry are a tenth of a radian off, and on this draw the joint solve stays in
+    a wrong minimum, residuals 150 times the noise. Refused, naming why."""
+    robot = preset("ipanema8")
+    poses = plan_poses(robot, 15, kind="self", stiffness=STIFFNESS)
+    rng = np.random.default_rng([0, 15, 1])
+    truth = Truth(anchor_offsets=rng.uniform(-5e-3, 5e-3, robot.anchors.shape),
+                  encoder_offsets=rng.uniform(-5e-3, 5e-3, robot.m), stiffness=STIFFNESS)
+    campaign = simulate_campaign(robot, truth, poses, rng, kind="self")
+    with pytest.raises(InvalidCase, match="times the stated noise"):
+        calibrate(robot, campaign)

@@ -214,21 +214,27 @@ def initial_poses(model: MeasurementModel, campaign: Campaign, theta: np.ndarray
     """Starting poses: the tracker's, else the least-squares pose of each reading (offsets
     removed, stretch added back where the tensions are given) on the nominal geometry, by
     Gauss-Newton from several guesses (the frame's centre, the case's start and goal, 24
-    workspace poses), keeping the best fit near the frame: from one default guess forward
-    kinematics fails on most poses of a large frame."""
+    workspace poses), the first that fits within a centimetre (the level ones come first),
+    else the best near the frame: from one default guess forward kinematics fails on most
+    poses of a large frame."""
     if campaign.poses is not None:
         return np.array(campaign.poses, dtype=float)
+    return _fit_poses(model, campaign, theta)
+
+
+def _fit_poses(model: MeasurementModel, campaign: Campaign, theta: np.ndarray
+               ) -> np.ndarray:
+    """Each reading's least-squares pose with ``theta``'s geometry (see
+    :func:`initial_poses`)."""
     from cdpr_sym.workspace import sample_static_workspace
 
     robot = model.robot
     lengths = campaign.readings - theta[model.slices()["offsets"]]
     if campaign.tensions is not None and np.isfinite(model.stiffness):
         lengths = lengths * (1 + campaign.tensions / model.stiffness)  # stretched back
-    guesses = np.vstack([0.5 * (robot.frame_lower + robot.frame_upper), robot.start,
-                         robot.goal, sample_static_workspace(robot, 24,
-                                                             np.random.default_rng(0),
-                                                             margin=0.1)])
-    fit = _pose_fit(model)
+    guesses = [0.5 * (robot.frame_lower + robot.frame_upper), robot.start, robot.goal,
+               *sample_static_workspace(robot, 24, np.random.default_rng(0), margin=0.1)]
+    mapped = _pose_fit(model).map(campaign.size)
     # a pose read with the nominal geometry may lie a little outside the frame (a small
     # platform's orientation moves far for a millimetre of length); a mirror image lies
     # far outside
@@ -237,23 +243,20 @@ def initial_poses(model: MeasurementModel, campaign: Campaign, theta: np.ndarray
     best = np.full((campaign.size, model.n), np.nan)
     best_misfit = np.full(campaign.size, np.inf)
     for guess in guesses:
-        # only the poses no guess has fitted as well as their offsets and stretch allow
-        open_rows = np.flatnonzero(~(best_misfit < POSE_MISFIT / 5))
-        if not open_rows.size:
-            break
-        mapped = fit.map(open_rows.size)
+        if np.all(best_misfit < POSE_MISFIT / 5):
+            break  # every pose fits as well as its offsets and stretch allow
         if robot.kind != "point":
             # the position first, the angles held (a rigid body's angles are weakly seen
             # by its lengths, and a full step from far away can spin it off), then all
-            q, _ = _gauss_newton_poses(mapped, theta, lengths[open_rows], guess,
+            q, _ = _gauss_newton_poses(mapped, theta, lengths, guess,
                                        free=np.arange(model.n) < robot.dimension)
-            q, misfit = _gauss_newton_poses(mapped, theta, lengths[open_rows], q)
+            q, misfit = _gauss_newton_poses(mapped, theta, lengths, q)
         else:
-            q, misfit = _gauss_newton_poses(mapped, theta, lengths[open_rows], guess)
-        inside = np.all((q > lower) & (q < upper), axis=1)
-        better = inside & (misfit < best_misfit[open_rows])
-        best[open_rows[better]] = q[better]
-        best_misfit[open_rows[better]] = misfit[better]
+            q, misfit = _gauss_newton_poses(mapped, theta, lengths, guess)
+        # the first fit within a centimetre stays (the level guesses come first)
+        better = (np.all((q > lower) & (q < upper), axis=1) & (misfit < best_misfit)
+                  & ~(best_misfit < POSE_MISFIT / 5))
+        best[better], best_misfit[better] = q[better], misfit[better]
     bad = np.flatnonzero(~(best_misfit <= POSE_MISFIT))
     if bad.size:
         raise InvalidCase("readings", f"no pose of the nominal robot near its frame fits "
@@ -372,7 +375,19 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns | None = N
                           "measure them)")
     result = _result(problem, x, given, iterations)
     _refuse_problems(result.identifiability, "the estimate")
+    if not result.sigma0 <= MISFIT_SIGMA:
+        raise InvalidCase("readings", f"the fit leaves residuals {result.sigma0:.3g} times the "
+                          f"stated noise (sigma0 above {MISFIT_SIGMA:g}): a wrong local minimum "
+                          "(without a tracker, poses read from the nominal geometry can start "
+                          "it there: measure more poses, or the poses), outliers, or noise "
+                          "larger than stated (give it)")
     return result
+
+
+#: The largest a posteriori noise factor an estimate may end with: residuals this many
+#: times the stated noise are no fit (chi-square: sigma0 above 1.5 is already improbable
+#: for a hundred residuals).
+MISFIT_SIGMA = 5.0
 
 
 def _check_plausible(model: MeasurementModel, campaign: Campaign, blocks: PoseBlocks

@@ -35,6 +35,7 @@ from cdpr_sym.as_built.draw import DEFAULT_DRAW
 from cdpr_sym.calibration.drawn import SELF_POSES, TRACKER_NOISE, TRACKER_POSES, drawn_robot
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.control import controller_by_name
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results import SETTLE_TOLERANCE
 from cdpr_sym.results.judging import SETTLE_WITHIN, STEP_LIMIT, meets_target
@@ -172,13 +173,34 @@ def compute_robustness_study(robot: Robot, out_dir: Path, *, pairs: int = 200, s
 def _calibrated_pair(task: tuple) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """One pair of a calibrated column (in a worker process): calibrate, then run."""
     robot, effect, kind, start, goal, seed, index = task
-    drawn = drawn_robot(robot, DEFAULT_DRAW, seed, index, kind)
+    try:
+        drawn = drawn_robot(robot, DEFAULT_DRAW, seed, index, kind)
+    except InvalidCase as refused:  # the campaign did not calibrate: no run follows
+        return _refused_rows(robot, effect, start, goal, seed, index), {
+            "refused": refused.message}
     rows = []
     for design in CALIBRATED_DESIGNS:
         rows += _effect_rows(drawn.model, design, effect, [drawn.plant], [start], [goal],
                              first=index)
     record = {key: value for key, value in drawn.record.items() if key != "anchor_offsets"}
     return rows, {**record, "read_error": rows[0]["read_error"]}
+
+
+def _refused_rows(robot: Robot, effect: str, start: np.ndarray, goal: np.ndarray, seed: int,
+                  index: int) -> list[dict[str, Any]]:
+    """The rows of a pair whose calibration was refused: held as the uncalibrated plant
+    is, stopped before any run."""
+    drawn = drawn_robot(robot, DEFAULT_DRAW, seed, index)
+    simulator = get_simulator(robot, controller_by_name(CALIBRATED_DESIGNS[0]),
+                              as_built=drawn.plant.as_built.structure())
+    held = bool(simulator.true_static_held(start, drawn.plant)
+                and simulator.true_static_held(goal, drawn.plant))
+    return [{"effect": effect, "design": design, "pair": index, "held": held,
+             "read_error": float("nan"), "status": "stopped",
+             "stop_reason": "calibration_refused", "tension_feasible": False,
+             "settle_time": None, "max_tension_step": None, "start_jump": None,
+             "min_tension": None, "max_tension": None, "final_error": None,
+             "meets_target": False} for design in CALIBRATED_DESIGNS]
 
 
 def calibrated_column(robot: Robot, effect: str, kind: str, starts: np.ndarray,
@@ -441,6 +463,9 @@ def calibration_summary(study: dict[str, Any]) -> dict[str, Any] | None:
 def campaign_summary(records: list[dict[str, Any]]) -> dict[str, Any]:
     """:func:`calibration_summary` of one column's records."""
 
+    refused = sum(1 for record in records if "refused" in record)
+    records = [record for record in records if "refused" not in record]
+
     def column(key: str) -> np.ndarray:
         return np.array([record[key] for record in records], dtype=float)
 
@@ -449,7 +474,7 @@ def campaign_summary(records: list[dict[str, Any]]) -> dict[str, Any]:
             "max_error_mm": float(errors.max()),
             "median_std_mm": float(np.median(1e3 * column("anchor_rms_std"))),
             "max_offset_mm": float(1e3 * column("offset_max_error").max()),
-            "median_sigma0": float(np.median(column("sigma0"))),
+            "median_sigma0": float(np.median(column("sigma0"))), "refused": refused,
             "misread": int(np.sum(~(column("read_error") < SETTLE_TOLERANCE)))}
 
 
