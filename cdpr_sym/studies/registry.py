@@ -17,7 +17,8 @@ from cdpr_sym.studies.interface import Study
 _MODULES = {"paper": "cdpr_sym.studies.paper", "compare": "cdpr_sym.studies.compare",
             "designs": "cdpr_sym.studies.designs", "rigid": "cdpr_sym.studies.rigid",
             "redundant": "cdpr_sym.studies.redundant",
-            "robustness": "cdpr_sym.studies.robustness"}
+            "robustness": "cdpr_sym.studies.robustness",
+            "calibration": "cdpr_sym.studies.calibration"}
 #: The registered studies' names.
 STUDY_NAMES = tuple(_MODULES)
 
