@@ -24,7 +24,12 @@ from benchmarks.peers.timing import pin_to_one_core
 from benchmarks.tables import best_seconds, one_core_run, publish
 from cdpr_sym import preset
 from cdpr_sym.calibration import Truth, calibrate, simulate_campaign
-from cdpr_sym.calibration.estimate import _given_tensions, _Problem, initial_poses
+from cdpr_sym.calibration.estimate import (
+    _given_tensions,
+    _Problem,
+    default_unknowns,
+    initial_poses,
+)
 from cdpr_sym.calibration.measurement import MeasurementModel
 from cdpr_sym.workspace import sample_static_workspace
 
@@ -45,7 +50,7 @@ def campaign(name: str, kind: str, count: int):
 
 def scipy_solve(robot, measured) -> tuple[float, np.ndarray]:
     """SciPy's solve of the same stacked problem: seconds, and its theta."""
-    model = MeasurementModel(robot, stiffness=measured.stiffness)
+    model = MeasurementModel(robot, default_unknowns(robot, measured), measured.stiffness)
     theta = model.nominal()
     problem = _Problem(model, measured, theta)
     poses = initial_poses(model, measured, theta)
