@@ -133,3 +133,24 @@ def test_simulate_refuses_bad_as_built_options_naming_them(capsys, argv, field):
     status = main(["simulate", "--robot", "aras3", *argv])
     err = capsys.readouterr().err
     assert status == 2 and f"error: {field}:" in err
+
+
+@pytest.mark.parametrize("spec, message", [
+    ({"encoder_offsets": [0.001] * 3}, "need sensing"),
+    ({"encoder_offsets": [[0.001] * 3], "sensing": Sensing()}, "one per cable"),
+    ({"encoder_offsets": [float("nan")] * 3, "sensing": Sensing()}, "one per cable"),
+])
+def test_plant_encoder_offsets_are_checked_naming_the_field(spec, message):
+    from cdpr_sym.as_built import AsBuilt
+
+    with pytest.raises(InvalidCase, match=message) as refused:
+        AsBuilt(**spec)
+    assert refused.value.field == "encoder_offsets"
+
+
+def test_plant_encoder_offsets_must_fit_the_robot():
+    from cdpr_sym.as_built import AsBuilt
+
+    spec = AsBuilt(sensing=Sensing(), encoder_offsets=[0.001] * 4)
+    with pytest.raises(InvalidCase, match="expected 3 values, got 4"):
+        spec.check_robot(3, 3)

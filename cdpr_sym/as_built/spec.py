@@ -237,23 +237,23 @@ class AsBuilt:
                               f"got {self.substeps!r}")
         object.__setattr__(self, "delay", int(self.delay))
         object.__setattr__(self, "substeps", int(self.substeps))
-        if self.anchor_offsets is not None:
-            offsets = np.asarray(self.anchor_offsets, dtype=float)
-            if offsets.ndim != 2 or not np.isfinite(offsets).all():
-                raise InvalidCase("anchor_offsets", "expected a finite (cables x dimension) "
-                                  "array in m")
-            offsets.setflags(write=False)
-            object.__setattr__(self, "anchor_offsets", offsets)
-        if self.encoder_offsets is not None:
-            if self.sensing is None:
-                raise InvalidCase("encoder_offsets", "encoder offsets need sensing (the "
-                                  "controller reads no encoder without it)")
-            offsets = np.asarray(self.encoder_offsets, dtype=float)
-            if offsets.ndim != 1 or not np.isfinite(offsets).all():
-                raise InvalidCase("encoder_offsets", "expected finite values, one per cable, "
-                                  "in m")
-            offsets.setflags(write=False)
-            object.__setattr__(self, "encoder_offsets", offsets)
+        self._set_offsets("anchor_offsets", 2, "a finite (cables x dimension) array in m")
+        if self.encoder_offsets is not None and self.sensing is None:
+            raise InvalidCase("encoder_offsets", "encoder offsets need sensing (the "
+                              "controller reads no encoder without it)")
+        self._set_offsets("encoder_offsets", 1, "finite values, one per cable, in m")
+
+    def _set_offsets(self, field: str, ndim: int, expected: str) -> None:
+        """Field ``field`` as a read-only float array of ``ndim`` dimensions (None stays
+        None), or InvalidCase naming it."""
+        value = getattr(self, field)
+        if value is None:
+            return
+        offsets = np.asarray(value, dtype=float)
+        if offsets.ndim != ndim or not np.isfinite(offsets).all():
+            raise InvalidCase(field, f"expected {expected}")
+        offsets.setflags(write=False)
+        object.__setattr__(self, field, offsets)
 
     def check_period(self, dt: float) -> None:
         """Raise :class:`InvalidCase` (``substeps``) when, at the control period ``dt``
