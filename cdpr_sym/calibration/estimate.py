@@ -140,13 +140,14 @@ class _Problem:
         theta = self.reference + self.basis.T @ x[:free]
         return theta, x[free:].reshape(self.campaign.size, self.own)
 
-    def blocks(self, x: np.ndarray, modelled: np.ndarray) -> PoseBlocks:
+    def blocks(self, x: np.ndarray, given: np.ndarray) -> PoseBlocks:
         theta, own = self.split(x)
-        return pose_blocks(self.model, self.campaign, theta, own, modelled)
+        return pose_blocks(self.model, self.campaign, theta, own, given)
 
-    def stacked(self, x: np.ndarray, modelled: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """All residuals and the Jacobian in x (pose blocks on the diagonal)."""
-        blocks = self.blocks(x, modelled)
+    def stacked(self, x: np.ndarray, given: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """All residuals and the Jacobian in x (pose blocks on the diagonal); ``given``
+        the tensions that are data (:func:`~cdpr_sym.calibration.information.pose_blocks`)."""
+        blocks = self.blocks(x, given)
         count, rows, _ = blocks.theta.shape
         free = len(self.basis)
         J = np.zeros((count * rows, free + count * self.own))

@@ -260,13 +260,9 @@ def check_sweep_args(args: argparse.Namespace) -> SweepConfig:
     # controllers, timing and mass_scale are checked by SweepConfig)
     check_timing(args.duration, args.dt, values_per_step=minimal_values_per_step(robot))
     as_built = None
-    if args.as_built is not None:
-        check_as_built_args(args, robot)
+    if check_as_built_args(args, robot) is not None:
         as_built = (args.as_built if args.as_built == "default"
                     else str(Path(args.as_built).resolve()))
-    elif args.calibration != "none":
-        raise InvalidCase("calibration", "a calibration needs a robot as built "
-                          "(--as-built default or a file)")
     return SweepConfig(robot=source, pairs=args.pairs, seed=args.seed,
                        controllers=tuple(n.strip() for n in args.controllers.split(",") if n),
                        duration=args.duration, dt=args.dt, mass_scale=args.mass_scale,

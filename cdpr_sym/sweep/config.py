@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -125,7 +126,13 @@ class SweepConfig:
         return out
 
     def draw(self) -> AsBuiltDraw | None:
-        """The as-built specification (read from its file), or None."""
+        """The as-built specification, or None: read from its file once, when the
+        configuration is made (an edit of the file after that changes none of this
+        sweep's rows, as with its robot)."""
+        return self._draw
+
+    @functools.cached_property
+    def _draw(self) -> AsBuiltDraw | None:
         from cdpr_sym.as_built import load_as_built_draw
 
         return None if self.as_built is None else load_as_built_draw(self.as_built)
