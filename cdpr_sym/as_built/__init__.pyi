@@ -12,8 +12,9 @@ from .spec import (
     AsBuiltStructure,
     Sensing,
 )
+from .port_hamiltonian import AsBuiltHamiltonian
 from .static import true_static_function
 
 __all__ = ["ACTUATION_PARAMETERS", "DEFAULT_DRAW", "FRICTION_SPEED", "MAX_DELAY",
-           "SENSING_PARAMETERS", "Actuation", "AsBuilt", "AsBuiltDraw", "AsBuiltStructure",
+           "SENSING_PARAMETERS", "Actuation", "AsBuilt", "AsBuiltHamiltonian", "AsBuiltDraw", "AsBuiltStructure",
            "Sensing", "load_as_built_draw", "true_static_function"]

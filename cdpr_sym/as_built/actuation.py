@@ -19,6 +19,27 @@ def named(parameters: ca.SX) -> dict[str, ca.SX]:
     return {name: parameters[index] for index, name in enumerate(ACTUATION_PARAMETERS)}
 
 
+def spring_tension(lengths: ca.SX, payout: ca.SX, parameters: ca.SX) -> ca.SX:
+    """The spring part EA s+ / l0 of each cable's tension, N (s = l - l0 its stretch, m):
+    dU/dl of the elastic energy U = EA s+^2 / (2 l0)."""
+    stretch = lengths - payout
+    return named(parameters)["cable_stiffness"] * ca.fmax(stretch, 0) / payout
+
+
+def drum_pull(tension: ca.SX, spring: ca.SX, parameters: ca.SX) -> ca.SX:
+    """The force each cable pulls its drum with, N (times r the torque that pays it out):
+    T + T_s^2 / (2 EA), with T the cable's tension and T_s its spring part.
+
+    The elastic energy U(l, l0) = EA (l - l0)+^2 / (2 l0) gives the platform dU/dl = T_s
+    and the drum -dU/dl0 = T_s + T_s^2 / (2 EA): the stiffness EA / l0 changes as cable is
+    paid out, and a drum pulled by T alone would create T_s^2 / (2 EA) of energy per metre
+    of stretched cable it reels in (the old law's 9 mJ in 2 s, docs/as_built_energy.md).
+    With this pull the plant is port-Hamiltonian (:mod:`cdpr_sym.as_built.port_hamiltonian`):
+    its energy changes only by the motors' work, friction and cable damping.
+    """
+    return tension + spring * spring / (2 * named(parameters)["cable_stiffness"])
+
+
 def cable_tension(lengths: ca.SX, rates: ca.SX, payout: ca.SX, payout_rate: ca.SX,
                   parameters: ca.SX) -> ca.SX:
     """T_i (N) of cables of length ``lengths`` (m) changing at ``rates`` (m/s), with
@@ -31,14 +52,21 @@ def cable_tension(lengths: ca.SX, rates: ca.SX, payout: ca.SX, payout_rate: ca.S
     return ca.fmax(spring, 0) * (stretch > 0)
 
 
-def drum_acceleration(tension: ca.SX, speed: ca.SX, torque: ca.SX, parameters: ca.SX) -> ca.SX:
-    """d omega / dt of each drum, rad/s^2: (r T - tau - b omega - tau_c sgn(omega / w_f)) / J
-    with the smooth sign sgn(x) = x / sqrt(1 + x^2) (omega > 0 pays cable out; the motor
-    torque tau > 0 reels it in)."""
+def friction_torque(speed: ca.SX, parameters: ca.SX) -> ca.SX:
+    """Each drum's friction torque b omega + tau_c sgn(omega / w_f), N m, with the smooth
+    sign sgn(x) = x / sqrt(1 + x^2); it opposes the speed omega (rad/s)."""
     p = named(parameters)
     ratio = speed / FRICTION_SPEED
-    friction = p["viscous"] * speed + p["coulomb"] * ratio / ca.sqrt(1 + ratio * ratio)
-    return (p["drum_radius"] * tension - torque - friction) / p["inertia"]
+    return p["viscous"] * speed + p["coulomb"] * ratio / ca.sqrt(1 + ratio * ratio)
+
+
+def drum_acceleration(pull: ca.SX, speed: ca.SX, torque: ca.SX, parameters: ca.SX) -> ca.SX:
+    """d omega / dt of each drum, rad/s^2: (r P - tau - friction(omega)) / J with P the
+    cable's pull on the drum (:func:`drum_pull`; omega > 0 pays cable out, the motor torque
+    tau > 0 reels it in)."""
+    p = named(parameters)
+    return (p["drum_radius"] * pull - torque - friction_torque(speed, parameters)) \
+        / p["inertia"]
 
 
 def torque_reference(command: ca.SX, parameters: ca.SX) -> ca.SX:

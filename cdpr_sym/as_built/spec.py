@@ -64,7 +64,10 @@ class Actuation:
         T_i = max(0, EA / l0_i * s_i + c_EA / l0_i * ds_i/dt) if s_i = l_i - l0_i > 0, else 0,
 
     a spring-damper that goes slack instead of pushing. Each drum obeys
-    J domega_i = r T_i - tau_i - b omega_i - tau_c sgn(omega_i), and its
+    J domega_i = r P_i - tau_i - b omega_i - tau_c sgn(omega_i), where the cable pulls the
+    drum with P_i = T_i + T_s,i^2 / (2 EA) (T_s,i = EA s_i+ / l0_i, the spring part): the
+    elastic energy EA s+^2 / (2 l0) differentiated in l0, the law that makes the plant
+    port-Hamiltonian (docs/as_built_energy.md says why a pull of T_i alone is not), and its
     motor torque tau_i follows the reference r T_cmd_i (clipped to the torque limit) through
     a first-order torque loop of the given bandwidth. sgn is the smooth sign
     x / sqrt(1 + x^2) of x = omega / :data:`FRICTION_SPEED`.

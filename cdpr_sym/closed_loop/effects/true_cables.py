@@ -97,7 +97,7 @@ class TrueDynamics:
         ddq = self.model.acceleration_from_force(q, dq, -jacobian.T @ tension, self.mass_scale)
         if self.winches is None:
             return ca.vertcat(dq, ddq)
-        return ca.vertcat(dq, ddq, self.winches.drive_rates(parts, tension, command,
+        return ca.vertcat(dq, ddq, self.winches.drive_rates(parts, lengths, tension, command,
                                                             self.actuation))
 
     def advance(self, z: ca.SX, command: ca.SX, dt: ca.SX) -> ca.SX:

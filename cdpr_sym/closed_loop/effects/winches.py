@@ -57,21 +57,27 @@ class Winches(PlantEffect):
                                        radius * parts["drum_speed"], parameters)
 
     @staticmethod
-    def drive_rates(parts: dict[str, ca.SX], tension: ca.SX, command: ca.SX,
+    def drive_rates(parts: dict[str, ca.SX], lengths: ca.SX, tension: ca.SX, command: ca.SX,
                     parameters: ca.SX) -> ca.SX:
-        """d/dt of the winch states: payout rate, drum acceleration, torque rate."""
+        """d/dt of the winch states: payout rate, drum acceleration, torque rate, with the
+        true cable ``lengths`` (m) and ``tension`` (N)."""
         speed, torque = parts["drum_speed"], parts["motor_torque"]
         radius = actuation.named(parameters)["drum_radius"]
+        spring = actuation.spring_tension(lengths, parts["payout"], parameters)
+        pull = actuation.drum_pull(tension, spring, parameters)
         return ca.vertcat(radius * speed,
-                          actuation.drum_acceleration(tension, speed, torque, parameters),
+                          actuation.drum_acceleration(pull, speed, torque, parameters),
                           actuation.torque_rate(torque, command, parameters))
 
     def parameter_values(self, plant: Plant) -> dict[str, object]:
         return {"actuation": plant.as_built.actuation.parameters()}
 
     def start_values(self, start: StartContext) -> dict[str, object]:
-        """At rest, each cable stretched to carry the static tension (its payout the
-        unstretched length), the drums still, the motors' torque holding the tension."""
+        """At rest, each cable stretched to carry the static tension T (its payout the
+        unstretched length), the drums still, the motors' torque holding them:
+        r (T + T^2 / (2 EA)), the cable's pull on the drum (:func:`actuation.drum_pull`)."""
         drive = start.plant.as_built.actuation
+        tension = start.static_tension
+        pull = tension + tension**2 / (2 * drive.cable_stiffness)
         return {"payout": start.unstretched_lengths(), "drum_speed": np.zeros(start.cables),
-                "motor_torque": drive.drum_radius * start.static_tension}
+                "motor_torque": drive.drum_radius * pull}
