@@ -10,10 +10,11 @@ friction, cable damping and the payout of stretched cable take out:
 with sgn(x) = x / sqrt(1 + x^2) the smooth sign of the friction and T_s = EA s+ / l0 the
 spring part of the tension: no other source or sink. (With the drum pulled by T instead of
 T + T_s^2 / (2 EA) a term -sum T_s^2 / (2 EA) r omega_i would be missing here: the
-energy the old law created as stretched cable was reeled in.) Everything here is computed from the states in numpy: lengths
-and their rates from the reference geometry (anchors moved by the plant's offsets), energies
-from the reference rigid body, the tension from the cable law; the balance is integrated
-with the trapezoid rule and must close to a small fraction of the energy that flowed.
+energy the old law created as stretched cable was reeled in.) Everything here is computed
+from the states in numpy: lengths and their rates from the reference geometry (anchors
+moved by the plant's offsets), energies from the reference rigid body, the tension from the
+cable law; the balance is integrated with the trapezoid rule and must close to a small
+fraction of the energy that flowed.
 """
 
 from __future__ import annotations

@@ -17,6 +17,7 @@ from cdpr_sym.control import (
     controller_from_options,
     initial_memory_function,
     law_function,
+    step_with_drives,
     tension,
 )
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
@@ -32,8 +33,8 @@ def test_registered_controller_meets_the_interface(name, aras3_model):
     symbols = [ca.SX.sym(label, n) for label in ("q", "dq", "q_goal", "k", "r_d")]
     memory = controller.initial_memory(aras3_model, symbols[0], *symbols[2:])
     assert memory.shape == (size, 1)
-    law, memory_next = controller.step(aras3_model, *symbols, ca.SX.sym("m", size),
-                                       ca.SX.sym("dt"))
+    law, memory_next = step_with_drives(controller, aras3_model, *symbols,
+                                        ca.SX.sym("m", size), ca.SX.sym("dt"))
     assert isinstance(law, ControlLaw) and memory_next.shape == (size, 1)
     assert law.tau.shape == (n, 1) and law.j.shape == (aras3_model.n_j, 1)
 

@@ -19,7 +19,7 @@ import pytest
 import reference
 
 from cdpr_sym.as_built import Actuation, AsBuilt, AsBuiltHamiltonian
-from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.closed_loop import Plant
 from cdpr_sym.closed_loop.effects import StepBuild, TrueCables, plant_effects
 from cdpr_sym.closed_loop.step import plant_layout
 from cdpr_sym.control import controller_by_name

@@ -2,6 +2,7 @@
 # time: each is imported from its module on first use (see __init__.py).
 
 from .draw import DEFAULT_DRAW, AsBuiltDraw, load_as_built_draw
+from .port_hamiltonian import AsBuiltHamiltonian
 from .spec import (
     ACTUATION_PARAMETERS,
     FRICTION_SPEED,
@@ -12,9 +13,20 @@ from .spec import (
     AsBuiltStructure,
     Sensing,
 )
-from .port_hamiltonian import AsBuiltHamiltonian
 from .static import true_static_function
 
-__all__ = ["ACTUATION_PARAMETERS", "DEFAULT_DRAW", "FRICTION_SPEED", "MAX_DELAY",
-           "SENSING_PARAMETERS", "Actuation", "AsBuilt", "AsBuiltHamiltonian", "AsBuiltDraw", "AsBuiltStructure",
-           "Sensing", "load_as_built_draw", "true_static_function"]
+__all__ = [
+    "ACTUATION_PARAMETERS",
+    "DEFAULT_DRAW",
+    "FRICTION_SPEED",
+    "MAX_DELAY",
+    "SENSING_PARAMETERS",
+    "Actuation",
+    "AsBuilt",
+    "AsBuiltDraw",
+    "AsBuiltHamiltonian",
+    "AsBuiltStructure",
+    "Sensing",
+    "load_as_built_draw",
+    "true_static_function",
+]

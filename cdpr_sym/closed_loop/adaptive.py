@@ -14,7 +14,7 @@ from cdpr_sym.closed_loop.case import Case, check_timing
 from cdpr_sym.closed_loop.plant import Plant, applied_tension, plant_rhs
 from cdpr_sym.closed_loop.simulator import run_info
 from cdpr_sym.closed_loop.step import step_layout
-from cdpr_sym.control import Controller, check_cables, law_function
+from cdpr_sym.control import Controller, check_cables, law_function, step_with_drives
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.results import Trajectory
@@ -91,8 +91,8 @@ def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=
     n = robot.n
     z, p = ca.SX.sym("z", 2 * n), ca.SX.sym("p", layout.p.size)
     par = layout.p.split(p)
-    law, _ = controller.step(model, z[:n], z[n:], par["q_goal"], par["k"], par["r_d"],
-                             ca.SX.zeros(0, 1), par["dt"])
+    law, _ = step_with_drives(controller, model, z[:n], z[n:], par["q_goal"], par["k"],
+                              par["r_d"], ca.SX.zeros(0, 1), par["dt"])
     ode = plant_rhs(model, applied_tension(law.tau, par["slack"]), par["mass_scale"])(z)
     grid = np.arange(1, n_steps + 1) * dt
     integrator = ca.integrator("adaptive", "cvodes", {"x": z, "p": p, "ode": ode}, 0.0, grid,

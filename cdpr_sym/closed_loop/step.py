@@ -26,7 +26,7 @@ from cdpr_sym.closed_loop.stops import (
     singular_flag,
     stop_status,
 )
-from cdpr_sym.control import Controller
+from cdpr_sym.control import Controller, capabilities, rigid_drive_reading, step_with_drives
 from cdpr_sym.model import SymbolicModel, rk4
 
 __all__ = ["ALL_STOP_REASONS", "LOST_POSE", "STOP_CODES", "STOP_REASONS", "chunk_function",
@@ -95,11 +95,18 @@ def step_function(model: SymbolicModel, controller: Controller, *,
     build.z = build.dynamics.pack(state)
     q, dq, dt = state["q"], state["dq"], par["dt"]
 
-    q_read, dq_read = q, dq
-    for effect in effects:
-        q_read, dq_read = effect.read(build, q_read, dq_read)
-    law, memory_next = controller.step(model, q_read, dq_read, par["q_goal"], par["k"],
-                                       par["r_d"], state["memory"], dt)
+    drives = None
+    if capabilities(controller).reads_drives:  # the winches instead of the pose
+        drives = rigid_drive_reading(model, q, dq)
+        for effect in effects:
+            drives = effect.read_drives(build, drives)
+        q_read = dq_read = ca.SX.nan(model.n)
+    else:
+        q_read, dq_read = q, dq
+        for effect in effects:
+            q_read, dq_read = effect.read(build, q_read, dq_read)
+    law, memory_next = step_with_drives(controller, model, q_read, dq_read, par["q_goal"],
+                                        par["k"], par["r_d"], state["memory"], dt, drives)
     command = law.tau
     for effect in effects:
         command = effect.deliver(build, command)

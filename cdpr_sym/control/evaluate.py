@@ -13,7 +13,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.codegen import c_identifier
-from cdpr_sym.control.interface import ControlLaw, Controller, ControlOutput
+from cdpr_sym.control.interface import ControlLaw, Controller, ControlOutput, step_with_drives
 from cdpr_sym.model import SymbolicModel
 
 LAW_INPUTS = ("q", "dq", "q_goal", "k", "r_d", "memory", "dt")
@@ -22,12 +22,13 @@ LAW_OUTPUTS = (*ControlLaw._fields, "memory_next")
 
 def law_function(model: SymbolicModel, controller: Controller) -> ca.Function:
     """The control step (q, dq, q_goal, k, r_d, memory, dt) -> (tau, alpha, beta, j, flags,
-    memory_next); ``memory`` is empty for a stateless law."""
+    memory_next); ``memory`` is empty for a stateless law. A law that reads the winches
+    reads those of rigid cables (:func:`~cdpr_sym.control.interface.rigid_drive_reading`)."""
     n = model.n
     q, dq, q_goal = ca.SX.sym("q", n), ca.SX.sym("dq", n), ca.SX.sym("q_goal", n)
     k, r_d = ca.SX.sym("k", n), ca.SX.sym("r_d", n)
     memory, dt = ca.SX.sym("memory", controller.memory_size(model)), ca.SX.sym("dt")
-    law, memory_next = controller.step(model, q, dq, q_goal, k, r_d, memory, dt)
+    law, memory_next = step_with_drives(controller, model, q, dq, q_goal, k, r_d, memory, dt)
     return ca.Function(f"law_{c_identifier(controller.name)}",
                        [q, dq, q_goal, k, r_d, memory, dt], [*law, memory_next],
                        list(LAW_INPUTS), list(LAW_OUTPUTS), {"cse": True})

@@ -13,8 +13,15 @@ part (24), beta the margin of (20) (N), j the n(n-1)/2 free entries of J_d, and 
 set of :mod:`cdpr_sym.control.flags`.
 
 What a controller supports and needs beyond its law — the cable counts it runs, whether it
-optimises at a rate of its own outside the generated step — is its :class:`Capabilities`,
-read through :func:`capabilities` and nowhere else.
+optimises at a rate of its own outside the generated step, whether it reads the winches —
+is its :class:`Capabilities`, read through :func:`capabilities` and nowhere else.
+
+A controller that reads the winches (``reads_drives``) gets, as the keyword ``drives``,
+a :class:`DriveReading` instead of the pose: what the winch encoders count (the paid-out
+cable, less the model's encoder offsets); in the simulator's step its q and dq are NaN (no
+forward kinematics is solved for it). :func:`step_with_drives` is the one place that passes
+it; on a robot without winches (rigid cables) the reading is the cable lengths
+(:func:`rigid_drive_reading`). Rates are the controller's to estimate, from its memory.
 """
 
 from __future__ import annotations
@@ -61,10 +68,14 @@ class Capabilities:
         rate of its own (NMPC: the simulator and the exported package run its solver every
         ``sample_period`` and the step plays the solution back); None: the whole law is in
         the step, evaluated every control period.
+    reads_drives : bool
+        The law reads the winches (:class:`DriveReading`, the keyword ``drives`` of its
+        ``step``) instead of the pose and velocity.
     """
 
     any_cables: bool = False
     sample_period: float | None = None
+    reads_drives: bool = False
 
     @property
     def sampled(self) -> bool:
@@ -81,6 +92,36 @@ def capabilities(controller: object) -> Capabilities:
     outside the package without the method (the protocol's default)."""
     method = getattr(controller, "capabilities", None)
     return SQUARE_STEPWISE if method is None else method()
+
+
+class DriveReading(NamedTuple):
+    """What a controller that reads the winches sees of them, per cable.
+
+    Attributes
+    ----------
+    lengths : SX, shape (m,)
+        The paid-out (unstretched) cable lengths the encoders count, less the model's
+        encoder offsets, m; the geometric lengths on a robot with rigid cables.
+    """
+
+    lengths: ca.SX
+
+
+def rigid_drive_reading(model: SymbolicModel, q: ca.SX, dq: ca.SX) -> DriveReading:
+    """The drive reading of rigid cables at q: the model's cable lengths l(q), m."""
+    return DriveReading(model.cable_lengths(q))
+
+
+def step_with_drives(controller: Controller, model: SymbolicModel, q: ca.SX, dq: ca.SX,
+                     q_goal: ca.SX, k: ca.SX, r_d: ca.SX, memory: ca.SX, dt: ca.SX,
+                     drives: DriveReading | None = None) -> tuple[ControlLaw, ca.SX]:
+    """``controller.step``, given the winches' reading ``drives`` when it reads them (the
+    rigid cables' reading at q when ``drives`` is None)."""
+    if not capabilities(controller).reads_drives:
+        return controller.step(model, q, dq, q_goal, k, r_d, memory, dt)
+    if drives is None:
+        drives = rigid_drive_reading(model, q, dq)
+    return controller.step(model, q, dq, q_goal, k, r_d, memory, dt, drives=drives)
 
 
 @runtime_checkable

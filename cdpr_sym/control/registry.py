@@ -10,6 +10,7 @@ from cdpr_sym.control.ida_pbc import PD, L2Design, SaturatedPD
 from cdpr_sym.control.interface import Controller, capabilities
 from cdpr_sym.control.nmpc import Nmpc
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
+from cdpr_sym.control.winch_level import WinchIdaPbc
 from cdpr_sym.errors import InvalidCase, UnknownName
 
 #: The ``ida-ref-obs`` observer's rate L, 1/s: a 20 ms time constant (8 Hz), faster than
@@ -36,6 +37,7 @@ CONTROLLERS: dict[str, Controller] = {
     "ida-ref-obs": VirtualReferenceIdaPbc(observer_rate=OBSERVER_RATE),
     "smooth-lp": SmoothReference(command_cutoff=COMMAND_CUTOFF, guard=GUARD),
     "pd-td": DistributedPD(),
+    "ida-winch": WinchIdaPbc(),
     "nmpc": Nmpc(),
     "nmpc-sqp": Nmpc(solver="sqp"),
     "nmpc-ipopt": Nmpc(solver="ipopt"),
@@ -56,6 +58,8 @@ DESCRIPTIONS = {
                "misses (mass error)",
     "smooth-lp": "smooth, command low-passed at 15 Hz and kept 1 N inside the box: for winches",
     "pd-td": "PD + gravity compensation + tension distribution; any m >= n cables",
+    "ida-winch": "IDA-PBC at the motors of the robot as built: energy shaped in the drum "
+                 "coordinates, damping on the drum speeds, from the winch encoders alone",
     "nmpc": "NMPC, hard tension and rate bounds, 50 Hz, 0.5 s horizon, one SQP step per "
             "sample (real-time iteration, generated C); any m >= n cables",
     "nmpc-sqp": "the same NMPC solved to convergence by CasADi's sqpmethod at every sample",

@@ -47,7 +47,8 @@ from cdpr_sym.workspace import sample_static_workspace
 
 #: The designs compared: the paper's l2, its clipped PD baseline, the two smooth ones and
 #: their variants for the robot as built (a weight observer; a command filter).
-DESIGNS = ("pd-sat", "l2", "smooth", "ida-ref", "ida-ref-obs", "smooth-lp", "nmpc")
+DESIGNS = ("pd-sat", "l2", "smooth", "ida-ref", "ida-ref-obs", "ida-winch", "smooth-lp",
+           "nmpc")
 #: Run length and control period, s (the target asks for 1 cm within 5 s).
 DURATION, DT = 6.0, 1e-3
 #: Mass error (fraction), anchor error (m) and command delay (periods) of the spec.
@@ -58,12 +59,18 @@ TORQUE_MARGIN = DEFAULT_DRAW.torque_margin
 #: Margin of the frame kept clear when drawing poses, as a fraction of its span.
 FRAME_MARGIN = 0.05
 RUNS_FILE = "runs.json"
+#: The true tensions over time of :data:`TRACE_DESIGNS` on one pair as built (committed,
+#: small), and their figure.
+TRACES_FILE, TRACES_FIGURE = "tensions.json", "tensions.png"
+TRACE_DESIGNS = ("ida-winch", "smooth-lp", "nmpc")
+#: Keep every this many control periods in the traces (5 ms).
+TRACE_STRIDE = 5
 #: The calibrated columns (the second for more cables than degrees of freedom only), and
 #: the designs they run (each draw is a new model, so a new build of every design: the
 #: best as-built designs only).
 CALIBRATED = "as built, calibrated (tracker)"
 SELF_CALIBRATED = "as built, self-calibrated"
-CALIBRATED_DESIGNS = ("smooth", "ida-ref-obs", "smooth-lp")
+CALIBRATED_DESIGNS = ("smooth", "ida-ref-obs", "ida-winch", "smooth-lp")
 _DESIGNS_NOTE = f"designs {', '.join(CALIBRATED_DESIGNS)} only (a build per draw)"
 _CAMPAIGNS = {
     "tracker": f"as built, with the model calibrated first: {TRACKER_POSES} D-optimal static "
@@ -162,12 +169,68 @@ def compute_robustness_study(robot: Robot, out_dir: Path, *, pairs: int = 200, s
         rows += calibrated_rows
         specs[effect] = {"description": _CAMPAIGNS[kind], "calibrations": calibrations}
     scan = _damping_scan(robot, starts[:SCAN_PAIRS], goals[:SCAN_PAIRS], progress)
+    traces = tension_traces(robot, starts, goals, seed)
     out_dir.mkdir(parents=True, exist_ok=True)
+    write_json(out_dir / TRACES_FILE, traces)
     write_json(out_dir / RUNS_FILE, rows)
     # every run's specification makes it about 0.5 MB: on one line, half the indented size
     write_study(out_dir, "robustness", robot, indent=None, pairs=pairs, seed=seed,
                 designs=list(DESIGNS), duration=DURATION, dt=DT, effects=specs,
                 damping_scan=scan, starts=starts.tolist(), goals=goals.tolist())
+
+
+def tension_traces(robot: Robot, starts: np.ndarray, goals: np.ndarray, seed: int
+                   ) -> dict[str, Any]:
+    """The true cable tensions over time (every :data:`TRACE_STRIDE` periods) of each of
+    :data:`TRACE_DESIGNS` on the first pair whose as-built draw holds start and goal."""
+    effect = next(e for e in EFFECTS if e.name == "as built")
+    plants = (effect.draw(np.random.default_rng([seed, index, _tag(effect.name)]), robot)
+              for index in range(len(starts)))
+    judge = None
+    chosen = 0
+    for index, (plant, start, goal) in enumerate(zip(plants, starts, goals, strict=False)):
+        judge = judge or get_simulator(robot, controller_by_name(TRACE_DESIGNS[0]),
+                                       as_built=plant.as_built.structure())
+        chosen = index
+        if judge.true_static_held(start, plant) and judge.true_static_held(goal, plant):
+            break
+    traces: dict[str, Any] = {"pair": chosen, "stride": TRACE_STRIDE, "dt": DT,
+                              "t_min": robot.t_min, "t_max": robot.t_max, "designs": {}}
+    for design in TRACE_DESIGNS:
+        simulator = get_simulator(robot, controller_by_name(design),
+                                  as_built=plant.as_built.structure())
+        run = simulator.run(start, goal, robot.k, robot.r_d, duration=DURATION, dt=DT,
+                            plant=plant)
+        tension = run.tau[::TRACE_STRIDE]  # as built, a run's tau is the true tension
+        traces["designs"][design] = {
+            "meets_target": meets_target({**run.metrics(), "status": "ok" if run.stop_reason
+                                          is None else "stopped"}),
+            "tension": np.round(tension, 3).tolist()}
+    return traces
+
+
+def _traces_figure(traces: dict[str, Any], path: Path) -> Path:
+    """The true tensions over time, one panel per design, the box dashed."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    designs = traces["designs"]
+    fig, axes = plt.subplots(1, len(designs), figsize=(4.2 * len(designs), 3.4), sharey=True)
+    for ax, (design, trace) in zip(np.atleast_1d(axes), designs.items(), strict=True):
+        tension = np.array(trace["tension"])
+        t = np.arange(len(tension)) * traces["stride"] * traces["dt"]
+        ax.plot(t, tension, linewidth=1)
+        for bound in (traces["t_min"], traces["t_max"]):
+            ax.axhline(bound, color="k", linestyle="--", linewidth=0.8)
+        verdict = "meets the target" if trace["meets_target"] else "misses the target"
+        ax.set_title(f"{design}: {verdict}", fontsize=10)
+        ax.set_xlabel("t (s)")
+    np.atleast_1d(axes)[0].set_ylabel("true cable tension (N)")
+    fig.suptitle(f"As built, pair {traces['pair']}: the cables' true tension", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 def _calibrated_pair(task: tuple) -> tuple[list[dict[str, Any]], dict[str, Any]]:
@@ -428,6 +491,8 @@ class RobustnessStudy(Study):
         table = summary(read_json(folder / RUNS_FILE))
         write_json(folder / SUMMARY_FILE, table)
         _figure(table, folder / "shares.png")
+        if (folder / TRACES_FILE).exists():
+            _traces_figure(read_json(folder / TRACES_FILE), folder / TRACES_FIGURE)
 
     def render(self, folder: Path) -> dict[str, Any]:
         study = read_study(folder)

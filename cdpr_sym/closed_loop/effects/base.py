@@ -10,7 +10,9 @@ declares
   and logged values (:meth:`~PlantEffect.log_fields`), appended to the
   :class:`~cdpr_sym.closed_loop.layout.StepLayout` in registration order;
 * its contribution to the symbolic step, through hooks called in this order within one
-  control period: :meth:`~PlantEffect.read` (what the controller sees), the controller,
+  control period: :meth:`~PlantEffect.read` (what the controller sees),
+  :meth:`~PlantEffect.read_drives` (what a controller reading the winches sees of them),
+  the controller,
   :meth:`~PlantEffect.deliver` (how its command reaches the cables), the plant's
   integration (:class:`Dynamics`, provided by at most one effect through
   :meth:`~PlantEffect.dynamics`, else rigid cables), :meth:`~PlantEffect.stops`,
@@ -31,6 +33,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.control import DriveReading
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
@@ -135,6 +138,11 @@ class PlantEffect:
     def read(self, build: StepBuild, q: ca.SX, dq: ca.SX) -> tuple[ca.SX, ca.SX]:
         """What the controller reads of the pose and velocity, given what it would read."""
         return q, dq
+
+    def read_drives(self, build: StepBuild, drives: DriveReading) -> DriveReading:
+        """What a controller that reads the winches sees of them, given what it would
+        (called only for such a controller, after :meth:`read`)."""
+        return drives
 
     def deliver(self, build: StepBuild, command: ca.SX) -> ca.SX:
         """The command (N) that reaches the cables, given the one that would."""

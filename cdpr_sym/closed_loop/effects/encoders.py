@@ -22,6 +22,7 @@ import casadi as ca
 from cdpr_sym.as_built.spec import SENSING_PARAMETERS
 from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StartContext, StepBuild
 from cdpr_sym.closed_loop.stops import LOST_POSE
+from cdpr_sym.control import DriveReading
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
@@ -55,11 +56,7 @@ class Encoders(PlantEffect):
 
         model, state, sensing = build.model, build.state, build.par["sensing"]
         resolution, cutoff, consistency = sensing[0], sensing[1], sensing[2]
-        exact = raw_reading(model, build.dynamics.encoder_lengths(build.z),
-                            build.par["encoder_offsets"])
-        step = ca.fmax(resolution, 1e-300)
-        reading = ca.if_else(resolution > 0, step * ca.floor(exact / step + 0.5), exact)
-        reading = corrected(model, reading)
+        reading = self.reading(build)
         # the solver's own residual test is left wide open: reading_bound decides
         q_read, ok, residual = forward_kinematics_expression(model, reading, state["q_read"],
                                                              tolerance=1.0)
@@ -71,12 +68,29 @@ class Encoders(PlantEffect):
         build.memo(self).update(q_read=q_read, dq_read=dq_read, ok=ok)
         return q_read, dq_read
 
+    @staticmethod
+    def reading(build: StepBuild) -> ca.SX:
+        """What the encoders count, rounded to the resolution, less the model's offsets, m."""
+        resolution = build.par["sensing"][0]
+        exact = raw_reading(build.model, build.dynamics.encoder_lengths(build.z),
+                            build.par["encoder_offsets"])
+        step = ca.fmax(resolution, 1e-300)
+        return corrected(build.model, ca.if_else(resolution > 0,
+                                                 step * ca.floor(exact / step + 0.5), exact))
+
+    def read_drives(self, build: StepBuild, drives: DriveReading) -> DriveReading:
+        """The encoder reading (:meth:`reading`): what forward kinematics would read."""
+        return DriveReading(self.reading(build))
+
     def stops(self, build: StepBuild) -> tuple[tuple[ca.SX, int], ...]:
-        return ((build.memo(self)["ok"] < 0.5, LOST_POSE),)
+        """A pose forward kinematics cannot read stops the run (not checked for a
+        controller that reads the winches instead of the pose: none is solved for it)."""
+        ok = build.memo(self).get("ok")
+        return () if ok is None else ((ok < 0.5, LOST_POSE),)
 
     def next_state(self, build: StepBuild) -> dict[str, ca.SX]:
         memo = build.memo(self)
-        return {"q_read": memo["q_read"], "dq_read": memo["dq_read"]}
+        return {name: memo[name] for name in ("q_read", "dq_read") if name in memo}
 
     def parameter_values(self, plant: Plant) -> dict[str, object]:
         spec = plant.as_built

@@ -21,6 +21,7 @@ from cdpr_sym.as_built.geometry import true_geometry_function
 from cdpr_sym.closed_loop.effects.anchors import offsets as anchor_offsets
 from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StepBuild
 from cdpr_sym.closed_loop.effects.winches import Winches
+from cdpr_sym.control import DriveReading
 from cdpr_sym.model import SymbolicModel, rk4
 
 if TYPE_CHECKING:
@@ -48,6 +49,11 @@ class TrueCables(PlantEffect):
 
     def log(self, build: StepBuild, command: ca.SX) -> dict[str, ca.SX]:
         return {"tension": build.dynamics.tension(build.z, command)}
+
+    def read_drives(self, build: StepBuild, drives: DriveReading) -> DriveReading:
+        """The drives as they are: with winches the paid-out lengths, without them the true
+        cable lengths."""
+        return build.dynamics.drive_reading(build.z)
 
 
 class TrueDynamics:
@@ -106,6 +112,10 @@ class TrueDynamics:
         for _ in range(self.substeps):
             z_next = rk4(lambda zz: self.rhs(zz, command), z_next, h)
         return z_next
+
+    def drive_reading(self, z: ca.SX) -> DriveReading:
+        """The exact drive reading at z (m): :meth:`encoder_lengths`."""
+        return DriveReading(self.encoder_lengths(z))
 
     def encoder_lengths(self, z: ca.SX) -> ca.SX:
         """What the encoders measure, m: the paid-out length with winches, else the true

@@ -1,0 +1,250 @@
+"""IDA-PBC at the motors: energy shaping of the robot as built, from the winch encoders alone.
+
+The robot as built is the port-Hamiltonian system of
+:mod:`cdpr_sym.as_built.port_hamiltonian`: the platform moved only through elastic cables
+whose unstretched lengths l0 the drums set, n + m degrees of freedom and m motor inputs, the
+structure of a flexible-joint robot. :class:`WinchIdaPbc` (``ida-winch``) shapes its energy
+in the actuated coordinates only and injects damping on them, as the passivity-based
+designs of flexible-joint robots do (Tomei 1991; Ortega, Spong and co-authors), so it needs
+no platform measurement: its inputs are the encoders' paid-out lengths and their rates
+(:class:`~cdpr_sym.control.interface.DriveReading`). The derivation, the guarantee and every
+assumption are in docs/winch_ida_pbc.md; in short, with cable units (lengths in m, forces in
+N: a drum of inertia J and radius r reads as a mass J / r^2 on its cable):
+
+* **Reference.** The plan of :class:`~cdpr_sym.control.planned.SmoothReference` (a
+  minimum-jerk path q_r(t) whose rigid-body feed-forward tension
+  T_r = W(q_r)^{-1} (M ddq_r + C dq_r + grad V) stays in [T_min + mu, T_max - mu] with the
+  widest margin mu it finds) becomes motor references: the unstretched length that carries
+  T_r at q_r, l0_r = l(q_r) / (1 + T_r / EA), plus the encoders' misfit at the start
+  (homing: the robot starts at rest where the model says, so whatever the encoders read
+  beyond the model's lengths is their zero, kept for the move).
+* **Law.** The motor torque, as the tension command u / r that the winch's torque loop
+  turns into r times it:
+
+      u / r = P_r - (J / r^2) l0_r'' - f(l0_r' / r) / r + k_p (l0 - l0_r) + k_d (l0' - l0_r'),
+
+  P_r = T_r + T_r^2 / (2 EA) the pull that holds T_r on the drum, f the drum friction.
+* **Energy.** Once the plan has ended (l0_r, P_r constant), the closed loop is
+  port-Hamiltonian with the storage
+
+      H_d = H + sum_i P_r,i (l0_i - l0_r,i) + 1/2 k_p |l0 - l0_r|^2 - H_d*,
+
+  H the robot's energy, and dH_d/dt = -k_d |l0'|^2 - D <= 0 (D the cables' and drums'
+  dissipation): no interconnection term is added (J_d = 0 on the drums: the tension box is
+  kept by the plan's margin and the stiff, damped motor loop, not by a skew term, which
+  would need the platform velocity the encoders do not give). The goal is its only
+  equilibrium with every cable taut, and (LaSalle) the motion converges to it.
+* **Tensions.** Near that equilibrium H_d - H_d* >= sum_i (T_i - T_r,i)^2 / (2 k_i)
+  (k_i = EA / l0_i; the terms left out, the motor springs' and the cables' geometric
+  stiffness, are positive semi-definite for a point mass), so once
+  H_d <= mu^2 / (2 max k_i) every true spring tension stays within mu of T_r, in the box.
+
+The command is clipped to [T_min, T_max] as a last resort (FLAG_SATURATED: the energy
+argument then no longer holds). Memory: the plan's [t, q_start (n), T, margin], then per
+cable the encoders' zero misfit, the last reading, the filtered drum speed (m/s of cable),
+the integral of the length error and the feedback filter's stages.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, ClassVar
+
+import casadi as ca
+
+from cdpr_sym.as_built import Actuation
+from cdpr_sym.as_built.actuation import friction_torque
+from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
+from cdpr_sym.control.interface import Capabilities, ControlLaw, DriveReading
+from cdpr_sym.control.parts import beta_margin, flag_if
+from cdpr_sym.control.planned import SmoothReference, minimum_jerk
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SINGULAR_DET, SymbolicModel
+
+
+def _positive(field: str, value: object, unit: str, *, zero: bool = False) -> float:
+    """``value`` as a float, or InvalidCase naming ``field`` unless it is a finite positive
+    number (or zero, with ``zero``)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not (0 <= value if zero else 0 < value) or not value < float("inf"):
+        kind = "a number >= 0" if zero else "a positive number"
+        raise InvalidCase(field, f"expected {kind} in {unit}, got {value!r}")
+    return float(value)
+
+
+@dataclasses.dataclass(frozen=True)
+class WinchIdaPbc:
+    """IDA-PBC of the robot as built at its motors (``ida-winch``; see the module docstring).
+
+    Parameters
+    ----------
+    stiffness : float
+        k_p, N/m of cable: the motor spring shaping the energy in l0. Default 500 N/m, fifty
+        times softer than a 4 m default cable (EA / l0 = 25,000 N/m), so the platform rides
+        on the motor springs in series with the stiff cables.
+    damping : float
+        k_d, N s/m of cable, >= 0: the damping injected on the drum velocities (0 leaves the
+        storage constant on a lossless plant). Default 40 N s/m.
+    drive : Actuation
+        The controller's model of the winches (EA, drum radius and inertia, friction); the
+        plant's may differ.
+    integral : float
+        k_i, N/(m s), >= 0: integral action on the length error, which removes the offset a
+        weight error leaves on the soft motor spring (held while the command is clipped).
+    rate_cutoff : float
+        Hz: the drum speeds are the encoders' difference quotient through a first-order
+        low-pass filter of this corner. Default 500 Hz: well above the drum-cable modes,
+        whose damping a slower filter's lag would undo.
+    feedback_cutoff : float or None
+        Hz: the feedback k_p e + k_d de/dt + k_i int e passes ``feedback_stages`` first-order
+        low-pass stages of this corner (None: unfiltered, the law of the argument), so that
+        with the sampled loop's delay it never feeds the drum-cable modes (50-250 Hz) with
+        negative damping (docs/winch_ida_pbc.md, assumption 3).
+    feedback_stages : int
+        Stages of that filter, 1 to 8.
+    plan : SmoothReference
+        The planner of the reference (duration, margin).
+    """
+
+    stiffness: float = 500.0
+    damping: float = 40.0
+    integral: float = 300.0
+    rate_cutoff: float = 500.0
+    feedback_cutoff: float | None = 25.0
+    feedback_stages: int = 4
+    drive: Actuation = Actuation()  # noqa: RUF009 - frozen, so one shared default is safe
+    plan: SmoothReference = SmoothReference()  # noqa: RUF009 - frozen, as above
+    name: ClassVar[str] = "ida-winch"
+
+    def __post_init__(self) -> None:
+        if isinstance(self.plan, dict):  # as options() writes it
+            object.__setattr__(self, "plan", SmoothReference(**self.plan))
+        if isinstance(self.drive, dict):
+            object.__setattr__(self, "drive", Actuation(**self.drive))
+        if not isinstance(self.plan, SmoothReference):
+            raise InvalidCase("plan", f"expected a SmoothReference, got {self.plan!r}")
+        if not isinstance(self.drive, Actuation):
+            raise InvalidCase("drive", f"expected an Actuation, got {self.drive!r}")
+        object.__setattr__(self, "stiffness", _positive("stiffness", self.stiffness, "N/m"))
+        object.__setattr__(self, "damping", _positive("damping", self.damping, "N s/m",
+                                                      zero=True))
+        object.__setattr__(self, "integral", _positive("integral", self.integral, "N/(m s)",
+                                                       zero=True))
+        object.__setattr__(self, "rate_cutoff", _positive("rate_cutoff", self.rate_cutoff,
+                                                          "Hz"))
+        if self.feedback_cutoff is not None:
+            object.__setattr__(self, "feedback_cutoff", _positive(
+                "feedback_cutoff", self.feedback_cutoff, "Hz"))
+        stages = self.feedback_stages
+        if isinstance(stages, bool) or not isinstance(stages, int) or not 1 <= stages <= 8:
+            raise InvalidCase("feedback_stages", f"expected a whole number in 1..8, "
+                              f"got {stages!r}")
+
+    def options(self) -> dict[str, Any]:
+        return {"stiffness": self.stiffness, "damping": self.damping,
+                "integral": self.integral,
+                "rate_cutoff": self.rate_cutoff, "feedback_cutoff": self.feedback_cutoff,
+                "feedback_stages": self.feedback_stages,
+                "drive": dataclasses.asdict(self.drive), "plan": self.plan.options()}
+
+    def capabilities(self) -> Capabilities:
+        """m = n (the feed-forward inverts W); reads the winches."""
+        return Capabilities(reads_drives=True)
+
+    def _stages(self) -> int:
+        """The feedback filter's stages (0 without the filter)."""
+        return self.feedback_stages if self.feedback_cutoff is not None else 0
+
+    def memory_size(self, model: SymbolicModel) -> int:
+        """[t, q_start (n), T, margin], then per cable the encoders' zero misfit, the last
+        reading, the filtered rate, the integral and the feedback filter's stages."""
+        return model.n + 3 + (4 + self._stages()) * model.m
+
+    def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
+                       r_d: ca.SX) -> ca.SX:
+        """The plan (:meth:`SmoothReference.initial_memory`), then zeros: the misfit and
+        the last reading are set at the first step, the rate starts at rest."""
+        return ca.vertcat(self.plan.initial_memory(model, q0, q_goal, k, r_d),
+                          ca.SX.zeros((4 + self._stages()) * model.m))
+
+    def reference(self, model: SymbolicModel, t: ca.SX, q_start: ca.SX, duration: ca.SX,
+                  q_goal: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX, ca.SX]:
+        """(l0_r, dl0_r/dt, d2l0_r/dt2, T_r, det measure) at time t: the motor references
+        (m, m/s, m/s^2), the feed-forward tension (N) and the reference pose's distance
+        from a singularity. The rates are the rigid cables' J_a dq_r and J_a ddq_r: the
+        stretch's rate (T_r' l / EA, a few mm/s) and the path's curvature term (v^2 / l,
+        a few 0.01 N of drum inertia) are left out, so that both vanish with the plan's
+        velocity and acceleration at its two ends."""
+        u = ca.fmin(ca.fmax(t / duration, 0.0), 1.0)
+        s, ds, dds = minimum_jerk(u)
+        delta = q_goal - q_start
+        q_r, dq_r, ddq_r = q_start + delta * s, delta * ds / duration, delta * dds / duration**2
+        W = model.structure_matrix(q_r)
+        force = (model.mass_matrix(q_r) @ ddq_r + model.coriolis_force(q_r, dq_r)
+                 + model.grad_potential(q_r))
+        tension = ca.solve(W, force)
+        payout = model.cable_lengths(q_r) / (1 + tension / self.drive.cable_stiffness)
+        jacobian = model.jacobian_ja(q_r)
+        return (payout, jacobian @ dq_r, jacobian @ ddq_r, tension,
+                model.singularity_measure(W))
+
+    def pull(self, tension):
+        """The pull P = T + T^2 / (2 EA) that holds a cable of tension T on its drum, N."""
+        return tension + tension * tension / (2 * self.drive.cable_stiffness)
+
+    def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
+             r_d: ca.SX, memory: ca.SX, dt: ca.SX, *, drives: DriveReading
+             ) -> tuple[ControlLaw, ca.SX]:
+        n, m, robot = model.n, model.m, model.robot
+        t, q_start, duration, margin = (memory[0], memory[1: n + 1], memory[n + 1],
+                                        memory[n + 2])
+        kept = [memory[n + 3 + i * m: n + 3 + (i + 1) * m] for i in range(4)]
+        misfit_kept, last, rate_kept, integrated_kept = kept
+        stages_kept = memory[n + 3 + 4 * m:]
+        payout_r, rate_r, accel_r, tension_r, singularity = self.reference(
+            model, t, q_start, duration, q_goal)
+        reading = drives.lengths
+        first = t <= 0
+        misfit = ca.if_else(first, reading - payout_r, misfit_kept)
+        keep = ca.exp(-2 * math.pi * self.rate_cutoff * dt)
+        rate = ca.if_else(first, ca.SX.zeros(m),
+                          keep * rate_kept + (1 - keep) * (reading - last) / dt)
+        error = reading - payout_r - misfit
+        error_rate = rate - rate_r
+        drive = self.drive
+        reflected = drive.inertia / drive.drum_radius**2
+        friction = friction_torque(rate_r / drive.drum_radius,
+                                   ca.DM(drive.parameters())) / drive.drum_radius
+        feedback, stages = self.filtered(self.stiffness * error + self.damping * error_rate
+                                         + self.integral * integrated_kept, stages_kept, dt)
+        command = self.pull(tension_r) - reflected * accel_r - friction + feedback
+        # on winches the true tension then stays under T_max; on rigid cables the command
+        # is the tension
+        low, high = robot.t_min, robot.t_max
+        clipped = ca.fmin(ca.fmax(command, low), high)
+        saturated = ca.sum1(ca.fabs(clipped - command) > 0) > 0
+        # the integral holds while the command is clipped (no wind-up)
+        integrated = ca.if_else(saturated, integrated_kept, integrated_kept + dt * error)
+        singular = singularity <= SINGULAR_DET
+        flags = (flag_if(saturated, FLAG_SATURATED) + flag_if(margin < 0, FLAG_INFEASIBLE)
+                 + flag_if(singular, FLAG_SINGULAR))
+        beta = beta_margin(model, tension_r)
+        law = ControlLaw(clipped, ca.SX(1.0), beta, ca.SX.zeros(model.n_j), flags)
+        return law, ca.vertcat(t + dt, q_start, duration, margin, misfit, reading, rate,
+                               integrated, stages)
+
+    def filtered(self, feedback: ca.SX, stages: ca.SX, dt: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """``feedback`` (N) through the filter's first-order stages of corner
+        ``feedback_cutoff``, each discretised exactly for a held input; returns the output
+        and the stages' next values (unchanged without the filter)."""
+        if self.feedback_cutoff is None:
+            return feedback, stages
+        m = feedback.shape[0]
+        gain = 1 - ca.exp(-2 * math.pi * self.feedback_cutoff * dt)
+        signal, updated = feedback, []
+        for index in range(self.feedback_stages):
+            past = stages[index * m: (index + 1) * m]
+            signal = past + gain * (signal - past)
+            updated.append(signal)
+        return signal, ca.vertcat(*updated)
