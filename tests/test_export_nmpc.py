@@ -154,7 +154,8 @@ def test_one_sample_writes_the_rate_and_the_shifted_warm_start_of_the_python_pro
     z0 = np.r_[aras3.start, np.zeros(3), tau0]
     goal_tension = np.array(model.functions["static_tension"](aras3.goal)).ravel()
     v, _, duals = (np.array(value).ravel() for value in problem.rti_function(True)(
-        z0, problem.hold(z0), np.zeros(problem.multiplier_size), aras3.goal, goal_tension))
+        z0, problem.hold(z0), np.zeros(problem.multiplier_size), aras3.goal, goal_tension,
+        np.zeros(aras3.m)))
     assert lines[0] == "0"
     np.testing.assert_allclose(memory, np.r_[tau0, v[:3], 0.0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(guess, problem.shifted(v), rtol=0, atol=1e-9)

@@ -64,7 +64,7 @@ def test_prediction_matches_a_numpy_integration(aras3, aras3_model, rng):
         q = rng.uniform(aras3.frame_lower, aras3.frame_upper) * 0.5
         z = np.r_[q, rng.normal(0, 0.3, 3), rng.uniform(5, 40, 3)]
         u = rng.uniform(-500, 500, 3)
-        z_next, a, b = problem.transition(z, u)
+        z_next, a, b = problem.transition(z, u, np.zeros(aras3.m))
         expected = _numpy_transition(aras3, z, u, problem.design.period, 2)
         np.testing.assert_allclose(np.array(z_next).ravel(), expected, rtol=0, atol=1e-12)
         step = 1e-6  # the Jacobians against central differences of the numpy integration
@@ -78,6 +78,22 @@ def test_prediction_matches_a_numpy_integration(aras3, aras3_model, rng):
         np.testing.assert_allclose(np.array(b), fd_u, atol=1e-6)
 
 
+def test_the_offset_adds_to_the_predicted_tension(aras3, aras3_model, rng):
+    """The offset-free design predicts with tau + offset: the transition with an offset is
+    the numpy integration of the offset tension."""
+    problem = NmpcProblem(aras3_model, Nmpc())
+    for _ in range(3):
+        z = np.r_[np.array(aras3.start) + rng.normal(0, 0.1, 3), rng.normal(0, 0.3, 3),
+                  rng.uniform(10, 40, 3)]
+        u, offset = rng.normal(0, 50, 3), rng.normal(0, 3, 3)
+        shifted = np.array(problem.transition(z + np.r_[np.zeros(6), offset], u,
+                                              np.zeros(3))[0]).ravel()
+        np.testing.assert_allclose(np.array(problem.transition(z, u, offset)[0]).ravel(),
+                                   shifted - np.r_[np.zeros(6), offset], atol=1e-12)
+        expected = _numpy_transition(aras3, z + np.r_[np.zeros(6), offset], u, 0.02, 2)
+        np.testing.assert_allclose(shifted, expected, atol=1e-10)
+
+
 def test_rigid_body_prediction_and_sensitivities_match_numpy(spatial6, rng):
     """The 6-DOF transition is assembled from generated pieces (the right-hand side and
     the acceleration's Jacobian) with its sensitivities carried through RK4 by hand: its
@@ -88,11 +104,11 @@ def test_rigid_body_prediction_and_sensitivities_match_numpy(spatial6, rng):
         q = np.array(spatial6.start) + rng.uniform(-0.05, 0.05, n)
         z = np.r_[q, rng.uniform(-0.3, 0.3, n), rng.uniform(20.0, 80.0, m)]
         u = rng.uniform(-300.0, 300.0, m)
-        z_next, a, b = (np.array(out) for out in problem.transition(z, u))
+        z_next, a, b = (np.array(out) for out in problem.transition(z, u, np.zeros(6)))
         np.testing.assert_allclose(
             z_next.ravel(), _numpy_rigid_transition(spatial6, z, u, 0.02, 2), atol=1e-10)
-        np.testing.assert_allclose(problem.prediction(z, u).full().ravel(), z_next.ravel(),
-                                   atol=1e-12)
+        np.testing.assert_allclose(problem.prediction(z, u, np.zeros(6)).full().ravel(),
+                                   z_next.ravel(), atol=1e-12)
         step = 1e-6
         fd_z = np.array([(_numpy_rigid_transition(spatial6, z + step * e, u, 0.02, 2)
                           - _numpy_rigid_transition(spatial6, z - step * e, u, 0.02, 2))
@@ -117,13 +133,14 @@ def test_real_time_iteration_converges_to_the_ipopt_solution(aras3, aras3_model)
     rti = problem.rti_function()
     v, multipliers = problem.hold(z0), np.zeros(problem.multiplier_size)
     for _ in range(15):
-        v_next, residual, multipliers = rti(z0, v, multipliers, goal, tau_goal)
+        v_next, residual, multipliers = rti(z0, v, multipliers, goal, tau_goal,
+                                            np.zeros(aras3.m))
         v = np.array(v_next).ravel()
     assert float(residual) < 1e-9
     ipopt = NmpcProblem(aras3_model, Nmpc(solver="ipopt")).nlp_solver()
     lower, upper = problem.bounds()
-    result = ipopt(x0=problem.hold(z0), p=np.r_[z0, goal, tau_goal], lbx=lower, ubx=upper,
-                   lbg=0, ubg=0)
+    result = ipopt(x0=problem.hold(z0), p=np.r_[z0, goal, tau_goal, np.zeros(aras3.m)],
+                   lbx=lower, ubx=upper, lbg=0, ubg=0)
     assert ipopt.stats()["success"]
     reference_v = np.array(result["x"]).ravel()
     # rates (N/s) to 1e-3 of their 800 N/s range, states closer
@@ -166,13 +183,14 @@ def test_compiled_step_equals_the_virtual_machine(aras3, aras3_model, build_opti
     v_c, duals_c = compiled.solve(z0, problem.hold(z0), cold, goal, tau_goal)
     rti = problem.rti_function()
     v_vm, _, duals_vm = (np.array(out).ravel()
-                         for out in rti(z0, problem.hold(z0), cold, goal, tau_goal))
+                         for out in rti(z0, problem.hold(z0), cold, goal, tau_goal,
+                                        np.zeros(aras3.m)))
     np.testing.assert_allclose(v_c, v_vm, atol=1e-9)
     np.testing.assert_allclose(duals_c, duals_vm, atol=1e-6)
     # warm-started from its own shifted solution and multipliers, as in the loop
     warm = (problem.shifted(v_c), problem.shifted_multipliers(duals_c))
     v_c, _ = compiled.solve(z0, *warm, goal, tau_goal)
-    v_vm = np.array(rti(z0, *warm, goal, tau_goal)[0]).ravel()
+    v_vm = np.array(rti(z0, *warm, goal, tau_goal, np.zeros(aras3.m))[0]).ravel()
     np.testing.assert_allclose(v_c, v_vm, atol=1e-9)
 
 
@@ -257,11 +275,13 @@ def test_bad_options_name_their_field():
 
 
 def test_cost_is_the_stated_sum_of_squares(aras3_model, rng):
-    """0.5 v'Hv + g'v differs from the documented sum of squares by a constant."""
+    """0.5 v'Hv + g'v differs from the documented sum of squares by a constant; the rate
+    and tension weights count per (T_max - T_min)^2."""
     design = Nmpc(position_weight=3.0, velocity_weight=0.7, rate_weight=0.01,
                   tension_weight=0.2, terminal_factor=5.0, horizon=0.1)
     problem = NmpcProblem(aras3_model, design)
     q_goal, tau_goal = rng.normal(size=3), rng.uniform(5, 40, 3)
+    box = aras3_model.robot.t_max - aras3_model.robot.t_min
 
     def stated(v):
         total = 0.0
@@ -271,8 +291,8 @@ def test_cost_is_the_stated_sum_of_squares(aras3_model, rng):
             end = design.terminal_factor if k == design.intervals - 1 else 1.0
             total += (end * design.position_weight * np.sum((q - q_goal) ** 2)
                       + end * design.velocity_weight * np.sum(dq ** 2)
-                      + design.rate_weight * np.sum(u ** 2)
-                      + design.tension_weight * np.sum((tau - tau_goal) ** 2))
+                      + design.rate_weight / box**2 * np.sum(u ** 2)
+                      + design.tension_weight / box**2 * np.sum((tau - tau_goal) ** 2))
         return total
 
     def quadratic(v):

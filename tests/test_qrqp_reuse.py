@@ -63,7 +63,7 @@ def test_reused_factors_give_casadis_results_to_the_bit(aras3, aras3_model, rng,
         outputs = []
         for solver in solvers:
             out = [np.empty(problem.size), np.empty(1), np.empty(problem.multiplier_size)]
-            solver.evaluate([z0, guess, multipliers, goal, tau_goal], out)
+            solver.evaluate([z0, guess, multipliers, goal, tau_goal, np.zeros(aras3.m)], out)
             outputs.append(out)
         for plain_out, reused_out in zip(*outputs, strict=True):
             np.testing.assert_array_equal(reused_out, plain_out)

@@ -123,3 +123,25 @@ def test_a_small_study_stores_what_its_report_says(aras3, tmp_path, monkeypatch)
     robustness.write_robustness_report(tmp_path)
     report = (tmp_path / "report.md").read_text()
     assert "| smooth |" in report and (tmp_path / "shares.png").stat().st_size > 1000
+
+
+@pytest.mark.slow  # three as-built runs of 6 s and their builds
+def test_the_tension_traces_are_the_runs_true_tensions_and_draw(aras3, tmp_path):
+    """The traces figure's data: for the first pair the as-built draw holds, each design's
+    true tension every 5 ms, equal to a run of the same pair and plant redone here."""
+    starts = np.array([aras3.start, aras3.start])
+    goals = np.array([aras3.goal, aras3.start + 0.5 * (aras3.goal - aras3.start)])
+    traces = robustness.tension_traces(aras3, starts, goals, seed=0)
+    assert set(traces["designs"]) == set(robustness.TRACE_DESIGNS)
+    pair = traces["pair"]
+    effect = next(e for e in robustness.EFFECTS if e.name == "as built")
+    plant = effect.draw(np.random.default_rng([0, pair, robustness._tag(effect.name)]), aras3)
+    design = robustness.TRACE_DESIGNS[0]
+    run = get_simulator(aras3, controller_by_name(design),
+                        as_built=plant.as_built.structure()).run(
+        starts[pair], goals[pair], aras3.k, aras3.r_d, duration=robustness.DURATION,
+        dt=robustness.DT, plant=plant)
+    trace = np.array(traces["designs"][design]["tension"])
+    np.testing.assert_allclose(trace, run.tau[::robustness.TRACE_STRIDE], atol=1e-3)
+    path = robustness._traces_figure(traces, tmp_path / "tensions.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -71,23 +71,28 @@ class SampledSolver:
         else:
             self._nlp = self.problem.nlp_solver()
         self._fallback = fallback
+        self._offset = self.problem.offset_function()
+        self._disturbance = design.disturbance_slice(model)
 
     def solve(self, z0: np.ndarray, guess: np.ndarray, multipliers: np.ndarray,
-              q_goal: np.ndarray, tau_goal: np.ndarray
+              q_goal: np.ndarray, tau_goal: np.ndarray, offset: np.ndarray | None = None
               ) -> tuple[np.ndarray, np.ndarray] | None:
         """The solution v and its multipliers from the state ``z0``, warm-started from
-        ``guess`` and ``multipliers``, or None when the solve failed (see
-        :meth:`NmpcProblem.checked`)."""
+        ``guess`` and ``multipliers``, with the tension ``offset`` (N; default none) in the
+        prediction, or None when the solve failed (see :meth:`NmpcProblem.checked`)."""
+        offset = np.zeros(self.problem.m) if offset is None else offset
         if self._nlp is None:
             for attempt, rti in enumerate(self._rti):
-                solution = self._iterate(rti, z0, guess, multipliers, q_goal, tau_goal)
+                solution = self._iterate(rti, z0, guess, multipliers, q_goal, tau_goal,
+                                         offset)
                 if solution is not None:
                     self.retried += attempt > 0
                     return solution
             return None
         problem = self.problem
         result = self._nlp(x0=guess, lam_x0=multipliers[: problem.size],
-                           lam_g0=multipliers[problem.size:], p=np.r_[z0, q_goal, tau_goal],
+                           lam_g0=multipliers[problem.size:],
+                           p=np.r_[z0, q_goal, tau_goal, offset],
                            lbx=self._lower, ubx=self._upper, lbg=0, ubg=0)
         v = np.array(result["x"]).ravel()
         residual = float(np.max(np.abs(np.array(result["g"]))))
@@ -96,13 +101,14 @@ class SampledSolver:
         return (v, duals) if solved and problem.checked(v, residual) else None
 
     def _iterate(self, rti: Any, z0: np.ndarray, guess: np.ndarray, multipliers: np.ndarray,
-                 q_goal: np.ndarray, tau_goal: np.ndarray
+                 q_goal: np.ndarray, tau_goal: np.ndarray, offset: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray] | None:
         """One real-time iteration (compiled or CasADi), or None if it fails the check."""
         problem = self.problem
         if isinstance(rti, ca.Function):
             try:
-                v_dm, residual_dm, duals_dm = rti(z0, guess, multipliers, q_goal, tau_goal)
+                v_dm, residual_dm, duals_dm = rti(z0, guess, multipliers, q_goal, tau_goal,
+                                                  offset)
             except RuntimeError:
                 return None
             v, residual, duals = (np.array(v_dm).ravel(), float(residual_dm),
@@ -111,7 +117,7 @@ class SampledSolver:
             v, residual_out = np.empty(problem.size), np.empty(1)
             duals = np.empty(problem.multiplier_size)
             try:
-                rti.evaluate([z0, guess, multipliers, q_goal, tau_goal],
+                rti.evaluate([z0, guess, multipliers, q_goal, tau_goal, offset],
                              [v, residual_out, duals])
             except RuntimeError:
                 return None
@@ -126,6 +132,17 @@ class SampledSolver:
     def goal_tension(self, q_goal: np.ndarray) -> np.ndarray:
         """The static tension at the goal, N: the cost's tension target."""
         return np.array(self._goal_tension(q_goal)).ravel()
+
+    def offsets(self, memory: np.ndarray, q: np.ndarray, q_goal: np.ndarray,
+                tau_goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The prediction's tension offset at the pose q and the tension target (N): with
+        the observer W(q)^+ d_hat and the goal's static tension less W(q_goal)^+ d_hat
+        (``memory`` is the controller's), else zero and the static tension."""
+        if self._disturbance is None:
+            return np.zeros(self.problem.m), tau_goal
+        estimate = memory[self._disturbance]
+        return (np.array(self._offset(q, estimate)).ravel(),
+                tau_goal - np.array(self._offset(q_goal, estimate)).ravel())
 
     def run(self, states: np.ndarray, logs: np.ndarray, p: np.ndarray, n_steps: int,
             layout: StepLayout, advance: Advance) -> tuple[int, dict[str, Any]]:
@@ -154,8 +171,10 @@ class SampledSolver:
             tau = x[memory: memory + m]
             z0 = np.r_[q, dq, tau]
             start = time.perf_counter()
+            offset, target = self.offsets(x[memory: memory + layout.n_memory], q, q_goal,
+                                          tau_goal)
             solution = self.solve(z0, self.problem.hold(z0) if guess is None else guess,
-                                  multipliers, q_goal, tau_goal)
+                                  multipliers, q_goal, target, offset)
             if solution is None:
                 rate, flags, guess = self.fallback(q, dq, tau, r_d), FLAG_INFEASIBLE, None
                 multipliers = np.zeros(self.problem.multiplier_size)

@@ -16,6 +16,9 @@ from cdpr_sym.errors import InvalidCase, UnknownName
 #: The ``ida-ref-obs`` observer's rate L, 1/s: a 20 ms time constant (8 Hz), faster than
 #: the loop's ~3 Hz; L dt = 0.05 at 1 kHz (its Euler step needs L dt < 2).
 OBSERVER_RATE = 50.0
+#: The ``nmpc-of`` observer's rate L, 1/s: a 50 ms time constant, slower than
+#: ``ida-ref-obs``'s since the NMPC reads the estimate only every 20 ms.
+NMPC_OBSERVER_RATE = 20.0
 #: The ``smooth-lp`` command filter's corner, Hz: 5 times above the loop's ~3 Hz and about
 #: 5 times below the cable-drum mode of the default winch (~75 Hz on 4 m cables).
 COMMAND_CUTOFF = 15.0
@@ -41,6 +44,7 @@ CONTROLLERS: dict[str, Controller] = {
     "nmpc": Nmpc(),
     "nmpc-sqp": Nmpc(solver="sqp"),
     "nmpc-ipopt": Nmpc(solver="ipopt"),
+    "nmpc-of": Nmpc(observer_rate=NMPC_OBSERVER_RATE),
 }
 
 
@@ -64,6 +68,8 @@ DESCRIPTIONS = {
             "sample (real-time iteration, generated C); any m >= n cables",
     "nmpc-sqp": "the same NMPC solved to convergence by CasADi's sqpmethod at every sample",
     "nmpc-ipopt": "the same NMPC solved to convergence by IPOPT (the reference)",
+    "nmpc-of": "nmpc, offset-free: predicts with the force a momentum observer estimates the "
+               "model misses (mass error)",
 }
 
 

@@ -32,11 +32,15 @@ SOLVER_FUNCTIONS = ("rti", "rti_unscaled", "fallback", "goal_tension")
 
 
 def check_exportable(design: Nmpc) -> None:
-    """Raise :class:`InvalidCase` (``solver``) unless ``design`` solves by real-time
-    iteration, the one variant that generates to C."""
+    """Raise :class:`InvalidCase` (``solver``, ``observer_rate``) unless ``design`` solves
+    by real-time iteration, the one variant that generates to C, without the offset-free
+    observer (the package predicts with no tension offset)."""
     if design.solver != "rti":
         raise InvalidCase("solver", f"export-c packages the real-time iteration (solver rti); "
                           f"solver {design.solver} needs CasADi's nlpsol at run time")
+    if design.observer_rate is not None:
+        raise InvalidCase("observer_rate", "export-c packages NMPC without the offset-free "
+                          "observer (nmpc, not nmpc-of): its estimate is not exported yet")
 
 
 def solver_functions(model: SymbolicModel, design: Nmpc, prefix: str) -> list[ca.Function]:

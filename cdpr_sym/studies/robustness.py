@@ -46,9 +46,10 @@ from cdpr_sym.studies.outline import SUMMARY_FILE, read_study, write_study
 from cdpr_sym.workspace import sample_static_workspace
 
 #: The designs compared: the paper's l2, its clipped PD baseline, the two smooth ones and
-#: their variants for the robot as built (a weight observer; a command filter).
+#: their variants for the robot as built (a weight observer; a command filter), IDA-PBC at
+#: the motors, and NMPC with and without its disturbance observer (offset-free).
 DESIGNS = ("pd-sat", "l2", "smooth", "ida-ref", "ida-ref-obs", "ida-winch", "smooth-lp",
-           "nmpc")
+           "nmpc", "nmpc-of")
 #: Run length and control period, s (the target asks for 1 cm within 5 s).
 DURATION, DT = 6.0, 1e-3
 #: Mass error (fraction), anchor error (m) and command delay (periods) of the spec.
@@ -62,7 +63,7 @@ RUNS_FILE = "runs.json"
 #: The true tensions over time of :data:`TRACE_DESIGNS` on one pair as built (committed,
 #: small), and their figure.
 TRACES_FILE, TRACES_FIGURE = "tensions.json", "tensions.png"
-TRACE_DESIGNS = ("ida-winch", "smooth-lp", "nmpc")
+TRACE_DESIGNS = ("ida-winch", "smooth-lp", "nmpc-of")
 #: Keep every this many control periods in the traces (5 ms).
 TRACE_STRIDE = 5
 #: The calibrated columns (the second for more cables than degrees of freedom only), and

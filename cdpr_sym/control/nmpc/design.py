@@ -9,6 +9,12 @@ control period (a first-order hold). The memory carries that ramp::
     memory = [tau (m, N): the last command, rate (m, N/s): the planned ramp, flags]
 
 so the generated step, the exported C and the sweeps see an ordinary stateful controller.
+With ``observer_rate`` set (``nmpc-of``, offset-free) the step also runs, at the control
+rate, the momentum observer of ``ida-ref-obs`` for the generalized force d the model misses
+(a mass error's weight, for one), and the memory carries its integrator z and its estimate
+d_hat; each solve then predicts with that force (:class:`~cdpr_sym.control.nmpc.NmpcProblem`)::
+
+    memory = [tau (m), rate (m), flags, z (n), d_hat (n)]
 """
 
 from __future__ import annotations
@@ -38,7 +44,8 @@ class Nmpc:
     every cable's tension, with the robot's own model (multiple shooting, ``substeps`` RK4
     steps per interval)::
 
-        minimise   sum_k  Q |q_k - q_goal|^2 + R |dq_k|^2 + S |u_k|^2 + T_w |tau_k - tau_goal|^2
+        minimise   sum_k  Q |q_k - q_goal|^2 + R |dq_k|^2
+                          + (S |u_k|^2 + T_w |tau_k - tau_goal|^2) / (T_max - T_min)^2
                    (the last interval's Q and R times ``terminal_factor``)
         subject to (q, dq, tau)_{k+1} = F((q, dq, tau)_k, u_k),  tau' = u
                    T_min <= tau_k <= T_max,  |u_k| <= max_rate,  frame_lower <= q_k <= frame_upper
@@ -46,6 +53,18 @@ class Nmpc:
     with tau_goal the static tension at the goal. The tension is a state and its rate the
     input, so the command between samples is a ramp: bounded at the samples means bounded
     everywhere, and |u| <= max_rate bounds each 1 ms step (0.8 N at the default 800 N/s).
+    The tension and rate weights count in units of the robot's tension box, so a robot
+    whose tensions are in hundreds of newtons is not pinned to tau_goal harder than one in
+    tens (on aras3's 58 N box the defaults equal the former 1e-2 and 1e-3 per N^2 within
+    11 %); the target itself weighs 0.01 rad like 1 cm, as Q does.
+
+    Offset-free (``observer_rate`` = L, 1/s): the prediction adds the estimated force as a
+    tension offset, M ddq + C dq + grad V = W (tau + delta) with delta = W(q)^+ d_hat at
+    the sample's pose, held over the horizon, and the tension target becomes the goal's
+    static tension less W(q_goal)^+ d_hat; with d_hat = d at rest, the goal is the
+    prediction's equilibrium again, where a weight error otherwise leaves the platform
+    hanging off it. d_hat = L (M(q) dq - z), z' = C^T dq - grad V + W tau + d_hat, so
+    d_hat' = L (d - d_hat) for any motion (the argument of ``ida-ref-obs``).
 
     Parameters
     ----------
@@ -61,11 +80,14 @@ class Nmpc:
     velocity_weight : float
         R of the cost, s^2/m^2.
     rate_weight : float
-        S of the cost, s^2/N^2.
+        S of the cost, s^2 per (T_max - T_min)^2.
     tension_weight : float
-        T_w of the cost, 1/N^2 (>= 0).
+        T_w of the cost, per (T_max - T_min)^2 (>= 0).
     terminal_factor : float
         The last interval's position and velocity weights are this times Q and R.
+    observer_rate : float or None
+        L, 1/s: the disturbance observer's rate (None: no observer, the force the model
+        misses is not predicted).
     max_rate : float
         N/s, the largest rate of change of a commanded tension.
     substeps : int
@@ -88,11 +110,12 @@ class Nmpc:
     solver: str = "rti"
     position_weight: float = 400.0
     velocity_weight: float = 2.0
-    rate_weight: float = 1e-3
-    tension_weight: float = 1e-2
+    rate_weight: float = 3.0
+    tension_weight: float = 30.0
     terminal_factor: float = 10.0
     max_rate: float = 800.0
     substeps: int = 2
+    observer_rate: float | None = None
 
     name: ClassVar[str] = "nmpc"
 
@@ -103,6 +126,7 @@ class Nmpc:
         if not (isinstance(self.tension_weight, (int, float)) and self.tension_weight >= 0):
             raise InvalidCase("tension_weight", f"expected a weight >= 0, got "
                               f"{self.tension_weight!r}")
+        check_positive("observer_rate", self.observer_rate, "a rate in 1/s")
         if self.solver not in SOLVERS:
             raise InvalidCase("solver", f"expected one of {', '.join(SOLVERS)}, got "
                               f"{self.solver!r}")
@@ -131,21 +155,39 @@ class Nmpc:
         return Capabilities(any_cables=True, sample_period=self.period)
 
     def memory_size(self, model: SymbolicModel) -> int:
-        """The last command (m), the planned rate (m) and the sample's flags."""
-        return 2 * model.m + 1
+        """The last command (m), the planned rate (m) and the sample's flags; with the
+        observer its integrator z (n) and estimate d_hat (n)."""
+        return 2 * model.m + 1 + (2 * model.n if self.observer_rate else 0)
+
+    def disturbance_slice(self, model: SymbolicModel) -> slice | None:
+        """Where d_hat (N, N m for angles) lies in the memory; None without the observer."""
+        if not self.observer_rate:
+            return None
+        start = 2 * model.m + 1 + model.n
+        return slice(start, start + model.n)
 
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
-        """At rest at q0 the command is the static tension there, ramping at 0 N/s."""
-        return ca.vertcat(model.static_tension(q0), ca.SX.zeros(model.m), 0)
+        """At rest at q0 the command is the static tension there, ramping at 0 N/s (and the
+        observer at rest: z = p = 0, d_hat = 0)."""
+        observer = ca.SX.zeros(2 * model.n if self.observer_rate else 0)
+        return ca.vertcat(model.static_tension(q0), ca.SX.zeros(model.m), 0, observer)
 
     def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
              r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
         """The planned ramp one period on: tau + rate dt, clipped to the box (flagged; a
         solved plan never needs it, its end lies in the box)."""
-        m = model.m
+        m, n = model.m, model.n
         held, rate, flags = memory[:m], memory[m: 2 * m], memory[2 * m]
         tau, clipped = clip_to_box(model, held + rate * dt)
         flags = flags + flag_if(clipped, FLAG_SATURATED)
         law = ControlLaw(tau, ca.SX(1), ca.SX(0), ca.SX.zeros(model.n_j), flags)
-        return law, ca.vertcat(tau, rate, memory[2 * m])
+        if not self.observer_rate:
+            return law, ca.vertcat(tau, rate, memory[2 * m])
+        # the momentum observer, advanced by an explicit Euler step with the applied command
+        integrated = memory[2 * m + 1: 2 * m + 1 + n]
+        estimate = self.observer_rate * (model.mass_matrix(q) @ dq - integrated)
+        integrated_next = integrated + dt * (
+            model.coriolis_matrix(q, dq).T @ dq - model.grad_potential(q)
+            + model.cable_force(q, tau) + estimate)
+        return law, ca.vertcat(tau, rate, memory[2 * m], integrated_next, estimate)

@@ -44,29 +44,39 @@ class NmpcProblem:
         #: Length of v.
         self.size = self.intervals * self.stage
 
+        box = model.robot.t_max - model.robot.t_min
+        #: The cost's weights on the rate (s^2/N^2) and on the tension (1/N^2): the
+        #: design's, per the robot's tension box squared.
+        self.rate_weight = design.rate_weight / box**2
+        self.tension_weight = design.tension_weight / box**2
+
     # -- dynamics -----------------------------------------------------------------------
-    def _rhs(self, z: ca.SX, u: ca.SX) -> ca.SX:
+    def _rhs(self, z: ca.SX, u: ca.SX, offset: ca.SX) -> ca.SX:
+        """dz/dt with the tension offset ``offset`` (N; the offset-free design's estimate of
+        what the model misses, else zero) added to the cables' tension."""
         n = self.n
         q, dq, tau = z[:n], z[n: 2 * n], z[2 * n:]
-        return ca.vertcat(dq, self.model.acceleration(q, dq, tau), u)
+        return ca.vertcat(dq, self.model.acceleration(q, dq, tau + offset), u)
 
     @functools.cached_property
     def _rhs_functions(self) -> tuple[ca.Function, ca.Function]:
-        """``nmpc_rhs`` (z, u) -> dz/dt and ``nmpc_acceleration_jacobian`` (z, u) ->
-        d ddq/dz: the only pieces of the transition differentiated symbolically; the
-        transition's sensitivities are built from them by hand (the 6-DOF platform's
-        transition differentiated as a whole had 4.6e5 instructions)."""
+        """``nmpc_rhs`` (z, u, offset) -> dz/dt and ``nmpc_acceleration_jacobian``
+        (z, u, offset) -> d ddq/dz: the only pieces of the transition differentiated
+        symbolically; the transition's sensitivities are built from them by hand (the
+        6-DOF platform's transition differentiated as a whole had 4.6e5 instructions)."""
         z, u = ca.SX.sym("z", self.nz), ca.SX.sym("u", self.m)
-        rhs = self._rhs(z, u)
+        offset = ca.SX.sym("offset", self.m)
+        rhs = self._rhs(z, u, offset)
         acceleration = rhs[self.n: 2 * self.n]
-        return (ca.Function("nmpc_rhs", [z, u], [rhs], ["z", "u"], ["dz"], {"cse": True}),
-                ca.Function("nmpc_acceleration_jacobian", [z, u],
-                            [ca.jacobian(acceleration, z)], ["z", "u"], ["jacobian"],
-                            {"cse": True}))
+        return (ca.Function("nmpc_rhs", [z, u, offset], [rhs], ["z", "u", "offset"], ["dz"],
+                            {"cse": True}),
+                ca.Function("nmpc_acceleration_jacobian", [z, u, offset],
+                            [ca.jacobian(acceleration, z)], ["z", "u", "offset"],
+                            ["jacobian"], {"cse": True}))
 
     @functools.cached_property
     def transition(self) -> ca.Function:
-        """One sample interval: (z, u) -> (z_next, A = dz_next/dz, B = dz_next/du).
+        """One sample interval: (z, u, offset) -> (z_next, A = dz_next/dz, B = dz_next/du).
 
         RK4 with its forward sensitivity S = d z/d(z_0, u) carried stage by stage: the
         rows of dS/dt are S's velocity rows, d ddq/dz S and (0, I) for the tensions, since
@@ -78,13 +88,13 @@ class NmpcProblem:
         102,000."""
         n, m, nz = self.n, self.m, self.nz
         rhs, jacobian = self._rhs_functions
-        z, u = ca.MX.sym("z", nz), ca.MX.sym("u", m)
+        z, u, offset = ca.MX.sym("z", nz), ca.MX.sym("u", m), ca.MX.sym("offset", m)
         rate_rows = ca.MX(ca.horzcat(ca.DM(m, nz), ca.DM.eye(m)))
 
         def derivative(point: ca.MX, sensitivity: ca.MX) -> tuple[ca.MX, ca.MX]:
             d_sensitivity = ca.vertcat(sensitivity[n: 2 * n, :],
-                                       jacobian(point, u) @ sensitivity, rate_rows)
-            return rhs(point, u), d_sensitivity
+                                       jacobian(point, u, offset) @ sensitivity, rate_rows)
+            return rhs(point, u, offset), d_sensitivity
 
         # RK4 written out for the pair (z, S): stacked into one vector for model.rk4, the
         # slices and reshapes made the 6-DOF solve 60 % slower (4.6 -> 7.3-8.4 ms)
@@ -97,20 +107,21 @@ class NmpcProblem:
             k4, s4 = derivative(z_next + h * k3, s + h * s3)
             z_next = z_next + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
             s = s + h / 6.0 * (s1 + 2 * s2 + 2 * s3 + s4)
-        return ca.Function("nmpc_transition", [z, u], [z_next, s[:, :nz], s[:, nz:]],
-                           ["z", "u"], ["z_next", "A", "B"]).expand()
+        return ca.Function("nmpc_transition", [z, u, offset], [z_next, s[:, :nz], s[:, nz:]],
+                           ["z", "u", "offset"], ["z_next", "A", "B"]).expand()
 
     @functools.cached_property
     def prediction(self) -> ca.Function:
-        """One sample interval without sensitivities, (z, u) -> z_next, in expressions:
-        the converged problem's dynamics, which ``nlpsol`` expands."""
+        """One sample interval without sensitivities, (z, u, offset) -> z_next, in
+        expressions: the converged problem's dynamics, which ``nlpsol`` expands."""
         z, u = ca.SX.sym("z", self.nz), ca.SX.sym("u", self.m)
+        offset = ca.SX.sym("offset", self.m)
         h = self.design.period / self.design.substeps
         z_next = z
         for _ in range(self.design.substeps):
-            z_next = rk4(lambda point: self._rhs(point, u), z_next, h)
-        return ca.Function("nmpc_prediction", [z, u], [z_next], ["z", "u"], ["z_next"],
-                           {"cse": True})
+            z_next = rk4(lambda point: self._rhs(point, u, offset), z_next, h)
+        return ca.Function("nmpc_prediction", [z, u, offset], [z_next],
+                           ["z", "u", "offset"], ["z_next"], {"cse": True})
 
     # -- cost and bounds ------------------------------------------------------------------
     def hessian_diagonal(self) -> np.ndarray:
@@ -120,11 +131,11 @@ class NmpcProblem:
         for k in range(self.intervals):
             first = k * self.stage
             terminal = design.terminal_factor if k == self.intervals - 1 else 1.0
-            diagonal[first: first + self.m] = 2 * design.rate_weight
+            diagonal[first: first + self.m] = 2 * self.rate_weight
             z = first + self.m
             diagonal[z: z + n] = 2 * terminal * design.position_weight
             diagonal[z + n: z + 2 * n] = 2 * terminal * design.velocity_weight
-            diagonal[z + 2 * n: z + self.nz] = 2 * design.tension_weight
+            diagonal[z + 2 * n: z + self.nz] = 2 * self.tension_weight
         return diagonal
 
     def gradient(self, q_goal, tau_goal):
@@ -135,7 +146,7 @@ class NmpcProblem:
         for k in range(self.intervals):
             terminal = design.terminal_factor if k == self.intervals - 1 else 1.0
             parts += [0 * tau_goal, -2 * terminal * design.position_weight * q_goal,
-                      0 * q_goal, -2 * design.tension_weight * tau_goal]
+                      0 * q_goal, -2 * self.tension_weight * tau_goal]
         if isinstance(q_goal, np.ndarray):
             return np.concatenate(parts)
         return ca.vertcat(*parts)
@@ -200,8 +211,9 @@ class NmpcProblem:
 
     # -- the real-time iteration -------------------------------------------------------
     def rti_function(self, scaled: bool = True) -> ca.Function:
-        """``nmpc_rti`` (``nmpc_rti_unscaled``): (z0, guess, multipliers, q_goal, tau_goal)
-        -> (v, residual, multipliers_out): one Gauss-Newton SQP step from ``guess``, the QP
+        """``nmpc_rti`` (``nmpc_rti_unscaled``): (z0, guess, multipliers, q_goal, tau_goal,
+        offset) -> (v, residual, multipliers_out): one Gauss-Newton SQP step from ``guess``
+        with the tension offset ``offset`` (N) in the prediction, the QP
         solved by ``qrqp`` warm-started from ``multipliers`` (its active set; zeros for
         none), ``residual`` = max |A v - c|. Warm-starting the active set saves about a
         tenth of the solve on the 6-DOF platform.
@@ -215,9 +227,10 @@ class NmpcProblem:
         z0, guess = ca.MX.sym("z0", self.nz), ca.MX.sym("guess", self.size)
         multipliers = ca.MX.sym("multipliers", self.multiplier_size)
         q_goal, tau_goal = ca.MX.sym("q_goal", self.n), ca.MX.sym("tau_goal", self.m)
+        offset = ca.MX.sym("offset", self.m)
         rates = ca.horzcat(*[guess[k * stage: k * stage + m] for k in range(N)])
         states = ca.horzcat(z0, *[guess[k * stage + m: (k + 1) * stage] for k in range(N - 1)])
-        f, a, b = self.transition.map(N)(states, rates)
+        f, a, b = self.transition.map(N)(states, rates, ca.repmat(offset, 1, N))
         # row block k: [-B_k, I] on (u_k, z_{k+1}), and -A_k on z_k (k >= 1)
         eye = ca.MX(ca.DM.eye(nz))
         constraint = ca.diagcat(*[ca.horzcat(-b[:, k * m: (k + 1) * m], eye)
@@ -248,25 +261,26 @@ class NmpcProblem:
         v = solution["x"] * scale
         residual = ca.mmax(ca.fabs(constraint @ v - right))
         name = "nmpc_rti" if scaled else "nmpc_rti_unscaled"
-        return ca.Function(name, [z0, guess, multipliers, q_goal, tau_goal],
+        return ca.Function(name, [z0, guess, multipliers, q_goal, tau_goal, offset],
                            [v, residual, ca.vertcat(solution["lam_x"] / scale,
                                                     solution["lam_a"])],
-                           ["z0", "guess", "multipliers", "q_goal", "tau_goal"],
+                           ["z0", "guess", "multipliers", "q_goal", "tau_goal", "offset"],
                            ["v", "residual", "multipliers_out"])
 
     # -- the converged problem ---------------------------------------------------------
     def nlp(self) -> dict[str, ca.MX]:
-        """The nonlinear problem for ``nlpsol``: x = v, p = (z0, q_goal, tau_goal), the
-        dynamics as equality constraints g = 0."""
+        """The nonlinear problem for ``nlpsol``: x = v, p = (z0, q_goal, tau_goal, offset),
+        the dynamics as equality constraints g = 0."""
         N, m, stage = self.intervals, self.m, self.stage
         v = ca.MX.sym("v", self.size)
-        p = ca.MX.sym("p", self.nz + self.n + self.m)
-        z0, q_goal, tau_goal = (p[: self.nz], p[self.nz: self.nz + self.n],
-                                p[self.nz + self.n:])
+        p = ca.MX.sym("p", self.nz + self.n + 2 * self.m)
+        z0, q_goal = p[: self.nz], p[self.nz: self.nz + self.n]
+        tau_goal = p[self.nz + self.n: self.nz + self.n + m]
+        offset = p[self.nz + self.n + m:]
         rates = ca.horzcat(*[v[k * stage: k * stage + m] for k in range(N)])
         ends = ca.horzcat(*[v[k * stage + m: (k + 1) * stage] for k in range(N)])
         starts = ca.horzcat(z0, ends[:, : N - 1])
-        predicted = self.prediction.map(N)(starts, rates)
+        predicted = self.prediction.map(N)(starts, rates, ca.repmat(offset, 1, N))
         diagonal = ca.DM(self.hessian_diagonal())
         cost = 0.5 * ca.dot(diagonal, v * v) + ca.dot(self.gradient(q_goal, tau_goal), v)
         return {"x": v, "p": p, "f": cost, "g": ca.vec(predicted - ends)}
@@ -285,6 +299,15 @@ class NmpcProblem:
                    "qpsol_options": {"print_iter": False, "print_header": False,
                                      "print_info": False, "error_on_fail": False}}
         return ca.nlpsol("nmpc_nlp", "sqpmethod", self.nlp(), options)
+
+    # -- the offset-free design's tension offset ------------------------------------------
+    def offset_function(self) -> ca.Function:
+        """``nmpc_offset``: (q, d) -> W(q)^+ d, N: the tensions (minimum norm for m > n)
+        whose generalized force is ``d`` (N, N m for angles) at the pose q."""
+        q, d = ca.SX.sym("q", self.n), ca.SX.sym("d", self.n)
+        W = self.model.structure_matrix(q)
+        return ca.Function("nmpc_offset", [q, d], [W.T @ ca.solve(W @ W.T, d)],
+                           ["q", "d"], ["offset"])
 
     # -- the safe command -------------------------------------------------------------
     def fallback_function(self) -> ca.Function:
