@@ -12,7 +12,7 @@ from cdpr_sym import Nmpc, Plant, preset, simulate
 from cdpr_sym.cli import main
 from cdpr_sym.closed_loop import get_simulator
 from cdpr_sym.closed_loop.sampled import SampledSolver, steps_per_sample
-from cdpr_sym.control import FLAG_INFEASIBLE, NmpcProblem
+from cdpr_sym.control import FLAG_INFEASIBLE, NmpcProblem, controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 
@@ -338,3 +338,24 @@ def test_on_the_as_built_plant_the_solver_sees_the_encoders(aras3, build_options
     gap = np.abs(read - true).max(axis=1)
     assert gap.max() < 5e-3 and np.count_nonzero(gap > 1e-6) >= 45
     assert run.info["solver"]["failed_samples"] == 0
+
+
+@pytest.mark.slow  # two 8 s NMPC runs and the offset-free design's builds (~40 s here)
+def test_offset_free_nmpc_reaches_the_goal_of_a_heavier_plant(aras3, build_options):
+    """With the plant 10 % heavier, the observer's estimate converges to the force the model
+    misses, d = (1 - 1.1) grad V (the model's weight, tenfold less and pointing down), and
+    the platform reaches the goal; without the observer it hangs off it."""
+    plant, goal = Plant(mass_scale=1.1), np.asarray(aras3.goal, dtype=float)
+    ends = {}
+    for name in ("nmpc-of", "nmpc"):
+        simulator = get_simulator(aras3, controller_by_name(name), build_options=build_options)
+        x0 = simulator.initial_state(aras3.start, goal, aras3.k, aras3.r_d, plant=plant)
+        p = simulator.parameters(goal, aras3.k, aras3.r_d, 1e-3, plant)
+        states, _ = simulator.rollout(x0, p, 8000)
+        ends[name] = simulator.layout.x.split(states[8000:8001])
+    weight = aras3.mass * aras3.gravity
+    estimate = ends["nmpc-of"]["memory"][0][controller_by_name("nmpc-of").disturbance_slice(
+        SymbolicModel(aras3))]
+    np.testing.assert_allclose(estimate, [0.0, 0.0, -0.1 * weight], atol=0.02 * weight)
+    assert np.linalg.norm(ends["nmpc-of"]["q"][0] - goal) < 2e-3
+    assert np.linalg.norm(ends["nmpc"]["q"][0] - goal) > 1e-2

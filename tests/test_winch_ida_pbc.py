@@ -55,7 +55,7 @@ def _storage(robot, controller, simulator, states):
     x = simulator.layout.x.split(states)
     assert not x["status"].any()
     n, m = robot.n, robot.m
-    memory = x["memory"][0]
+    memory = x["memory"][1]  # after the first step, which sets the encoders' misfit
     reference = controller.reference(model, ca.DM(1e3), ca.DM(memory[1: n + 1]),
                                      ca.DM(memory[n + 1]), ca.DM(robot.start))
     payout_r, _, _, tension_r, _ = (np.array(ca.DM(value)).ravel() for value in reference)
@@ -134,6 +134,29 @@ def test_reads_the_winches_not_the_pose(aras3, build_options):
         x = ca.SX.sym("x", layout.x.size)
         log = step(x, ca.SX.sym("p", layout.p.size))[1]  # the command is its first rows
         assert ca.depends_on(log, x[layout.x.slice("q_read")]) == reads_pose
+
+
+def test_at_rest_it_holds_the_pull_and_the_plant_stays(aras3, build_options):
+    """Goal = start at rest on the winch plant: the first command is exactly the pull
+    P(T) = T + T^2 / (2 EA) that holds the static tension on a drum (the feed-forward of the
+    model's drum law), and nothing moves. Commanding T instead would let the drums pay out
+    until the motor spring takes up T^2 / (2 EA) (40 um on aras3)."""
+    spec = AsBuilt(actuation=Actuation())
+    plant = Plant(as_built=spec)
+    design = controller_by_name("ida-winch")
+    simulator = get_simulator(aras3, design, build_options=build_options,
+                              as_built=spec.structure())
+    start = np.asarray(aras3.start, dtype=float)
+    run = simulator.run(start, start, aras3.k, aras3.r_d, duration=0.5, dt=1e-3, plant=plant)
+    static = run.static_tension
+    x0 = simulator.initial_state(start, start, aras3.k, aras3.r_d, plant=plant)
+    _, logs = simulator.rollout(x0, simulator.parameters(start, aras3.k, aras3.r_d, 1e-3,
+                                                         plant), 500)
+    commands = simulator.layout.split_log(logs)["tau"]
+    ea = Actuation().cable_stiffness
+    np.testing.assert_allclose(commands[0], static + static**2 / (2 * ea), rtol=0, atol=1e-9)
+    assert np.abs(run.q - start).max() < 1e-6  # m
+    assert np.abs(run.tau - static).max() < 1e-3  # the true tension, N
 
 
 @pytest.mark.parametrize(("field", "value"), [

@@ -17,7 +17,9 @@ N: a drum of inertia J and radius r reads as a mass J / r^2 on its cable):
   widest margin mu it finds) becomes motor references: the unstretched length that carries
   T_r at q_r, l0_r = l(q_r) / (1 + T_r / EA), plus the encoders' misfit at the start
   (homing: the robot starts at rest where the model says, so whatever the encoders read
-  beyond the model's lengths is their zero, kept for the move).
+  beyond the model's lengths is their zero, kept for the move). On rigid cables the
+  encoders read l(q), not an unstretched length, so the frozen misfit leaves the goal off
+  by the change of stretch, (l_goal T_goal - l_start T_start) / EA (sub-millimetre).
 * **Law.** The motor torque, as the tension command u / r that the winch's torque loop
   turns into r times it:
 
@@ -32,12 +34,17 @@ N: a drum of inertia J and radius r reads as a mass J / r^2 on its cable):
   H the robot's energy, and dH_d/dt = -k_d |l0'|^2 - D <= 0 (D the cables' and drums'
   dissipation): no interconnection term is added (J_d = 0 on the drums: the tension box is
   kept by the plan's margin and the stiff, damped motor loop, not by a skew term, which
-  would need the platform velocity the encoders do not give). The goal is its only
-  equilibrium with every cable taut, and (LaSalle) the motion converges to it.
-* **Tensions.** Near that equilibrium H_d - H_d* >= sum_i (T_i - T_r,i)^2 / (2 k_i)
-  (k_i = EA / l0_i; the terms left out, the motor springs' and the cables' geometric
-  stiffness, are positive semi-definite for a point mass), so once
-  H_d <= mu^2 / (2 max k_i) every true spring tension stays within mu of T_r, in the box.
+  would need the platform velocity the encoders do not give). The goal is an isolated
+  equilibrium (a strict local minimum of the shaped potential while every cable is taut),
+  and by LaSalle the motion converges to it from the connected sublevel set of H_d around
+  it in which the cables stay taut and no other equilibrium lies.
+* **Tensions.** Near that equilibrium, to second order, H_d - H_d* >= sum_i
+  (T_s,i - T_r,i)^2 / (2 k_i) (k_i = EA / l0_i, T_s the spring part of the tension; the
+  terms left out, the kinetic energy, the motor springs and, for a point mass, the
+  cables' geometric stiffness, are positive semi-definite; for a rigid body the
+  geometric stiffness and grad^2 V need not be, and the bound is not guaranteed), so once
+  H_d <= mu^2 / (2 max k_i) every spring tension stays within mu of T_r, in the box (the
+  damping part c_EA ds/dt / l0 comes on top).
 
 The command is clipped to [T_min, T_max] as a last resort (FLAG_SATURATED: the energy
 argument then no longer holds). Memory: the plan's [t, q_start (n), T, margin], then per
@@ -219,8 +226,8 @@ class WinchIdaPbc:
         feedback, stages = self.filtered(self.stiffness * error + self.damping * error_rate
                                          + self.integral * integrated_kept, stages_kept, dt)
         command = self.pull(tension_r) - reflected * accel_r - friction + feedback
-        # on winches the true tension then stays under T_max; on rigid cables the command
-        # is the tension
+        # the command (the pull the motor torque stands for) kept in the box; on rigid
+        # cables the command is the tension itself
         low, high = robot.t_min, robot.t_max
         clipped = ca.fmin(ca.fmax(command, low), high)
         saturated = ca.sum1(ca.fabs(clipped - command) > 0) > 0

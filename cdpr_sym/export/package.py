@@ -154,7 +154,8 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
         the controller inverts W (field ``controller``, see
         :func:`cdpr_sym.control.check_cables`), or the controller is an NMPC whose solver
         is not the real-time iteration (field ``solver``, see
-        :func:`cdpr_sym.export.nmpc.check_exportable`), or the control law has an argument
+        :func:`cdpr_sym.export.nmpc.check_exportable`), or the controller reads the winches
+        (field ``controller``; ``ida-winch``), or the control law has an argument
         that ``<prefix>_control`` does not declare, or the step a field without a declared
         unit (field ``controller``).
 
@@ -181,6 +182,10 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     sampled = capabilities(controller).sampled
     if sampled:
         check_exportable(controller)
+    if capabilities(controller).reads_drives:
+        raise InvalidCase("controller", f"{controller.name} reads the winch encoders; export-c "
+                          "packages laws of the state (q, dq) and would feed it the "
+                          "lengths of rigid cables at q, not what its encoders read")
     prefix = prefix if prefix is not None else c_identifier(f"cdpr_{robot.name}_{label}")
     problem = prefix_problem(prefix)
     if problem:

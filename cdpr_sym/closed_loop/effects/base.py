@@ -141,7 +141,7 @@ class PlantEffect:
 
     def read_drives(self, build: StepBuild, drives: DriveReading) -> DriveReading:
         """What a controller that reads the winches sees of them, given what it would
-        (called only for such a controller, after :meth:`read`)."""
+        (called only for such a controller, instead of :meth:`read`)."""
         return drives
 
     def deliver(self, build: StepBuild, command: ca.SX) -> ca.SX:
