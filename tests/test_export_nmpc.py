@@ -201,3 +201,17 @@ def test_a_converged_solver_is_refused_in_one_line_before_writing(controller, tm
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("cdpr-sym: error: solver:"), err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(("controller", "field"), [("nmpc-of", "observer_rate"),
+                                                   ("ida-winch", "controller")])
+def test_a_design_the_package_cannot_feed_is_refused_in_one_line(controller, field, tmp_path,
+                                                                 capsys):
+    """The offset-free NMPC's observer is not exported; ida-winch reads the winch encoders,
+    which a package of state-based laws does not take."""
+    out = tmp_path / "package"
+    assert main(["export-c", "--robot", "aras3", "--controller", controller, "--out",
+                 str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"cdpr-sym: error: {field}:"), err
+    assert not out.exists()
