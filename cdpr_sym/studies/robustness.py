@@ -172,7 +172,7 @@ def compute_robustness_study(robot: Robot, out_dir: Path, *, pairs: int = 200, s
     scan = _damping_scan(robot, starts[:SCAN_PAIRS], goals[:SCAN_PAIRS], progress)
     traces = tension_traces(robot, starts, goals, seed)
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_json(out_dir / TRACES_FILE, traces)
+    write_json(out_dir / TRACES_FILE, traces, indent=None)
     write_json(out_dir / RUNS_FILE, rows)
     # every run's specification makes it about 0.5 MB: on one line, half the indented size
     write_study(out_dir, "robustness", robot, indent=None, pairs=pairs, seed=seed,
@@ -220,13 +220,15 @@ def _traces_figure(traces: dict[str, Any], path: Path) -> Path:
     for ax, (design, trace) in zip(np.atleast_1d(axes), designs.items(), strict=True):
         tension = np.array(trace["tension"])
         t = np.arange(len(tension)) * traces["stride"] * traces["dt"]
-        ax.plot(t, tension, linewidth=1)
+        for cable in range(tension.shape[1]):
+            ax.plot(t, tension[:, cable], linewidth=1, label=f"cable {cable + 1}")
         for bound in (traces["t_min"], traces["t_max"]):
             ax.axhline(bound, color="k", linestyle="--", linewidth=0.8)
         verdict = "meets the target" if trace["meets_target"] else "misses the target"
         ax.set_title(f"{design}: {verdict}", fontsize=10)
         ax.set_xlabel("t (s)")
     np.atleast_1d(axes)[0].set_ylabel("true cable tension (N)")
+    np.atleast_1d(axes)[0].legend(fontsize=8, loc="upper right")
     fig.suptitle(f"As built, pair {traces['pair']}: the cables' true tension", fontsize=11)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -506,6 +508,8 @@ class RobustnessStudy(Study):
             misread=misread_effects(table, designs), best=best_by_effect(table),
             best_readable=best_readable_by_effect(table), scan=study.get("damping_scan"),
             counted=counting(table), calibration=calibration_summary(study),
+            traces=(read_json(folder / TRACES_FILE) if (folder / TRACES_FILE).exists()
+                    else None),
             default_damping=Actuation().cable_damping, tolerance=SETTLE_TOLERANCE),
             encoding="utf-8")
         return table
