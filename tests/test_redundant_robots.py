@@ -61,7 +61,7 @@ SQUARE_ONLY = sorted(name for name, design in CONTROLLERS.items()
 
 def test_the_designs_for_redundant_robots_are_pd_td_smooth_and_the_paper_l2():
     assert set(CONTROLLERS) - set(SQUARE_ONLY) == {"pd-td", "smooth", "smooth-lp", "l2", "nmpc",
-                                                   "nmpc-sqp", "nmpc-ipopt"}
+                                                   "nmpc-sqp", "nmpc-ipopt", "nmpc-of"}
 
 
 @pytest.mark.parametrize("name", SQUARE_ONLY)
@@ -69,7 +69,7 @@ def test_a_design_that_inverts_w_refuses_a_redundant_robot(name, capsys):
     with pytest.raises(InvalidCase, match="controller") as raised:
         get_simulator(preset("planar4"), CONTROLLERS[name])
     assert str(raised.value).endswith("use l2, smooth, smooth-lp, pd-td, nmpc, nmpc-sqp, "
-                                         "nmpc-ipopt")
+                                         "nmpc-ipopt, nmpc-of")
     assert main(["simulate", "--robot", "planar4", "--controller", name]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("cdpr-sym: error: controller:")
