@@ -85,19 +85,14 @@ class AsBuiltReadout:
         relative = 0.0 if spec is None or spec.encoder_offsets is None else spec.encoder_offsets
         return raw_reading(self.model, self.unstretched_lengths(q, tension, plant), relative)
 
-    def corrected_reading(self, reading: np.ndarray, sensing: Sensing) -> np.ndarray:
-        """Encoder ``reading`` (m) rounded to the resolution, less the model's encoder
-        offsets (the step's reading, in numbers)."""
-        if sensing.resolution > 0:
-            reading = sensing.resolution * np.floor(reading / sensing.resolution + 0.5)
-        return corrected(self.model, reading)
-
     def read_pose(self, reading: np.ndarray, guess: np.ndarray, sensing: Sensing
                   ) -> np.ndarray | None:
         """The pose forward kinematics gives from ``guess`` for encoder ``reading`` (m),
         rounded to the resolution, less the model's encoder offsets; None when no pose fits
         within the reading bound."""
-        reading = self.corrected_reading(reading, sensing)
+        if sensing.resolution > 0:
+            reading = sensing.resolution * np.floor(reading / sensing.resolution + 0.5)
+        reading = corrected(self.model, reading)
         q, ok, residual = self._forward_kinematics(reading, guess)
         bound = reading_bound(self.model.n, self.model.m, sensing.resolution,
                               sensing.consistency)

@@ -53,7 +53,7 @@ class TrueCables(PlantEffect):
     def read_drives(self, build: StepBuild, drives: DriveReading) -> DriveReading:
         """The drives as they are: with winches the paid-out lengths, without them the true
         cable lengths."""
-        return build.dynamics.drive_reading(build.z)
+        return DriveReading(build.dynamics.encoder_lengths(build.z))
 
 
 class TrueDynamics:
@@ -112,10 +112,6 @@ class TrueDynamics:
         for _ in range(self.substeps):
             z_next = rk4(lambda zz: self.rhs(zz, command), z_next, h)
         return z_next
-
-    def drive_reading(self, z: ca.SX) -> DriveReading:
-        """The exact drive reading at z (m): :meth:`encoder_lengths`."""
-        return DriveReading(self.encoder_lengths(z))
 
     def encoder_lengths(self, z: ca.SX) -> ca.SX:
         """What the encoders measure, m: the paid-out length with winches, else the true
