@@ -113,11 +113,7 @@ def calibrated_model(robot: Robot, plant: Plant, kind: str, seed: int, pair: int
 
     spec = plant.as_built
     stiffness = spec.actuation.cable_stiffness if spec.actuation else np.inf
-    # the plant's encoders err as the nominal robot says (none, unless it has offsets)
-    true_offsets = (np.zeros(robot.m) if robot.encoder_offsets is None
-                    else np.asarray(robot.encoder_offsets))
-    if spec.encoder_offsets is not None:
-        true_offsets = true_offsets + spec.encoder_offsets
+    true_offsets = true_encoder_offsets(robot, plant)
     truth = Truth(anchor_offsets=spec.anchor_offsets, encoder_offsets=true_offsets,
                   stiffness=stiffness, mass_scale=plant.mass_scale)
     resolution = spec.sensing.resolution
@@ -127,15 +123,37 @@ def calibrated_model(robot: Robot, plant: Plant, kind: str, seed: int, pair: int
     campaign = simulate_campaign(robot, truth, poses, rng, kind=kind, resolution=resolution,
                                  noise=noise)
     result = calibrate(robot, campaign)
-    left = robot.anchors + spec.anchor_offsets - result.robot.anchors
+    relative = plant_relative_to(robot, plant, result.robot)
+    left = relative.as_built.anchor_offsets
     md = robot.m * robot.dimension
-    offsets_left = true_offsets - result.robot.encoder_offsets
+    offsets_left = relative.as_built.encoder_offsets
     record = {"anchor_rms_error": float(np.sqrt(np.mean(left ** 2))),
               "anchor_rms_std": float(np.sqrt(np.trace(result.covariance[:md, :md]) / md)),
               "offset_max_error": float(np.abs(offsets_left).max()),
               "sigma0": result.sigma0}
-    relative = dataclasses.replace(spec, anchor_offsets=left, encoder_offsets=offsets_left)
-    return result.robot, dataclasses.replace(plant, as_built=relative), record
+    return result.robot, relative, record
+
+
+def true_encoder_offsets(robot: Robot, plant: Plant) -> np.ndarray:
+    """The encoders' true zero errors (m) of ``plant`` drawn relative to the nominal
+    ``robot``: the robot's own offsets (none: zero) plus the plant's relative ones."""
+    offsets = (np.zeros(robot.m) if robot.encoder_offsets is None
+               else np.asarray(robot.encoder_offsets, dtype=float))
+    relative = plant.as_built.encoder_offsets
+    return offsets if relative is None else offsets + relative
+
+
+def plant_relative_to(robot: Robot, plant: Plant, model: Robot) -> Plant:
+    """The same true ``plant`` (drawn relative to the nominal ``robot``) relative to another
+    ``model`` of it, a calibrated one: its anchor and encoder offsets true minus ``model``'s
+    (m)."""
+    spec = plant.as_built
+    model_offsets = (np.zeros(model.m) if model.encoder_offsets is None
+                     else np.asarray(model.encoder_offsets, dtype=float))
+    relative = dataclasses.replace(
+        spec, anchor_offsets=robot.anchors + spec.anchor_offsets - model.anchors,
+        encoder_offsets=true_encoder_offsets(robot, plant) - model_offsets)
+    return dataclasses.replace(plant, as_built=relative)
 
 
 #: Planned campaign poses by (robot description, kind, stiffness), kept for the process.
