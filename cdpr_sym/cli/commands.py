@@ -306,10 +306,35 @@ def bench_command(args: argparse.Namespace, out: Output) -> int:
 def export_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.export import export_c
 
-    result = export_c(checked_robot(args.robot), args.controller, args.out, prefix=args.prefix,
+    robot = checked_robot(args.robot)
+    if args.from_encoders:
+        return _export_encoders(args, robot, out)
+    for option, given in (("calibration", args.calibration is not None),
+                          ("as_built", args.as_built != "default"), ("seed", args.seed != 0)):
+        if given:
+            raise InvalidCase(option, "applies to --from-encoders packages only")
+    result = export_c(robot, args.controller, args.out, prefix=args.prefix,
                       overwrite=args.force)
     out.result({"prefix": result.prefix, "files": [str(path) for path in result.paths]},
                [str(path) for path in result.paths])
+    return 0
+
+
+def _export_encoders(args: argparse.Namespace, robot, out: Output) -> int:
+    """``export-c --from-encoders``: the encoder-level package, its operation counts."""
+    from cdpr_sym.export import export_encoder_c
+
+    if args.calibration is not None and not args.calibration.is_file():
+        raise InvalidCase("calibration", f"expected a calibrated robot file, no file at "
+                          f"{args.calibration}")
+    result = export_encoder_c(robot, args.controller, args.out,
+                              calibration=args.calibration, as_built=args.as_built,
+                              seed=args.seed, prefix=args.prefix, overwrite=args.force)
+    files = [str(path) for path in result.files.values()]
+    out.result({"prefix": result.prefix, "files": files, "operations": result.operations},
+               [*files, f"operations per sample: {result.operations['sample']} (first sample "
+                        f"{result.operations['first_sample']}, plan "
+                        f"{result.operations['plan']})"])
     return 0
 
 

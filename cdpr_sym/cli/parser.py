@@ -173,7 +173,21 @@ def build_parser() -> argparse.ArgumentParser:
                         help="output folder: new, empty or an earlier export (re-export)")
     export.add_argument("--force", action="store_true",
                         help="write into --out even if it holds other files")
-    export.add_argument("--prefix", help="C prefix of every symbol (default cdpr_ROBOT_CTRL)")
+    export.add_argument("--prefix", help="C prefix of every symbol (default cdpr_ROBOT_CTRL, "
+                        "with --from-encoders cdpr_ROBOT_CTRL_encoders)")
+    export.add_argument("--from-encoders", action="store_true",
+                        help="package the controller a lab runs: encoder counts in, motor "
+                        "torques out, forward kinematics, a guard with latched faults, the "
+                        "robot as built in C for software in the loop, a timing program and "
+                        "CTest tests")
+    export.add_argument("--calibration", type=Path, metavar="FILE",
+                        help="with --from-encoders: a calibrated robot file (cdpr-sym "
+                        "calibrate) whose anchors and encoder offsets are compiled in")
+    export.add_argument("--as-built", default="default", metavar="SPEC",
+                        help="with --from-encoders: the robot as built of the software in the "
+                        "loop, 'default' or an as-built TOML file (winches and encoders)")
+    export.add_argument("--seed", type=int, default=0,
+                        help="with --from-encoders: seed of the as-built draw")
     from cdpr_sym.cli.calibrate import add_parser as add_calibrate
 
     add_calibrate(command)

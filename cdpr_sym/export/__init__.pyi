@@ -3,6 +3,9 @@
 
 from .bench import bench_export
 from .description import REQUIRED_MODEL_TERMS
+from .encoder_package import EncoderExportResult, export_encoder_c
+from .guard import GuardLimits
 from .package import ExportResult, export_c
 
-__all__ = ["REQUIRED_MODEL_TERMS", "ExportResult", "bench_export", "export_c"]
+__all__ = ["REQUIRED_MODEL_TERMS", "EncoderExportResult", "ExportResult", "GuardLimits",
+           "bench_export", "export_c", "export_encoder_c"]

@@ -1,0 +1,439 @@
+"""Export the controller a lab runs: encoder counts in, motor torques out, guarded, in C99.
+
+``cdpr-sym export-c --from-encoders`` writes one folder (``<prefix>`` defaults to
+``cdpr_<robot>_<controller>_encoders``):
+
+* ``<prefix>.h``: the one public header: the controller's state struct, ``<prefix>_init``,
+  ``_reset``, ``_sample``, ``_clear_fault``, the fault codes, the limits and the static
+  operation counts;
+* ``<prefix>.c`` with ``<prefix>_generated.inc``: one control period
+  (:mod:`cdpr_sym.export.encoder_loop`) and the guard (:mod:`cdpr_sym.export.guard`);
+* ``<prefix>_plan.c`` with ``<prefix>_plan_generated.inc``: the design's plan, run by
+  ``init`` and ``reset`` (built without optimisation: large, and run once per move);
+* ``<prefix>_plant.c`` with ``<prefix>_plant_generated.inc`` and ``plant_data.inc``: the
+  robot as built in C (:mod:`cdpr_sym.export.software_in_loop`), for the programs below
+  only, never linked into the controller's library;
+* ``sil.c`` (software in the loop against the Python run, ``sil_reference.inc``),
+  ``timing.c`` (time per sample over a million samples, as JSON), ``guard_test.c`` (every
+  fault path), ``CMakeLists.txt`` (the library, the three programs, two CTest tests,
+  ``cmake --install`` with a ``find_package`` configuration), ``README.md`` and
+  ``manifest.json``.
+
+The run the package reproduces is ``cdpr-sym simulate --robot R --controller D --as-built
+SPEC --seed S`` from the robot's case (``--calibration FILE``: with the calibrated robot as
+the controller's model, the same true plant). Everything is checked before the first
+function is built.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.codegen import c_identifier, generate_c, render
+from cdpr_sym.control import FLAG_NAMES, Controller, capabilities, check_cables, controller_by_name
+from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SINGULAR
+from cdpr_sym.control.planned import SmoothReference
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.export.encoder_loop import (
+    LOCATE_ITERATIONS,
+    EncoderLoop,
+    encoder_functions,
+    locate_seeds,
+    operation_count,
+)
+from cdpr_sym.export.guard import FAULTS, INVALID_ARGUMENT, NOT_ARMED, GuardLimits
+from cdpr_sym.export.guard_cases import guard_cases
+from cdpr_sym.export.package import _GENERATOR, _make_folder, prefix_problem
+from cdpr_sym.export.software_in_loop import (
+    STATE_DESIGN_TOLERANCE,
+    LoopPlant,
+    loop_plant,
+    reference_run,
+)
+from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot import Robot, resolve_robot
+from cdpr_sym.version import __version__
+
+#: Seconds of the reference run the package's loop reproduces, by default.
+SIL_DURATION = 3.0
+#: Largest reference run, s (its table is compiled into ``sil``).
+MAX_SIL_DURATION = 30.0
+#: Margin of the range check of a length read beyond the frame's geometric bounds, m: the
+#: encoders' zero errors and a calibration's residual offsets.
+RANGE_MARGIN = 0.05
+#: Floating-point operations and comparisons of the guard per sample, counted in
+#: ``templates/encoders/source.c.j2`` (per cable, per coordinate, fixed).
+GUARD_OPERATIONS = (24, 8, 16)
+
+
+@dataclasses.dataclass(frozen=True)
+class EncoderExportResult:
+    """The files of one encoder-level package (see the module docstring).
+
+    Attributes
+    ----------
+    out_dir : Path
+    prefix : str
+    files : dict of str to Path
+        Every file written, by name.
+    operations : dict of str to int
+        Static operation counts: ``sample`` (every sample after the first), ``first_sample``
+        (with the global start), ``plan`` (``init`` and ``reset``).
+    """
+
+    out_dir: Path
+    prefix: str
+    files: dict[str, Path]
+    operations: dict[str, int]
+
+    @property
+    def header(self) -> Path:
+        return self.files[f"{self.prefix}.h"]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Checked:
+    """What the export needs, checked before any function is built."""
+
+    robot: Robot
+    model_robot: Robot
+    controller: Controller
+    label: str
+    plant: Any
+    draw_record: dict[str, Any]
+    prefix: str
+    out: Path
+
+
+def export_encoder_c(robot: Robot | str | Path, controller: Controller | str,
+                     out_dir: str | Path, *, calibration: str | Path | None = None,
+                     as_built: str | Path = "default", seed: int = 0,
+                     duration: float = SIL_DURATION, dt: float = 1e-3,
+                     limits: GuardLimits = GuardLimits(), prefix: str | None = None,
+                     overwrite: bool = False) -> EncoderExportResult:
+    """Write the encoder-level C99 package of ``controller`` on ``robot`` to ``out_dir``.
+
+    Parameters
+    ----------
+    robot : Robot, preset name or robot file
+        The robot as designed (the true plant is drawn relative to it).
+    controller : Controller or registered name
+        A design of the state (``export-c``'s designs but the NMPC) or one that reads the
+        winches (``ida-winch``).
+    out_dir : str or Path
+        The package folder (empty, new, or an earlier export).
+    calibration : path, optional
+        A calibrated robot file (``cdpr-sym calibrate``'s output): the controller's model,
+        its anchors and encoder offsets compiled in. Same name, cables and dimension as
+        ``robot``.
+    as_built : "default" or path
+        The as-built specification the plant of the software in the loop is drawn from
+        (pair 0 of ``seed``, as ``simulate --as-built``); it must have winches and encoders
+        (the counts' scale is its encoder resolution, the torque its drum radius).
+    seed : int
+        The draw's seed.
+    duration : float
+        s of the reference run (0 < duration <= 30).
+    dt : float
+        The control period, s.
+    limits : GuardLimits
+        The guard's default limits.
+    prefix : str, optional
+        The C prefix (default ``cdpr_<robot>_<controller>_encoders``).
+    overwrite : bool
+        Write into a non-empty folder that is not an earlier export.
+
+    Returns
+    -------
+    EncoderExportResult
+
+    Raises
+    ------
+    UnknownName, InvalidRobot
+        Unknown preset or controller; a robot file missing or malformed.
+    InvalidCase
+        Naming the field: an NMPC (``controller``: its solver is exported by ``export-c``
+        without ``--from-encoders``), more cables than degrees of freedom for a design that
+        inverts W, a calibration of another robot, an as-built specification without
+        winches or encoders, ``duration``, ``dt``, ``prefix`` or ``out_dir``.
+    """
+    checked = _check(robot, controller, out_dir, calibration=calibration, as_built=as_built,
+                     seed=seed, duration=duration, dt=dt, prefix=prefix, overwrite=overwrite)
+    model = SymbolicModel(checked.model_robot)
+    spec = checked.plant.as_built
+    loop = EncoderLoop(model, checked.controller, spec.sensing, spec.actuation, dt)
+    functions = encoder_functions(loop)
+    case = checked.robot
+    reference = reference_run(model, checked.controller, checked.plant, case.start, case.goal,
+                              case.k, case.r_d, duration=duration, dt=dt)
+    if len(reference.command) == 0:
+        raise InvalidCase("as_built", f"the Python run of {checked.controller.name} on this "
+                          f"robot as built stops at t = 0 ({reference.stop_reason}); the "
+                          f"software in the loop would have nothing to compare")
+    plant = loop_plant(model, checked.plant, case.start, case.goal, case.k, case.r_d, dt)
+    context = _context(checked, loop, functions, plant, reference, limits)
+    texts = _texts(checked.prefix, functions, plant, reference, context)
+    out = _make_folder(checked.out, overwrite)
+    files = {}
+    for name, text in texts.items():
+        (out / name).write_text(text)
+        files[name] = out / name
+    manifest = {"generator": _GENERATOR, "kind": "encoders", "version": __version__,
+                "prefix": checked.prefix, "robot": checked.model_robot.as_dict(),
+                "controller": {"name": checked.controller.name,
+                               "options": checked.controller.options()},
+                "as_built": {"specification": str(as_built), "seed": seed,
+                             **checked.draw_record},
+                "casadi_version": ca.__version__, "operations": context["operations"],
+                "sha256": {name: hashlib.sha256(text.encode()).hexdigest()
+                           for name, text in texts.items()}}
+    (out / "manifest.json").write_text(json.dumps(manifest, indent=2) + "\n")
+    files["manifest.json"] = out / "manifest.json"
+    return EncoderExportResult(out, checked.prefix, files, context["operations"])
+
+
+def _check(robot, controller, out_dir, *, calibration, as_built, seed, duration, dt, prefix,
+           overwrite) -> _Checked:
+    """Every argument checked (module docstring), before anything is built."""
+    from cdpr_sym.as_built import load_as_built_draw
+    from cdpr_sym.calibration.drawn import drawn_robot, plant_relative_to
+
+    robot = resolve_robot(robot)
+    label = controller if isinstance(controller, str) else controller.name
+    controller = controller_by_name(controller)
+    if capabilities(controller).sampled:
+        raise InvalidCase("controller", f"{controller.name} solves an NMPC at its own rate; "
+                          f"--from-encoders packages designs evaluated every sample "
+                          f"(export-c without it packages the NMPC's solver)")
+    check_cables(controller, robot.n, robot.m)
+    for field, value, high in (("duration", duration, MAX_SIL_DURATION), ("dt", dt, 0.1)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                or not (0 < value <= high):
+            raise InvalidCase(field, f"expected a number of seconds in (0, {high}], "
+                              f"got {value!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise InvalidCase("seed", f"expected a whole number >= 0, got {seed!r}")
+    model_robot = robot
+    if calibration is not None:
+        model_robot = resolve_robot(Path(calibration))
+        if (model_robot.name, model_robot.m, model_robot.dimension) != (
+                robot.name, robot.m, robot.dimension):
+            raise InvalidCase("calibration", f"{calibration} calibrates {model_robot.name} "
+                              f"(m = {model_robot.m}, {model_robot.dimension}-D), not "
+                              f"{robot.name} (m = {robot.m}, {robot.dimension}-D)")
+    draw = load_as_built_draw(as_built)
+    if draw.actuation is None or draw.sensing is None or not draw.sensing.resolution > 0:
+        raise InvalidCase("as_built", "the encoder-level package reads encoder counts and "
+                          "writes motor torques: the as-built specification needs winches "
+                          "([actuation]) and encoders ([sensing]) with a resolution > 0")
+    prefix = prefix if prefix is not None else c_identifier(
+        f"cdpr_{robot.name}_{label}_encoders")
+    problem = prefix_problem(prefix)
+    if problem:
+        raise InvalidCase("prefix", problem)
+    out = Path(out_dir)
+    _make_folder_check(out, overwrite)
+    drawn = drawn_robot(robot, draw, seed, 0)
+    plant = drawn.plant if calibration is None else plant_relative_to(robot, drawn.plant,
+                                                                      model_robot)
+    return _Checked(robot, model_robot, controller, label, plant, drawn.record, prefix, out)
+
+
+def _make_folder_check(out: Path, overwrite: bool) -> None:
+    """Refuse ``out`` early as :func:`~cdpr_sym.export.package._make_folder` would, without
+    creating it."""
+    if out.exists():
+        _make_folder(out, overwrite)
+
+
+def length_bounds(robot: Robot, cable_stiffness: float) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds (m) on each cable's unstretched length over every pose in the frame box, any
+    orientation: from the anchor's distance to the box of positions (nearest point,
+    farthest corner) less and plus the attachment's distance from the platform's origin,
+    the lower one shortened by the largest stretch, T_max / EA, both widened by
+    :data:`RANGE_MARGIN`. Sound: no pose of the frame has a length outside them."""
+    d = robot.dimension
+    lower, upper = np.asarray(robot.frame_lower)[:d], np.asarray(robot.frame_upper)[:d]
+    anchors = np.asarray(robot.anchors, dtype=float)
+    reach = (np.zeros(robot.m) if robot.attachments is None
+             else np.linalg.norm(np.asarray(robot.attachments, dtype=float), axis=1))
+    nearest = np.linalg.norm(anchors - np.clip(anchors, lower, upper), axis=1)
+    farthest = np.linalg.norm(np.maximum(np.abs(anchors - lower), np.abs(anchors - upper)),
+                              axis=1)
+    low = np.maximum(nearest - reach, 0) / (1 + robot.t_max / cable_stiffness) - RANGE_MARGIN
+    return np.maximum(low, 0.0), farthest + reach + RANGE_MARGIN
+
+
+def _renamed(function: ca.Function, name: str) -> ca.Function:
+    inputs = function.sx_in()
+    return ca.Function(name, inputs, function.call(inputs), function.name_in(),
+                       function.name_out(), {"cse": True})
+
+
+def _texts(prefix: str, functions: dict[str, ca.Function], plant: LoopPlant, reference,
+           context: dict[str, Any]) -> dict[str, str]:
+    """Every file's text but the manifest, by file name."""
+    realtime = [_renamed(functions[name], f"{prefix}_g_{name}")
+                for name in ("core", "locate", "holding")]
+    planner = [_renamed(functions["start"], f"{prefix}_g_start")]
+    simulated = [_renamed(plant.step, f"{prefix}_g_plant_step"),
+                 _renamed(plant.counts, f"{prefix}_g_plant_counts")]
+    head = f"/* Generated by CasADi {ca.__version__} for {prefix}; do not edit. */\n"
+    texts = {
+        f"{prefix}_generated.inc": head + generate_c(
+            realtime, f"{prefix}_generated", symbol_prefix=f"{prefix}_", exported=False,
+            casadi_int="long long int"),
+        f"{prefix}_plan_generated.inc": head + generate_c(
+            planner, f"{prefix}_plan_generated", symbol_prefix=f"{prefix}_plan_",
+            exported=False, avoid_stack=True, casadi_int="long long int"),
+        f"{prefix}_plant_generated.inc": head + generate_c(
+            simulated, f"{prefix}_plant_generated", symbol_prefix=f"{prefix}_plant_",
+            exported=False, casadi_int="long long int"),
+        "plant_data.inc": _plant_data(plant),
+        "sil_reference.inc": _reference_data(reference),
+    }
+    context = {**context, "work": _work(realtime), "plan_work": _work(planner),
+               "plant_work": _work(simulated)}
+    templates = {f"{prefix}.h": "header.h.j2", f"{prefix}.c": "source.c.j2",
+                 f"{prefix}_plan.c": "plan.c.j2", f"{prefix}_plant.c": "plant.c.j2",
+                 f"{prefix}_plant.h": "plant.h.j2",
+                 "sil.c": "sil.c.j2", "timing.c": "timing.c.j2",
+                 "guard_test.c": "guard_test.c.j2", "CMakeLists.txt": "CMakeLists.txt.j2",
+                 "README.md": "README.md.j2"}
+    texts.update({name: render("cdpr_sym.export", f"encoders/{template}", **context)
+                  for name, template in templates.items()})
+    return texts
+
+
+def _work(functions: list[ca.Function]) -> dict[str, int]:
+    """The work memory every function of a file needs at most (CasADi's sizes)."""
+    return {"arg": max(f.sz_arg() for f in functions), "res": max(f.sz_res() for f in functions),
+            "iw": max(max(f.sz_iw() for f in functions), 1),
+            "w": max(max(f.sz_w() for f in functions), 1)}
+
+
+def _c_double(value: float) -> str:
+    if math.isinf(value):
+        return "INFINITY" if value > 0 else "-INFINITY"
+    return repr(float(value))
+
+
+def _c_array(values) -> str:
+    flat = np.asarray(values, dtype=float).ravel()
+    if flat.size == 0:
+        return "{0}"
+    lines, line = [], []
+    for value in flat:
+        line.append(_c_double(value))
+        if len(line) == 4:
+            lines.append(", ".join(line))
+            line = []
+    if line:
+        lines.append(", ".join(line))
+    return "{\n    " + ",\n    ".join(lines) + "}"
+
+
+def _plant_data(plant: LoopPlant) -> str:
+    return ("/* The as-built plant of the software in the loop: its start state and parameters"
+            " (generated; do not edit). */\n"
+            f"static const double plant_x0[{plant.x0.size}] = {_c_array(plant.x0)};\n"
+            f"static const double plant_p[{plant.p.size}] = {_c_array(plant.p)};\n")
+
+
+def _reference_data(run) -> str:
+    """The Python run: the commands (steps x m, N), the poses after each (steps x n) and
+    the step at which it stopped for a lost pose (-1: it did not)."""
+    steps = len(run.command)
+    lost = steps if run.stop_reason == "lost_pose" else -1
+    return ("/* The Python as-built run the software in the loop reproduces (generated; do "
+            "not edit). */\n"
+            f"#define SIL_STEPS {steps}\n#define SIL_LOST_POSE_STEP {lost}\n"
+            f"#define SIL_STOP \"{run.stop_reason or 'none'}\"\n"
+            f"static const double sil_command[{max(run.command.size, 1)}] = "
+            f"{_c_array(run.command)};\n"
+            f"static const double sil_pose[{max(run.q[1:steps + 1].size, 1)}] = "
+            f"{_c_array(run.q[1:steps + 1])};\n")
+
+
+def _c_cases(cases: dict[str, object]) -> dict[str, object]:
+    """The guard test's arrays as C initialisers (None kept), notes as they are."""
+    return {name: value if isinstance(value, str) or value is None else _c_array(value)
+            for name, value in cases.items()}
+
+
+def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Function],
+             plant: LoopPlant, reference, limits: GuardLimits) -> dict[str, Any]:
+    """The values the templates render."""
+    robot, model = checked.model_robot, loop.model
+    n, m = model.n, model.m
+    spec = checked.plant.as_built
+    low, high = length_bounds(robot, spec.actuation.cable_stiffness)
+    per_cable, per_coordinate, fixed = GUARD_OPERATIONS
+    guard = per_cable * m + per_coordinate * n + fixed
+    core, locate = operation_count(functions["core"]), operation_count(functions["locate"])
+    seeds = locate_seeds(model)
+    operations = {"sample": core + guard,
+                  "first_sample": core + guard + (len(seeds) + 1) * locate,
+                  "plan": operation_count(functions["start"]) + operation_count(
+                      functions["holding"])}
+    reads_drives = capabilities(checked.controller).reads_drives
+    design = checked.controller
+    planned = isinstance(design, SmoothReference) or isinstance(getattr(design, "plan", None),
+                                                               SmoothReference)
+    design_flags = FLAG_SINGULAR | (FLAG_INFEASIBLE if planned else 0)
+    offsets = np.zeros(m) if robot.encoder_offsets is None else robot.encoder_offsets
+    positions = robot.dimension
+    margin = np.array([limits.frame_margin if j < positions else 0.0 for j in range(n)])
+    return {
+        "prefix": checked.prefix, "upper": checked.prefix.upper(), "version": __version__,
+        "robot": robot.name, "controller": checked.controller.name, "n": n, "m": m,
+        "reads_drives": reads_drives,
+        "n_memory": loop.n_memory, "n_state": loop.n_state, "n_par": loop.n_parameters,
+        "dt": _c_double(loop.dt),
+        "coordinates": list(zip(robot.coordinate_names, robot.coordinate_units, strict=True)),
+        "home": _c_array(checked.robot.start), "goal": _c_array(checked.robot.goal),
+        "k": _c_array(checked.robot.k), "r_d": _c_array(checked.robot.r_d),
+        "sensing": _c_array(spec.sensing.parameters()),
+        "actuation": _c_array(spec.actuation.parameters()),
+        "resolution": _c_double(spec.sensing.resolution),
+        "encoder_offsets": _c_array(offsets), "calibrated": robot.encoder_offsets is not None,
+        "drum_radius": _c_double(spec.actuation.drum_radius),
+        "cable_stiffness": _c_double(spec.actuation.cable_stiffness),
+        "torque_limit": _c_double(spec.actuation.parameters()[6]),
+        "length_low": _c_array(low), "length_high": _c_array(high),
+        "frame_low": _c_array(np.asarray(robot.frame_lower) + margin),
+        "frame_high": _c_array(np.asarray(robot.frame_upper) - margin),
+        "frame_margin": _c_double(limits.frame_margin),
+        "positions": positions,
+        "seeds": _c_array(seeds), "n_seeds": len(seeds),
+        "locate_iterations": LOCATE_ITERATIONS,
+        "t_min": _c_double(robot.t_min), "t_max": _c_double(robot.t_max),
+        "limits": {"max_speed": _c_double(limits.max_speed),
+                   "rate_limit": _c_double(limits.rate(robot.t_min, robot.t_max)),
+                   "late_periods": _c_double(limits.late_periods),
+                   "ramp_time": _c_double(limits.ramp_time)},
+        "faults": {name: {"bit": bit, "doc": doc} for name, (bit, doc) in FAULTS.items()},
+        "not_armed": NOT_ARMED, "invalid_argument": INVALID_ARGUMENT,
+        "design_flags": design_flags,
+        "design_flags_doc": "singular" + (" and infeasible" if planned else ""),
+        "tests": _c_cases(guard_cases(loop, functions, limits, (low, high), planned)),
+        "sil_steps": len(reference.command),
+        "flags": {name: bit for bit, name in FLAG_NAMES.items()},
+        "operations": operations, "guard_operations": guard,
+        "core_operations": core, "locate_operations": locate,
+        "plant_x": plant.x0.size, "plant_p": plant.p.size,
+        "plant_log": plant.step.size1_out(1),
+        "command_offset": plant.command_slice.start, "status_index": plant.status_index,
+        "tension_offset": plant.tension_slice.start,
+        "exact": reads_drives, "tolerance": _c_double(STATE_DESIGN_TOLERANCE),
+        "sil_duration": reference.t[-1], "stop_reason": reference.stop_reason,
+        "as_built": checked.draw_record,
+    }
