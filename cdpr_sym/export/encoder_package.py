@@ -64,8 +64,9 @@ from cdpr_sym.version import __version__
 
 #: Seconds of the reference run the package's loop reproduces, by default.
 SIL_DURATION = 3.0
-#: Largest reference run, s (its table is compiled into ``sil``).
+#: Largest reference run, s, and samples (its table is compiled into ``sil``).
 MAX_SIL_DURATION = 30.0
+MAX_SIL_STEPS = 30_000
 #: Margin of the range check of a length read beyond the frame's geometric bounds, m: the
 #: encoders' zero errors and a calibration's residual offsets.
 RANGE_MARGIN = 0.05
@@ -166,7 +167,8 @@ def export_encoder_c(robot: Robot | str | Path, controller: Controller | str,
         winches or encoders, ``duration``, ``dt``, ``prefix`` or ``out_dir``.
     """
     checked = _check(robot, controller, out_dir, calibration=calibration, as_built=as_built,
-                     seed=seed, duration=duration, dt=dt, prefix=prefix, overwrite=overwrite)
+                     seed=seed, duration=duration, dt=dt, limits=limits, prefix=prefix,
+                     overwrite=overwrite)
     model = SymbolicModel(checked.model_robot)
     spec = checked.plant.as_built
     loop = EncoderLoop(model, checked.controller, spec.sensing, spec.actuation, dt)
@@ -200,8 +202,8 @@ def export_encoder_c(robot: Robot | str | Path, controller: Controller | str,
     return EncoderExportResult(out, checked.prefix, files, context["operations"])
 
 
-def _check(robot, controller, out_dir, *, calibration, as_built, seed, duration, dt, prefix,
-           overwrite) -> _Checked:
+def _check(robot, controller, out_dir, *, calibration, as_built, seed, duration, dt, limits,
+           prefix, overwrite) -> _Checked:
     """Every argument checked (module docstring), before anything is built."""
     from cdpr_sym.as_built import load_as_built_draw
     from cdpr_sym.calibration.drawn import drawn_robot, plant_relative_to
@@ -219,8 +221,17 @@ def _check(robot, controller, out_dir, *, calibration, as_built, seed, duration,
                 or not (0 < value <= high):
             raise InvalidCase(field, f"expected a number of seconds in (0, {high}], "
                               f"got {value!r}")
+    if duration < dt:
+        raise InvalidCase("duration", f"expected at least one control period ({dt} s), got "
+                          f"{duration} s")
+    if round(duration / dt) > MAX_SIL_STEPS:
+        raise InvalidCase("duration", f"{duration} s of {dt} s periods is more than "
+                          f"{MAX_SIL_STEPS:,} samples of reference run")
+    if not isinstance(limits, GuardLimits):
+        raise InvalidCase("limits", f"expected a GuardLimits, got {limits!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise InvalidCase("seed", f"expected a whole number >= 0, got {seed!r}")
+    _check_margin(robot, limits)
     model_robot = robot
     if calibration is not None:
         model_robot = resolve_robot(Path(calibration))
@@ -245,6 +256,19 @@ def _check(robot, controller, out_dir, *, calibration, as_built, seed, duration,
     plant = drawn.plant if calibration is None else plant_relative_to(robot, drawn.plant,
                                                                       model_robot)
     return _Checked(robot, model_robot, controller, label, plant, drawn.record, prefix, out)
+
+
+def _check_margin(robot: Robot, limits: GuardLimits) -> None:
+    """The case's start and goal must lie inside the frame shrunk by the guard's margin."""
+    margin = np.array([limits.frame_margin if j < robot.dimension else 0.0
+                       for j in range(robot.n)])
+    lower = np.asarray(robot.frame_lower) + margin
+    upper = np.asarray(robot.frame_upper) - margin
+    for name, pose in (("start", robot.start), ("goal", robot.goal)):
+        if not np.all((pose >= lower) & (pose <= upper)):
+            raise InvalidCase("frame_margin", f"the case's {name} {np.round(pose, 4).tolist()} "
+                              f"is within {limits.frame_margin} m of the frame's faces, where "
+                              f"the guard stops the robot")
 
 
 def _make_folder_check(out: Path, overwrite: bool) -> None:

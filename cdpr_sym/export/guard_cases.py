@@ -21,6 +21,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.control.flags import FLAG_INFEASIBLE
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export.encoder_loop import EncoderLoop, locate_seeds
 from cdpr_sym.export.guard import GuardLimits
 
@@ -80,7 +81,9 @@ def _frame_case(robot, limits, counts, located):
             found = located(counts(pose))
             if found is not None and np.allclose(found, pose, atol=limits.frame_margin / 4):
                 return counts(pose), f"coordinate {axis} half the margin inside the frame"
-    raise AssertionError("no pose within the frame margin is found by the global start")
+    raise InvalidCase("frame_margin", f"no pose within {limits.frame_margin} m of {robot.name}'s "
+                      f"frame is found by the global start, so the guard test cannot trip "
+                      f"the frame fault; choose another margin")
 
 
 def _lost_case(robot, counts, located, in_range):
@@ -94,7 +97,9 @@ def _lost_case(robot, counts, located, in_range):
             reading = counts(pose)
             if in_range(reading) and located(reading) is None:
                 return reading, f"coordinate {axis} 3 cm outside the frame"
-    raise AssertionError("no pose outside the frame escapes the global start")
+    raise InvalidCase("robot", f"every pose 3 cm outside {robot.name}'s frame passes the range "
+                      f"check or is read as a pose of the frame, so the guard test cannot "
+                      f"trip the pose fault")
 
 
 def _infeasible_goal(loop, functions, counts, limits):
