@@ -81,28 +81,25 @@ def winch_package(tmp_path_factory):
     return result, _build(result.out_dir, root / "build")
 
 
-def test_software_in_the_loop_reproduces_the_python_run_bit_for_bit(winch_package):
-    _, build = winch_package
+def test_the_package_runs_its_loop_bit_for_bit_trips_every_guard_and_times_itself(
+        winch_package):
+    """One test for the built package (one build, on one worker of the quick suite)."""
+    result, build = winch_package
+    # software in the loop, against the table compiled in ...
     report = json.loads(_run([build / "sil"]))
     assert report["agrees"] and report["exact"]
     assert report["pose_error"] == 0.0 and report["command_error"] == 0.0
+    assert report["torque_error"] == 0.0
     assert report["steps"] == report["reference_steps"] == 3000
-    # against a run made anew, not the one compiled into the package
+    # ... and against a run made anew, not the one compiled into the package
     python = _python_run("aras3", "ida-winch")
-    final = np.array(report["final_pose"])
-    np.testing.assert_array_equal(final, python.q[-1])
+    np.testing.assert_array_equal(np.array(report["final_pose"]), python.q[-1])
     np.testing.assert_array_equal(np.array(report["final_command"]), python.command[-1])
-
-
-def test_every_guard_path_trips_its_fault_and_recovers(winch_package):
-    _, build = winch_package
+    # every guard path
     results = {line["test"]: line["passed"] for line in _json_lines(_run([build / "guard_test"]))}
     assert set(results) == GUARD_TESTS
     assert all(results.values()), [name for name, passed in results.items() if not passed]
-
-
-def test_ctest_runs_the_loop_the_guard_and_the_timing(winch_package):
-    result, build = winch_package
+    # ctest runs the three; the timing program's JSON and the header's static count
     log = _run([_tool("ctest"), "--test-dir", build, "--output-on-failure"])
     assert "100% tests passed, 0 tests failed out of 3" in log
     timing = json.loads(_run([build / "timing", "2000"]))
@@ -112,6 +109,13 @@ def test_ctest_runs_the_loop_the_guard_and_the_timing(winch_package):
     header = result.header.read_text()
     count = int(re.search(r"_SAMPLE_OPERATIONS (\d+)", header).group(1))
     assert timing["operations"] == count == result.operations["sample"]
+    upper = result.prefix.upper()
+    for name, (bit, _) in FAULTS.items():
+        assert f"#define {upper}_FAULT_{name.upper()} {bit} " in header
+    for call in ("_init(", "_reset(", "_sample(", "_clear_fault("):
+        assert f"int {result.prefix}{call}" in header
+    assert "malloc" not in "".join(path.read_text() for path in result.files.values()
+                                   if path.suffix in (".c", ".h", ".inc"))
 
 
 @pytest.mark.slow  # ~11 s of compiling
@@ -125,18 +129,6 @@ def test_controller_sources_build_strict(winch_package, tmp_path):
                         ("guard_test.c", ()), ("timing.c", ())):
         _run([gcc, *STRICT, *extra, "-ffp-contract=off", "-I", result.out_dir, "-c",
               result.out_dir / name, "-o", tmp_path / f"{name}.o"])
-
-
-def test_header_states_every_fault_and_the_operation_counts(winch_package):
-    result, _ = winch_package
-    header = result.header.read_text()
-    upper = result.prefix.upper()
-    for name, (bit, _) in FAULTS.items():
-        assert f"#define {upper}_FAULT_{name.upper()} {bit} " in header
-    for call in ("_init(", "_reset(", "_sample(", "_clear_fault("):
-        assert f"int {result.prefix}{call}" in header
-    assert "malloc" not in "".join(path.read_text() for path in result.files.values()
-                                   if path.suffix in (".c", ".h", ".inc"))
 
 
 def test_operation_count_counts_arithmetic_only():
