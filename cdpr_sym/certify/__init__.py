@@ -1,0 +1,1 @@
+"""Certified verdicts: interval evaluation of CasADi functions and proofs over boxes."""
