@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cdpr_sym.cli.calibrate import calibrate_command
+from cdpr_sym.cli.certify import certify_command
 from cdpr_sym.cli.output import Output, quantity, yes_no
 from cdpr_sym.cli.parser import MAX_WORKERS
 from cdpr_sym.cli.robots import checked_robot
@@ -346,4 +347,5 @@ def _check_folder(field: str, folder: Path) -> None:
 
 HANDLERS = {"simulate": simulate_command, "study": study_command, "bench": bench_command,
             "workspace": workspace_command, "sweep": sweep_command, "report": report_command,
-            "export-c": export_command, "calibrate": calibrate_command}
+            "export-c": export_command, "calibrate": calibrate_command,
+            "certify": certify_command}

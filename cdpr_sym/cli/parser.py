@@ -189,6 +189,8 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--seed", type=int, default=0,
                         help="with --from-encoders: seed of the as-built draw")
     from cdpr_sym.cli.calibrate import add_parser as add_calibrate
+    from cdpr_sym.cli.certify import add_parser as add_certify
 
     add_calibrate(command)
+    add_certify(command)
     return parser

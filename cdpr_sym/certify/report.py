@@ -1,0 +1,115 @@
+"""A certified workspace written out: its boxes, its summary, a figure, and the sampled check.
+
+``DIR/boxes.csv`` (one row per box: ``lower_<name>``, ``upper_<name>`` per position
+coordinate, ``verdict``), ``DIR/certificate.json`` (the shares of the frame's volume, the
+time, the sampled check) and ``DIR/workspace.png`` (the boxes cut by a plane through the
+case's start, or the boxes themselves for a planar robot).
+
+The sampled check draws poses uniformly over the frame in two steps (a box with probability
+proportional to its volume, then a point uniform in it), so each pose's box is known; it
+computes the static tension of each by a numeric solve of W T = grad V (CasADi's model
+functions evaluated at points, LU in numpy, not the interval code) and counts the poses
+whose box's verdict it contradicts. A proof is sound only if that count is zero.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.certify.workspace import WorkspaceCertificate
+from cdpr_sym.model import SymbolicModel
+
+
+def sampled_check(certificate: WorkspaceCertificate, samples: int,
+                  rng: np.random.Generator) -> dict[str, Any]:
+    """The sampled check of the module docstring: poses, disagreements by verdict, and the
+    share of sampled poses found feasible in undecided boxes."""
+    robot = certificate.robot
+    volumes = certificate.volumes()
+    boxes = rng.choice(len(volumes), size=samples, p=volumes / volumes.sum())
+    lower, upper = certificate.lower[boxes], certificate.upper[boxes]
+    positions = lower + (upper - lower) * rng.random(lower.shape)
+    model = SymbolicModel(robot)
+    q = ca.SX.sym("q", robot.n)
+    terms = ca.Function("terms", [q], [model.structure_matrix(q), model.grad_potential(q)])
+    feasible = np.zeros(samples, dtype=bool)
+    for start in range(0, samples, 100_000):
+        chunk = positions[start:start + 100_000]
+        poses = np.hstack([chunk, np.tile(certificate.orientation, (len(chunk), 1))])
+        W, gravity = terms.map(len(chunk))(poses.T)
+        W = np.array(W).T.reshape(len(chunk), robot.n, robot.m).transpose(0, 2, 1)
+        tension = np.linalg.solve(W, np.array(gravity).T[..., None])[..., 0]
+        feasible[start:start + len(chunk)] = np.all(
+            (tension >= robot.t_min) & (tension <= robot.t_max), axis=1)
+    verdicts = certificate.verdicts[boxes]
+    return {"samples": int(samples),
+            "disagreements_feasible": int(np.sum((verdicts == "feasible") & ~feasible)),
+            "disagreements_infeasible": int(np.sum((verdicts == "infeasible") & feasible)),
+            "sampled_feasible_share": float(feasible.mean()),
+            "undecided_sampled": int(np.sum(verdicts == "undecided"))}
+
+
+def summary(certificate: WorkspaceCertificate, check: dict[str, Any] | None) -> dict[str, Any]:
+    """certificate.json's content."""
+    shares = certificate.shares()
+    return {"robot": certificate.robot.name, "property": "static feasibility: the unique "
+            "tension W^-1 grad V in [T_min, T_max] on every cable",
+            "coordinates": list(certificate.names),
+            "orientation": certificate.orientation.tolist(),
+            "min_width_m": certificate.min_width, "boxes": len(certificate.verdicts),
+            "boxes_evaluated": certificate.evaluated, "seconds": certificate.seconds,
+            "feasible_share": shares["feasible"], "infeasible_share": shares["infeasible"],
+            "undecided_share": shares["undecided"],
+            "decided_share": shares["feasible"] + shares["infeasible"],
+            "sampled_check": check}
+
+
+def write_certificate(certificate: WorkspaceCertificate, out: Path,
+                      check: dict[str, Any] | None) -> dict[str, Any]:
+    """boxes.csv, certificate.json and workspace.png in ``out``; returns the summary."""
+    out.mkdir(parents=True, exist_ok=True)
+    certificate.write_csv(out / "boxes.csv")
+    content = summary(certificate, check)
+    (out / "certificate.json").write_text(json.dumps(content, indent=2) + "\n")
+    figure(certificate, out / "workspace.png")
+    return content
+
+
+_COLOURS = {"feasible": "#4c9a2a", "infeasible": "#d9d9d9", "undecided": "#d62728"}
+
+
+def figure(certificate: WorkspaceCertificate, path: Path) -> None:
+    """The boxes in the plane of the first two position coordinates, cut at the case's
+    start height for a spatial robot."""
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Rectangle
+
+    lower, upper, verdicts = certificate.lower, certificate.upper, certificate.verdicts
+    title = f"{certificate.robot.name}: certified static workspace"
+    if lower.shape[1] == 3:
+        height = certificate.robot.start[2]
+        cut = (lower[:, 2] <= height) & (upper[:, 2] >= height)
+        lower, upper, verdicts = lower[cut], upper[cut], verdicts[cut]
+        title += f" at {certificate.names[2]} = {height:g} m"
+    fig = Figure(figsize=(6.5, 5.5))
+    ax = fig.add_subplot()
+    for verdict, colour in _COLOURS.items():
+        chosen = verdicts == verdict
+        for lo, hi in zip(lower[chosen], upper[chosen], strict=True):
+            ax.add_patch(Rectangle((lo[0], lo[1]), hi[0] - lo[0], hi[1] - lo[1],
+                                   facecolor=colour, edgecolor="none"))
+        ax.plot([], [], "s", color=colour, label=verdict)
+    frame_lower, frame_upper = certificate.robot.frame_lower, certificate.robot.frame_upper
+    ax.set_xlim(frame_lower[0], frame_upper[0])
+    ax.set_ylim(frame_lower[1], frame_upper[1])
+    ax.set_aspect("equal")
+    ax.set_xlabel(f"{certificate.names[0]} (m)")
+    ax.set_ylabel(f"{certificate.names[1]} (m)")
+    ax.set_title(title, fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
+    fig.savefig(path, dpi=110)

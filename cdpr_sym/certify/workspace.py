@@ -1,0 +1,256 @@
+"""Certified static workspace: boxes of the frame proven feasible, proven infeasible, or
+left undecided at a minimum width.
+
+**Property certified** (m = n, at a stated orientation for a rigid body): a pose q is
+*statically feasible* when the unique tension holding the platform at rest there,
+T = W(q)^{-1} grad V(q), lies in [T_min, T_max] on every cable. By Cramer's rule
+T_i = N_i / D with D = det W and N_i the determinant of W with column i replaced by grad V,
+so on a box where D keeps one sign s:
+
+* every pose of the box is feasible iff s (N_i - T_min D) >= 0 and s (T_max D - N_i) >= 0
+  for every i, which the interval enclosures prove when their lower bounds are >= 0;
+* every pose is infeasible when, for some i, one of these is < 0 on the whole box (an
+  upper bound < 0).
+
+These margins are polynomials of W's entries, free of the division's dependency; each is
+enclosed by the mean-value form (:func:`~cdpr_sym.certify.evaluate.centred`) intersected
+with the natural extension, rounded outward (:mod:`cdpr_sym.certify.interval`). A box whose
+D may vanish (a singularity in it) or whose margins are not decided is bisected along its
+widest coordinate (in metres) until it is narrower than the minimum width, and then reported
+undecided. The branch-and-bound evaluates a whole level of boxes in one numpy pass.
+
+What is not certified here: robots of more than :data:`CRAMER_UP_TO` degrees of freedom (an
+interval linear solver, preconditioned Gauss-Seidel or Krawczyk, would serve them), the
+wrench-feasible workspace (an external wrench), more cables than degrees of freedom (the
+tension-distribution feasibility), orientation ranges.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.certify.evaluate import centred
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot import Robot
+
+VERDICTS = ("feasible", "infeasible", "undecided")
+#: Largest n certified: the margins are Cramer's polynomials, whose determinants by minors
+#: grow as n!. (The tension of CasADi's symbolic QR solve, tried for spatial6, encloses
+#: +-0.26 N on a box 2 um wide and the whole line at 1 mm: its divisions' dependency.)
+CRAMER_UP_TO = 3
+#: Most boxes one level of the branch-and-bound may hold (memory: a few hundred bytes each
+#: per margin).
+MAX_LEVEL_BOXES = 4_000_000
+
+
+@dataclasses.dataclass(frozen=True)
+class WorkspaceCertificate:
+    """The boxes of a certified static workspace.
+
+    Attributes
+    ----------
+    robot : Robot
+    names : tuple of str
+        The position coordinates the boxes span.
+    orientation : ndarray
+        The fixed orientation (rad; empty for a point mass).
+    lower, upper : ndarray, shape (boxes, d)
+        The boxes' corners, m.
+    verdicts : ndarray of str, shape (boxes,)
+        ``feasible``, ``infeasible`` or ``undecided``.
+    min_width : float
+        m.
+    seconds : float
+        Wall-clock time of the branch-and-bound.
+    evaluated : int
+        Boxes evaluated over all levels.
+    """
+
+    robot: Robot
+    names: tuple[str, ...]
+    orientation: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    verdicts: np.ndarray
+    min_width: float
+    seconds: float
+    evaluated: int
+
+    def volumes(self) -> np.ndarray:
+        return np.prod(self.upper - self.lower, axis=1)
+
+    def shares(self) -> dict[str, float]:
+        """Each verdict's share of the frame's volume."""
+        volume = self.volumes()
+        total = volume.sum()
+        return {verdict: float(volume[self.verdicts == verdict].sum() / total)
+                for verdict in VERDICTS}
+
+    def verdict_at(self, points: np.ndarray) -> np.ndarray:
+        """The verdict of the box holding each point (rows of positions, m); "" outside every
+        box. A point on a shared face takes the first box's verdict."""
+        points = np.atleast_2d(points)
+        found = np.full(len(points), "", dtype=object)
+        order = np.lexsort(self.lower.T[::-1])
+        lower, upper, verdicts = self.lower[order], self.upper[order], self.verdicts[order]
+        for start in range(0, len(points), 2048):
+            chunk = points[start:start + 2048]
+            inside = np.all((chunk[:, None, :] >= lower[None]) & (chunk[:, None, :] <= upper[None]),
+                            axis=2)
+            hit = inside.argmax(axis=1)
+            found[start:start + 2048] = np.where(inside.any(axis=1), verdicts[hit], "")
+        return found
+
+    def write_csv(self, path: Path) -> None:
+        """``boxes.csv``: lower_<name>, upper_<name> per position coordinate, verdict."""
+        header = [f"lower_{name}" for name in self.names] + [
+            f"upper_{name}" for name in self.names] + ["verdict"]
+        rows = [",".join(header)]
+        for lo, hi, verdict in zip(self.lower, self.upper, self.verdicts, strict=True):
+            rows.append(",".join([*(repr(float(v)) for v in lo), *(repr(float(v)) for v in hi),
+                                  verdict]))
+        path.write_text("\n".join(rows) + "\n")
+
+
+def margin_function(model: SymbolicModel, orientation: np.ndarray) -> ca.Function:
+    """positions (d) -> [D, N_i - T_min D (n), T_max D - N_i (n)] at the fixed
+    ``orientation`` (see the module docstring)."""
+    robot = model.robot
+    d = robot.dimension
+    position = ca.SX.sym("p", d)
+    q = ca.vertcat(position, ca.DM(orientation)) if len(orientation) else position
+    W = model.structure_matrix(q)
+    gravity = model.grad_potential(q)
+    determinant = ca.det(W)
+    numerators = []
+    for i in range(model.n):
+        replaced = ca.horzcat(*(gravity if j == i else W[:, j] for j in range(model.n)))
+        numerators.append(ca.det(replaced))
+    numerator = ca.vertcat(*numerators)
+    return ca.Function("margins", [position],
+                       [ca.vertcat(determinant, numerator - robot.t_min * determinant,
+                                   robot.t_max * determinant - numerator)])
+
+
+def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.005,
+                      until: float = 1.0, compiled: bool = True,
+                      progress=None) -> WorkspaceCertificate:
+    """The certified static workspace of ``robot`` over its frame (module docstring).
+
+    Parameters
+    ----------
+    robot : Robot
+        m = n.
+    orientation : sequence of float, optional
+        The fixed orientation of a rigid body, rad (default the case's start's).
+    min_width : float
+        Boxes narrower than this (m, widest side) are not bisected further.
+    until : float
+        Stop refining once this share of the frame's volume is decided (1.0: refine every
+        undecided box down to ``min_width``); the boxes left are reported undecided.
+    compiled : bool
+        Evaluate the margins in generated C (:mod:`cdpr_sym.certify.interval_c`); False:
+        numpy (:mod:`cdpr_sym.certify.evaluate`), about eight times slower, the same
+        enclosures within a few ulps.
+    progress : callable, optional
+        Called with (level, boxes at that level, decided volume share so far).
+
+    Raises
+    ------
+    InvalidCase
+        More cables than degrees of freedom (``robot``), an orientation of the wrong size or
+        outside the frame (``orientation``), a minimum width not positive (``min_width``).
+    """
+    if robot.m != robot.n or robot.n > CRAMER_UP_TO:
+        raise InvalidCase("robot", f"{robot.name} has {robot.m} cables for {robot.n} degrees "
+                          f"of freedom; the certified workspace covers m = n <= "
+                          f"{CRAMER_UP_TO} so far")
+    if isinstance(min_width, bool) or not isinstance(min_width, (int, float)) \
+            or not 0 < min_width < float("inf"):
+        raise InvalidCase("min_width", f"expected a positive width in m, got {min_width!r}")
+    d = robot.dimension
+    rotations = robot.n - d
+    orientation = (np.asarray(robot.start[d:], dtype=float) if orientation is None
+                   else np.asarray(orientation, dtype=float).ravel())
+    if orientation.size != rotations or not np.all(np.isfinite(orientation)):
+        raise InvalidCase("orientation", f"expected {rotations} finite angles (rad), got "
+                          f"{orientation.tolist()}")
+    if rotations and not np.all((orientation >= robot.frame_lower[d:])
+                                & (orientation <= robot.frame_upper[d:])):
+        raise InvalidCase("orientation", f"{orientation.tolist()} is outside the frame's "
+                          f"angle ranges")
+    if isinstance(until, bool) or not isinstance(until, (int, float)) or not 0 < until <= 1:
+        raise InvalidCase("until", f"expected a share in (0, 1], got {until!r}")
+    model = SymbolicModel(robot)
+    function = margin_function(model, orientation)
+    if compiled:
+        from cdpr_sym.certify.interval_c import CompiledIntervalFunction
+
+        margins = CompiledIntervalFunction(function, centred=True)
+    else:
+        margins = centred(function)
+    started = time.perf_counter()
+    lower = np.asarray(robot.frame_lower[:d], dtype=float)[None, :]
+    upper = np.asarray(robot.frame_upper[:d], dtype=float)[None, :]
+    decided_lower, decided_upper, decided = [], [], []
+    evaluated, level, total = 0, 0, float(np.prod(upper - lower))
+    done_volume = 0.0
+    while len(lower):
+        if len(lower) > MAX_LEVEL_BOXES:
+            raise InvalidCase("min_width", f"{len(lower):,} boxes at one level; choose a "
+                              f"larger minimum width than {min_width} m")
+        evaluated += len(lower)
+        verdict = _verdicts(margins((lower.T, upper.T))[0], robot.n)
+        widths = upper - lower
+        final = (verdict != 2) | (widths.max(axis=1) <= min_width)
+        undecided_volume = float(np.prod(widths[verdict == 2], axis=1).sum())
+        if done_volume + float(np.prod(widths[verdict != 2], axis=1).sum()) >= until * total \
+                or not undecided_volume:
+            final[:] = True
+        decided_lower.append(lower[final])
+        decided_upper.append(upper[final])
+        decided.append(verdict[final])
+        done_volume += float(np.prod(widths[final & (verdict != 2)], axis=1).sum())
+        if progress is not None:
+            progress(level, len(lower), done_volume / total)
+        lower, upper = _bisect(lower[~final], upper[~final])
+        level += 1
+    seconds = time.perf_counter() - started
+    names = tuple(robot.coordinate_names[:d])
+    codes = np.concatenate(decided)
+    return WorkspaceCertificate(robot, names, orientation, np.vstack(decided_lower),
+                                np.vstack(decided_upper),
+                                np.array(VERDICTS, dtype=object)[codes], float(min_width),
+                                seconds, evaluated)
+
+
+def _verdicts(bounds, n: int) -> np.ndarray:
+    """0 feasible, 1 infeasible, 2 undecided, per box, from the margins' enclosures."""
+    lo, hi = bounds
+    det_lo, det_hi = lo[0], hi[0]
+    positive, negative = det_lo > 0, det_hi < 0
+    # s * margin for the sign s of D: lower and upper bounds
+    m_lo = np.where(positive, lo[1:], -hi[1:])
+    m_hi = np.where(positive, hi[1:], -lo[1:])
+    regular = positive | negative
+    feasible = regular & np.all(m_lo >= 0, axis=0)
+    infeasible = regular & np.any(m_hi < 0, axis=0)
+    return np.where(feasible, 0, np.where(infeasible, 1, 2))
+
+
+def _bisect(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each box halved along its widest side."""
+    if not len(lower):
+        return lower, upper
+    axis = np.argmax(upper - lower, axis=1)
+    middle = 0.5 * (lower[np.arange(len(lower)), axis] + upper[np.arange(len(lower)), axis])
+    left_upper, right_lower = upper.copy(), lower.copy()
+    left_upper[np.arange(len(lower)), axis] = middle
+    right_lower[np.arange(len(lower)), axis] = middle
+    return np.vstack([lower, right_lower]), np.vstack([left_upper, upper])

@@ -1,0 +1,141 @@
+"""The certified static workspace: every sampled pose agrees with its box's verdict (an
+independent numpy derivation of W), a broken bound is caught by the sampled check, the
+generated C encloses as the numpy walk does, and the command writes what it says."""
+
+from __future__ import annotations
+
+import csv
+import json
+from fractions import Fraction
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from cdpr_sym.certify import workspace as certified
+from cdpr_sym.certify.evaluate import IntervalFunction
+from cdpr_sym.certify.interval_c import CompiledIntervalFunction
+from cdpr_sym.certify.report import sampled_check
+from cdpr_sym.cli import main
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot import preset
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def _numpy_feasible(robot, positions: np.ndarray) -> np.ndarray:
+    """Static feasibility of a point mass, derived here: W's columns are the unit vectors
+    towards the anchors, grad V = m g along the last axis."""
+    towards = robot.anchors[None, :, :] - positions[:, None, :]  # (poses, cables, d)
+    W = (towards / np.linalg.norm(towards, axis=2, keepdims=True)).transpose(0, 2, 1)
+    weight = np.zeros(robot.dimension)
+    weight[-1] = robot.mass * robot.gravity
+    tension = np.linalg.solve(W, np.broadcast_to(weight, positions.shape)[..., None])[..., 0]
+    return np.all((tension >= robot.t_min) & (tension <= robot.t_max), axis=1)
+
+
+def _uniform_in_boxes(certificate, samples, rng):
+    volumes = certificate.volumes()
+    boxes = rng.choice(len(volumes), size=samples, p=volumes / volumes.sum())
+    lower, upper = certificate.lower[boxes], certificate.upper[boxes]
+    return lower + (upper - lower) * rng.random(lower.shape), certificate.verdicts[boxes]
+
+
+@pytest.mark.parametrize(("robot_name", "min_width"), [("planar2", 0.005), ("aras3", 0.05)])
+def test_every_sampled_pose_agrees_with_its_box(robot_name, min_width, rng):
+    robot = preset(robot_name)
+    certificate = certified.certify_workspace(robot, min_width=min_width)
+    positions, verdicts = _uniform_in_boxes(certificate, 200_000, rng)
+    feasible = _numpy_feasible(robot, positions)
+    assert not np.any(feasible[verdicts == "infeasible"])
+    assert np.all(feasible[verdicts == "feasible"])
+    shares = certificate.shares()
+    assert shares["undecided"] < (0.01 if robot_name == "planar2" else 0.05)
+    # the boxes tile the frame
+    frame = np.prod(np.asarray(robot.frame_upper) - np.asarray(robot.frame_lower))
+    assert certificate.volumes().sum() == pytest.approx(frame, rel=1e-12)
+
+
+def test_the_sampled_check_catches_a_bound_that_is_too_tight(monkeypatch, rng):
+    """Enclosures shrunk by a third of their width from each side (the determinant's row
+    kept): a wrong proof, which the sampled check must report."""
+    original = certified._verdicts
+
+    def too_tight(bounds, n):
+        lo, hi = bounds
+        width = np.where(np.isfinite(hi - lo), hi - lo, 0.0)
+        lo, hi = lo.copy(), hi.copy()
+        lo[1:] += width[1:] / 3
+        hi[1:] -= width[1:] / 3
+        return original((lo, hi), n)
+
+    robot = preset("planar2")
+    monkeypatch.setattr(certified, "_verdicts", too_tight)
+    broken = certified.certify_workspace(robot, min_width=0.01)
+    check = sampled_check(broken, 100_000, rng)
+    assert check["disagreements_feasible"] + check["disagreements_infeasible"] > 0
+
+
+def test_compiled_and_numpy_walks_agree_and_a_missing_rounding_is_caught(rng):
+    x = ca.SX.sym("x", 2)
+    function = ca.Function("f", [x], [ca.vertcat(x[0] + x[1], x[0] * x[1], x[0] / x[1],
+                                                 ca.sqrt(x[0] * x[0] + x[1] * x[1]))])
+    a = rng.uniform(0.1, 1, 3000) * 10.0 ** rng.integers(-6, 7, 3000)
+    b = rng.uniform(0.1, 1, 3000) * 10.0 ** rng.integers(-6, 7, 3000)
+    points = np.vstack([a, b])
+    exact = [lambda p, q: p + q, lambda p, q: p * q, lambda p, q: p / q]
+
+    def misses(evaluate) -> int:
+        lo, hi = evaluate((points, points))[0]
+        count = 0
+        for row, operation in enumerate(exact):
+            for k in range(points.shape[1]):
+                value = operation(Fraction(a[k]), Fraction(b[k]))
+                count += not Fraction(lo[row, k]) <= value <= Fraction(hi[row, k])
+        return count
+
+    assert misses(CompiledIntervalFunction(function)) == 0
+    assert misses(IntervalFunction(function)) == 0
+    assert misses(CompiledIntervalFunction(function, rounding=False)) > 100
+    c_lo, c_hi = CompiledIntervalFunction(function)((points - 1e-3, points + 1e-3))[0]
+    p_lo, p_hi = IntervalFunction(function)((points - 1e-3, points + 1e-3))[0]
+    np.testing.assert_allclose(c_lo, p_lo, rtol=1e-14, atol=1e-300)
+    np.testing.assert_allclose(c_hi, p_hi, rtol=1e-14, atol=1e-300)
+
+
+def test_refusals_name_their_field():
+    with pytest.raises(InvalidCase, match="robot:"):
+        certified.certify_workspace(preset("planar4"))
+    with pytest.raises(InvalidCase, match="robot:"):
+        certified.certify_workspace(preset("spatial6"))
+    with pytest.raises(InvalidCase, match="min_width:"):
+        certified.certify_workspace(preset("planar2"), min_width=0.0)
+    with pytest.raises(InvalidCase, match="until:"):
+        certified.certify_workspace(preset("planar2"), until=1.5)
+    with pytest.raises(InvalidCase, match="orientation:"):
+        certified.certify_workspace(preset("planar3"), orientation=[0.0, 1.0])
+
+
+def test_command_writes_boxes_certificate_and_figure(capsys, tmp_path):
+    out = tmp_path / "certified"
+    status = main(["certify", "workspace", "--robot", "planar3", "--min-width", "0.02",
+                   "--samples", "20000", "--json", "--out", str(out)])
+    result = json.loads(capsys.readouterr().out)
+    assert status == 0
+    assert result["sampled_check"]["disagreements_feasible"] == 0
+    assert result["sampled_check"]["disagreements_infeasible"] == 0
+    assert result["decided_share"] > 0.95
+    with open(out / "boxes.csv") as table:
+        rows = list(csv.DictReader(table))
+    assert set(rows[0]) == {"lower_x", "lower_z", "upper_x", "upper_z", "verdict"}
+    assert {row["verdict"] for row in rows} <= {"feasible", "infeasible", "undecided"}
+    assert len(rows) == result["boxes"]
+    assert (out / "workspace.png").read_bytes()[:8] == PNG
+
+
+def test_command_refuses_bad_input_in_one_line(capsys, tmp_path):
+    status = main(["certify", "workspace", "--robot", "aras3", "--samples", "-3",
+                   "--out", str(tmp_path / "c")])
+    err = capsys.readouterr().err.strip()
+    assert status == 2 and err.count("\n") == 0 and "samples:" in err
+    assert not (tmp_path / "c").exists()
