@@ -15,6 +15,7 @@ import pytest
 from cdpr_sym.certify import workspace as certified
 from cdpr_sym.certify.evaluate import IntervalFunction
 from cdpr_sym.certify.interval_c import CompiledIntervalFunction
+from cdpr_sym.certify.linear import enclose_solutions
 from cdpr_sym.certify.report import sampled_check
 from cdpr_sym.cli import main
 from cdpr_sym.errors import InvalidCase
@@ -107,7 +108,7 @@ def test_refusals_name_their_field():
     with pytest.raises(InvalidCase, match="robot:"):
         certified.certify_workspace(preset("planar4"))
     with pytest.raises(InvalidCase, match="robot:"):
-        certified.certify_workspace(preset("spatial6"))
+        certified.certify_workspace(preset("ipanema8"))
     with pytest.raises(InvalidCase, match="min_width:"):
         certified.certify_workspace(preset("planar2"), min_width=0.0)
     with pytest.raises(InvalidCase, match="until:"):
@@ -139,3 +140,38 @@ def test_command_refuses_bad_input_in_one_line(capsys, tmp_path):
     err = capsys.readouterr().err.strip()
     assert status == 2 and err.count("\n") == 0 and "samples:" in err
     assert not (tmp_path / "c").exists()
+
+
+def test_krawczyk_encloses_every_solution_of_the_interval_system(rng):
+    """Random well-conditioned 6 x 6 interval systems: the solutions of 400 sampled members
+    lie in the enclosure, and the enclosure is not loose by more than a few radii."""
+    n, boxes = 6, 50
+    centre = rng.normal(size=(boxes, n, n)) + 4 * np.eye(n)
+    radius = 1e-3 * rng.random((boxes, n, n))
+    b_centre, b_radius = rng.normal(size=(boxes, n)), 1e-3 * rng.random((boxes, n))
+    x_lo, x_hi, regular = enclose_solutions(centre - radius, centre + radius,
+                                            b_centre - b_radius, b_centre + b_radius)
+    assert regular.all()
+    seen_lo, seen_hi = np.full((boxes, n), np.inf), np.full((boxes, n), -np.inf)
+    for _ in range(400):
+        A = centre + radius * rng.uniform(-1, 1, (boxes, n, n))
+        b = b_centre + b_radius * rng.uniform(-1, 1, (boxes, n))
+        x = np.linalg.solve(A, b[..., None])[..., 0]
+        assert np.all((x >= x_lo) & (x <= x_hi))
+        seen_lo, seen_hi = np.minimum(seen_lo, x), np.maximum(seen_hi, x)
+    # not loose: within a small factor of the hull of the sampled solutions
+    assert np.all(x_hi - x_lo <= 10 * (seen_hi - seen_lo) + 1e-9)
+    # a singular member: nothing is proven
+    singular = np.zeros((1, n, n))
+    lo, hi, ok = enclose_solutions(singular - 1e-3, singular + 1e-3, np.zeros((1, n)),
+                                   np.ones((1, n)))
+    assert not ok[0] and np.all(lo == -np.inf) and np.all(hi == np.inf)
+
+
+@pytest.mark.slow  # about three minutes on one core
+def test_a_six_dof_workspace_is_decided_and_agrees_with_samples(rng):
+    robot = preset("spatial6")
+    certificate = certified.certify_workspace(robot, min_width=0.005, until=0.95)
+    assert certificate.shares()["undecided"] <= 0.05
+    check = sampled_check(certificate, 200_000, rng)
+    assert check["disagreements_feasible"] == check["disagreements_infeasible"] == 0

@@ -17,7 +17,8 @@ PACKAGE = Path(__file__).parents[1] / "cdpr_sym"
 #: Stages from the ground up; a module may import only its own stage and lower ones.
 STAGES = (("errors", "version"), ("robot",), ("linalg",), ("distribution",), ("model",),
           ("as_built",), ("codegen",),
-          ("control",), ("results",), ("closed_loop",), ("workspace",), ("calibration",),
+          ("control",), ("results",), ("closed_loop",), ("workspace",), ("certify",),
+          ("calibration",),
           ("sweep",), ("reporting",),
           ("export",), ("studies",), ("cli",), ("__main__", "__init__"))
 LEVEL = {name: level for level, names in enumerate(STAGES) for name in names}

@@ -19,10 +19,12 @@ D may vanish (a singularity in it) or whose margins are not decided is bisected 
 widest coordinate (in metres) until it is narrower than the minimum width, and then reported
 undecided. The branch-and-bound evaluates a whole level of boxes in one numpy pass.
 
-What is not certified here: robots of more than :data:`CRAMER_UP_TO` degrees of freedom (an
-interval linear solver, preconditioned Gauss-Seidel or Krawczyk, would serve them), the
-wrench-feasible workspace (an external wrench), more cables than degrees of freedom (the
-tension-distribution feasibility), orientation ranges.
+For more than :data:`CRAMER_UP_TO` degrees of freedom the entries of W and grad V are
+enclosed instead, and the interval system [W] T = [grad V] solved by Krawczyk's method
+(:mod:`cdpr_sym.certify.linear`), which proves W regular on the box or decides nothing.
+
+What is not certified here: the wrench-feasible workspace (an external wrench), more cables
+than degrees of freedom (the tension-distribution feasibility), orientation ranges.
 """
 
 from __future__ import annotations
@@ -40,9 +42,10 @@ from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
 
 VERDICTS = ("feasible", "infeasible", "undecided")
-#: Largest n certified: the margins are Cramer's polynomials, whose determinants by minors
-#: grow as n!. (The tension of CasADi's symbolic QR solve, tried for spatial6, encloses
-#: +-0.26 N on a box 2 um wide and the whole line at 1 mm: its divisions' dependency.)
+#: Largest n decided by Cramer's polynomial margins (determinants by minors grow as n!);
+#: beyond, by Krawczyk's method on the interval system [W] T = [grad V]. (The tension of
+#: CasADi's symbolic QR solve, tried for spatial6, encloses +-0.26 N on a box 2 um wide and
+#: the whole line at 1 mm: its divisions' dependency.)
 CRAMER_UP_TO = 3
 #: Most boxes one level of the branch-and-bound may hold (memory: a few hundred bytes each
 #: per margin).
@@ -167,10 +170,9 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
         More cables than degrees of freedom (``robot``), an orientation of the wrong size or
         outside the frame (``orientation``), a minimum width not positive (``min_width``).
     """
-    if robot.m != robot.n or robot.n > CRAMER_UP_TO:
+    if robot.m != robot.n:
         raise InvalidCase("robot", f"{robot.name} has {robot.m} cables for {robot.n} degrees "
-                          f"of freedom; the certified workspace covers m = n <= "
-                          f"{CRAMER_UP_TO} so far")
+                          f"of freedom; the certified workspace covers m = n so far")
     if isinstance(min_width, bool) or not isinstance(min_width, (int, float)) \
             or not 0 < min_width < float("inf"):
         raise InvalidCase("min_width", f"expected a positive width in m, got {min_width!r}")
@@ -188,13 +190,8 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
     if isinstance(until, bool) or not isinstance(until, (int, float)) or not 0 < until <= 1:
         raise InvalidCase("until", f"expected a share in (0, 1], got {until!r}")
     model = SymbolicModel(robot)
-    function = margin_function(model, orientation)
-    if compiled:
-        from cdpr_sym.certify.interval_c import CompiledIntervalFunction
-
-        margins = CompiledIntervalFunction(function, centred=True)
-    else:
-        margins = centred(function)
+    decide = (_CramerVerdicts(model, orientation, compiled) if robot.n <= CRAMER_UP_TO
+              else _KrawczykVerdicts(model, orientation, compiled))
     started = time.perf_counter()
     lower = np.asarray(robot.frame_lower[:d], dtype=float)[None, :]
     upper = np.asarray(robot.frame_upper[:d], dtype=float)[None, :]
@@ -206,7 +203,7 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
             raise InvalidCase("min_width", f"{len(lower):,} boxes at one level; choose a "
                               f"larger minimum width than {min_width} m")
         evaluated += len(lower)
-        verdict = _verdicts(margins((lower.T, upper.T))[0], robot.n)
+        verdict = decide(lower, upper)
         widths = upper - lower
         final = (verdict != 2) | (widths.max(axis=1) <= min_width)
         undecided_volume = float(np.prod(widths[verdict == 2], axis=1).sum())
@@ -228,6 +225,54 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
                                 np.vstack(decided_upper),
                                 np.array(VERDICTS, dtype=object)[codes], float(min_width),
                                 seconds, evaluated)
+
+
+def _enclosure(function: ca.Function, compiled: bool):
+    """The mean-value form of a one-input function, in generated C or numpy."""
+    if compiled:
+        from cdpr_sym.certify.interval_c import CompiledIntervalFunction
+
+        return CompiledIntervalFunction(function, centred=True)
+    return centred(function)
+
+
+class _CramerVerdicts:
+    """Verdicts from Cramer's margins (m = n <= :data:`CRAMER_UP_TO`)."""
+
+    def __init__(self, model: SymbolicModel, orientation: np.ndarray, compiled: bool) -> None:
+        self.margins = _enclosure(margin_function(model, orientation), compiled)
+        self.n = model.n
+
+    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        return _verdicts(self.margins((lower.T, upper.T))[0], self.n)
+
+
+class _KrawczykVerdicts:
+    """Verdicts from the enclosed solutions of [W] T = [grad V] (:mod:`.linear`): W's and
+    grad V's entries enclosed by the mean-value form, the system by Krawczyk's method,
+    which also proves W regular on the box (else nothing is decided)."""
+
+    def __init__(self, model: SymbolicModel, orientation: np.ndarray, compiled: bool) -> None:
+        robot = model.robot
+        position = ca.SX.sym("p", robot.dimension)
+        q = ca.vertcat(position, ca.DM(orientation)) if len(orientation) else position
+        terms = ca.Function("terms", [position], [ca.vertcat(
+            ca.vec(ca.densify(model.structure_matrix(q))), model.grad_potential(q))])
+        self.terms = _enclosure(terms, compiled)
+        self.n, self.t_min, self.t_max = model.n, robot.t_min, robot.t_max
+
+    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        from cdpr_sym.certify.linear import enclose_solutions
+
+        n = self.n
+        lo, hi = self.terms((lower.T, upper.T))[0]
+        boxes = lo.shape[1]
+        W_lo = lo[: n * n].T.reshape(boxes, n, n).transpose(0, 2, 1)  # column-major vec
+        W_hi = hi[: n * n].T.reshape(boxes, n, n).transpose(0, 2, 1)
+        t_lo, t_hi, regular = enclose_solutions(W_lo, W_hi, lo[n * n:].T, hi[n * n:].T)
+        feasible = regular & np.all((t_lo >= self.t_min) & (t_hi <= self.t_max), axis=1)
+        infeasible = regular & np.any((t_hi < self.t_min) | (t_lo > self.t_max), axis=1)
+        return np.where(feasible, 0, np.where(infeasible, 1, 2))
 
 
 def _verdicts(bounds, n: int) -> np.ndarray:
