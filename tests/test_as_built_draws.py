@@ -63,6 +63,7 @@ def _rows(path):
         return list(csv.DictReader(handle))
 
 
+@pytest.mark.slow  # over 5 s: the quick suite keeps to about 3 minutes
 def test_an_as_built_sweep_row_carries_held_and_its_draw_and_resumes(tmp_path):
     robot = preset("aras3")
     config = SweepConfig(robot="aras3", controllers=("smooth-lp", "pd-sat"), pairs=3,

@@ -130,6 +130,7 @@ def test_energy_balance_closes(name, request, rng, build_options):
     assert mismatch <= 1e-5
 
 
+@pytest.mark.slow  # over 5 s: the quick suite keeps to about 3 minutes
 def test_energy_balance_closes_with_cables_going_slack_and_taut(aras3, rng, build_options):
     """Cables 1 and 2 start 3 mm and 1 mm slack; the motors' holding torque reels them in."""
     mismatch, flowed, taut = _run(aras3, rng, build_options, dt=1e-5, substeps=4,

@@ -42,7 +42,7 @@ def _uniform_in_boxes(certificate, samples, rng):
     return lower + (upper - lower) * rng.random(lower.shape), certificate.verdicts[boxes]
 
 
-@pytest.mark.parametrize(("robot_name", "min_width"), [("planar2", 0.005), ("aras3", 0.05)])
+@pytest.mark.parametrize(("robot_name", "min_width"), [("planar2", 0.005), ("aras3", 0.1)])
 def test_every_sampled_pose_agrees_with_its_box(robot_name, min_width, rng):
     robot = preset(robot_name)
     certificate = certified.certify_workspace(robot, min_width=min_width)
@@ -51,7 +51,7 @@ def test_every_sampled_pose_agrees_with_its_box(robot_name, min_width, rng):
     assert not np.any(feasible[verdicts == "infeasible"])
     assert np.all(feasible[verdicts == "feasible"])
     shares = certificate.shares()
-    assert shares["undecided"] < (0.01 if robot_name == "planar2" else 0.05)
+    assert shares["undecided"] < (0.01 if robot_name == "planar2" else 0.08)
     # the boxes tile the frame
     frame = np.prod(np.asarray(robot.frame_upper) - np.asarray(robot.frame_lower))
     assert certificate.volumes().sum() == pytest.approx(frame, rel=1e-12)

@@ -81,6 +81,7 @@ def winch_package(tmp_path_factory):
     return result, _build(result.out_dir, root / "build")
 
 
+@pytest.mark.slow  # over 5 s: the quick suite keeps to about 3 minutes
 def test_the_package_runs_its_loop_bit_for_bit_trips_every_guard_and_times_itself(
         winch_package):
     """One test for the built package (one build, on one worker of the quick suite)."""

@@ -171,6 +171,7 @@ def test_every_solved_step_keeps_the_box_and_the_rate(name, rng, build_options):
         assert run.info["solver"]["samples"] == 100
 
 
+@pytest.mark.slow  # over 5 s: the quick suite keeps to about 3 minutes
 def test_compiled_step_equals_the_virtual_machine(aras3, aras3_model, build_options):
     problem = NmpcProblem(aras3_model, Nmpc())
     compiled = SampledSolver(aras3_model, Nmpc(), backend="c", build_options=build_options,

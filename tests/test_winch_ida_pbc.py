@@ -92,6 +92,7 @@ def test_storage_never_increases_and_falls_by_the_injected_damping(name, request
     assert storage[-1] <= 0.05 * storage[0]  # the injected damping took 95 % out in 1 s
 
 
+@pytest.mark.slow  # over 5 s: the quick suite keeps to about 3 minutes
 def test_without_injected_damping_the_storage_does_not_fall(aras3, build_options):
     """The key term removed: k_d = 0 on a lossless plant leaves H_d (nearly) constant."""
     undamped = dataclasses.replace(PLAIN, damping=0.0)

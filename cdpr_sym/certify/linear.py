@@ -32,8 +32,10 @@ def _inflate(radius: np.ndarray, n: int) -> np.ndarray:
 
 
 def _mid_rad(lo: np.ndarray, hi: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    mid = 0.5 * lo + 0.5 * hi
-    return mid, _inflate(np.maximum(hi - mid, mid - lo), n)
+    """Midpoint and radius (an upper bound); NaN where an endpoint is infinite."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        mid = 0.5 * lo + 0.5 * hi
+        return mid, _inflate(np.maximum(hi - mid, mid - lo), n)
 
 
 def _gamma(n: int) -> float:
