@@ -24,6 +24,7 @@ import numpy as np
 
 from cdpr_sym.certify.evaluate import SUPPORTED
 from cdpr_sym.codegen import BuildOptions, build
+from cdpr_sym.codegen.names import c_double
 from cdpr_sym.codegen.native import NativeLibrary
 
 _PRELUDE = r"""
@@ -192,7 +193,7 @@ def _walk(function: ca.Function, name: str) -> str:
             body.append(f"out_lo[{index}] = w[{args[0]}].lo; out_hi[{index}] = w[{args[0]}].hi;")
         elif op == ca.OP_CONST:
             value = function.instruction_constant(k)
-            body.append(f"w[{results[0]}].lo = w[{results[0]}].hi = {_literal(value)};")
+            body.append(f"w[{results[0]}].lo = w[{results[0]}].hi = {c_double(value)};")
         elif op == ca.OP_CONSTPOW:
             body.append(f"w[{results[0]}] = i_pow(w[{args[0]}], w[{args[1]}].lo);")
         elif op in _UNARY:
@@ -271,14 +272,6 @@ def interval_source(function: ca.Function, name: str, *, rounding: bool = True,
               "  }",
               "}", ""]
     return "\n".join(parts)
-
-
-def _literal(value: float) -> str:
-    if np.isnan(value):
-        return "NAN"
-    if np.isinf(value):
-        return "INFINITY" if value > 0 else "(-INFINITY)"
-    return repr(float(value))
 
 
 class CompiledIntervalFunction:

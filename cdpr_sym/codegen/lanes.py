@@ -19,7 +19,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import hashlib
-import math
 import numbers
 import os
 import shutil
@@ -35,7 +34,7 @@ from cdpr_sym.codegen.build import (
     run_command,
     write_atomically,
 )
-from cdpr_sym.codegen.names import is_c_identifier
+from cdpr_sym.codegen.names import c_double, is_c_identifier
 from cdpr_sym.errors import CompilationFailed, InvalidCase
 
 #: Compiler flags added for lane code: this machine's vector instructions, and every
@@ -296,15 +295,6 @@ def _statement(function: ca.Function, k: int, lanes: int) -> str:
     if op == ca.OP_OUTPUT:
         return f"lane_store(res{outputs[0]} + {outputs[1] * lanes}, w{inputs[0]});"
     if op == ca.OP_CONST:
-        return f"w{outputs[0]} = L_SPLAT({_literal(function.instruction_constant(k))});"
+        return f"w{outputs[0]} = L_SPLAT({c_double(function.instruction_constant(k))});"
     text = _UNARY_IDS.get(op) or _BINARY_IDS[op]
     return f"w{outputs[0]} = {text.format(*(f'w{i}' for i in inputs))};"
-
-
-def _literal(value: float) -> str:
-    """A C double literal that reads back as exactly ``value``."""
-    if math.isnan(value):
-        return "NAN"
-    if math.isinf(value):
-        return "INFINITY" if value > 0 else "(-INFINITY)"
-    return repr(float(value))

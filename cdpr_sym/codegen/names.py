@@ -9,6 +9,7 @@ limit. Robot and controller names are free text (``"my robot (v2)"``, non-ASCII 
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 
 #: Longest identifier produced (leaves room for suffixes such as ``_initial_memory``).
@@ -49,3 +50,13 @@ def is_c_identifier(text: str) -> bool:
 def plain_text(text: str) -> str:
     """``text`` made safe inside C strings and comments, Makefiles and Markdown."""
     return re.sub(r"[^A-Za-z0-9_.,:+= -]", "_", text)
+
+
+def c_double(value: float) -> str:
+    """A C double literal that reads back as exactly ``value`` (``NAN``, ``INFINITY`` and
+    ``(-INFINITY)`` from ``<math.h>`` for the values without a literal)."""
+    if math.isnan(value):
+        return "NAN"
+    if math.isinf(value):
+        return "INFINITY" if value > 0 else "(-INFINITY)"
+    return repr(float(value))

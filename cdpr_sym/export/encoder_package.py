@@ -30,7 +30,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import math
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +37,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.codegen import c_identifier, generate_c, render
+from cdpr_sym.codegen.names import c_double
 from cdpr_sym.control import FLAG_NAMES, Controller, capabilities, check_cables, controller_by_name
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SINGULAR
 from cdpr_sym.control.planned import SmoothReference
@@ -344,19 +344,13 @@ def _work(functions: list[ca.Function]) -> dict[str, int]:
             "w": max(max(f.sz_w() for f in functions), 1)}
 
 
-def _c_double(value: float) -> str:
-    if math.isinf(value):
-        return "INFINITY" if value > 0 else "-INFINITY"
-    return repr(float(value))
-
-
 def _c_array(values) -> str:
     flat = np.asarray(values, dtype=float).ravel()
     if flat.size == 0:
         return "{0}"
     lines, line = [], []
     for value in flat:
-        line.append(_c_double(value))
+        line.append(c_double(value))
         if len(line) == 4:
             lines.append(", ".join(line))
             line = []
@@ -421,29 +415,29 @@ def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Funct
         "robot": robot.name, "controller": checked.controller.name, "n": n, "m": m,
         "reads_drives": reads_drives,
         "n_memory": loop.n_memory, "n_state": loop.n_state, "n_par": loop.n_parameters,
-        "dt": _c_double(loop.dt),
+        "dt": c_double(loop.dt),
         "coordinates": list(zip(robot.coordinate_names, robot.coordinate_units, strict=True)),
         "home": _c_array(checked.robot.start), "goal": _c_array(checked.robot.goal),
         "k": _c_array(checked.robot.k), "r_d": _c_array(checked.robot.r_d),
         "sensing": _c_array(spec.sensing.parameters()),
         "actuation": _c_array(spec.actuation.parameters()),
-        "resolution": _c_double(spec.sensing.resolution),
+        "resolution": c_double(spec.sensing.resolution),
         "encoder_offsets": _c_array(offsets), "calibrated": robot.encoder_offsets is not None,
-        "drum_radius": _c_double(spec.actuation.drum_radius),
-        "cable_stiffness": _c_double(spec.actuation.cable_stiffness),
-        "torque_limit": _c_double(spec.actuation.parameters()[6]),
+        "drum_radius": c_double(spec.actuation.drum_radius),
+        "cable_stiffness": c_double(spec.actuation.cable_stiffness),
+        "torque_limit": c_double(spec.actuation.parameters()[6]),
         "length_low": _c_array(low), "length_high": _c_array(high),
         "frame_low": _c_array(np.asarray(robot.frame_lower) + margin),
         "frame_high": _c_array(np.asarray(robot.frame_upper) - margin),
-        "frame_margin": _c_double(limits.frame_margin),
+        "frame_margin": c_double(limits.frame_margin),
         "positions": positions,
         "seeds": _c_array(seeds), "n_seeds": len(seeds),
         "locate_iterations": LOCATE_ITERATIONS,
-        "t_min": _c_double(robot.t_min), "t_max": _c_double(robot.t_max),
-        "limits": {"max_speed": _c_double(limits.max_speed),
-                   "rate_limit": _c_double(limits.rate(robot.t_min, robot.t_max)),
-                   "late_periods": _c_double(limits.late_periods),
-                   "ramp_time": _c_double(limits.ramp_time)},
+        "t_min": c_double(robot.t_min), "t_max": c_double(robot.t_max),
+        "limits": {"max_speed": c_double(limits.max_speed),
+                   "rate_limit": c_double(limits.rate(robot.t_min, robot.t_max)),
+                   "late_periods": c_double(limits.late_periods),
+                   "ramp_time": c_double(limits.ramp_time)},
         "faults": {name: {"bit": bit, "doc": doc} for name, (bit, doc) in FAULTS.items()},
         "not_armed": NOT_ARMED, "invalid_argument": INVALID_ARGUMENT,
         "design_flags": design_flags,
@@ -457,7 +451,7 @@ def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Funct
         "plant_log": plant.step.size1_out(1),
         "command_offset": plant.command_slice.start, "status_index": plant.status_index,
         "tension_offset": plant.tension_slice.start,
-        "exact": reads_drives, "tolerance": _c_double(STATE_DESIGN_TOLERANCE),
+        "exact": reads_drives, "tolerance": c_double(STATE_DESIGN_TOLERANCE),
         "sil_duration": reference.t[-1], "stop_reason": reference.stop_reason,
         "as_built": checked.draw_record,
     }
