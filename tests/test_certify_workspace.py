@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from cdpr_sym.certify import workspace as certified
-from cdpr_sym.certify.evaluate import IntervalFunction
+from cdpr_sym.certify.evaluate import IntervalFunction, centred
 from cdpr_sym.certify.interval_c import CompiledIntervalFunction
 from cdpr_sym.certify.linear import enclose_solutions
 from cdpr_sym.certify.report import sampled_check
@@ -175,3 +175,31 @@ def test_a_six_dof_workspace_is_decided_and_agrees_with_samples(rng):
     assert certificate.shares()["undecided"] <= 0.05
     check = sampled_check(certificate, 200_000, rng)
     assert check["disagreements_feasible"] == check["disagreements_infeasible"] == 0
+
+
+def test_a_function_with_jumps_gets_the_natural_extension_not_a_collapsed_centred_form():
+    x = ca.SX.sym("x")
+    step = ca.Function("step", [x], [ca.vertcat(ca.if_else(x > 0, 1.0, 0.0), ca.floor(x),
+                                                ca.sign(x))])
+    for evaluate in (centred(step), CompiledIntervalFunction(step, centred=True)):
+        lo, hi = evaluate(([-0.5], [0.5]))[0]
+        assert lo[0, 0] <= 0 and hi[0, 0] >= 1  # the if_else takes both values
+        assert lo[1, 0] <= -1 and hi[1, 0] >= 0  # floor
+        assert lo[2, 0] <= -1 and hi[2, 0] >= 1  # sign
+
+
+def test_an_overflowed_intermediate_never_gives_an_infinite_lower_bound():
+    x, y = ca.SX.sym("x"), ca.SX.sym("y")
+    function = ca.Function("f", [ca.vertcat(x, y)], [ca.vertcat((x + x) * y, (x * x) * y)])
+    box = ([1e308, 1e-300], [1e308, 1e-300])
+    for evaluate in (IntervalFunction(function), CompiledIntervalFunction(function)):
+        lo, hi = evaluate(box)[0]
+        assert lo[0, 0] <= 2e8 <= hi[0, 0]  # (x + x) overflows; the product is 2e8
+        assert np.isfinite(lo[1, 0]) or lo[1, 0] == -np.inf
+
+
+def test_krawczyk_proves_nothing_when_the_solution_overflows():
+    A = 1e-180 * np.array([[[1.0, 0.5], [0.3, 1.0]]])
+    b = 1e199 * np.ones((1, 2))
+    lo, hi, regular = enclose_solutions(A, A, b, b)
+    assert not regular[0] and np.all(lo == -np.inf) and np.all(hi == np.inf)

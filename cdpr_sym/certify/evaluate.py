@@ -26,7 +26,7 @@ _UNARY: dict[int, Callable[[Interval], Interval]] = {
     ca.OP_EXP: iv.exp, ca.OP_LOG: iv.log, ca.OP_SIN: iv.sin, ca.OP_COS: iv.cos,
     ca.OP_ATAN: iv.atan, ca.OP_NOT: iv.logical_not, ca.OP_SIGN: iv.sign,
     ca.OP_FLOOR: iv.floor, ca.OP_CEIL: iv.ceil,
-    ca.OP_TWICE: lambda x: iv.outward(2.0 * x[0], 2.0 * x[1], 0),
+    ca.OP_TWICE: lambda x: iv.outward(2.0 * x[0], 2.0 * x[1]),  # 2x can overflow
     ca.OP_INV: lambda x: iv.div(iv.point(1.0, x[0]), x),
     ca.OP_ASSIGN: lambda x: x,
 }
@@ -121,14 +121,31 @@ class IntervalFunction:
         return outputs
 
 
+#: Operations with jumps: their derivative is 0 where defined, so the mean-value form, which
+#: needs a continuous function, would collapse to f(c). A function that holds one gets the
+#: natural extension alone.
+JUMPS = frozenset({ca.OP_FLOOR, ca.OP_CEIL, ca.OP_SIGN, ca.OP_LT, ca.OP_LE, ca.OP_EQ,
+                   ca.OP_NE, ca.OP_NOT, ca.OP_AND, ca.OP_OR, ca.OP_IF_ELSE_ZERO})
+
+
+def has_jumps(function: ca.Function) -> bool:
+    """Whether an SX ``function`` holds an operation of :data:`JUMPS`."""
+    if not function.is_a("SXFunction"):
+        function = function.expand()
+    return any(function.instruction_id(k) in JUMPS for k in range(function.n_instructions()))
+
+
 def centred(function: ca.Function) -> Callable[..., list[Interval]]:
     """The mean-value form of a one-input ``function``: f(X) is within f(c) + J(X) (X - c)
     for the box's centre c and the interval Jacobian J(X), intersected with the natural
     extension. Second-order tight: on boxes of width h its overestimate shrinks as h^2
-    where the natural extension's shrinks as h."""
+    where the natural extension's shrinks as h. A function with jumps (:data:`JUMPS`) gets
+    the natural extension alone."""
     x = ca.SX.sym("x", function.nnz_in(0))
     values = ca.densify(ca.vertcat(*(ca.vec(out) for out in function.call([x]))))
     natural = IntervalFunction(ca.Function("value", [x], [values]))
+    if has_jumps(natural.function):
+        return lambda bounds: natural(bounds)
     jacobian = IntervalFunction(ca.Function("jacobian", [x], [ca.densify(ca.jacobian(values, x))]))
     rows = values.numel()
 

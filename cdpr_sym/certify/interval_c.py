@@ -7,7 +7,10 @@ without changing the rounding mode: a lower endpoint x computed in round-to-near
 replaced by ``x - (|x| 2^-52 + 2^-1074)``, which is at most the float below x (|x| 2^-52 is
 at least one ulp of x, and 2^-1074 one ulp of a subnormal), and an upper one symmetrically;
 so the exact value, within half an ulp of x for +, -, x, / and sqrt, stays inside. Library
-functions (exp, log, sin, cos, atan, pow) are widened four times over. A NaN endpoint makes
+functions (exp, log, sin, cos, atan, pow) are widened by :data:`LIBRARY_ULPS` floats. An
+overflowed lower bound of +inf becomes the largest float (the real value is finite). A
+function with jumps (floor, sign, comparisons, if_else) gets the natural extension only: the
+mean-value form needs continuity. Fast math is refused at compile time. A NaN endpoint makes
 the whole line. The code is compiled with the toolkit's exact flags (no fast math, no
 contraction), cached by its text.
 
@@ -22,20 +25,29 @@ import ctypes
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.certify.evaluate import SUPPORTED
+from cdpr_sym.certify.evaluate import SUPPORTED, has_jumps
+from cdpr_sym.certify.interval import LIBRARY_ULPS
 from cdpr_sym.codegen import BuildOptions, build
 from cdpr_sym.codegen.names import c_double
 from cdpr_sym.codegen.native import NativeLibrary
 
 _PRELUDE = r"""
+#include <float.h>
 #include <math.h>
+/* the NaN tests and the rounding need IEEE arithmetic: refuse fast math */
+#if defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "interval code must be built without -ffast-math / -ffinite-math-only"
+#endif
 typedef struct { double lo, hi; } itv;
 static const itv WHOLE = {-INFINITY, INFINITY};
 #if ROUNDING
-static double dn(double x) { return isfinite(x) ? x - (fabs(x) * 0x1p-52 + 0x1p-1074) : x; }
-static double up(double x) { return isfinite(x) ? x + (fabs(x) * 0x1p-52 + 0x1p-1074) : x; }
+/* an overflowed lower bound of +inf becomes the largest float (the value is finite) */
+static double dn(double x) {
+  return isfinite(x) ? x - (fabs(x) * 0x1p-52 + 0x1p-1074) : (x > 0 ? DBL_MAX : x); }
+static double up(double x) {
+  return isfinite(x) ? x + (fabs(x) * 0x1p-52 + 0x1p-1074) : (x < 0 ? -DBL_MAX : x); }
 #else
-static double dn(double x) { return x; }
+static double dn(double x) { return x; }  /* for the test that shows this is caught */
 static double up(double x) { return x; }
 #endif
 static itv mk(double lo, double hi) {
@@ -45,7 +57,11 @@ static itv mk(double lo, double hi) {
   return r;
 }
 static itv out1(double lo, double hi) { return mk(dn(lo), up(hi)); }
-static itv lib(double lo, double hi) { return mk(dn(dn(dn(dn(lo)))), up(up(up(up(hi))))); }
+static itv lib(double lo, double hi) {
+  int k;
+  for (k = 0; k < LIBRARY_ULPS; ++k) { lo = dn(lo); hi = up(hi); }
+  return mk(lo, hi);
+}
 static double mn4(double a, double b, double c, double d) {
   double m = a < b ? a : b, n = c < d ? c : d; return m < n ? m : n; }
 static double mx4(double a, double b, double c, double d) {
@@ -53,7 +69,7 @@ static double mx4(double a, double b, double c, double d) {
 static itv i_add(itv x, itv y) { return out1(x.lo + y.lo, x.hi + y.hi); }
 static itv i_sub(itv x, itv y) { return out1(x.lo - y.hi, x.hi - y.lo); }
 static itv i_neg(itv x) { itv r; r.lo = -x.hi; r.hi = -x.lo; return r; }
-static itv i_twice(itv x) { return mk(2.0 * x.lo, 2.0 * x.hi); }
+static itv i_twice(itv x) { return out1(2.0 * x.lo, 2.0 * x.hi); }
 static itv i_mul(itv x, itv y) {
   double a = x.lo * y.lo, b = x.lo * y.hi, c = x.hi * y.lo, d = x.hi * y.hi;
   if (isnan(a) || isnan(b) || isnan(c) || isnan(d)) return WHOLE;
@@ -233,7 +249,9 @@ def interval_source(function: ca.Function, name: str, *, rounding: bool = True,
     function = _dense(function)
     n_in = sum(function.nnz_in(i) for i in range(function.n_in()))
     n_out = sum(function.nnz_out(i) for i in range(function.n_out()))
-    parts = [f"#define ROUNDING {1 if rounding else 0}",
+    if centred and has_jumps(function):
+        centred = False  # the mean-value form needs a continuous function
+    parts = [f"#define ROUNDING {1 if rounding else 0}", f"#define LIBRARY_ULPS {LIBRARY_ULPS}",
              "#define M_PI_VALUE 3.14159265358979311599796346854", _PRELUDE,
              _walk(function, "natural")]
     if not centred:
@@ -248,7 +266,11 @@ def interval_source(function: ca.Function, name: str, *, rounding: bool = True,
         loop = [f"    double c[{n_in}], f_lo[{n_out}], f_hi[{n_out}];",
                 f"    double j_lo[{n_out * n_in}], j_hi[{n_out * n_in}];",
                 "    int i, r;",
-                f"    for (i = 0; i < {n_in}; ++i) c[i] = 0.5 * lo[i] + 0.5 * hi[i];",
+                f"    for (i = 0; i < {n_in}; ++i) {{",
+                "      c[i] = 0.5 * lo[i] + 0.5 * hi[i];",
+                "      if (c[i] < lo[i]) c[i] = lo[i];",  # subnormal halves can round out
+                "      if (c[i] > hi[i]) c[i] = hi[i];",
+                "    }",
                 "    natural(lo, hi, out_lo, out_hi);",
                 "    natural(c, c, f_lo, f_hi);",
                 "    slopes(lo, hi, j_lo, j_hi);",

@@ -99,6 +99,8 @@ def enclose_solutions(A_lo: np.ndarray, A_hi: np.ndarray, b_lo: np.ndarray, b_hi
         radius = _inflate(c_rad + spread + 4 * _U * np.abs(centre), n)
         x_lo = np.maximum(x_lo, centre - radius)
         x_hi = np.minimum(x_hi, centre + radius)
+    # an overflowed solution (NaN or infinite bounds) proves nothing either
+    regular = regular & np.all(np.isfinite(x_lo) & np.isfinite(x_hi), axis=1)
     x_lo = np.where(regular[:, None], x_lo, -whole)
     x_hi = np.where(regular[:, None], x_hi, whole)
     return x_lo, x_hi, regular
