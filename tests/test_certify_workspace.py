@@ -168,11 +168,11 @@ def test_krawczyk_encloses_every_solution_of_the_interval_system(rng):
     assert not ok[0] and np.all(lo == -np.inf) and np.all(hi == np.inf)
 
 
-@pytest.mark.slow  # about three minutes on one core
+@pytest.mark.slow  # about 20 s (to 95 %, reports/certify/spatial6, takes two minutes)
 def test_a_six_dof_workspace_is_decided_and_agrees_with_samples(rng):
     robot = preset("spatial6")
-    certificate = certified.certify_workspace(robot, min_width=0.005, until=0.95)
-    assert certificate.shares()["undecided"] <= 0.05
+    certificate = certified.certify_workspace(robot, min_width=0.005, until=0.75)
+    assert certificate.shares()["undecided"] <= 0.25
     check = sampled_check(certificate, 200_000, rng)
     assert check["disagreements_feasible"] == check["disagreements_infeasible"] == 0
 
