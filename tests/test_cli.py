@@ -285,7 +285,7 @@ def test_rigid_study_writes_its_report_for_both_rigid_presets(capsys, tmp_path):
     assert "## `spatial6` (spatial body, n = 6)" in report
     summary = json.loads((tmp_path / "rigid" / "summary.json").read_text())
     assert summary["spatial6"]["n_j"] == 15
-    assert set(summary["planar3"]["sweep"]) == CLOSED_FORM | {"nmpc", "nmpc-of"}
+    assert set(summary["planar3"]["sweep"]) == CLOSED_FORM | {"nmpc"}
     assert summary["spatial6"]["sweep"]["nmpc"]["runs"] == 2
     assert (tmp_path / "rigid" / "spatial6_case.png").read_bytes()[:8] == PNG
 

@@ -26,7 +26,7 @@ _UNARY: dict[int, Callable[[Interval], Interval]] = {
     ca.OP_EXP: iv.exp, ca.OP_LOG: iv.log, ca.OP_SIN: iv.sin, ca.OP_COS: iv.cos,
     ca.OP_ATAN: iv.atan, ca.OP_NOT: iv.logical_not, ca.OP_SIGN: iv.sign,
     ca.OP_FLOOR: iv.floor, ca.OP_CEIL: iv.ceil,
-    ca.OP_TWICE: lambda x: iv.outward(2.0 * x[0], 2.0 * x[1]),  # 2x can overflow
+    ca.OP_TWICE: iv.twice,
     ca.OP_INV: lambda x: iv.div(iv.point(1.0, x[0]), x),
     ca.OP_ASSIGN: lambda x: x,
 }

@@ -90,8 +90,15 @@ def div(x: Interval, y: Interval) -> Interval:
     return outward(lo, hi)
 
 
+def twice(x: Interval) -> Interval:
+    """2x, rounded outward: exact but where it overflows."""
+    with np.errstate(over="ignore"):
+        return outward(2.0 * x[0], 2.0 * x[1])
+
+
 def square(x: Interval) -> Interval:
-    lo2, hi2 = x[0] * x[0], x[1] * x[1]
+    with np.errstate(over="ignore"):
+        lo2, hi2 = x[0] * x[0], x[1] * x[1]
     low = np.where(x[0] >= 0, lo2, np.where(x[1] <= 0, hi2, 0.0))
     high = np.maximum(lo2, hi2)
     low, high = outward(low, high)

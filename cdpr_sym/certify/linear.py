@@ -55,6 +55,12 @@ def enclose_solutions(A_lo: np.ndarray, A_hi: np.ndarray, b_lo: np.ndarray, b_hi
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(x_lo, x_hi, regular) per box: shapes (boxes, n, n) for [A], (boxes, n) for [b];
     ``regular`` False where the method proves nothing (x then the whole line)."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        return _enclose(A_lo, A_hi, b_lo, b_hi)
+
+
+def _enclose(A_lo, A_hi, b_lo, b_hi):
+    """:func:`enclose_solutions` (overflow and NaN are results here, not warnings)."""
     boxes, n = A_lo.shape[0], A_lo.shape[1]
     whole = np.full((boxes, n), np.inf)
     A_mid, A_rad = _mid_rad(A_lo, A_hi, n)
