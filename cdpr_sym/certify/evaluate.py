@@ -41,6 +41,18 @@ _BINARY: dict[int, Callable[[Interval, Interval], Interval]] = {
 SUPPORTED = frozenset(_UNARY) | frozenset(_BINARY) | {ca.OP_CONSTPOW}
 
 
+def dense_sx(function: ca.Function) -> ca.Function:
+    """``function`` as an SX function (an MX one expanded) whose outputs are dense: their
+    structural zeros become entries, so that outputs are read by position."""
+    if not function.is_a("SXFunction"):
+        function = function.expand()
+    if all(function.sparsity_out(i).is_dense() for i in range(function.n_out())):
+        return function
+    inputs = function.sx_in()
+    return ca.Function(function.name(), inputs,
+                       [ca.densify(out) for out in function.call(inputs)])
+
+
 class IntervalFunction:
     """``function`` evaluated on boxes (see the module docstring).
 
@@ -56,12 +68,7 @@ class IntervalFunction:
     """
 
     def __init__(self, function: ca.Function) -> None:
-        if not function.is_a("SXFunction"):
-            function = function.expand()
-        if not all(function.sparsity_out(i).is_dense() for i in range(function.n_out())):
-            inputs = function.sx_in()  # structural zeros as entries: outputs read densely
-            function = ca.Function(function.name(), inputs,
-                                   [ca.densify(out) for out in function.call(inputs)])
+        function = dense_sx(function)
         self.function = function
         self._program = [self._instruction(k) for k in range(function.n_instructions())]
         unsupported = {op for op, *_ in self._program

@@ -25,7 +25,7 @@ import ctypes
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.certify.evaluate import SUPPORTED, has_jumps
+from cdpr_sym.certify.evaluate import SUPPORTED, dense_sx, has_jumps
 from cdpr_sym.certify.interval import LIBRARY_ULPS
 from cdpr_sym.codegen import BuildOptions, build
 from cdpr_sym.codegen.names import c_double
@@ -229,16 +229,6 @@ def _walk(function: ca.Function, name: str) -> str:
         ""])
 
 
-def _dense(function: ca.Function) -> ca.Function:
-    if not function.is_a("SXFunction"):
-        function = function.expand()
-    if all(function.sparsity_out(i).is_dense() for i in range(function.n_out())):
-        return function
-    inputs = function.sx_in()  # structural zeros as entries: outputs read densely
-    return ca.Function(function.name(), inputs,
-                       [ca.densify(out) for out in function.call(inputs)])
-
-
 def interval_source(function: ca.Function, name: str, *, rounding: bool = True,
                     centred: bool = False) -> str:
     """C of ``void name(const double *lo, const double *hi, double *out_lo, double *out_hi,
@@ -246,7 +236,7 @@ def interval_source(function: ca.Function, name: str, *, rounding: bool = True,
     ``[b * n_in ...]``, its outputs likewise. ``centred`` (a one-input function): the
     mean-value form f(c) + J(X) (X - c) intersected with the natural extension, where c is
     the box's centre (rounded to a float; the form holds for any c in the box)."""
-    function = _dense(function)
+    function = dense_sx(function)
     n_in = sum(function.nnz_in(i) for i in range(function.n_in()))
     n_out = sum(function.nnz_out(i) for i in range(function.n_out()))
     if centred and has_jumps(function):
@@ -261,7 +251,7 @@ def interval_source(function: ca.Function, name: str, *, rounding: bool = True,
             raise ValueError("the centred form takes a one-input function")
         x = ca.SX.sym("x", n_in)
         values = ca.vertcat(*(ca.vec(out) for out in function.call([x])))
-        parts.append(_walk(_dense(ca.Function("slopes", [x], [ca.jacobian(values, x)])),
+        parts.append(_walk(dense_sx(ca.Function("slopes", [x], [ca.jacobian(values, x)])),
                            "slopes"))
         loop = [f"    double c[{n_in}], f_lo[{n_out}], f_hi[{n_out}];",
                 f"    double j_lo[{n_out * n_in}], j_hi[{n_out * n_in}];",
@@ -303,7 +293,7 @@ class CompiledIntervalFunction:
 
     def __init__(self, function: ca.Function, *, rounding: bool = True, centred: bool = False,
                  options: BuildOptions = BuildOptions()) -> None:
-        function = _dense(function)
+        function = dense_sx(function)
         self.function = function
         source = interval_source(function, "interval_eval", rounding=rounding,
                                  centred=centred)

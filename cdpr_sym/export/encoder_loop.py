@@ -46,7 +46,7 @@ import numpy as np
 from cdpr_sym.as_built import Actuation, Sensing
 from cdpr_sym.as_built.actuation import torque_reference
 from cdpr_sym.as_built.spec import ACTUATION_PARAMETERS, SENSING_PARAMETERS
-from cdpr_sym.closed_loop.effects.encoders import corrected, reading_bound
+from cdpr_sym.closed_loop.effects.encoders import corrected, read_pose_expression
 from cdpr_sym.control import (
     Controller,
     DriveReading,
@@ -56,7 +56,6 @@ from cdpr_sym.control import (
 )
 from cdpr_sym.distribution.methods import distribute, preferred_method
 from cdpr_sym.model import SymbolicModel
-from cdpr_sym.model.forward_kinematics import forward_kinematics_expression
 
 #: Newton steps of ``locate`` (the first sample's pose, from a far guess). Measured on 300
 #: random poses of each preset's frame shrunk by 10 %: from the frame's centre 12 steps
@@ -133,10 +132,7 @@ def core_function(loop: EncoderLoop) -> ca.Function:
     resolution, cutoff, consistency = sensing[0], sensing[1], sensing[2]
 
     lengths = corrected(model, ca.fmax(resolution, 1e-300) * counts)
-    # as the simulated encoders: the solver's own residual test left open, reading_bound
-    # decides
-    q_read, ok, residual = forward_kinematics_expression(model, lengths, q_last, tolerance=1.0)
-    ok = ca.logic_and(ok, residual <= reading_bound(n, m, resolution, consistency))
+    q_read, ok = read_pose_expression(model, lengths, q_last, resolution, consistency)
     keep = ca.exp(-2 * math.pi * cutoff * dt)
     dq_read = keep * dq_last + (1 - keep) * (q_read - q_last) / dt
     if capabilities(loop.controller).reads_drives:
@@ -207,10 +203,8 @@ def locate_function(loop: EncoderLoop) -> ca.Function:
     par = ca.SX.sym("par", loop.n_parameters)
     resolution, consistency = par[3 * n + 1], par[3 * n + 3]
     lengths = corrected(model, ca.fmax(resolution, 1e-300) * counts)
-    q, ok, residual = forward_kinematics_expression(model, lengths, guess,
-                                                    iterations=LOCATE_ITERATIONS,
-                                                    tolerance=1.0)
-    ok = ca.logic_and(ok, residual <= reading_bound(n, m, resolution, consistency))
+    q, ok = read_pose_expression(model, lengths, guess, resolution, consistency,
+                                 iterations=LOCATE_ITERATIONS)
     return ca.Function("locate", [counts, guess, par], [q, ok], ["counts", "guess", "par"],
                        ["pose", "ok"], {"cse": True})
 

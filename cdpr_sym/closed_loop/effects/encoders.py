@@ -50,18 +50,11 @@ class Encoders(PlantEffect):
         return (("sensing", len(SENSING_PARAMETERS)), ("encoder_offsets", model.m))
 
     def read(self, build: StepBuild, q: ca.SX, dq: ca.SX) -> tuple[ca.SX, ca.SX]:
-        # imported where a step with encoders is built: a sweep of the ideal plant never
-        # loads forward kinematics (~40 ms of its start-up)
-        from cdpr_sym.model.forward_kinematics import forward_kinematics_expression
-
         model, state, sensing = build.model, build.state, build.par["sensing"]
         resolution, cutoff, consistency = sensing[0], sensing[1], sensing[2]
         reading = self.reading(build)
-        # the solver's own residual test is left wide open: reading_bound decides
-        q_read, ok, residual = forward_kinematics_expression(model, reading, state["q_read"],
-                                                             tolerance=1.0)
-        ok = ca.logic_and(ok, residual <= reading_bound(model.n, model.m, resolution,
-                                                        consistency))
+        q_read, ok = read_pose_expression(model, reading, state["q_read"], resolution,
+                                          consistency)
         dt = build.par["dt"]
         keep = ca.exp(-2 * math.pi * cutoff * dt)
         dq_read = keep * state["dq_read"] + (1 - keep) * (q_read - state["q_read"]) / dt
@@ -123,6 +116,23 @@ def corrected(model: SymbolicModel, reading):
     offsets = model.robot.encoder_offsets
     return reading if offsets is None else reading - (ca.DM(offsets) if isinstance(
         reading, ca.SX) else offsets)
+
+
+def read_pose_expression(model: SymbolicModel, reading: ca.SX, guess: ca.SX, resolution,
+                         consistency, *, iterations: int | None = None) -> tuple[ca.SX, ca.SX]:
+    """(pose, ok) read from encoder lengths ``reading`` (m, less the offsets) by forward
+    kinematics from ``guess``: the solver's own residual test is left wide open and
+    :func:`reading_bound` decides. ``iterations`` defaults to the solver's. The simulated
+    encoders and the exported controller read the pose with this one expression."""
+    # imported where a step with encoders is built: a sweep of the ideal plant never loads
+    # forward kinematics (~40 ms of its start-up)
+    from cdpr_sym.model.forward_kinematics import FK_ITERATIONS, forward_kinematics_expression
+
+    q, ok, residual = forward_kinematics_expression(
+        model, reading, guess, iterations=FK_ITERATIONS if iterations is None else iterations,
+        tolerance=1.0)
+    return q, ca.logic_and(ok, residual <= reading_bound(model.n, model.m, resolution,
+                                                         consistency))
 
 
 def reading_bound(n: int, m: int, resolution, consistency):
