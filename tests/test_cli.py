@@ -266,7 +266,12 @@ def test_paper_study_runs_on_a_rigid_robot_file(capsys, tmp_path, robot_file):
 
 
 @pytest.mark.slow  # the quick suite keeps to about 3 minutes
-def test_bench_runs_on_a_rigid_robot_file(capsys, robot_file):
+def test_bench_runs_on_a_rigid_robot_file(capsys, tmp_path):
+    """On planar3's file; spatial6's closed-form designs (a four-minute compile for a file of
+    its own) are compiled and run by the rigid study's test."""
+    text = resources.files("cdpr_sym.robot.presets").joinpath("planar3.toml").read_text()
+    robot_file = tmp_path / "my_planar3.toml"
+    robot_file.write_text(text)
     status, out, _ = _run(capsys, "bench", "--robot", str(robot_file), "--seconds", "0.01",
                           "--json")
     value = _one_json_object(out)
