@@ -105,10 +105,6 @@ def test_compiled_and_numpy_walks_agree_and_a_missing_rounding_is_caught(rng):
 
 
 def test_refusals_name_their_field():
-    with pytest.raises(InvalidCase, match="robot:"):
-        certified.certify_workspace(preset("planar4"))
-    with pytest.raises(InvalidCase, match="robot:"):
-        certified.certify_workspace(preset("ipanema8"))
     with pytest.raises(InvalidCase, match="min_width:"):
         certified.certify_workspace(preset("planar2"), min_width=0.0)
     with pytest.raises(InvalidCase, match="until:"):
@@ -203,3 +199,101 @@ def test_krawczyk_proves_nothing_when_the_solution_overflows():
     b = 1e199 * np.ones((1, 2))
     lo, hi, regular = enclose_solutions(A, A, b, b)
     assert not regular[0] and np.all(lo == -np.inf) and np.all(hi == np.inf)
+
+
+# -- wrench-feasible workspaces ---------------------------------------------------------------
+def test_a_wrench_certificate_agrees_with_hyperplane_shifting(rng):
+    """Boxes proven wrench-feasible (infeasible) hold only poses the independent hyperplane
+    shifting classifier (cdpr_sym.workspace.wrench) finds wrench-feasible (infeasible)."""
+    from cdpr_sym.workspace.wrench import WrenchEvaluator
+
+    robot = preset("planar2")
+    box = np.array([0.4, 0.7])
+    certificate = certified.certify_workspace(robot, min_width=0.01, half_widths=box)
+    shares = certificate.shares()
+    assert shares["undecided"] < 0.03 and 0.2 < shares["feasible"]
+    static = certified.certify_workspace(robot, min_width=0.01).shares()["feasible"]
+    assert shares["feasible"] < static
+    positions, verdicts = _uniform_in_boxes(certificate, 100_000, rng)
+    feasible = WrenchEvaluator(robot).classify(positions, box).feasible
+    assert np.all(feasible[verdicts == "feasible"])
+    assert not np.any(feasible[verdicts == "infeasible"])
+    assert sampled_check(certificate, 50_000, rng)["disagreements_feasible"] == 0
+
+
+def test_a_zero_wrench_box_is_the_static_workspace_and_bad_boxes_are_refused():
+    robot = preset("planar2")
+    zero = certified.certify_workspace(robot, min_width=0.02, half_widths=[0.0, 0.0])
+    static = certified.certify_workspace(robot, min_width=0.02)
+    assert np.array_equal(zero.verdicts, static.verdicts) and zero.half_widths.size == 0
+    for bad in ([1.0], [-1.0, 0.0], [np.nan, 0.0], "big"):
+        with pytest.raises(InvalidCase) as refused:
+            certified.certify_workspace(robot, half_widths=bad)
+        assert refused.value.field == "half_widths"
+
+
+def test_a_proof_that_forgets_the_wrench_is_caught(rng):
+    """The static certificate passed off as a wrench-feasible one: the sampled check, which
+    spreads each pose's tension over the wrench box, finds poses it contradicts."""
+    import dataclasses
+
+    robot = preset("planar2")
+    forgetful = dataclasses.replace(certified.certify_workspace(robot, min_width=0.01),
+                                    half_widths=np.array([0.4, 0.7]))
+    assert sampled_check(forgetful, 100_000, rng)["disagreements_feasible"] > 0
+
+
+# -- more cables than degrees of freedom: hyperplane shifting over boxes -----------------------
+def _lp_feasible(robot, position) -> bool:
+    """A tension in the box holding the platform at ``position``: an LP by cvxpy and
+    Clarabel, a second solver independent of the facets."""
+    import cvxpy as cp
+
+    model_terms = _point_terms(robot)
+    W, gravity = (np.array(value) for value in model_terms(position))
+    tension = cp.Variable(robot.m)
+    problem = cp.Problem(cp.Minimize(0), [W @ tension == gravity.ravel(),
+                                          tension >= robot.t_min, tension <= robot.t_max])
+    problem.solve(solver=cp.CLARABEL)
+    return problem.status == cp.OPTIMAL
+
+
+def _point_terms(robot):
+    from cdpr_sym.model import SymbolicModel
+
+    model = SymbolicModel(robot)
+    q = ca.SX.sym("q", robot.n)
+    return ca.Function("terms", [q], [model.structure_matrix(q), model.grad_potential(q)])
+
+
+@pytest.mark.slow
+def test_more_cables_than_dof_agree_with_an_lp_and_with_hyperplane_shifting(rng):
+    robot = preset("planar4")
+    certificate = certified.certify_workspace(robot, min_width=0.02)
+    shares = certificate.shares()
+    assert shares["undecided"] < 0.05 and 0.5 < shares["feasible"] < 0.99
+    positions, verdicts = _uniform_in_boxes(certificate, 20_000, rng)
+    for verdict, expected in (("feasible", True), ("infeasible", False)):
+        chosen = positions[verdicts == verdict][:150]
+        assert [_lp_feasible(robot, p) for p in chosen] == [expected] * len(chosen), verdict
+    check = sampled_check(certificate, 200_000, rng)
+    assert check["disagreements_feasible"] == check["disagreements_infeasible"] == 0
+
+
+def test_a_facet_proof_without_the_weight_is_caught(monkeypatch, rng):
+    """Margins that leave out |c . (grad V - W tau_mid)| prove every full-rank box feasible;
+    the sampled check must contradict them."""
+    original = certified.facet_function
+
+    def weightless(model, orientation, half_widths=None):
+        function = original(model, orientation, half_widths)
+        x = ca.SX.sym("p", function.nnz_in(0))
+        values = function(x)
+        facets = function.nnz_out(0) // 2
+        spreads = values[facets:]
+        half = 0.5 * (model.robot.t_max - model.robot.t_min)
+        return ca.Function("facets", [x], [ca.vertcat(half * spreads, spreads)])
+
+    monkeypatch.setattr(certified, "facet_function", weightless)
+    broken = certified.certify_workspace(preset("planar4"), min_width=0.02)
+    assert sampled_check(broken, 100_000, rng)["disagreements_feasible"] > 0

@@ -21,6 +21,7 @@ missing rounding is caught, never for a proof.
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 
 import casadi as ca
 import numpy as np
@@ -30,6 +31,13 @@ from cdpr_sym.certify.interval import LIBRARY_ULPS
 from cdpr_sym.codegen import BuildOptions, build
 from cdpr_sym.codegen.names import c_double
 from cdpr_sym.codegen.native import NativeLibrary
+
+#: Characters of C above which the interval code is compiled at -O1 (its arithmetic is the
+#: same: the flags forbid contraction and re-association at every level): gcc's -O2 took more
+#: than five minutes on the 2.4 MB of ipanema8's 56 facets, -O1 about a minute and a half.
+LARGE_SOURCE = 500_000
+#: Seconds such a compile may take.
+LARGE_TIMEOUT = 1200.0
 
 _PRELUDE = r"""
 #include <float.h>
@@ -230,12 +238,15 @@ def _walk(function: ca.Function, name: str) -> str:
 
 
 def interval_source(function: ca.Function, name: str, *, rounding: bool = True,
-                    centred: bool = False) -> str:
+                    centred: bool = False, varying: int | None = None) -> str:
     """C of ``void name(const double *lo, const double *hi, double *out_lo, double *out_hi,
     long boxes)``: box b's inputs (every input's nonzeros, in order) at
     ``[b * n_in ...]``, its outputs likewise. ``centred`` (a one-input function): the
     mean-value form f(c) + J(X) (X - c) intersected with the natural extension, where c is
-    the box's centre (rounded to a float; the form holds for any c in the box)."""
+    the box's centre (rounded to a float; the form holds for any c in the box).
+    ``varying``: the slopes are taken in the first ``varying`` input entries only, the rest
+    being parameters; a box whose parameters are not points (lo != hi) gets the natural
+    extension alone."""
     function = dense_sx(function)
     n_in = sum(function.nnz_in(i) for i in range(function.n_in()))
     n_out = sum(function.nnz_out(i) for i in range(function.n_out()))
@@ -249,30 +260,37 @@ def interval_source(function: ca.Function, name: str, *, rounding: bool = True,
     else:
         if function.n_in() != 1:
             raise ValueError("the centred form takes a one-input function")
+        n_var = n_in if varying is None else int(varying)
+        if not 0 < n_var <= n_in:
+            raise ValueError(f"varying: expected 1 to {n_in} entries, got {varying}")
         x = ca.SX.sym("x", n_in)
         values = ca.vertcat(*(ca.vec(out) for out in function.call([x])))
-        parts.append(_walk(dense_sx(ca.Function("slopes", [x], [ca.jacobian(values, x)])),
+        parts.append(_walk(dense_sx(ca.Function("slopes", [x], [ca.jacobian(values,
+                                                                              x[:n_var])])),
                            "slopes"))
         loop = [f"    double c[{n_in}], f_lo[{n_out}], f_hi[{n_out}];",
-                f"    double j_lo[{n_out * n_in}], j_hi[{n_out * n_in}];",
-                "    int i, r;",
+                f"    double j_lo[{n_out * n_var}], j_hi[{n_out * n_var}];",
+                "    int i, r, points = 1;",
+                f"    for (i = {n_var}; i < {n_in}; ++i) if (lo[i] != hi[i]) points = 0;",
+                "    natural(lo, hi, out_lo, out_hi);",
+                "    if (points) {",
                 f"    for (i = 0; i < {n_in}; ++i) {{",
                 "      c[i] = 0.5 * lo[i] + 0.5 * hi[i];",
                 "      if (c[i] < lo[i]) c[i] = lo[i];",  # subnormal halves can round out
                 "      if (c[i] > hi[i]) c[i] = hi[i];",
                 "    }",
-                "    natural(lo, hi, out_lo, out_hi);",
                 "    natural(c, c, f_lo, f_hi);",
                 "    slopes(lo, hi, j_lo, j_hi);",
                 f"    for (r = 0; r < {n_out}; ++r) {{",
                 "      itv total = mk(f_lo[r], f_hi[r]);",
-                f"      for (i = 0; i < {n_in}; ++i) {{",
+                f"      for (i = 0; i < {n_var}; ++i) {{",
                 "        itv step = i_sub(mk(lo[i], hi[i]), mk(c[i], c[i]));",
                 f"        itv slope = mk(j_lo[i * {n_out} + r], j_hi[i * {n_out} + r]);",
                 "        total = i_add(total, i_mul(slope, step));",
                 "      }",
                 "      if (total.lo > out_lo[r]) out_lo[r] = total.lo;",
                 "      if (total.hi < out_hi[r]) out_hi[r] = total.hi;",
+                "    }",
                 "    }"]
     parts += [f"void {name}(const double *lo_all, const double *hi_all, double *out_lo_all,",
               "    double *out_hi_all, long boxes) {",
@@ -289,14 +307,19 @@ def interval_source(function: ca.Function, name: str, *, rounding: bool = True,
 class CompiledIntervalFunction:
     """``function`` evaluated on boxes in generated C (same interface as
     :class:`~cdpr_sym.certify.evaluate.IntervalFunction`, one output array per output;
-    ``centred``: the mean-value form, see :func:`interval_source`)."""
+    ``centred``: the mean-value form, its slopes in the first ``varying`` input entries,
+    see :func:`interval_source`)."""
 
     def __init__(self, function: ca.Function, *, rounding: bool = True, centred: bool = False,
-                 options: BuildOptions = BuildOptions()) -> None:
+                 varying: int | None = None, options: BuildOptions = BuildOptions()) -> None:
         function = dense_sx(function)
         self.function = function
         source = interval_source(function, "interval_eval", rounding=rounding,
-                                 centred=centred)
+                                 centred=centred, varying=varying)
+        if len(source) > LARGE_SOURCE and options == BuildOptions():
+            options = dataclasses.replace(options, flags=tuple(
+                "-O1" if flag == "-O2" else flag for flag in options.flags),
+                timeout=LARGE_TIMEOUT)
         compiled = build([], f"interval_{'r' if rounding else 'n'}{'c' if centred else ''}",
                          extra_source=source, options=options)
         library = NativeLibrary(compiled.path)

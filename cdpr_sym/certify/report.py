@@ -8,8 +8,10 @@ case's start, or the boxes themselves for a planar robot).
 The sampled check draws poses uniformly over the frame in two steps (a box with probability
 proportional to its volume, then a point uniform in it), so each pose's box is known; it
 computes the static tension of each by a numeric solve of W T = grad V (CasADi's model
-functions evaluated at points, LU in numpy, not the interval code) and counts the poses
-whose box's verdict it contradicts. A proof is sound only if that count is zero.
+functions evaluated at points, LU in numpy, not the interval code; with a wrench box, the
+tension's spread |W^-1 J^T| h over it) and counts the poses whose box's verdict it
+contradicts. With more cables than degrees of freedom each pose is classified by the sampled
+workspace's hyperplane-shifting test instead. A proof is sound only if that count is zero.
 """
 
 from __future__ import annotations
@@ -34,18 +36,51 @@ def sampled_check(certificate: WorkspaceCertificate, samples: int,
     boxes = rng.choice(len(volumes), size=samples, p=volumes / volumes.sum())
     lower, upper = certificate.lower[boxes], certificate.upper[boxes]
     positions = lower + (upper - lower) * rng.random(lower.shape)
+    if robot.m > robot.n:
+        feasible = _hyperplane_shifting(certificate, positions)
+        return _counts(certificate, boxes, feasible)
     model = SymbolicModel(robot)
     q = ca.SX.sym("q", robot.n)
-    terms = ca.Function("terms", [q], [model.structure_matrix(q), model.grad_potential(q)])
+    terms = ca.Function("terms", [q], [model.structure_matrix(q), model.grad_potential(q),
+                                       ca.densify(model.wrench_jacobian(q).T)])
+    box = certificate.half_widths
     feasible = np.zeros(samples, dtype=bool)
     for start in range(0, samples, 100_000):
         chunk = positions[start:start + 100_000]
         poses = np.hstack([chunk, np.tile(certificate.orientation, (len(chunk), 1))])
-        W, gravity = terms.map(len(chunk))(poses.T)
+        W, gravity, transposed = terms.map(len(chunk))(poses.T)
         W = np.array(W).T.reshape(len(chunk), robot.n, robot.m).transpose(0, 2, 1)
         tension = np.linalg.solve(W, np.array(gravity).T[..., None])[..., 0]
+        if box.size:  # the tension's range over the wrench box: T(0) -+ |W^-1 J^T| h
+            J_T = np.array(transposed).T.reshape(len(chunk), -1, robot.n).transpose(0, 2, 1)
+            spread = np.abs(np.linalg.solve(W, J_T)) @ box
+        else:
+            spread = 0.0
         feasible[start:start + len(chunk)] = np.all(
-            (tension >= robot.t_min) & (tension <= robot.t_max), axis=1)
+            (tension - spread >= robot.t_min) & (tension + spread <= robot.t_max), axis=1)
+    return _counts(certificate, boxes, feasible)
+
+
+def _hyperplane_shifting(certificate: WorkspaceCertificate, positions: np.ndarray
+                         ) -> np.ndarray:
+    """More cables than degrees of freedom: each pose classified by the sampled workspace's
+    hyperplane-shifting test in generated C (:mod:`cdpr_sym.workspace.wrench`), which sees
+    the pose, not the box (its facet normals normalised, a near-singular W refused)."""
+    from cdpr_sym.workspace.wrench import WrenchEvaluator
+
+    robot = certificate.robot
+    box = (certificate.half_widths if certificate.half_widths.size
+           else np.zeros(robot.wrench_half_widths.size))
+    poses = np.hstack([positions, np.tile(certificate.orientation, (len(positions), 1))])
+    evaluator = WrenchEvaluator(robot)
+    return np.concatenate([evaluator.classify(poses[start:start + 100_000], box).feasible
+                           for start in range(0, len(poses), 100_000)])
+
+
+def _counts(certificate: WorkspaceCertificate, boxes: np.ndarray, feasible: np.ndarray
+            ) -> dict[str, Any]:
+    """Disagreements of the sampled poses (in ``boxes``) with their boxes' verdicts."""
+    samples = len(boxes)
     verdicts = certificate.verdicts[boxes]
     return {"samples": int(samples),
             "disagreements_feasible": int(np.sum((verdicts == "feasible") & ~feasible)),
@@ -57,8 +92,12 @@ def sampled_check(certificate: WorkspaceCertificate, samples: int,
 def summary(certificate: WorkspaceCertificate, check: dict[str, Any] | None) -> dict[str, Any]:
     """certificate.json's content."""
     shares = certificate.shares()
-    return {"robot": certificate.robot.name, "property": "static feasibility: the unique "
-            "tension W^-1 grad V in [T_min, T_max] on every cable",
+    wrench = certificate.half_widths
+    prop = ("static feasibility: the unique tension W^-1 grad V in [T_min, T_max] on every "
+            "cable" if not wrench.size else "wrench feasibility: the tension W^-1 (grad V - "
+            "J^T w) in [T_min, T_max] on every cable for every external wrench w of the box")
+    return {"robot": certificate.robot.name, "property": prop,
+            "wrench_half_widths": wrench.tolist(),
             "coordinates": list(certificate.names),
             "orientation": certificate.orientation.tolist(),
             "min_width_m": certificate.min_width, "boxes": len(certificate.verdicts),
@@ -90,7 +129,9 @@ def figure(certificate: WorkspaceCertificate, path: Path) -> None:
     from matplotlib.patches import Rectangle
 
     lower, upper, verdicts = certificate.lower, certificate.upper, certificate.verdicts
-    title = f"{certificate.robot.name}: certified static workspace"
+    title = f"{certificate.robot.name}: certified static workspace" + (
+        f" against the wrench box {certificate.half_widths.tolist()}"
+        if certificate.half_widths.size else "")
     if lower.shape[1] == 3:
         height = certificate.robot.start[2]
         cut = (lower[:, 2] <= height) & (upper[:, 2] >= height)

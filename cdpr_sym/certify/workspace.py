@@ -1,7 +1,7 @@
 """Certified static workspace: boxes of the frame proven feasible, proven infeasible, or
 left undecided at a minimum width.
 
-**Property certified** (m = n, at a stated orientation for a rigid body): a pose q is
+**Property certified** (at a stated orientation for a rigid body; m = n first): a pose q is
 *statically feasible* when the unique tension holding the platform at rest there,
 T = W(q)^{-1} grad V(q), lies in [T_min, T_max] on every cable. By Cramer's rule
 T_i = N_i / D with D = det W and N_i the determinant of W with column i replaced by grad V,
@@ -23,8 +23,22 @@ For more than :data:`CRAMER_UP_TO` degrees of freedom the entries of W and grad 
 enclosed instead, and the interval system [W] T = [grad V] solved by Krawczyk's method
 (:mod:`cdpr_sym.certify.linear`), which proves W regular on the box or decides nothing.
 
-What is not certified here: the wrench-feasible workspace (an external wrench), more cables
-than degrees of freedom (the tension-distribution feasibility), orientation ranges.
+**Wrench-feasible** (the robot's external wrench box, half-widths h: force N, moment N m; n <=
+:data:`CRAMER_UP_TO`): the pose is held against every wrench w of the box, W T = grad V -
+J^T w (:mod:`cdpr_sym.workspace.wrench`). T is affine in w, so over the box T_i ranges over
+T_i(0) -+ sum_j |B_ij| h_j / |D| with B_ij the determinant of W with column i replaced by
+(J^T)_j; the margins become s (N_i - T_min D) - P_i and s (T_max D - N_i) - P_i with
+P_i = sum_j |B_ij| h_j, enclosed the same way (|.| has slopes sign(.) in [-1, 1], the
+generalized gradient the mean-value form needs). A box is wrench-infeasible when at every
+pose some wrench of the box leaves the tension box (an upper bound < 0).
+
+**More cables than degrees of freedom** (or a wrench box for n > :data:`CRAMER_UP_TO`): hyperplane
+shifting over boxes (:func:`facet_function`, :class:`_FacetVerdicts`): every facet margin
+1/2 (T_max - T_min) sum_j |c . w_j| - |c . (grad V - W tau_mid)| - sum_i |(J c)_i| h_i >= 0 on
+the box and some facet spread sum_j |c . w_j| > 0 on it (W of full rank at every pose) prove
+it feasible; a facet margin < 0 on the whole box proves it infeasible.
+
+What is not certified here: orientation ranges.
 """
 
 from __future__ import annotations
@@ -73,6 +87,9 @@ class WorkspaceCertificate:
         Wall-clock time of the branch-and-bound.
     evaluated : int
         Boxes evaluated over all levels.
+    half_widths : ndarray
+        The external wrench box the boxes hold against (force N, moment N m; empty: none,
+        the static workspace).
     """
 
     robot: Robot
@@ -84,6 +101,7 @@ class WorkspaceCertificate:
     min_width: float
     seconds: float
     evaluated: int
+    half_widths: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
 
     def volumes(self) -> np.ndarray:
         return np.prod(self.upper - self.lower, axis=1)
@@ -121,9 +139,11 @@ class WorkspaceCertificate:
         path.write_text("\n".join(rows) + "\n")
 
 
-def margin_function(model: SymbolicModel, orientation: np.ndarray) -> ca.Function:
+def margin_function(model: SymbolicModel, orientation: np.ndarray,
+                    half_widths: np.ndarray | None = None) -> ca.Function:
     """positions (d) -> [D, N_i - T_min D (n), T_max D - N_i (n)] at the fixed
-    ``orientation`` (see the module docstring)."""
+    ``orientation``; with wrench ``half_widths`` (not all zero) -> [D, those margins less
+    P_i (2n), their negatives less P_i (2n)], the second block for D < 0 (module docstring)."""
     robot = model.robot
     d = robot.dimension
     position = ca.SX.sym("p", d)
@@ -136,13 +156,27 @@ def margin_function(model: SymbolicModel, orientation: np.ndarray) -> ca.Functio
         replaced = ca.horzcat(*(gravity if j == i else W[:, j] for j in range(model.n)))
         numerators.append(ca.det(replaced))
     numerator = ca.vertcat(*numerators)
-    return ca.Function("margins", [position],
-                       [ca.vertcat(determinant, numerator - robot.t_min * determinant,
-                                   robot.t_max * determinant - numerator)])
+    margins = ca.vertcat(numerator - robot.t_min * determinant,
+                         robot.t_max * determinant - numerator)
+    if half_widths is None or not np.any(half_widths):
+        return ca.Function("margins", [position], [ca.vertcat(determinant, margins)])
+    transposed = model.wrench_jacobian(q).T  # columns: generalized force of each wrench axis
+    spread = []
+    for i in range(model.n):
+        total = 0
+        for j, h in enumerate(half_widths):
+            if h:
+                replaced = ca.horzcat(*(transposed[:, j] if k == i else W[:, k]
+                                        for k in range(model.n)))
+                total = total + float(h) * ca.fabs(ca.det(replaced))
+        spread.append(total)
+    spread = ca.vertcat(*spread, *spread)
+    return ca.Function("wrench_margins", [position],
+                       [ca.vertcat(determinant, margins - spread, -margins - spread)])
 
 
 def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.005,
-                      until: float = 1.0, compiled: bool = True,
+                      until: float = 1.0, compiled: bool = True, half_widths=None,
                       progress=None) -> WorkspaceCertificate:
     """The certified static workspace of ``robot`` over its frame (module docstring).
 
@@ -161,18 +195,19 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
         Evaluate the margins in generated C (:mod:`cdpr_sym.certify.interval_c`); False:
         numpy (:mod:`cdpr_sym.certify.evaluate`), about eight times slower, the same
         enclosures within a few ulps.
+    half_widths : sequence of float, optional
+        The external wrench box (force N per axis, then moment N m for a rigid body):
+        certify the wrench-feasible workspace (n <= :data:`CRAMER_UP_TO`). Default none.
     progress : callable, optional
         Called with (level, boxes at that level, decided volume share so far).
 
     Raises
     ------
     InvalidCase
-        More cables than degrees of freedom (``robot``), an orientation of the wrong size or
-        outside the frame (``orientation``), a minimum width not positive (``min_width``).
+        An orientation of the wrong size or outside the frame (``orientation``), a minimum
+        width not positive (``min_width``), a wrench box of the wrong size or negative
+        (``half_widths``).
     """
-    if robot.m != robot.n:
-        raise InvalidCase("robot", f"{robot.name} has {robot.m} cables for {robot.n} degrees "
-                          f"of freedom; the certified workspace covers m = n so far")
     if isinstance(min_width, bool) or not isinstance(min_width, (int, float)) \
             or not 0 < min_width < float("inf"):
         raise InvalidCase("min_width", f"expected a positive width in m, got {min_width!r}")
@@ -189,9 +224,16 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
                           f"angle ranges")
     if isinstance(until, bool) or not isinstance(until, (int, float)) or not 0 < until <= 1:
         raise InvalidCase("until", f"expected a share in (0, 1], got {until!r}")
+    wrench = _checked_half_widths(robot, half_widths)
     model = SymbolicModel(robot)
-    decide = (_CramerVerdicts(model, orientation, compiled) if robot.n <= CRAMER_UP_TO
-              else _KrawczykVerdicts(model, orientation, compiled))
+    if robot.m > robot.n or (wrench is not None and robot.n > CRAMER_UP_TO):
+        decide = _FacetVerdicts(model, orientation, wrench, compiled)
+    elif wrench is not None:
+        decide = _WrenchCramerVerdicts(model, orientation, wrench, compiled)
+    elif robot.n <= CRAMER_UP_TO:
+        decide = _CramerVerdicts(model, orientation, compiled)
+    else:
+        decide = _KrawczykVerdicts(model, orientation, compiled)
     started = time.perf_counter()
     lower = np.asarray(robot.frame_lower[:d], dtype=float)[None, :]
     upper = np.asarray(robot.frame_upper[:d], dtype=float)[None, :]
@@ -224,7 +266,25 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
     return WorkspaceCertificate(robot, names, orientation, np.vstack(decided_lower),
                                 np.vstack(decided_upper),
                                 np.array(VERDICTS, dtype=object)[codes], float(min_width),
-                                seconds, evaluated)
+                                seconds, evaluated,
+                                np.zeros(0) if wrench is None else wrench)
+
+
+def _checked_half_widths(robot: Robot, half_widths) -> np.ndarray | None:
+    """The wrench box as an array, None for no wrench (or all zeros)."""
+    if half_widths is None:
+        return None
+    expected = robot.wrench_half_widths.size
+    try:
+        box = np.asarray(half_widths, dtype=float).ravel()
+    except (TypeError, ValueError):
+        box = np.full(0, np.nan)
+    if box.size != expected or not np.all(np.isfinite(box) & (box >= 0)):
+        raise InvalidCase("half_widths", f"expected {expected} finite half-widths >= 0 "
+                          f"(force N, then moment N m), got {half_widths!r}")
+    if not np.any(box):
+        return None
+    return box
 
 
 def _enclosure(function: ca.Function, compiled: bool):
@@ -245,6 +305,74 @@ class _CramerVerdicts:
 
     def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
         return _verdicts(self.margins((lower.T, upper.T))[0], self.n)
+
+
+class _WrenchCramerVerdicts:
+    """Verdicts from Cramer's margins less the wrench box's spread (module docstring)."""
+
+    def __init__(self, model: SymbolicModel, orientation: np.ndarray, half_widths: np.ndarray,
+                 compiled: bool) -> None:
+        self.margins = _enclosure(margin_function(model, orientation, half_widths), compiled)
+        self.n = model.n
+
+    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        lo, hi = self.margins((lower.T, upper.T))[0]
+        n2 = 2 * self.n
+        positive, negative = lo[0] > 0, hi[0] < 0
+        m_lo = np.where(positive, lo[1:1 + n2], lo[1 + n2:])
+        m_hi = np.where(positive, hi[1:1 + n2], hi[1 + n2:])
+        regular = positive | negative
+        feasible = regular & np.all(m_lo >= 0, axis=0)
+        infeasible = regular & np.any(m_hi < 0, axis=0)
+        return np.where(feasible, 0, np.where(infeasible, 1, 2))
+
+
+def facet_function(model: SymbolicModel, orientation: np.ndarray,
+                   half_widths: np.ndarray | None = None) -> ca.Function:
+    """positions (d) -> [margin_F (facets), spread_F (facets)] at the fixed ``orientation``,
+    per set F of n - 1 columns of W with normal c (module docstring, hyperplane shifting):
+    margin_F = (T_max - T_min) / 2 spread_F - |c . (grad V - W tau_mid)| - sum_i |(J c)_i| h_i,
+    spread_F = sum_j |c . w_j|."""
+    from cdpr_sym.workspace.wrench import facet_normals, facet_projections
+
+    robot = model.robot
+    position = ca.SX.sym("p", robot.dimension)
+    q = ca.vertcat(position, ca.DM(orientation)) if len(orientation) else position
+    W = model.structure_matrix(q)
+    mid, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
+    offset = model.grad_potential(q) - W @ ca.DM.ones(model.m) * mid
+    J = model.wrench_jacobian(q)
+    normals = facet_normals(W)
+    margins, spreads = [], []
+    for (_, c), projections in zip(normals, facet_projections(W, normals), strict=True):
+        spread = ca.sum1(ca.fabs(projections))
+        required = ca.fabs(ca.dot(c, offset))
+        if half_widths is not None:
+            required = required + ca.dot(ca.fabs(J @ c), ca.DM(half_widths))
+        margins.append(half * spread - required)
+        spreads.append(spread)
+    return ca.Function("facets", [position], [ca.vertcat(*margins, *spreads)])
+
+
+class _FacetVerdicts:
+    """Verdicts by hyperplane shifting over boxes (any m >= n, a wrench box or none): a box is
+    feasible when every facet's margin is >= 0 on it and some facet's spread is > 0 on it (so
+    W has full rank at every pose: some n x n minor is nonzero), infeasible when some
+    facet's margin is < 0 on it (a support inequality, necessary at any rank)."""
+
+    def __init__(self, model: SymbolicModel, orientation: np.ndarray,
+                 half_widths: np.ndarray | None, compiled: bool) -> None:
+        function = facet_function(model, orientation, half_widths)
+        self.facets = function.nnz_out(0) // 2
+        self.margins = _enclosure(function, compiled)
+
+    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        lo, hi = self.margins((lower.T, upper.T))[0]
+        k = self.facets
+        full_rank = np.any(lo[k:] > 0, axis=0)
+        feasible = full_rank & np.all(lo[:k] >= 0, axis=0)
+        infeasible = np.any(hi[:k] < 0, axis=0)
+        return np.where(feasible, 0, np.where(infeasible, 1, 2))
 
 
 class _KrawczykVerdicts:

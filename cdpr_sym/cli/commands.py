@@ -17,12 +17,12 @@ from cdpr_sym.cli.calibrate import calibrate_command
 from cdpr_sym.cli.certify import certify_command
 from cdpr_sym.cli.output import Output, quantity, yes_no
 from cdpr_sym.cli.parser import MAX_WORKERS
-from cdpr_sym.cli.robots import checked_robot
+from cdpr_sym.cli.robots import checked_robot, with_wrench_box
 from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import Controller, controller_by_name
-from cdpr_sym.errors import InvalidCase, InvalidRobot
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results.trajectory import Trajectory, save_path
 from cdpr_sym.robot import PRESET_NAMES, Robot, resolve_robot
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyRequest
@@ -208,22 +208,6 @@ def check_workspace_args(args: argparse.Namespace) -> tuple[Robot, np.ndarray | 
     orientation = check_grid(robot, args.resolution, args.orientation)
     _check_folder("out", args.out)
     return robot, orientation
-
-
-def with_wrench_box(robot: Robot, force: list[float] | None, moment: list[float] | None
-                    ) -> Robot:
-    """``robot`` with the external wrench box of ``--force`` and ``--moment`` (each
-    replacing the robot file's when given), or InvalidCase naming the option."""
-    changes = {}
-    if force is not None:
-        changes["external_force"] = force
-    if moment is not None:
-        changes["external_moment"] = moment
-    try:
-        return robot.with_case(**changes)
-    except InvalidRobot as bad:
-        option = {"wrench.force": "force", "wrench.moment": "moment"}.get(bad.field, bad.field)
-        raise InvalidCase(option, bad.message) from None
 
 
 def workspace_command(args: argparse.Namespace, out: Output) -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from cdpr_sym.closed_loop import Case
+from cdpr_sym.errors import InvalidCase, InvalidRobot
 from cdpr_sym.robot import Robot, resolve_robot
 
 
@@ -12,3 +13,19 @@ def checked_robot(name_or_path: str) -> Robot:
     robot = resolve_robot(name_or_path)
     Case.of(robot)
     return robot
+
+
+def with_wrench_box(robot: Robot, force: list[float] | None, moment: list[float] | None
+                    ) -> Robot:
+    """``robot`` with the external wrench box of ``--force`` and ``--moment`` (each
+    replacing the robot file's when given), or InvalidCase naming the option."""
+    changes = {}
+    if force is not None:
+        changes["external_force"] = force
+    if moment is not None:
+        changes["external_moment"] = moment
+    try:
+        return robot.with_case(**changes)
+    except InvalidRobot as bad:
+        option = {"wrench.force": "force", "wrench.moment": "moment"}.get(bad.field, bad.field)
+        raise InvalidCase(option, bad.message) from None
