@@ -12,51 +12,182 @@ from cdpr_sym.errors import InvalidCase
 
 #: Most poses of the sampled check.
 MAX_SAMPLES = 10_000_000
+#: Most pairs of the pair certificate's sampled checks (each is a closed-loop run).
+MAX_PAIR_SAMPLES = 100_000
+#: m: half the side of the default start and goal regions (around the case's start and goal).
+DEFAULT_HALF_WIDTH = 0.15
 
 
 def add_parser(command) -> None:
     """The ``certify`` command's options."""
-    parser = command("certify", "prove the static workspace over boxes of the frame (m = n "
-                     "<= 3): boxes proven feasible, proven infeasible, or undecided")
-    parser.add_argument("what", choices=["workspace"], help="what to certify")
+    parser = command("certify", "prove over regions instead of sampling: the static (or "
+                     "wrench-feasible) workspace over boxes of the frame, or a design's "
+                     "tension box over pairs of start and goal boxes (smooth, point masses, "
+                     "m = n <= 3)")
+    parser.add_argument("what", choices=["workspace", "pairs"], help="what to certify")
     parser.add_argument("--robot", default="aras3", help="a preset or a robot file")
     parser.add_argument("--orientation", nargs="+", type=float, metavar="RAD",
                         help="a rigid body's fixed orientation (default: the case's start's)")
-    parser.add_argument("--min-width", type=float, default=0.005,
-                        help="boxes narrower than this (m) are not bisected further")
+    parser.add_argument("--force", nargs="+", type=float, metavar="N",
+                        help="workspace: half-widths of the external force box per world axis, "
+                             "N: certify the wrench-feasible workspace (default: the robot "
+                             "file's [wrench] table, else none)")
+    parser.add_argument("--moment", nargs="+", type=float, metavar="NM",
+                        help="workspace, rigid bodies: half-widths of the external moment box, "
+                             "N m")
+    parser.add_argument("--min-width", type=float, default=None,
+                        help="boxes narrower than this (m) are not bisected further (default: "
+                             "0.005 for the workspace, the box side for pairs)")
     parser.add_argument("--until", type=float, default=1.0,
                         help="stop refining once this share of the frame's volume is decided")
-    parser.add_argument("--samples", type=int, default=1_000_000,
-                        help="poses of the sampled check (0: none)")
+    parser.add_argument("--samples", type=int, default=None,
+                        help="poses (workspace, default 1,000,000) or pairs (pairs, default "
+                             "300) of the sampled check (0: none)")
+    pairs = parser.add_argument_group("pairs")
+    pairs.add_argument("--controller", default="smooth",
+                       help="the design whose pairs are certified (smooth)")
+    pairs.add_argument("--starts", nargs="+", type=float, metavar="M",
+                       help="the start region's lower then upper corner (default: the case's "
+                            "start +- 0.15 m)")
+    pairs.add_argument("--goals", nargs="+", type=float, metavar="M",
+                       help="the goal region's corners (default: the case's goal +- 0.15 m)")
+    pairs.add_argument("--box", type=float, default=0.1,
+                       help="side of the start and goal boxes, m")
+    pairs.add_argument("--tracking-margin", type=float, default=0.5,
+                       help="room the proven feed-forward leaves to both tension bounds, N")
+    pairs.add_argument("--sweep", type=Path,
+                       help="a sweep table (CSV): certify the boxes (of a grid anchored at the "
+                            "frame's corner) holding its pairs instead of the regions, and "
+                            "check its runs of the design inside proven boxes")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sampled check")
     parser.add_argument("--out", type=Path, required=True,
-                        help="folder of boxes.csv, certificate.json and workspace.png")
+                        help="folder of boxes.csv (pairs.csv), certificate.json and "
+                             "workspace.png (pairs.png)")
 
 
 def certify_command(args: argparse.Namespace, out: Output) -> int:
-    from cdpr_sym.certify.report import sampled_check, write_certificate
-    from cdpr_sym.certify.workspace import certify_workspace
     from cdpr_sym.cli.robots import checked_robot
 
     robot = checked_robot(args.robot)
-    if isinstance(args.samples, bool) or not 0 <= args.samples <= MAX_SAMPLES:
-        raise InvalidCase("samples", f"expected 0 to {MAX_SAMPLES:,} poses, got {args.samples}")
     if args.seed < 0:
         raise InvalidCase("seed", f"expected a whole number >= 0, got {args.seed}")
     if args.out.exists() and not args.out.is_dir():
         raise InvalidCase("out", f"expected a folder, got the existing file {args.out}")
+    if args.what == "pairs":
+        if args.force is not None or args.moment is not None:
+            raise InvalidCase("force", "--force and --moment apply to certify workspace")
+        return _pairs(args, robot, out)
+    return _workspace(args, robot, out)
+
+
+def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
+    from cdpr_sym.certify.report import sampled_check, write_certificate
+    from cdpr_sym.certify.workspace import certify_workspace
+    from cdpr_sym.cli.robots import with_wrench_box
+
+    robot = with_wrench_box(robot, args.force, args.moment)
+    half_widths = robot.wrench_half_widths if np.any(robot.wrench_half_widths) else None
+
+    samples = 1_000_000 if args.samples is None else args.samples
+    if isinstance(samples, bool) or not 0 <= samples <= MAX_SAMPLES:
+        raise InvalidCase("samples", f"expected 0 to {MAX_SAMPLES:,} poses, got {samples}")
+    min_width = 0.005 if args.min_width is None else args.min_width
     certificate = certify_workspace(robot, orientation=args.orientation,
-                                    min_width=args.min_width, until=args.until)
-    check = (sampled_check(certificate, args.samples, np.random.default_rng(args.seed))
-             if args.samples else None)
+                                    min_width=min_width, until=args.until,
+                                    half_widths=half_widths)
+    check = (sampled_check(certificate, samples, np.random.default_rng(args.seed))
+             if samples else None)
     content = write_certificate(certificate, args.out, check)
-    lines = [f"{robot.name}: {100 * content['decided_share']:.2f} % of the frame decided "
+    what = "" if half_widths is None else f" (wrench box {half_widths.tolist()})"
+    lines = [f"{robot.name}{what}: {100 * content['decided_share']:.2f} % of the frame decided "
              f"({100 * content['feasible_share']:.2f} % proven feasible, "
              f"{100 * content['infeasible_share']:.2f} % proven infeasible) in "
              f"{content['seconds']:.1f} s, {content['boxes']:,} boxes"]
     if check is not None:
         wrong = check["disagreements_feasible"] + check["disagreements_infeasible"]
         lines.append(f"sampled check: {check['samples']:,} poses, {wrong} disagreements")
+    lines.append(f"written: {args.out}")
+    out.result(content, lines)
+    return 0
+
+
+def _corners(field: str, values, default_centre) -> tuple[np.ndarray, np.ndarray]:
+    """Two corners from 2n numbers, or the default centre +- DEFAULT_HALF_WIDTH."""
+    centre = np.asarray(default_centre, dtype=float)
+    if values is None:
+        return centre - DEFAULT_HALF_WIDTH, centre + DEFAULT_HALF_WIDTH
+    if len(values) != 2 * centre.size:
+        raise InvalidCase(field, f"expected {2 * centre.size} numbers (the lower corner, "
+                          f"then the upper one, m), got {len(values)}")
+    return np.asarray(values[: centre.size]), np.asarray(values[centre.size:])
+
+
+def _sweep_runs(table: Path, controller: str, n: int) -> list:
+    """The table's runs of ``controller``, or a one-line refusal naming the table."""
+    from cdpr_sym.certify.pair_report import sweep_runs
+
+    try:
+        runs = sweep_runs(table, controller, n)
+    except (OSError, KeyError, ValueError, UnicodeDecodeError) as failure:
+        raise InvalidCase("sweep", f"{table} is not a readable sweep table of {n} "
+                          f"coordinates ({type(failure).__name__}: {failure})") from None
+    if not runs:
+        raise InvalidCase("sweep", f"{table} holds no run of {controller}")
+    return runs
+
+
+def _pairs(args: argparse.Namespace, robot, out: Output) -> int:
+    from cdpr_sym.certify.pair_report import (
+        closed_loop_check,
+        draw_proven,
+        plan_check,
+        sweep_check,
+        write_pair_certificate,
+    )
+    from cdpr_sym.certify.pairs import boxes_holding, certify_pair_boxes, certify_pairs
+    from cdpr_sym.control.planned import SmoothReference
+
+    samples = 300 if args.samples is None else args.samples
+    if isinstance(samples, bool) or not 0 <= samples <= MAX_PAIR_SAMPLES:
+        raise InvalidCase("samples", f"expected 0 to {MAX_PAIR_SAMPLES:,} pairs, got {samples}")
+    if args.sweep is not None and not args.sweep.is_file():
+        raise InvalidCase("sweep", f"no sweep table at {args.sweep}")
+    n = robot.n
+    design = SmoothReference()
+    if args.sweep is None:
+        starts = _corners("starts", args.starts, robot.start[:n])
+        goals = _corners("goals", args.goals, robot.goal[:n])
+        certificate = certify_pairs(robot, args.controller, starts=starts, goals=goals,
+                                    width=args.box, min_width=args.min_width,
+                                    tracking_margin=args.tracking_margin, design=design)
+    else:
+        if args.starts is not None or args.goals is not None:
+            raise InvalidCase("sweep", "--sweep certifies the sweep's own pairs; leave out "
+                              "--starts and --goals")
+        runs = _sweep_runs(args.sweep, args.controller, n)
+        starts = boxes_holding(robot, np.array([run["start"] for run in runs]), args.box)
+        goals = boxes_holding(robot, np.array([run["goal"] for run in runs]), args.box)
+        certificate = certify_pair_boxes(robot, args.controller, starts, goals,
+                                         width=args.box, min_width=args.min_width,
+                                         tracking_margin=args.tracking_margin, design=design)
+    checks: dict = {}
+    proven = int(np.sum(certificate.verdicts == "proven"))
+    if samples and proven:
+        rng = np.random.default_rng(args.seed)
+        drawn = draw_proven(certificate, samples, rng)
+        checks["plan"] = plan_check(certificate, *drawn, design)
+        checks["closed_loop"] = closed_loop_check(certificate, *drawn[:2], design)
+    if args.sweep is not None:
+        checks["sweep"] = sweep_check(certificate, runs, args.sweep.name)
+    content = write_pair_certificate(certificate, args.out, checks)
+    lines = [f"{robot.name}, {args.controller}: {100 * content['proven_share']:.2f} % of the "
+             f"(start, goal) volume proven, {100 * content['disproven_share']:.2f} % "
+             f"disproven, {100 * content['undecided_share']:.2f} % undecided "
+             f"({content['pair_boxes']['outside']:,} of {len(certificate.verdicts):,} pair "
+             f"boxes outside the static workspace) in {content['seconds']:.1f} s"]
+    for name, check in checks.items():
+        count = check.get("pairs", check.get("pairs_in_proven_boxes"))
+        lines.append(f"{name} check: {count} pairs, {check['disagreements']} disagreements")
     lines.append(f"written: {args.out}")
     out.result(content, lines)
     return 0

@@ -1,0 +1,268 @@
+"""Certified start/goal pairs: a grid of start boxes times a grid of goal boxes, each pair of
+boxes proven, disproven or left undecided for one design.
+
+The domain is the pairs whose start box and goal box are both proven statically feasible
+(:mod:`cdpr_sym.certify.workspace`, each grid box taken whole): a box only partly in the
+static workspace holds starts at which no design can hold the platform, so its pairs are
+reported ``outside`` and left out of the shares. What a proven pair box proves is the
+design's (:data:`PROPERTIES`); ``smooth``'s argument is :mod:`.smooth_pairs`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from cdpr_sym.certify.workspace import _bisect, _CramerVerdicts
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot import Robot
+
+VERDICTS = ("proven", "disproven", "undecided", "outside")
+#: The property a proven pair box proves, per design.
+PROPERTIES = {
+    "smooth": "for every start and goal in the boxes, the plan finds a plan, and whatever "
+              "duration it picks, its feed-forward tension (the command on the nominal model "
+              "in continuous time, tracking exact) stays in [T_min + mu, T_max - mu] at every "
+              "instant of the move, with det W of one sign along the path",
+}
+#: Most pair boxes one certificate may hold.
+MAX_PAIRS = 2_000_000
+
+
+def grid(lower, upper, width: float) -> tuple[np.ndarray, np.ndarray]:
+    """Boxes of side ``width`` (m) tiling [lower, upper] (the last row of each axis cut at
+    ``upper``): (box lowers, box uppers), each (boxes, d)."""
+    lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    axes = []
+    for lo, hi in zip(lower, upper, strict=True):
+        count = max(1, int(np.ceil((hi - lo) / width - 1e-9)))
+        edges = np.minimum(lo + width * np.arange(count + 1), hi)
+        edges[-1] = hi
+        axes.append(edges)
+    index = np.stack(np.meshgrid(*(np.arange(len(e) - 1) for e in axes), indexing="ij"),
+                     axis=-1).reshape(-1, len(axes))
+    box_lower = np.column_stack([axes[j][index[:, j]] for j in range(len(axes))])
+    box_upper = np.column_stack([axes[j][index[:, j] + 1] for j in range(len(axes))])
+    return box_lower, box_upper
+
+
+@dataclasses.dataclass(frozen=True)
+class PairCertificate:
+    """Pair boxes and their verdicts.
+
+    Attributes
+    ----------
+    robot : Robot
+    controller : str
+    names : tuple of str
+        The coordinates the boxes span.
+    start_lower, start_upper, goal_lower, goal_upper : ndarray, shape (pairs, n)
+        m.
+    verdicts : ndarray of str, shape (pairs,)
+        One of :data:`VERDICTS`.
+    shortest : ndarray, shape (pairs,)
+        For a proven pair box, the shortest duration the plan may pick, s (NaN otherwise).
+    width : float
+        The grid's box side, m.
+    min_width : float
+        Undecided pair boxes were bisected until narrower than this, m.
+    tracking_margin : float
+        N.
+    seconds : float
+    """
+
+    robot: Robot
+    controller: str
+    names: tuple[str, ...]
+    start_lower: np.ndarray
+    start_upper: np.ndarray
+    goal_lower: np.ndarray
+    goal_upper: np.ndarray
+    verdicts: np.ndarray
+    shortest: np.ndarray
+    width: float
+    min_width: float
+    tracking_margin: float
+    seconds: float
+
+    def volumes(self) -> np.ndarray:
+        """Each pair box's volume in (start, goal) space, m^(2n)."""
+        return (np.prod(self.start_upper - self.start_lower, axis=1)
+                * np.prod(self.goal_upper - self.goal_lower, axis=1))
+
+    def shares(self) -> dict[str, float]:
+        """proven, disproven and undecided shares of the domain's (start, goal) volume."""
+        volume = self.volumes()
+        inside = self.verdicts != "outside"
+        total = volume[inside].sum()
+        return {verdict: float(volume[self.verdicts == verdict].sum() / total) if total else 0.0
+                for verdict in VERDICTS[:3]}
+
+    def verdict_at(self, starts: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """The verdict of the pair box holding each (start, goal) ("" outside every box; a
+        pair on a shared face takes the first box's)."""
+        starts, goals = np.atleast_2d(starts), np.atleast_2d(goals)
+        found = np.full(len(starts), "", dtype=object)
+        for k, (start, goal) in enumerate(zip(starts, goals, strict=True)):
+            inside = (np.all((start >= self.start_lower) & (start <= self.start_upper), axis=1)
+                      & np.all((goal >= self.goal_lower) & (goal <= self.goal_upper), axis=1))
+            hits = np.flatnonzero(inside)
+            if hits.size:
+                found[k] = self.verdicts[hits[0]]
+        return found
+
+    def write_csv(self, path) -> None:
+        """``pairs.csv``: lower/upper of the start box and of the goal box per coordinate,
+        the verdict and the shortest duration of a proven box."""
+        header = ([f"start_lower_{name}" for name in self.names]
+                  + [f"start_upper_{name}" for name in self.names]
+                  + [f"goal_lower_{name}" for name in self.names]
+                  + [f"goal_upper_{name}" for name in self.names] + ["verdict", "shortest_s"])
+        numbers = np.hstack([self.start_lower, self.start_upper, self.goal_lower,
+                             self.goal_upper])
+        lines = [",".join(header)]
+        for row, verdict, shortest in zip(numbers, self.verdicts, self.shortest, strict=True):
+            lines.append(",".join([*(repr(float(v)) for v in row), verdict,
+                                   "" if np.isnan(shortest) else repr(float(shortest))]))
+        path.write_text("\n".join(lines) + "\n")
+
+
+def certify_pairs(robot: Robot, controller: str, *, starts, goals, width: float = 0.1,
+                  min_width: float | None = None, tracking_margin: float = 0.5, design=None,
+                  progress: Callable[[int, int], None] | None = None) -> PairCertificate:
+    """Verdicts for every (start box, goal box) of the grids of width ``width`` over the
+    regions ``starts`` and ``goals`` ((lower, upper), m each), undecided ones bisected down
+    to ``min_width`` (:func:`certify_pair_boxes`).
+
+    Raises
+    ------
+    InvalidCase
+        A design without a pair certificate (``controller``), a robot it does not cover
+        (``robot``), regions outside the frame (``starts``, ``goals``), a width not positive
+        or a grid too large (``width``), a margin out of range (``tracking_margin``).
+    """
+    _check_controller(controller)
+    _check_width(width)
+    start_boxes = grid(*_region(robot, "starts", starts), width)
+    goal_boxes = grid(*_region(robot, "goals", goals), width)
+    pairs = len(start_boxes[0]) * len(goal_boxes[0])
+    if pairs > MAX_PAIRS:
+        raise InvalidCase("width", f"{pairs:,} pair boxes (more than {MAX_PAIRS:,}); choose "
+                          f"a larger width or smaller regions")
+    s_index, g_index = (index.ravel() for index in np.meshgrid(
+        np.arange(len(start_boxes[0])), np.arange(len(goal_boxes[0])), indexing="ij"))
+    return certify_pair_boxes(robot, controller, (start_boxes[0][s_index],
+                                                  start_boxes[1][s_index]),
+                              (goal_boxes[0][g_index], goal_boxes[1][g_index]), width=width,
+                              min_width=min_width, tracking_margin=tracking_margin,
+                              design=design,
+                              progress=progress)
+
+
+def boxes_holding(robot: Robot, points: np.ndarray, width: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The boxes of the grid of side ``width`` anchored at the frame's lower corner (cut at
+    its upper one) that hold each point (rows, m): (lowers, uppers)."""
+    _check_width(width)
+    n = robot.n
+    frame_lower = np.asarray(robot.frame_lower[:n], dtype=float)
+    frame_upper = np.asarray(robot.frame_upper[:n], dtype=float)
+    points = np.atleast_2d(np.asarray(points, dtype=float))
+    index = np.floor((points - frame_lower) / width)
+    lower = np.minimum(frame_lower + width * index, frame_upper)
+    upper = np.minimum(lower + width, frame_upper)
+    return lower, upper
+
+
+def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, np.ndarray],
+                       goals: tuple[np.ndarray, np.ndarray], *, width: float,
+                       min_width: float | None = None, tracking_margin: float = 0.5,
+                       design=None, progress: Callable[[int, int], None] | None = None
+                       ) -> PairCertificate:
+    """Verdicts for the pair boxes (starts[0][k], starts[1][k]) x (goals[0][k], goals[1][k])
+    (rows of lower and upper corners, m; repeated pair boxes are taken once): the core of
+    :func:`certify_pairs`. An undecided pair box is bisected along its widest side (in the
+    2n coordinates of start and goal) until narrower than ``min_width`` (default: no
+    bisection), and its parts get their own verdicts."""
+    from cdpr_sym.certify.smooth_pairs import SmoothPairProof
+    from cdpr_sym.control.planned import SmoothReference
+
+    _check_controller(controller)
+    min_width = width if min_width is None else min_width
+    _check_width(min_width, "min_width")
+    model = SymbolicModel(robot)
+    proof = SmoothPairProof(model, design if design is not None else SmoothReference(),
+                            tracking_margin)
+    started = time.perf_counter()
+    lower, unique = np.unique(np.hstack([starts[0], goals[0]]), axis=0, return_index=True)
+    upper = np.hstack([starts[1], goals[1]])[unique]
+    n = robot.n
+    static = _CramerVerdicts(model, np.zeros(0), True)
+    inside = (static(lower[:, :n], upper[:, :n]) == 0) & (static(lower[:, n:],
+                                                                 upper[:, n:]) == 0)
+    found_lower, found_upper, found_codes, found_shortest = (
+        [lower[~inside]], [upper[~inside]], [np.full(int(np.sum(~inside)), 3)],
+        [np.full(int(np.sum(~inside)), np.nan)])
+    lower, upper = lower[inside], upper[inside]
+    total, done, inherited = len(lower), 0, None
+    while len(lower):
+        verdict = proof(lower[:, :n], upper[:, :n], lower[:, n:], upper[:, n:],
+                        inherited=inherited)
+        # a side within rounding of min_width counts as narrow enough
+        final = (verdict.codes != 2) | ((upper - lower).max(axis=1)
+                                        <= min_width * (1 + 1e-9))
+        found_lower.append(lower[final])
+        found_upper.append(upper[final])
+        found_codes.append(verdict.codes[final])
+        found_shortest.append(verdict.shortest[final])
+        done += int(np.sum(final))
+        if progress is not None:
+            progress(done, total)
+        lower, upper = _bisect(lower[~final], upper[~final])  # halves: all left, all right
+        inherited = dataclasses.replace(
+            verdict, statuses=np.tile(verdict.statuses[~final], (2, 1)),
+            sign=np.tile(verdict.sign[~final], 2))
+        total += len(lower) // 2
+    lower, upper = np.vstack(found_lower), np.vstack(found_upper)
+    return PairCertificate(robot, controller, tuple(robot.coordinate_names[:n]),
+                           lower[:, :n], upper[:, :n], lower[:, n:], upper[:, n:],
+                           np.array(VERDICTS, dtype=object)[np.concatenate(found_codes)],
+                           np.concatenate(found_shortest), float(width), float(min_width),
+                           float(tracking_margin), time.perf_counter() - started)
+
+
+def _check_controller(controller: str) -> None:
+    if controller not in PROPERTIES:
+        raise InvalidCase("controller", f"pair certificates exist for {sorted(PROPERTIES)}, "
+                          f"not {controller!r}")
+
+
+def _check_width(width: float, field: str = "width") -> None:
+    if isinstance(width, bool) or not isinstance(width, (int, float)) \
+            or not 0 < width < float("inf"):
+        raise InvalidCase(field, f"expected a positive box width in m, got {width!r}")
+
+
+def _region(robot: Robot, field: str, region) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) of a region given as two corners, checked against the frame."""
+    try:
+        lower, upper = (np.asarray(corner, dtype=float).ravel() for corner in region)
+    except (TypeError, ValueError):
+        raise InvalidCase(field, f"expected (lower, upper) corners, got {region!r}") from None
+    n = robot.n
+    frame_lower = np.asarray(robot.frame_lower[:n], dtype=float)
+    frame_upper = np.asarray(robot.frame_upper[:n], dtype=float)
+    if lower.size != n or upper.size != n or not np.all(np.isfinite(lower) & np.isfinite(upper)):
+        raise InvalidCase(field, f"expected two corners of {n} finite coordinates (m), got "
+                          f"{lower.tolist()} and {upper.tolist()}")
+    if not np.all(lower < upper):
+        raise InvalidCase(field, f"expected lower < upper on every axis, got {lower.tolist()} "
+                          f"and {upper.tolist()}")
+    if np.any(lower < frame_lower) or np.any(upper > frame_upper):
+        raise InvalidCase(field, f"{lower.tolist()} to {upper.tolist()} leaves the frame "
+                          f"{frame_lower.tolist()} to {frame_upper.tolist()}")
+    return lower, upper
