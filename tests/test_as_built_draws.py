@@ -113,6 +113,7 @@ def test_a_calibrated_sweep_runs_each_pair_on_its_own_calibrated_model(tmp_path)
     assert float(row["final_error"]) == run.metrics()["final_error"]
 
 
+@pytest.mark.slow  # the quick suite keeps to about 3 minutes
 def test_simulate_as_built_reports_held_and_the_draw(capsys):
     status = main(["simulate", "--json", "--robot", "aras3", "--controller", "smooth-lp",
                    "--duration", "0.5", "--as-built", "default", "--seed", "4"])

@@ -436,6 +436,7 @@ def test_the_gauge_motions_of_the_estimate_are_exact_symmetries():
     assert result.identifiability.as_dict()["unidentified"][0]["std"] is None
 
 
+@pytest.mark.slow  # the quick suite keeps to about 3 minutes
 def test_a_fit_far_noisier_than_stated_is_refused_not_written():
     """ipanema8 from its encoders at 15 poses (two over the least): the poses read from the
     nominal geometry are a tenth of a radian off, and on this draw the joint solve stays in

@@ -195,6 +195,7 @@ def test_compiled_step_equals_the_virtual_machine(aras3, aras3_model, build_opti
     np.testing.assert_allclose(v_c, v_vm, atol=1e-9)
 
 
+@pytest.mark.slow  # the quick suite keeps to about 3 minutes
 def test_an_infeasible_problem_is_reported_not_hidden(aras3, aras3_model, build_options):
     """Moving out of the frame at 5 m/s from 1 mm inside it, no plan keeps the next
     sample's pose in the frame: the solve must say so."""

@@ -96,6 +96,7 @@ def test_paper_verdicts_follow_their_rules_on_the_runs(paper_folder):
     assert verdicts[("Theorem 1", "with")] == CONTRADICTED
 
 
+@pytest.mark.slow  # the quick suite keeps to about 3 minutes
 def test_report_command_redraws_a_computed_study_from_its_files(paper_folder, tmp_path):
     folder = tmp_path / "copy"
     shutil.copytree(paper_folder, folder)

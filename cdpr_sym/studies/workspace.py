@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from cdpr_sym.distribution import DEFAULT_METHOD
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results.store import write_json
 from cdpr_sym.robot import Robot
@@ -119,6 +120,7 @@ def run_workspace_study(robot: Robot, out_dir: Path, *, resolution: int = 61,
                "poses_per_s": len(points) / seconds,
                "wrench_poses_per_s": len(points) / wrench_seconds,
                **{f"{name}_share": float(grid.mean()) for name, grid in maps.items()},
+               "properties": properties(robot),
                "by_height": by_height}
     # the files hold what the grid gives, not how fast this machine was: re-running the study
     # leaves them unchanged (the rates are returned and printed)
@@ -192,12 +194,32 @@ def _panel(ax, first, second, feasible, ball, wrench, xlabel, ylabel, title) -> 
     ax.set_aspect("equal")
 
 
+def properties(robot: Robot) -> dict[str, str]:
+    """The property each share of the map is, and the test that decided it."""
+    if robot.m == robot.n:
+        feasible = "static feasibility: the unique tension W^-1 grad V in [T_min, T_max] (exact)"
+    else:
+        feasible = ("static feasibility as the default tension distribution finds it "
+                    f"({DEFAULT_METHOD}): a pose it misses can still be held (an exact LP, or "
+                    "hyperplane shifting with a zero wrench box, decides it)")
+    return {"feasible_share": feasible,
+            "ball_share": "the paper's ball condition (13): |tau_1 - mid|_2 below the "
+                          "smallest half-width (sufficient, not necessary)",
+            "wrench_share": "wrench feasibility for the box, by hyperplane shifting (exact "
+                            "for any m >= n)",
+            "closure_share": "wrench closure, by hyperplane shifting (exact; never for m = n)",
+            "certified": "none of these is proven between grid poses: `cdpr-sym certify "
+                         "workspace` proves boxes"}
+
+
 def _held_by(robot: Robot) -> str:
     """What "feasible" means for the robot's cables: the one holding tension in the box
     (m = n), or some tension in the box holding the weight (m > n)."""
     if robot.m == robot.n:
         return "T_m ≤ W⁻¹∇V ≤ T_M"
-    return "some T_m ≤ τ ≤ T_M with W τ = ∇V, by the tension distribution"
+    return (f"some T_m ≤ τ ≤ T_M with W τ = ∇V, as the default tension distribution "
+            f"({DEFAULT_METHOD}) finds it: it can miss a pose an exact LP holds, which the "
+            f"wrench-feasible share below, with a zero box, decides exactly")
 
 
 def _markdown(summary: dict[str, Any], figures: list[str], robot: Robot) -> str:
