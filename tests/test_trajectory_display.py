@@ -170,3 +170,48 @@ def test_to_pandas_without_pandas_says_how_to_install_it(monkeypatch):
         settled_run().to_pandas()
     assert caught.value.field == "pandas"
     assert str(caught.value) == "pandas: to_pandas needs pandas; pip install 'cdpr_sym[pandas]'"
+
+
+# -- figure manners: pyplot, axes, labels ---------------------------------------------------
+
+@pytest.fixture()
+def pyplot():
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
+    yield plt
+    plt.close("all")
+
+
+def test_plot_makes_its_figure_through_pyplot_so_notebooks_show_it(pyplot):
+    figure = settled_run().plot()
+    assert pyplot.get_fignums() == [figure.number]
+    assert pyplot.gcf() is figure
+
+
+def test_plot_labels_the_goal_and_the_tension_bounds_with_units(pyplot):
+    run = settled_run()
+    positions, tensions = run.plot().axes
+    labels = [text.get_text() for text in tensions.get_legend().get_texts()]
+    assert f"T_min = {run.t_min:g} N" in labels and f"T_max = {run.t_max:g} N" in labels
+    assert "goal" in [text.get_text() for text in positions.get_legend().get_texts()]
+    assert tensions.get_ylabel() == "tension [N]" and tensions.get_xlabel() == "time [s]"
+    assert positions.get_ylabel() == "position [m]"
+
+
+def test_plot_draws_into_the_callers_axes(pyplot):
+    figure, ax = pyplot.subplots()
+    run = settled_run()
+    assert run.plot(ax=ax) is figure
+    assert ax.get_ylabel() == "tension [N]" and len(ax.lines) == run.tau.shape[1] + 2
+    figure, axes = pyplot.subplots(3, 1)
+    assert settled_run().plot(ax=axes, alpha=True) is figure
+    assert axes[0].get_ylabel() == "position [m]" and axes[2].get_ylabel() == "α (log)"
+    assert pyplot.get_fignums() == [1, 2]  # nothing else opened
+
+
+def test_plot_refuses_axes_of_the_wrong_count(pyplot):
+    _figure, axes = pyplot.subplots(2, 1)
+    with pytest.raises(InvalidCase) as refused:
+        settled_run().plot(ax=axes, alpha=True)
+    assert refused.value.field == "ax"

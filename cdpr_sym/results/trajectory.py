@@ -98,17 +98,37 @@ class Trajectory:
         return (f"<p><code>{html.escape(repr(self))}</code></p>"
                 f"<table>{cells}</table>")
 
-    def plot(self, *, alpha: bool = False, title: str | None = None) -> Figure:
-        """Positions and tensions against time (and alpha, log scale, if ``alpha``).
+    def plot(self, *, alpha: bool = False, title: str | None = None,
+             ax: Any = None) -> Figure:
+        """Positions and tensions against time (and alpha, log scale, if ``alpha``), with
+        the goal (dashed) and the tension bounds (dotted) drawn and labelled, units on the
+        axes.
 
-        Returns a ``matplotlib.figure.Figure`` (shown by notebooks; ``fig.savefig(path)``
-        writes it); the user's matplotlib backend is not changed.
+        Parameters
+        ----------
+        alpha : bool
+            Add a panel of the paper's alpha (log scale).
+        title : str, optional
+            Default "robot / controller".
+        ax : matplotlib Axes or sequence of Axes, optional
+            Draw into these: one Axes gets the tensions alone (to compare runs on one
+            plot), else one per panel (positions, tensions, alpha). Default: a new figure
+            made through ``matplotlib.pyplot``, so a notebook shows it inline and
+            ``plt.show()`` displays it (the backend is not changed).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure drawn on (``fig.savefig(path)`` writes it).
         """
         from cdpr_sym.results.figures import run_figure  # matplotlib: 0.3 s, plots only
 
         if title is None:
             title = f"{self.info.get('robot', '')} / {self.info.get('controller', '')}"
-        return run_figure(self, title=title, alpha=alpha)
+        try:
+            return run_figure(self, title=title, alpha=alpha, axes=ax, pyplot=True)
+        except ValueError as wrong:
+            raise InvalidCase("ax", str(wrong).removeprefix("axes: ")) from None
 
     def to_pandas(self) -> Any:
         """One row per sample: t, q_*, dq_* and the command held from that sample
