@@ -207,3 +207,13 @@ def test_improved_closed_form_never_calls_feasible_a_tension_that_misses_the_wre
         tau, feasible = _evaluate("improved_closed_form", W, w, robot.t_min, robot.t_max)
         assert min_norm_reference(W, w, robot.t_min, robot.t_max).status == INFEASIBLE
         assert not feasible, (w, W @ tau - w)
+
+
+@pytest.mark.parametrize(("t_min", "t_max", "field"), [
+    (60.0, 2.0, "t_max"), (5.0, 5.0, "t_max"), (np.nan, 60.0, "t_min"),
+    (2.0, np.inf, "t_max"), (-1.0, 60.0, "t_min"), (True, 60.0, "t_min"),
+    ("2", 60.0, "t_min")])
+def test_a_distribution_function_refuses_a_tension_box_that_is_not_one(t_min, t_max, field):
+    with pytest.raises(InvalidCase) as refused:
+        distribution_function("min_norm", 2, 3, t_min, t_max)
+    assert refused.value.field == field

@@ -390,3 +390,18 @@ def test_the_trajectory_budget_is_half_the_memory_of_a_small_machine(monkeypatch
     assert case_module.trajectory_budget() == case_module.TRAJECTORY_BUDGET_BYTES
     reported.clear()  # not reported at all
     assert case_module.trajectory_budget() == case_module.TRAJECTORY_BUDGET_BYTES
+
+
+# -- 4. the robot a command names, the folder a study writes --------------------------------
+def test_a_folder_named_as_the_robot_is_refused_in_one_line(capsys, tmp_path, no_heavy_work):
+    (tmp_path / "robots").mkdir()
+    line = _refused(capsys, ["simulate", "--robot", str(tmp_path / "robots")], "path")
+    assert str(tmp_path / "robots") in line and "folder" in line
+
+
+def test_a_study_folder_that_cannot_be_made_is_refused_before_the_study(capsys, tmp_path,
+                                                                       no_heavy_work):
+    (tmp_path / "plain").write_text("a file, not a folder")
+    line = _refused(capsys, ["study", "compare", "--out", str(tmp_path / "plain" / "sub")],
+                    "out")
+    assert "cannot make the folder" in line

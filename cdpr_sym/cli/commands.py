@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -324,9 +325,17 @@ def _export_encoders(args: argparse.Namespace, robot, out: Output) -> int:
 
 
 def _check_folder(field: str, folder: Path) -> None:
-    """Refuse an output folder that is a file, before any work."""
+    """Refuse, before any work, an output folder that is a file or cannot be made or
+    written (the folder is made now: a study would make it at its end)."""
     if folder.exists() and not folder.is_dir():
         raise InvalidCase(field, f"expected a folder, got the existing file {folder}")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as failure:
+        raise InvalidCase(field, f"cannot make the folder {folder}: "
+                          f"{failure.strerror or failure}") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InvalidCase(field, f"cannot write into the folder {folder}")
 
 
 HANDLERS = {"simulate": simulate_command, "study": study_command, "bench": bench_command,

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import casadi as ca
+import numpy as np
 
 from cdpr_sym.distribution import closed_form, one_dimensional, two_dimensional
 from cdpr_sym.errors import InvalidCase
@@ -60,6 +61,18 @@ def check_method(name: str, n: int, m: int) -> str:
     return name
 
 
+def check_bounds(t_min: float, t_max: float) -> None:
+    """Refuse a tension box that is not 0 <= t_min < t_max < inf (N), naming the bound."""
+    for field, value in (("t_min", t_min), ("t_max", t_max)):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating,
+                                                             np.integer)) \
+                or not np.isfinite(value) or value < 0:
+            raise InvalidCase(field, f"expected a finite tension >= 0 N, got {value!r}")
+    if not t_min < t_max:
+        raise InvalidCase("t_max", f"expected t_max > t_min, got t_min = {t_min} N and "
+                          f"t_max = {t_max} N")
+
+
 def distribute(name: str, W: ca.SX, w: ca.SX, t_min: float, t_max: float
                ) -> tuple[ca.SX, ca.SX]:
     """(tau (m,) N, feasible 1/0) of method ``name`` for the wrench ``w`` (n,)."""
@@ -68,7 +81,15 @@ def distribute(name: str, W: ca.SX, w: ca.SX, t_min: float, t_max: float
 
 def distribution_function(name: str, n: int, m: int, t_min: float, t_max: float
                           ) -> ca.Function:
-    """``tension_<name>``: (W (n x m), w (n)) -> (tau (m) N, feasible), for generation."""
+    """``tension_<name>``: (W (n x m), w (n)) -> (tau (m) N, feasible), for generation.
+
+    Raises
+    ------
+    InvalidCase
+        An unknown or unfitting method (``distribution``); a tension bound that is not a
+        finite number, negative, or a box with t_min >= t_max (``t_min``, ``t_max``).
+    """
+    check_bounds(t_min, t_max)
     name = check_method(name, n, m)
     W, w = ca.SX.sym("W", n, m), ca.SX.sym("w", n)
     tau, feasible = distribute(name, W, w, t_min, t_max)

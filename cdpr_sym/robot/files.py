@@ -107,13 +107,16 @@ def read_robot_text(path: Path) -> str:
         raise InvalidRobot("path", f"{path} is a folder, not a robot file") from None
     except OSError as failure:
         raise InvalidRobot("path", f"cannot read {path}: {failure.strerror}") from None
-    with os.fdopen(descriptor, "rb") as handle:
-        mode = os.fstat(descriptor).st_mode
+    # a folder opens read-only on Linux, and os.fdopen then refuses it with an errno that
+    # names the descriptor: look at the kind of file before wrapping it
+    mode = os.fstat(descriptor).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(descriptor)
         if stat.S_ISDIR(mode):
             raise InvalidRobot("path", f"{path} is a folder, not a robot file")
-        if not stat.S_ISREG(mode):
-            raise InvalidRobot("path", f"{path} is not a regular file (a device, FIFO or "
-                               "socket); expected a robot TOML file")
+        raise InvalidRobot("path", f"{path} is not a regular file (a device, FIFO or "
+                           "socket); expected a robot TOML file")
+    with os.fdopen(descriptor, "rb") as handle:
         try:
             data = handle.read(MAX_ROBOT_FILE_BYTES + 1)
         except OSError as failure:
