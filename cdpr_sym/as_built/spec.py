@@ -46,12 +46,14 @@ def _whole(value: object) -> bool:
 
 
 def _positive(field: str, value: float, unit: str, *, zero: bool = False) -> None:
-    """Raise :class:`InvalidCase` naming ``field`` unless ``value`` is finite and positive
-    (or zero, when ``zero``)."""
-    ok = math.isfinite(value) and (value >= 0 if zero else value > 0)
+    """Raise :class:`InvalidCase` naming ``field`` unless ``value`` is a real number (not a
+    bool, not a numeric string), finite and positive (or zero, when ``zero``)."""
+    real = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_))
+    ok = real and math.isfinite(value) and (value >= 0 if zero else value > 0)
     if not ok:
         kind = "a non-negative" if zero else "a positive"
-        raise InvalidCase(field, f"expected {kind} number in {unit}, got {value}")
+        raise InvalidCase(field, f"expected {kind} number in {unit}, got {value!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -231,6 +233,11 @@ class AsBuilt:
     encoder_offsets: Any = None
 
     def __post_init__(self) -> None:
+        for field, kind in (("actuation", Actuation), ("sensing", Sensing)):
+            value = getattr(self, field)
+            if value is not None and not isinstance(value, kind):
+                raise InvalidCase(field, f"expected {kind.__name__}(...) or None, "
+                                  f"got {value!r}")
         if not (_whole(self.delay) and 0 <= self.delay <= MAX_DELAY):
             raise InvalidCase("delay", f"expected a whole number of control periods in "
                               f"0..{MAX_DELAY}, got {self.delay!r}")
@@ -252,8 +259,13 @@ class AsBuilt:
         value = getattr(self, field)
         if value is None:
             return
-        offsets = np.asarray(value, dtype=float)
-        if offsets.ndim != ndim or not np.isfinite(offsets).all():
+        try:  # ragged rows, strings and objects are refused, not converted
+            offsets = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidCase(field, f"expected {expected}, got {value!r}") from None
+        if offsets.ndim != ndim or not np.isfinite(offsets).all() or any(
+                isinstance(item, (str, bytes, bool, np.bool_))
+                for item in np.asarray(value, dtype=object).ravel()):
             raise InvalidCase(field, f"expected {expected}")
         offsets.setflags(write=False)
         object.__setattr__(self, field, offsets)
