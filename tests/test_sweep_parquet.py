@@ -248,3 +248,40 @@ def test_dask_parquet_sweep_gives_the_same_rows(parquet_sweep, tmp_path):
     assert len(parquet_parts(out)) == CONFIG.pairs
     _assert_same_rows(sorted(load_table(out)[0], key=lambda row: row["pair"]),
                       load_table(parquet_sweep)[0])
+
+
+# -- tables a report reads: one row per run, only this sweep's -------------------------------
+def _report(capsys, table: Path, tmp_path: Path) -> tuple[int, str]:
+    from cdpr_sym.cli import main
+
+    status = main(["report", "sweep", str(table), "--out", str(tmp_path / "report")])
+    return status, capsys.readouterr().err
+
+
+def test_a_csv_with_a_repeated_row_is_refused_naming_the_line(capsys, csv_sweep, tmp_path):
+    table = tmp_path / "results.csv"
+    lines = csv_sweep.read_text().splitlines()
+    table.write_text("\n".join([*lines, lines[2]]) + "\n")
+    shutil.copy(sidecar_path(csv_sweep), sidecar_path(table))
+    status, err = _report(capsys, table, tmp_path)
+    assert status == 2 and len(err.strip().splitlines()) == 1
+    assert f"line {len(lines) + 1} of" in err and "repeats pair" in err and "line 3" in err
+
+
+def test_a_csv_row_of_another_sweep_is_refused(capsys, csv_sweep, tmp_path):
+    table = tmp_path / "results.csv"
+    header, first, *rest = csv_sweep.read_text().splitlines()
+    foreign = first.replace("pd-sat", "smooth", 1)
+    table.write_text("\n".join([header, first, *rest, foreign]) + "\n")
+    shutil.copy(sidecar_path(csv_sweep), sidecar_path(table))
+    status, err = _report(capsys, table, tmp_path)
+    assert status == 2 and "is not of this sweep" in err
+
+
+def test_a_copied_parquet_part_is_refused_not_counted(capsys, parquet_sweep, tmp_path):
+    dataset = _copy(parquet_sweep, tmp_path / "results")
+    part = parquet_parts(dataset)[0]
+    shutil.copy(part, part.with_name("part-copied.parquet"))
+    status, err = _report(capsys, dataset, tmp_path)
+    assert status == 2 and "repeats pair" in err
+    assert _report(capsys, parquet_sweep, tmp_path)[0] == 0

@@ -170,7 +170,36 @@ def load_table(table: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
 
     sidecar = sidecar_path(table)
     meta = read_json(sidecar) if sidecar.exists() else {}
+    check_keys(rows, meta, table, csv=not table.is_dir())
     return _in_sweep_order(rows, meta), meta
+
+
+def check_keys(rows: list[dict[str, Any]], meta: dict[str, Any], table: Path, *,
+               csv: bool) -> None:
+    """Refuse, in one line naming the row, a sweep table that would be miscounted: a
+    (pair, controller) held twice, or a row of a pair or design its sweep (the sidecar's
+    configuration) does not have. A table without those columns is not a sweep's."""
+    config = meta.get("config") or {}
+    designs, pairs = set(config.get("controllers") or ()), config.get("pairs")
+    first: dict[tuple, str] = {}
+    for index, row in enumerate(rows):
+        if "pair" not in row or "controller" not in row:
+            return
+        where = f"line {index + 2} of {table}" if csv else f"row {index + 1} of {table}"
+        pair, design = row["pair"], row["controller"]
+        if isinstance(pair, float) and pair.is_integer():
+            pair = int(pair)
+        foreign_pair = isinstance(pairs, int) and not (
+            isinstance(pair, (int, float)) and 0 <= pair < pairs)
+        if (designs and design not in designs) or foreign_pair:
+            raise InvalidCase("results", f"{where} (pair {pair}, {design}) is not of this "
+                              f"sweep ({pairs} pairs of {', '.join(sorted(designs))}); "
+                              "remove it, or resume the sweep to set it aside")
+        if (pair, design) in first:
+            raise InvalidCase("results", f"{where} repeats pair {pair} of {design} (first "
+                              f"at {first[pair, design]}): each run is counted once; remove "
+                              "the repeat, or resume the sweep to set it aside")
+        first[pair, design] = where.split(" of ")[0]
 
 
 def _in_sweep_order(rows: list[dict[str, Any]], meta: dict[str, Any]
