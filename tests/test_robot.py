@@ -281,3 +281,18 @@ def test_integers_too_large_for_a_float_are_refused_naming_the_field(field):
     with pytest.raises(InvalidRobot) as raised:
         robot_from_dict(data)
     assert raised.value.field == field
+
+
+@pytest.mark.parametrize(("change", "field"), [
+    ({"start": [0.4, "-0.2", 2.5]}, "start"),
+    ({"goal": [1.2, -1.5, b"1.0"]}, "goal"),
+    ({"k": ["1200", 1200.0, 1200.0]}, "k"),
+    ({"anchors": [[1.78, 3.525, 4.26], [1.78, -3.525, "4.26"], [-1.78, -3.525, 4.26]]},
+     "anchors"),
+])
+def test_numeric_text_inside_an_array_is_refused_as_a_number_field_is(change, field):
+    """``mass = "4.0"`` was refused while ``start = [0.4, "-0.2", 2.5]`` was read as
+    numbers: text is text in an array too."""
+    with pytest.raises(InvalidRobot) as raised:
+        preset("aras3").with_case(**change)
+    assert raised.value.field == field

@@ -424,9 +424,14 @@ def _inertia_tensor(value: Any, d: int) -> np.ndarray:
 
 
 def _holds_bool(value: Any) -> bool:
+    """Whether ``value`` holds anything numpy would turn into a number but a robot file
+    does not mean as one: a bool (true -> 1.0), a string ("-0.2" -> -0.2), bytes. The name
+    stays: bools came first."""
     if isinstance(value, (list, tuple)):
         return any(_holds_bool(item) for item in value)
-    return isinstance(value, bool)
+    if isinstance(value, np.ndarray) and value.dtype == object:
+        return any(_holds_bool(item) for item in value.ravel())
+    return isinstance(value, (bool, np.bool_, str, bytes))
 
 
 def _float_scalar(field: str, value: Any) -> float:
