@@ -297,3 +297,40 @@ def test_a_facet_proof_without_the_weight_is_caught(monkeypatch, rng):
     monkeypatch.setattr(certified, "facet_function", weightless)
     broken = certified.certify_workspace(preset("planar4"), min_width=0.02)
     assert sampled_check(broken, 100_000, rng)["disagreements_feasible"] > 0
+
+
+# -- the paper's Assumption 1: where Theorem 1 keeps the box ------------------------------------
+def _numpy_assumption(robot, positions: np.ndarray) -> np.ndarray:
+    """beta = (T_max - T_min) / 2 - |tau_1 - (T_min + T_max) / 2|_2 > 0, derived here."""
+    towards = robot.anchors[None, :, :] - positions[:, None, :]
+    W = (towards / np.linalg.norm(towards, axis=2, keepdims=True)).transpose(0, 2, 1)
+    weight = np.zeros(robot.dimension)
+    weight[-1] = robot.mass * robot.gravity
+    tension = np.linalg.solve(W, np.broadcast_to(weight, positions.shape)[..., None])[..., 0]
+    middle, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
+    return half - np.linalg.norm(tension - middle, axis=1) > 0
+
+
+@pytest.mark.parametrize(("robot_name", "min_width"), [("planar2", 0.005), ("aras3", 0.1)])
+def test_the_region_of_assumption_1_agrees_with_samples(robot_name, min_width, rng):
+    robot = preset(robot_name)
+    certificate = certified.certify_workspace(robot, min_width=min_width,
+                                              prop="assumption-1")
+    positions, verdicts = _uniform_in_boxes(certificate, 200_000, rng)
+    holds = _numpy_assumption(robot, positions)
+    assert np.all(holds[verdicts == "feasible"])
+    assert not np.any(holds[verdicts == "infeasible"])
+    static = certified.certify_workspace(robot, min_width=min_width).shares()["feasible"]
+    assert 0.1 < certificate.shares()["feasible"] < static  # a ball inside the box
+    if robot_name == "planar2":
+        assert certificate.shares()["undecided"] < 0.02
+
+
+def test_assumption_1_is_refused_where_it_is_not_certified():
+    for robot, box in ((preset("planar4"), None), (preset("spatial6"), None),
+                       (preset("planar2"), [0.5, 0.5])):
+        with pytest.raises(InvalidCase) as refused:
+            certified.certify_workspace(robot, prop="assumption-1", half_widths=box)
+        assert refused.value.field == "property"
+    with pytest.raises(InvalidCase, match="property:"):
+        certified.certify_workspace(preset("planar2"), prop="dynamic")

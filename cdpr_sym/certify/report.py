@@ -56,6 +56,12 @@ def sampled_check(certificate: WorkspaceCertificate, samples: int,
             spread = np.abs(np.linalg.solve(W, J_T)) @ box
         else:
             spread = 0.0
+        if certificate.prop == "assumption-1":  # beta = h - |tau_1 - c|_2 > 0
+            middle = 0.5 * (robot.t_min + robot.t_max)
+            half = 0.5 * (robot.t_max - robot.t_min)
+            feasible[start:start + len(chunk)] = (
+                half - np.linalg.norm(tension - middle, axis=1) > 0)
+            continue
         feasible[start:start + len(chunk)] = np.all(
             (tension - spread >= robot.t_min) & (tension + spread <= robot.t_max), axis=1)
     return _counts(certificate, boxes, feasible)
@@ -96,6 +102,10 @@ def summary(certificate: WorkspaceCertificate, check: dict[str, Any] | None) -> 
     prop = ("static feasibility: the unique tension W^-1 grad V in [T_min, T_max] on every "
             "cable" if not wrench.size else "wrench feasibility: the tension W^-1 (grad V - "
             "J^T w) in [T_min, T_max] on every cable for every external wrench w of the box")
+    if certificate.prop == "assumption-1":
+        prop = ("the paper's Assumption 1: beta = (T_max - T_min) / 2 - |tau_1 - (T_min + "
+                "T_max) / 2|_2 > 0 with tau_1 = W^-1 grad V; where it holds and dq != 0, "
+                "Theorem 1 keeps the l2 design's command in the tension box")
     return {"robot": certificate.robot.name, "property": prop,
             "wrench_half_widths": wrench.tolist(),
             "coordinates": list(certificate.names),
@@ -129,7 +139,9 @@ def figure(certificate: WorkspaceCertificate, path: Path) -> None:
     from matplotlib.patches import Rectangle
 
     lower, upper, verdicts = certificate.lower, certificate.upper, certificate.verdicts
-    title = f"{certificate.robot.name}: certified static workspace" + (
+    what = ("the region of Assumption 1" if certificate.prop == "assumption-1"
+            else "certified static workspace")
+    title = f"{certificate.robot.name}: {what}" + (
         f" against the wrench box {certificate.half_widths.tolist()}"
         if certificate.half_widths.size else "")
     if lower.shape[1] == 3:
@@ -144,7 +156,9 @@ def figure(certificate: WorkspaceCertificate, path: Path) -> None:
         for lo, hi in zip(lower[chosen], upper[chosen], strict=True):
             ax.add_patch(Rectangle((lo[0], lo[1]), hi[0] - lo[0], hi[1] - lo[1],
                                    facecolor=colour, edgecolor="none"))
-        ax.plot([], [], "s", color=colour, label=verdict)
+        names = {"feasible": "holds", "infeasible": "does not hold"}
+        shown = names.get(verdict, verdict) if certificate.prop == "assumption-1" else verdict
+        ax.plot([], [], "s", color=colour, label=shown)
     frame_lower, frame_upper = certificate.robot.frame_lower, certificate.robot.frame_upper
     ax.set_xlim(frame_lower[0], frame_upper[0])
     ax.set_ylim(frame_lower[1], frame_upper[1])

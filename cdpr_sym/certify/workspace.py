@@ -90,6 +90,8 @@ class WorkspaceCertificate:
     half_widths : ndarray
         The external wrench box the boxes hold against (force N, moment N m; empty: none,
         the static workspace).
+    prop : str
+        ``static`` (static or wrench feasibility) or ``assumption-1`` (the paper's).
     """
 
     robot: Robot
@@ -102,6 +104,7 @@ class WorkspaceCertificate:
     seconds: float
     evaluated: int
     half_widths: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    prop: str = "static"
 
     def volumes(self) -> np.ndarray:
         return np.prod(self.upper - self.lower, axis=1)
@@ -177,7 +180,7 @@ def margin_function(model: SymbolicModel, orientation: np.ndarray,
 
 def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.005,
                       until: float = 1.0, compiled: bool = True, half_widths=None,
-                      progress=None) -> WorkspaceCertificate:
+                      prop: str = "static", progress=None) -> WorkspaceCertificate:
     """The certified static workspace of ``robot`` over its frame (module docstring).
 
     Parameters
@@ -198,6 +201,10 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
     half_widths : sequence of float, optional
         The external wrench box (force N per axis, then moment N m for a rigid body):
         certify the wrench-feasible workspace (n <= :data:`CRAMER_UP_TO`). Default none.
+    prop : {"static", "assumption-1"}
+        The property: static (or wrench) feasibility, or the paper's Assumption 1, under
+        which its Theorem 1 keeps the tension box (:func:`assumption_function`; m = n <=
+        :data:`CRAMER_UP_TO`, no wrench).
     progress : callable, optional
         Called with (level, boxes at that level, decided volume share so far).
 
@@ -225,8 +232,11 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
     if isinstance(until, bool) or not isinstance(until, (int, float)) or not 0 < until <= 1:
         raise InvalidCase("until", f"expected a share in (0, 1], got {until!r}")
     wrench = _checked_half_widths(robot, half_widths)
+    _check_property(robot, prop, wrench)
     model = SymbolicModel(robot)
-    if robot.m > robot.n or (wrench is not None and robot.n > CRAMER_UP_TO):
+    if prop == "assumption-1":
+        decide = _AssumptionVerdicts(model, orientation, compiled)
+    elif robot.m > robot.n or (wrench is not None and robot.n > CRAMER_UP_TO):
         decide = _FacetVerdicts(model, orientation, wrench, compiled)
     elif wrench is not None:
         decide = _WrenchCramerVerdicts(model, orientation, wrench, compiled)
@@ -267,7 +277,42 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
                                 np.vstack(decided_upper),
                                 np.array(VERDICTS, dtype=object)[codes], float(min_width),
                                 seconds, evaluated,
-                                np.zeros(0) if wrench is None else wrench)
+                                np.zeros(0) if wrench is None else wrench, prop)
+
+
+#: The properties a workspace certificate can be of.
+PROPERTIES = ("static", "assumption-1")
+
+
+def _check_property(robot: Robot, prop: str, wrench: np.ndarray | None) -> None:
+    if prop not in PROPERTIES:
+        raise InvalidCase("property", f"expected one of {PROPERTIES}, got {prop!r}")
+    if prop == "assumption-1" and (robot.m != robot.n or robot.n > CRAMER_UP_TO
+                                   or wrench is not None):
+        raise InvalidCase("property", f"Assumption 1 is certified for m = n <= {CRAMER_UP_TO} "
+                          f"without a wrench box; {robot.name} has m = {robot.m}, "
+                          f"n = {robot.n}")
+
+
+def assumption_function(model: SymbolicModel, orientation: np.ndarray) -> ca.Function:
+    """positions (d) -> [D, h^2 D^2 - sum_i (N_i - c D)^2]: the paper's Assumption 1,
+    beta = h - |tau_1 - c|_2 > 0 with tau_1 = W^-1 grad V = N / D, c = (T_min + T_max) / 2
+    and h = (T_max - T_min) / 2, multiplied by D^2 > 0 (no division): it holds at a pose
+    exactly when the second entry is > 0. Where it holds (and dq != 0) Theorem 1's alpha
+    and J_d keep the command in [T_min, T_max]."""
+    robot = model.robot
+    position = ca.SX.sym("p", robot.dimension)
+    q = ca.vertcat(position, ca.DM(orientation)) if len(orientation) else position
+    W = model.structure_matrix(q)
+    gravity = model.grad_potential(q)
+    determinant = ca.det(W)
+    middle, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
+    spread = 0
+    for i in range(model.n):
+        replaced = ca.horzcat(*(gravity if j == i else W[:, j] for j in range(model.n)))
+        spread = spread + (ca.det(replaced) - middle * determinant) ** 2
+    return ca.Function("assumption", [position],
+                       [ca.vertcat(determinant, half**2 * determinant**2 - spread)])
 
 
 def _checked_half_widths(robot: Robot, half_widths) -> np.ndarray | None:
@@ -373,6 +418,19 @@ class _FacetVerdicts:
         feasible = full_rank & np.all(lo[:k] >= 0, axis=0)
         infeasible = np.any(hi[:k] < 0, axis=0)
         return np.where(feasible, 0, np.where(infeasible, 1, 2))
+
+
+class _AssumptionVerdicts:
+    """Verdicts of the paper's Assumption 1 (:func:`assumption_function`): held on the whole
+    box (D of one sign, the margin's lower bound > 0) or nowhere in it (upper bound <= 0)."""
+
+    def __init__(self, model: SymbolicModel, orientation: np.ndarray, compiled: bool) -> None:
+        self.margin = _enclosure(assumption_function(model, orientation), compiled)
+
+    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        lo, hi = self.margin((lower.T, upper.T))[0]
+        regular = (lo[0] > 0) | (hi[0] < 0)
+        return np.where(regular & (lo[1] > 0), 0, np.where(hi[1] <= 0, 1, 2))
 
 
 class _KrawczykVerdicts:

@@ -35,6 +35,10 @@ def add_parser(command) -> None:
     parser.add_argument("--moment", nargs="+", type=float, metavar="NM",
                         help="workspace, rigid bodies: half-widths of the external moment box, "
                              "N m")
+    parser.add_argument("--property", default="static", choices=["static", "assumption-1"],
+                        help="workspace: static (or wrench) feasibility, or the region where "
+                             "the paper's Assumption 1 holds (its Theorem 1 keeps the box "
+                             "there; m = n <= 3)")
     parser.add_argument("--min-width", type=float, default=None,
                         help="boxes narrower than this (m) are not bisected further (default: "
                              "0.005 for the workspace, the box side for pairs)")
@@ -76,6 +80,8 @@ def certify_command(args: argparse.Namespace, out: Output) -> int:
     if args.what == "pairs":
         if args.force is not None or args.moment is not None:
             raise InvalidCase("force", "--force and --moment apply to certify workspace")
+        if args.property != "static":
+            raise InvalidCase("property", "--property applies to certify workspace")
         return _pairs(args, robot, out)
     return _workspace(args, robot, out)
 
@@ -94,14 +100,17 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     min_width = 0.005 if args.min_width is None else args.min_width
     certificate = certify_workspace(robot, orientation=args.orientation,
                                     min_width=min_width, until=args.until,
-                                    half_widths=half_widths)
+                                    half_widths=half_widths, prop=args.property)
     check = (sampled_check(certificate, samples, np.random.default_rng(args.seed))
              if samples else None)
     content = write_certificate(certificate, args.out, check)
     what = "" if half_widths is None else f" (wrench box {half_widths.tolist()})"
+    held, failed = (("proven to hold Assumption 1", "proven not to")
+                    if args.property == "assumption-1"
+                    else ("proven feasible", "proven infeasible"))
     lines = [f"{robot.name}{what}: {100 * content['decided_share']:.2f} % of the frame decided "
-             f"({100 * content['feasible_share']:.2f} % proven feasible, "
-             f"{100 * content['infeasible_share']:.2f} % proven infeasible) in "
+             f"({100 * content['feasible_share']:.2f} % {held}, "
+             f"{100 * content['infeasible_share']:.2f} % {failed}) in "
              f"{content['seconds']:.1f} s, {content['boxes']:,} boxes"]
     if check is not None:
         wrong = check["disagreements_feasible"] + check["disagreements_infeasible"]
