@@ -326,16 +326,28 @@ def _export_encoders(args: argparse.Namespace, robot, out: Output) -> int:
 
 def _check_folder(field: str, folder: Path) -> None:
     """Refuse, before any work, an output folder that is a file or cannot be made or
-    written (the folder is made now: a study would make it at its end)."""
+    written. The folders that do not exist yet are made to prove it, and removed again:
+    checking arguments leaves nothing behind."""
     if folder.exists() and not folder.is_dir():
         raise InvalidCase(field, f"expected a folder, got the existing file {folder}")
+    missing = []
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    made = []
     try:
-        folder.mkdir(parents=True, exist_ok=True)
+        for path in reversed(missing):
+            path.mkdir()
+            made.append(path)
+        target = made[-1] if made else folder
+        if not os.access(target, os.W_OK | os.X_OK):
+            raise InvalidCase(field, f"cannot write into the folder {target}")
     except OSError as failure:
-        raise InvalidCase(field, f"cannot make the folder {folder}: "
+        raise InvalidCase(field, f"cannot make the folder {missing[0]}: "
                           f"{failure.strerror or failure}") from None
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise InvalidCase(field, f"cannot write into the folder {folder}")
+    finally:
+        for path in reversed(made):
+            path.rmdir()
 
 
 HANDLERS = {"simulate": simulate_command, "study": study_command, "bench": bench_command,
