@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from cdpr_sym.cli.output import Output
+from cdpr_sym.cli.robots import add_wrench_options
 from cdpr_sym.errors import InvalidCase
 
 #: Most poses of the sampled check.
@@ -28,13 +29,7 @@ def add_parser(command) -> None:
     parser.add_argument("--robot", default="aras3", help="a preset or a robot file")
     parser.add_argument("--orientation", nargs="+", type=float, metavar="RAD",
                         help="a rigid body's fixed orientation (default: the case's start's)")
-    parser.add_argument("--force", nargs="+", type=float, metavar="N",
-                        help="workspace: half-widths of the external force box per world axis, "
-                             "N: certify the wrench-feasible workspace (default: the robot "
-                             "file's [wrench] table, else none)")
-    parser.add_argument("--moment", nargs="+", type=float, metavar="NM",
-                        help="workspace, rigid bodies: half-widths of the external moment box, "
-                             "N m")
+    add_wrench_options(parser, scope="workspace: ")
     parser.add_argument("--property", default="static", choices=["static", "assumption-1"],
                         help="workspace: static (or wrench) feasibility, or the region where "
                              "the paper's Assumption 1 holds (its Theorem 1 keeps the box "

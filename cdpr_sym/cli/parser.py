@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from cdpr_sym.cli.robots import add_wrench_options
 from cdpr_sym.closed_loop.case import TRAJECTORY_BUDGET_BYTES
 from cdpr_sym.control import CONTROLLERS, DESCRIPTIONS
 from cdpr_sym.robot import PRESET_NAMES
@@ -122,12 +123,7 @@ def build_parser() -> argparse.ArgumentParser:
                            "poses in all)")
     workspace.add_argument("--orientation", nargs="+", type=float, metavar="RAD",
                            help="angles held fixed for a rigid body (default: the goal's)")
-    workspace.add_argument("--force", nargs="+", type=float, metavar="N",
-                           help="half-widths of the external force box per world axis, N, "
-                           "for the wrench-feasible workspace (default: the robot file's "
-                           "[wrench] table, else none)")
-    workspace.add_argument("--moment", nargs="+", type=float, metavar="NM",
-                           help="rigid bodies: half-widths of the external moment box, N m")
+    add_wrench_options(workspace)
     workspace.add_argument("--out", type=Path, default=Path("reports/workspace"),
                            help="output folder")
 

@@ -29,3 +29,15 @@ def with_wrench_box(robot: Robot, force: list[float] | None, moment: list[float]
     except InvalidRobot as bad:
         option = {"wrench.force": "force", "wrench.moment": "moment"}.get(bad.field, bad.field)
         raise InvalidCase(option, bad.message) from None
+
+
+def add_wrench_options(parser, *, scope: str = "") -> None:
+    """``--force`` and ``--moment``, the external wrench box (read by
+    :func:`with_wrench_box`); ``scope`` prefixes their help (the subcommand they apply to)."""
+    parser.add_argument("--force", nargs="+", type=float, metavar="N",
+                        help=f"{scope}half-widths of the external force box per world axis, "
+                             "N, for the wrench-feasible workspace (default: the robot "
+                             "file's [wrench] table, else none)")
+    parser.add_argument("--moment", nargs="+", type=float, metavar="NM",
+                        help=f"{scope}rigid bodies: half-widths of the external moment box, "
+                             "N m")
