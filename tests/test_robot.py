@@ -296,3 +296,17 @@ def test_numeric_text_inside_an_array_is_refused_as_a_number_field_is(change, fi
     with pytest.raises(InvalidRobot) as raised:
         preset("aras3").with_case(**change)
     assert raised.value.field == field
+
+
+def test_a_robot_of_more_cables_than_the_limit_is_refused_before_any_model():
+    from cdpr_sym.robot.description import MAX_CABLES
+
+    data = preset("aras3").as_dict()
+    angles = np.linspace(0.0, 2 * np.pi, MAX_CABLES + 1, endpoint=False)
+    data["anchors"] = np.column_stack([np.cos(angles), np.sin(angles),
+                                       np.full_like(angles, 4.26)]).tolist()
+    with pytest.raises(InvalidRobot, match=f"{MAX_CABLES + 1} cables") as raised:
+        Robot(**data)
+    assert raised.value.field == "anchors"
+    data["anchors"] = data["anchors"][:MAX_CABLES]
+    assert Robot(**data).m == MAX_CABLES

@@ -45,6 +45,10 @@ _OPTIONAL_FIELDS = (*_BODY_FIELDS, *WRENCH_FIELDS, *CALIBRATION_FIELDS)
 #: Longest robot name, characters (it heads reports and names generated code).
 MAX_NAME_LENGTH = 100
 
+#: Most cables a robot may have: its model is built symbolically and generated to C, which
+#: took 206 s for 1,000 cables before anything was checked (the presets have 2 to 8).
+MAX_CABLES = 64
+
 #: Roll-pitch-yaw is singular at pitch = +-pi/2; frames must keep this far from it, rad.
 PITCH_LIMIT = 1.5
 
@@ -124,6 +128,9 @@ class Robot:
     def __post_init__(self) -> None:
         _check_name(self.name)
         anchors = _float_array("anchors", self.anchors, ndim=2)
+        if len(anchors) > MAX_CABLES:
+            raise InvalidRobot("anchors", f"{len(anchors)} cables; a robot may have at most "
+                               f"{MAX_CABLES} (its model is generated and compiled)")
         _set(self, "anchors", anchors)
         if self.attachments is None:
             self._check_point_body()
