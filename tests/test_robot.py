@@ -310,3 +310,15 @@ def test_a_robot_of_more_cables_than_the_limit_is_refused_before_any_model():
     assert raised.value.field == "anchors"
     data["anchors"] = data["anchors"][:MAX_CABLES]
     assert Robot(**data).m == MAX_CABLES
+
+
+@pytest.mark.parametrize(("robot_name", "index", "field", "value"), [
+    ("spatial6", 5, "frame_upper", 100.0), ("spatial6", 3, "frame_lower", -3.5),
+    ("planar3", 2, "frame_upper", 7.0)])
+def test_an_angle_range_of_more_than_a_turn_is_refused(robot_name, index, field, value):
+    robot = preset(robot_name)
+    bounds = getattr(robot, field).copy()
+    bounds[index] = value
+    with pytest.raises(InvalidRobot, match=r"inside \[-pi, pi\]") as raised:
+        robot.with_case(**{field: bounds.tolist()})
+    assert raised.value.field == field

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import html
 import json
+import math
 import weakref
 from typing import Any
 
@@ -148,8 +149,7 @@ class Robot:
         self._check_external_wrench()
         self._check_encoder_offsets()
         self._check_frame()
-        if self.kind == "spatial":
-            self._check_pitch_range()
+        self._check_angle_ranges()
         for field in ("start", "goal"):
             self._check_inside_frame(field, getattr(self, field))
             self._check_off_the_anchors(field, getattr(self, field))
@@ -288,6 +288,21 @@ class Robot:
         if com.shape != (d,):
             raise InvalidRobot("body.center_of_mass", f"expected {d} values, got {com.shape[0]}")
         _set(self, "center_of_mass", com)
+
+    def _check_angle_ranges(self) -> None:
+        """Every angle's frame range inside [-pi, pi] (a range of more than a turn names
+        the same orientations twice: +-100 rad of yaw was accepted), the pitch's inside
+        [-PITCH_LIMIT, PITCH_LIMIT]."""
+        d = self.dimension
+        for index in range(d, self.n):
+            low, high = self.frame_lower[index], self.frame_upper[index]
+            if low < -math.pi or high > math.pi:
+                raise InvalidRobot(
+                    "frame_lower" if low < -math.pi else "frame_upper",
+                    f"expected the {self.coordinate_names[index]} range inside [-pi, pi] rad, "
+                    f"got [{low}, {high}]")
+        if self.kind == "spatial":
+            self._check_pitch_range()
 
     def _check_pitch_range(self) -> None:
         if self.frame_lower[4] < -PITCH_LIMIT or self.frame_upper[4] > PITCH_LIMIT:
