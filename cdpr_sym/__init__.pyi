@@ -9,12 +9,14 @@ from .control import (
     PD,
     BoxDesign,
     Controller,
+    DistributedPD,
     L2Design,
     LinfDesign,
     Nmpc,
     SaturatedPD,
     SmoothReference,
     VirtualReferenceIdaPbc,
+    WinchIdaPbc,
     controller_by_name,
     tension,
 )
@@ -33,10 +35,11 @@ from .version import __version__
 
 __all__ = [
     "CONTROLLERS", "PD", "Actuation", "AsBuilt", "BoxDesign", "BuildOptions", "Case", "CdprError",
-    "CompilationFailed", "CompilerNotFound", "Controller", "InvalidCase", "InvalidRobot",
+    "CompilationFailed", "CompilerNotFound", "Controller", "DistributedPD", "InvalidCase",
+    "InvalidRobot",
     "L2Design", "LinfDesign", "Nmpc", "Plant", "Robot", "SaturatedPD", "Sensing", "Simulator",
     "SmoothReference", "SweepResults", "SymbolicModel", "Trajectory", "UnknownName",
-    "VirtualReferenceIdaPbc", "__version__", "controller_by_name", "forward_kinematics",
-    "get_simulator", "load_robot", "load_sweep", "preset", "resolve_robot", "simulate",
-    "simulate_adaptive", "tension",
+    "VirtualReferenceIdaPbc", "WinchIdaPbc", "__version__", "controller_by_name",
+    "forward_kinematics", "get_simulator", "load_robot", "load_sweep", "preset",
+    "resolve_robot", "simulate", "simulate_adaptive", "tension",
 ]

@@ -205,3 +205,11 @@ def test_a_damaged_sweep_sidecar_is_one_line_not_a_traceback(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "is damaged" in err and len(err.strip().splitlines()) == 1
     assert main(["report", "sweep", str(tmp_path / "s.csv"), "--out", str(tmp_path / "r")]) == 2
+
+
+def test_the_designs_the_readme_names_import_from_the_package():
+    """The README builds ``DistributedPD(method=...)``; ``ida-winch`` is ``WinchIdaPbc``."""
+    from cdpr_sym import DistributedPD, WinchIdaPbc
+
+    assert DistributedPD(method="min_norm_2d").name == "pd-td"
+    assert WinchIdaPbc().name == "ida-winch"
