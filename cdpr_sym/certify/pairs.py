@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cdpr_sym.certify.workspace import _bisect, _CramerVerdicts
+from cdpr_sym.certify.workspace import CramerVerdicts, bisect
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
@@ -188,7 +188,7 @@ def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, 
     :func:`certify_pairs`. An undecided pair box is bisected along its widest side (in the
     2n coordinates of start and goal) until narrower than ``min_width`` (default: no
     bisection), and its parts get their own verdicts."""
-    from cdpr_sym.certify.smooth_pairs import SmoothPairProof
+    from cdpr_sym.certify.smooth_pairs import Learnt, SmoothPairProof
     from cdpr_sym.control.planned import SmoothReference
 
     _check_controller(controller)
@@ -201,7 +201,7 @@ def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, 
     lower, unique = np.unique(np.hstack([starts[0], goals[0]]), axis=0, return_index=True)
     upper = np.hstack([starts[1], goals[1]])[unique]
     n = robot.n
-    static = _CramerVerdicts(model, np.zeros(0), True)
+    static = CramerVerdicts(model, np.zeros(0), True)
     inside = (static(lower[:, :n], upper[:, :n]) == 0) & (static(lower[:, n:],
                                                                  upper[:, n:]) == 0)
     found_lower, found_upper, found_codes, found_shortest = (
@@ -222,10 +222,9 @@ def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, 
         done += int(np.sum(final))
         if progress is not None:
             progress(done, total)
-        lower, upper = _bisect(lower[~final], upper[~final])  # halves: all left, all right
-        inherited = dataclasses.replace(
-            verdict, statuses=np.tile(verdict.statuses[~final], (2, 1)),
-            sign=np.tile(verdict.sign[~final], 2))
+        lower, upper = bisect(lower[~final], upper[~final])  # halves: all left, all right
+        inherited = Learnt(np.tile(verdict.statuses[~final], (2, 1)),
+                           np.tile(verdict.sign[~final], 2))
         total += len(lower) // 2
     lower, upper = np.vstack(found_lower), np.vstack(found_upper)
     return PairCertificate(robot, controller, tuple(robot.coordinate_names[:n]),

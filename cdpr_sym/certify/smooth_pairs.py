@@ -47,6 +47,7 @@ command's rate, settling; the sampled sweeps measure those.
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -126,6 +127,14 @@ class PairVerdicts:
 FAILS, PASSES = 1, 2
 
 
+class Learnt(NamedTuple):
+    """What a box's verdict learnt that its parts inherit: each option's status
+    ((boxes, options), :data:`FAILS`, :data:`PASSES` or 0) and det W's sign (0 unknown)."""
+
+    statuses: np.ndarray
+    sign: np.ndarray
+
+
 class SmoothPairProof:
     """The certificate of the module docstring for one design and robot.
 
@@ -174,7 +183,7 @@ class SmoothPairProof:
 
     def __call__(self, start_lower: np.ndarray, start_upper: np.ndarray,
                  goal_lower: np.ndarray, goal_upper: np.ndarray, *,
-                 inherited: PairVerdicts | None = None) -> PairVerdicts:
+                 inherited: Learnt | None = None) -> PairVerdicts:
         """Verdicts of pair boxes (rows: boxes; columns: coordinates, m). ``inherited``: the
         statuses and signs of boxes holding these (a parent's, for its parts): an option
         certainly failing or passing on a box does so on its parts and is not evaluated

@@ -241,7 +241,7 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
     elif wrench is not None:
         decide = _WrenchCramerVerdicts(model, orientation, wrench, compiled)
     elif robot.n <= CRAMER_UP_TO:
-        decide = _CramerVerdicts(model, orientation, compiled)
+        decide = CramerVerdicts(model, orientation, compiled)
     else:
         decide = _KrawczykVerdicts(model, orientation, compiled)
     started = time.perf_counter()
@@ -268,7 +268,7 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
         done_volume += float(np.prod(widths[final & (verdict != 2)], axis=1).sum())
         if progress is not None:
             progress(level, len(lower), done_volume / total)
-        lower, upper = _bisect(lower[~final], upper[~final])
+        lower, upper = bisect(lower[~final], upper[~final])
         level += 1
     seconds = time.perf_counter() - started
     names = tuple(robot.coordinate_names[:d])
@@ -341,7 +341,7 @@ def _enclosure(function: ca.Function, compiled: bool):
     return centred(function)
 
 
-class _CramerVerdicts:
+class CramerVerdicts:
     """Verdicts from Cramer's margins (m = n <= :data:`CRAMER_UP_TO`)."""
 
     def __init__(self, model: SymbolicModel, orientation: np.ndarray, compiled: bool) -> None:
@@ -364,12 +364,8 @@ class _WrenchCramerVerdicts:
         lo, hi = self.margins((lower.T, upper.T))[0]
         n2 = 2 * self.n
         positive, negative = lo[0] > 0, hi[0] < 0
-        m_lo = np.where(positive, lo[1:1 + n2], lo[1 + n2:])
-        m_hi = np.where(positive, hi[1:1 + n2], hi[1 + n2:])
-        regular = positive | negative
-        feasible = regular & np.all(m_lo >= 0, axis=0)
-        infeasible = regular & np.any(m_hi < 0, axis=0)
-        return np.where(feasible, 0, np.where(infeasible, 1, 2))
+        return decide(positive | negative, np.where(positive, lo[1:1 + n2], lo[1 + n2:]),
+                      np.where(positive, hi[1:1 + n2], hi[1 + n2:]))
 
 
 def facet_function(model: SymbolicModel, orientation: np.ndarray,
@@ -467,15 +463,21 @@ def _verdicts(bounds, n: int) -> np.ndarray:
     det_lo, det_hi = lo[0], hi[0]
     positive, negative = det_lo > 0, det_hi < 0
     # s * margin for the sign s of D: lower and upper bounds
-    m_lo = np.where(positive, lo[1:], -hi[1:])
-    m_hi = np.where(positive, hi[1:], -lo[1:])
-    regular = positive | negative
-    feasible = regular & np.all(m_lo >= 0, axis=0)
-    infeasible = regular & np.any(m_hi < 0, axis=0)
+    return decide(positive | negative, np.where(positive, lo[1:], -hi[1:]),
+                  np.where(positive, hi[1:], -lo[1:]))
+
+
+def decide(regular: np.ndarray, margin_lower: np.ndarray, margin_upper: np.ndarray
+           ) -> np.ndarray:
+    """0 feasible, 1 infeasible, 2 undecided, per box (columns), from the bounds of margins
+    that are >= 0 where the property holds (rows): every lower bound >= 0 proves it, some
+    upper bound < 0 disproves it, on boxes where ``regular`` (W proven regular)."""
+    feasible = regular & np.all(margin_lower >= 0, axis=0)
+    infeasible = regular & np.any(margin_upper < 0, axis=0)
     return np.where(feasible, 0, np.where(infeasible, 1, 2))
 
 
-def _bisect(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def bisect(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each box halved along its widest side."""
     if not len(lower):
         return lower, upper
