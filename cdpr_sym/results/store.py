@@ -185,7 +185,8 @@ def check_keys(rows: list[dict[str, Any]], meta: dict[str, Any], table: Path, *,
     for index, row in enumerate(rows):
         if "pair" not in row or "controller" not in row:
             return
-        where = f"line {index + 2} of {table}" if csv else f"row {index + 1} of {table}"
+        label = f"line {index + 2}" if csv else f"row {index + 1}"
+        where = f"{label} of {table}"
         pair, design = row["pair"], row["controller"]
         if isinstance(pair, float) and pair.is_integer():
             pair = int(pair)
@@ -199,7 +200,7 @@ def check_keys(rows: list[dict[str, Any]], meta: dict[str, Any], table: Path, *,
             raise InvalidCase("results", f"{where} repeats pair {pair} of {design} (first "
                               f"at {first[pair, design]}): each run is counted once; remove "
                               "the repeat, or resume the sweep to set it aside")
-        first[pair, design] = where.split(" of ")[0]
+        first[pair, design] = label
 
 
 def _in_sweep_order(rows: list[dict[str, Any]], meta: dict[str, Any]
