@@ -10,6 +10,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from cdpr_sym import InvalidCase
 from cdpr_sym.reporting.sweep_report import write_sweep_report
@@ -285,3 +287,108 @@ def test_a_copied_parquet_part_is_refused_not_counted(capsys, parquet_sweep, tmp
     status, err = _report(capsys, dataset, tmp_path)
     assert status == 2 and "repeats pair" in err
     assert _report(capsys, parquet_sweep, tmp_path)[0] == 0
+
+
+# -- a resume judges each part whole: a copy or a part of another sweep is set aside ---------
+def _rejected(out: Path) -> list[str]:
+    aside = out.with_name(out.name + ".rejected")
+    return sorted(path.name for path in aside.iterdir()) if aside.exists() else []
+
+
+def test_resume_sets_a_copied_part_aside_and_runs_nothing(parquet_sweep, tmp_path):
+    out = _copy(parquet_sweep, tmp_path / "results")
+    part = parquet_parts(out)[0]
+    copy = part.with_name("part-~copied.parquet")  # sorts after every written part
+    shutil.copy(part, copy)
+    _sweep(out, format="parquet")
+    assert _rejected(out) == [copy.name]
+    assert sorted(path.name for path in parquet_parts(out)) == sorted(
+        path.name for path in parquet_parts(parquet_sweep))
+    _assert_same_rows(load_table(out)[0], load_table(parquet_sweep)[0])
+
+
+def test_resume_sets_aside_a_part_of_another_sweep_and_reruns_its_rows(parquet_sweep,
+                                                                       tmp_path):
+    other = run_sweep(SweepConfig(robot="aras3", controllers=("pd-sat",), pairs=3,
+                                  duration=0.5, seed=CONFIG.seed + 1),
+                      tmp_path / "other", workers=1, progress=False, format="parquet",
+                      chunk_size=1)
+    out = _copy(parquet_sweep, tmp_path / "results")
+    lost = parquet_parts(out)[1]
+    lost.unlink()
+    foreign = parquet_parts(other)[1]  # the same key (pair, design), another start and goal
+    shutil.copy(foreign, out / "part-foreign.parquet")
+    _sweep(out, format="parquet", chunk_size=1)
+    assert _rejected(out) == ["part-foreign.parquet"]
+    _assert_same_rows(load_table(out)[0], load_table(parquet_sweep)[0])
+
+
+def test_resume_sets_aside_an_unreadable_part_and_reruns_its_rows(parquet_sweep, tmp_path):
+    out = _copy(parquet_sweep, tmp_path / "results")
+    damaged = parquet_parts(out)[2]
+    damaged.write_bytes(damaged.read_bytes()[:100])
+    _sweep(out, format="parquet", chunk_size=1)
+    assert _rejected(out) == [damaged.name]
+    _assert_same_rows(load_table(out)[0], load_table(parquet_sweep)[0])
+
+
+def test_a_part_with_a_row_of_another_design_is_set_aside(parquet_sweep, tmp_path):
+    out = _copy(parquet_sweep, tmp_path / "results")
+    part = parquet_parts(out)[0]
+    table = pq.read_table(part)
+    renamed = table.set_column(table.schema.get_field_index("controller"), "controller",
+                               pa.array(["smooth"] * table.num_rows))
+    pq.write_table(renamed, part)
+    _sweep(out, format="parquet", chunk_size=1)
+    assert _rejected(out) == [part.name]
+    _assert_same_rows(load_table(out)[0], load_table(parquet_sweep)[0])
+
+
+_DAMAGE = ("delete", "copy", "truncate", "empty", "foreign")
+
+
+@pytest.fixture(scope="module")
+def other_sweep(tmp_path_factory) -> Path:
+    """A sweep of the same shape with another draw: its parts are foreign to the reference."""
+    return run_sweep(SweepConfig(robot="aras3", controllers=("pd-sat",), pairs=3, duration=0.5,
+                                 seed=CONFIG.seed + 7),
+                     tmp_path_factory.mktemp("other") / "results", workers=1, progress=False,
+                     format="parquet", chunk_size=1)
+
+
+def _damage(out: Path, other: Path, kind: str, index: int, step: int) -> None:
+    parts = parquet_parts(out)
+    if not parts and kind != "foreign":
+        return
+    part = parts[index % len(parts)] if parts else None
+    if kind == "delete":
+        part.unlink()
+    elif kind == "copy":
+        shutil.copy(part, out / f"part-copy{step}.parquet")
+    elif kind == "truncate":
+        part.write_bytes(part.read_bytes()[: len(part.read_bytes()) // 2])
+    elif kind == "empty":
+        part.write_bytes(b"")
+    else:
+        foreign = parquet_parts(other)
+        shutil.copy(foreign[index % len(foreign)], out / f"part-foreign{step}.parquet")
+
+
+def test_any_damage_to_a_parquet_dataset_is_repaired_by_a_resume(parquet_sweep, other_sweep,
+                                                                tmp_path_factory):
+    """Property: whatever parts are deleted, copied, cut, emptied or brought in from
+    another sweep, one resume leaves exactly the reference sweep's rows, each once."""
+    damages = st.lists(st.tuples(st.sampled_from(_DAMAGE), st.integers(0, 5)),
+                       min_size=1, max_size=4)
+
+    @settings(max_examples=12, deadline=None,
+              suppress_health_check=[HealthCheck.function_scoped_fixture])
+    @given(damages)
+    def check(steps):
+        out = _copy(parquet_sweep, tmp_path_factory.mktemp("damaged") / "results")
+        for step, (kind, index) in enumerate(steps):
+            _damage(out, other_sweep, kind, index, step)
+        _sweep(out, format="parquet", chunk_size=1)
+        _assert_same_rows(load_table(out)[0], load_table(parquet_sweep)[0])
+
+    check()

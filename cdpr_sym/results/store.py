@@ -288,16 +288,23 @@ def read_parquet_rows(folder: Path, columns: Sequence[str] | None = None
                       ) -> list[dict[str, Any]]:
     """Rows of the complete parts of a Parquet dataset, typed (int, float, bool, str, None),
     in the order the parts were written; ``columns`` limits the columns read."""
-    _, pq = _pyarrow()
     rows: list[dict[str, Any]] = []
     for part in parquet_parts(folder):
-        try:
-            table = pq.read_table(part, columns=list(columns) if columns else None)
-        except (OSError, ValueError) as failure:  # pyarrow's errors subclass these
-            raise InvalidCase("results", f"cannot read the Parquet part {part}: {failure}"
-                              ) from None
-        rows.extend(table.to_pylist())
+        rows.extend(read_parquet_part(part, columns))
     return rows
+
+
+def read_parquet_part(part: Path, columns: Sequence[str] | None = None
+                      ) -> list[dict[str, Any]]:
+    """Rows of one Parquet part, typed; an unreadable part is an :class:`InvalidCase`
+    (field ``results``) naming it."""
+    _, pq = _pyarrow()
+    try:
+        table = pq.read_table(part, columns=list(columns) if columns else None)
+    except (OSError, ValueError) as failure:  # pyarrow's errors subclass these
+        raise InvalidCase("results", f"cannot read the Parquet part {part}: {failure}"
+                          ) from None
+    return table.to_pylist()
 
 
 def remove_parquet_dataset(folder: Path) -> None:

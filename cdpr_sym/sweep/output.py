@@ -13,7 +13,10 @@ This module decides which rows are already done:
   status and numeric metrics, and must not repeat an earlier row. Anything else (a torn or
   interleaved write, a second header, a row of another sweep) is moved to
   ``<out>.rejected`` and the table is rewritten atomically (a new file renamed over the
-  old one), so a crash during the repair loses nothing. Rejected rows are run again.
+  old one), so a crash during the repair loses nothing. A Parquet part is judged whole:
+  one row that is not a new row of this sweep (a copied part, a part of another sweep, an
+  unreadable part) moves the part into the folder ``<out>.rejected``. Rejected rows are
+  run again.
 """
 
 from __future__ import annotations
@@ -40,9 +43,10 @@ from cdpr_sym.closed_loop import STOP_REASONS
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results import SCALAR_METRICS
 from cdpr_sym.results.store import (
+    parquet_parts,
     read_csv_records,
     read_json,
-    read_parquet_rows,
+    read_parquet_part,
     sidecar_path,
     write_csv_atomically,
     write_json,
@@ -148,13 +152,70 @@ def done_rows(config: SweepConfig, out: Path, format: str, starts: np.ndarray,
             raise InvalidCase("out", f"{out} is a file, not a Parquet dataset folder; "
                               "choose another --out or the format it was written in")
         out.mkdir(exist_ok=True)
-        rows = read_parquet_rows(out, columns=("pair", "controller"))
-        return {(int(row["pair"]), str(row["controller"])) for row in rows
-                if 0 <= int(row["pair"]) < config.pairs and row["controller"] in config.controllers}
+        return _checked_parquet(config, out, starts, goals, extra)
     if out.is_dir():
         raise InvalidCase("out", f"{out} is a folder (a Parquet sweep?), not a CSV file; "
                           "choose another --out or the format it was written in")
     return _repaired_csv(config, out, starts, goals, extra)
+
+
+def _checked_parquet(config: SweepConfig, out: Path, starts: np.ndarray, goals: np.ndarray,
+                     extra: dict[str, str] | None = None) -> set[tuple[int, str]]:
+    """Keep the parts of a Parquet dataset whose every row is a valid, new row of this sweep
+    (the checks of :func:`row_key`, on the part's typed rows, and the sweep's columns);
+    move any other part (unreadable, of another sweep, a copy, overlapping one kept
+    before it) whole into the folder ``<out>.rejected``. Its rows are run again. Parts
+    are judged in the order they were written, so of two copies the first is kept."""
+    header = sweep_columns(starts.shape[1], extra)
+    done: set[tuple[int, str]] = set()
+    for part in parquet_parts(out):
+        keys = _part_keys(part, header, config, starts, goals)
+        if not keys or keys & done:
+            _set_aside(part, out)
+        else:
+            done |= keys
+    return done
+
+
+def _part_keys(part: Path, header: list[str], config: SweepConfig, starts: np.ndarray,
+               goals: np.ndarray) -> set[tuple[int, str]] | None:
+    """The (pair, controller) keys of a part's rows, or None when any row is not of this
+    sweep or the part cannot be read or has other columns."""
+    try:
+        rows = read_parquet_part(part)
+    except InvalidCase:
+        return None
+    keys: set[tuple[int, str]] = set()
+    for row in rows:
+        if list(row) != header:
+            return None
+        key = row_key([_cell(row[name]) for name in header], header, config, starts, goals)
+        if key is None or key in keys:
+            return None
+        keys.add(key)
+    return keys
+
+
+def _cell(value: Any) -> str:
+    """A typed Parquet value as the text its CSV cell holds (floats in round-trip form)."""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return str(value)
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def _set_aside(part: Path, out: Path) -> None:
+    """Move a rejected part into ``<out>.rejected/`` (never deleted: it may be wanted)."""
+    aside = rejected_path(out)
+    aside.mkdir(exist_ok=True)
+    target = aside / part.name
+    if target.exists():
+        target = aside / f"{part.stem}-{time.time_ns()}{part.suffix}"
+    os.replace(part, target)
+    log.warning("set aside %s: it is unreadable, or holds rows of another sweep or rows "
+                "another part already holds; moved to %s, its rows will be run again",
+                part.name, aside)
 
 
 def _repaired_csv(config: SweepConfig, out: Path, starts: np.ndarray, goals: np.ndarray,
