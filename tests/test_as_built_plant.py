@@ -16,6 +16,7 @@ import reference
 from cdpr_sym import preset, simulate
 from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
 from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.closed_loop.effects.readout import AsBuiltReadout
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
 
@@ -127,10 +128,16 @@ def test_encoders_forward_kinematics_and_filter_read_what_numpy_says(aras3, buil
     np.testing.assert_allclose(dq_read[1:], expected, rtol=0, atol=1e-9)
 
 
-def test_a_pose_that_cannot_be_read_stops_the_run(aras3, build_options):
+def test_a_pose_that_cannot_be_read_is_refused_and_stops_the_run(aras3, build_options,
+                                                                   monkeypatch):
     # lengths rounded to whole metres: the pose they give is 0.6 m from the last one, too
     # far for the solver's four steps from there
     plant = Plant(as_built=AsBuilt(sensing=Sensing(resolution=1.0)))
+    with pytest.raises(InvalidCase, match="count in steps of 1000 mm") as refused:
+        simulate(aras3, "smooth", duration=0.5, build_options=build_options, plant=plant)
+    assert refused.value.field == "sensing"
+    # the generated step itself stops on a reading it cannot place
+    monkeypatch.setattr(AsBuiltReadout, "check_readable", lambda *arguments: None)
     run = simulate(aras3, "smooth", duration=0.5, build_options=build_options, plant=plant)
     assert run.stop_reason == "lost_pose"
     assert len(run.t) == 1

@@ -13,6 +13,7 @@ from .spec import (
     AsBuiltStructure,
     Sensing,
 )
+from .stability import MAX_STRAIN, check_integrable, fastest_mode
 from .static import true_static_function
 
 __all__ = [
@@ -20,6 +21,7 @@ __all__ = [
     "DEFAULT_DRAW",
     "FRICTION_SPEED",
     "MAX_DELAY",
+    "MAX_STRAIN",
     "SENSING_PARAMETERS",
     "Actuation",
     "AsBuilt",
@@ -27,6 +29,8 @@ __all__ = [
     "AsBuiltHamiltonian",
     "AsBuiltStructure",
     "Sensing",
+    "check_integrable",
+    "fastest_mode",
     "load_as_built_draw",
     "true_static_function",
 ]

@@ -273,7 +273,18 @@ class AsBuilt:
     def check_period(self, dt: float) -> None:
         """Raise :class:`InvalidCase` (``substeps``) when, at the control period ``dt``
         (s), one RK4 substep of the torque loop (a pole at -2 pi bandwidth) would leave
-        :data:`TORQUE_LOOP_STEP_LIMIT`: the run would diverge, not just lose accuracy."""
+        :data:`TORQUE_LOOP_STEP_LIMIT`: the run would diverge, not just lose accuracy; and
+        (``velocity_cutoff``) for a velocity filter at or above the Nyquist frequency
+        1 / (2 dt). The cables and drums, which need the robot, are checked by
+        :func:`~cdpr_sym.as_built.stability.check_integrable`."""
+        self._check_torque_loop(dt)
+        if self.sensing is not None and self.sensing.velocity_cutoff >= 0.5 / dt:
+            raise InvalidCase("velocity_cutoff", f"expected a cut-off below the Nyquist "
+                              f"frequency 1 / (2 dt) = {0.5 / dt:g} Hz of dt = {dt:g} s, got "
+                              f"{self.sensing.velocity_cutoff:g} Hz: it would filter nothing "
+                              "the samples can show")
+
+    def _check_torque_loop(self, dt: float) -> None:
         if self.actuation is None:
             return
         rate = 2 * math.pi * self.actuation.bandwidth  # 1/s

@@ -14,6 +14,7 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from cdpr_sym.as_built.stability import check_integrable
 from cdpr_sym.cli.calibrate import calibrate_command
 from cdpr_sym.cli.certify import certify_command
 from cdpr_sym.cli.output import Output, quantity, yes_no
@@ -21,9 +22,11 @@ from cdpr_sym.cli.parser import MAX_WORKERS
 from cdpr_sym.cli.robots import checked_robot, with_wrench_box
 from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
+from cdpr_sym.closed_loop.effects.readout import check_draw_readable
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import Controller, controller_by_name
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SymbolicModel
 from cdpr_sym.results.trajectory import Trajectory, save_path
 from cdpr_sym.robot import PRESET_NAMES, Robot, resolve_robot
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyRequest
@@ -60,7 +63,9 @@ class SimulateInput:
     as_built: AsBuiltDraw | None = None
 
 
-def check_as_built_args(args: argparse.Namespace, robot: Robot) -> AsBuiltDraw | None:
+def check_as_built_args(args: argparse.Namespace, robot: Robot,
+                        controller: Controller | None = None,
+                        start: np.ndarray | None = None) -> AsBuiltDraw | None:
     """The as-built specification of ``--as-built`` (None without it), checked with
     ``--calibration`` and the control period before any work: no other plant option beside
     it (the draw sets the mass), a calibration only on a robot as built that can take it."""
@@ -80,6 +85,11 @@ def check_as_built_args(args: argparse.Namespace, robot: Robot) -> AsBuiltDraw |
     check_seed(args.seed)
     _, spec = draw.draw_pair(robot, args.seed, 0)
     spec.check_period(args.dt)
+    check_integrable(SymbolicModel(robot), spec.actuation, args.dt, spec.substeps,
+                     (robot.start, robot.goal))
+    if controller is not None and args.calibration == "none":
+        check_draw_readable(robot, draw, args.seed, robot.start if start is None else start,
+                            [controller])
     return draw
 
 
@@ -96,7 +106,7 @@ def check_simulate_args(args: argparse.Namespace) -> SimulateInput:
     plant = Plant(mass_scale=args.mass_scale, slack=args.slack, rate_limit=args.rate_limit)
     case = Case.of(robot, start=args.start, goal=args.goal, k=args.k, r_d=args.r_d)
     save = save_path(args.save, field="save") if args.save is not None else None
-    draw = check_as_built_args(args, robot)
+    draw = check_as_built_args(args, robot, controller, case.start)
     return SimulateInput(robot, controller, case, plant, save, draw)
 
 
@@ -186,6 +196,7 @@ def check_study_args(study: Study, args: argparse.Namespace) -> tuple[StudyReque
     _check_folder("out", folder)
     request = StudyRequest(robot=robot, source=source, pairs=args.pairs, seed=args.seed,
                            progress=_progress(args))
+    study.check_request(request)
     return request, folder
 
 

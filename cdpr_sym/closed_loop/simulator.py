@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.as_built.stability import check_integrable
 from cdpr_sym.closed_loop.case import Case, check_timing, minimal_values_per_step
 from cdpr_sym.closed_loop.effects import AsBuiltReadout, StartContext, plant_effects
 from cdpr_sym.closed_loop.layout import StepLayout
@@ -293,6 +294,11 @@ class Simulator:
         read = readout.read_pose(reading, q, spec.sensing)
         return np.full(self.robot.n, np.nan) if read is None else read - q
 
+    def _check_readable(self, start: np.ndarray, plant: Plant) -> None:
+        """:meth:`AsBuiltReadout.check_readable` unless the controller reads the drives."""
+        if not capabilities(self.controller).reads_drives:
+            self.readout.check_readable(start, plant)
+
     def rollout(self, x0: np.ndarray, p: np.ndarray, n_steps: int
                 ) -> tuple[np.ndarray, np.ndarray]:
         """States (n_steps + 1, x size) and logs (n_steps, log size) from ``x0`` with ``p``.
@@ -372,6 +378,10 @@ class Simulator:
         :func:`~cdpr_sym.closed_loop.case.trajectory_budget` bytes."""
         self.check_plant(plant)
         n_steps = check_timing(duration, dt, values_per_step=self.values_per_step)
+        if plant.as_built is not None:
+            check_integrable(self.model, plant.as_built.actuation, dt, plant.as_built.substeps,
+                             (start, goal))
+            self._check_readable(start, plant)
         states, logs, static, taken, record = self._rollout_with_static_tension(
             self.initial_state(start, goal, k, r_d, dq0=dq0, plant=plant),
             self.parameters(goal, k, r_d, dt, plant), n_steps)
@@ -666,6 +676,9 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=N
         steps_per_sample(controller, dt)  # before building: dt must divide its period
     if plant.as_built is not None:
         plant.as_built.check_period(dt)  # before building: enough substeps for dt
+        # at the robot's own case (the run checks its start and goal again)
+        check_integrable(SymbolicModel(robot), plant.as_built.actuation, dt,
+                         plant.as_built.substeps, (robot.start, robot.goal))
     simulator = get_simulator(robot, controller, build_options=build_options,
                               rate_limited=plant.rate_limited,
                               as_built=None if plant.as_built is None

@@ -116,6 +116,11 @@ class Study(abc.ABC):
     def summary_lines(self, result: Any) -> list[str]:
         """The short lines the command line prints for ``result``."""
 
+    def check_request(self, request: StudyRequest) -> None:
+        """Refuse, before any work, a request this study cannot run (its designs or
+        plants on this robot); every request passes unless a study says otherwise."""
+        return None
+
     def as_json(self, result: Any) -> Any:
         """``result`` as plain JSON values (it is one already, unless overridden)."""
         return result

@@ -34,7 +34,8 @@ from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
 from cdpr_sym.as_built.draw import DEFAULT_DRAW
 from cdpr_sym.calibration.drawn import SELF_POSES, TRACKER_NOISE, TRACKER_POSES, drawn_robot
 from cdpr_sym.closed_loop import Plant, get_simulator
-from cdpr_sym.control import controller_by_name
+from cdpr_sym.closed_loop.effects.readout import check_draw_readable
+from cdpr_sym.control import capabilities, controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results import SETTLE_TOLERANCE
@@ -479,6 +480,22 @@ class RobustnessStudy(Study):
     name = "robustness"
     options = StudyOptions()
     runs_note = f"{RUNS_FILE} is not kept in git"
+
+    def check_request(self, request: StudyRequest) -> None:
+        """The study compares :data:`DESIGNS` on the default robot as built: refuse a robot
+        some of them cannot run (more cables than degrees of freedom), naming the study's
+        designs, and one whose encoders the default specification cannot read."""
+        robot = request.robot
+        square_only = [name for name in DESIGNS
+                       if not capabilities(controller_by_name(name)).any_cables]
+        if robot.m > robot.n and square_only:
+            raise InvalidCase("robot", f"the robustness study compares {', '.join(DESIGNS)}; "
+                              f"{', '.join(square_only)} need as many cables as degrees of "
+                              f"freedom, and {robot.name} has {robot.m} for n = {robot.n}. "
+                              "Compare designs for more cables with 'cdpr-sym sweep "
+                              "--as-built SPEC --controllers ...' instead")
+        check_draw_readable(robot, DEFAULT_DRAW, request.seed, robot.start,
+                            [controller_by_name(name) for name in DESIGNS])
 
     def compute(self, folder: Path, request: StudyRequest) -> None:
         compute_robustness_study(request.robot, folder, pairs=request.pairs,

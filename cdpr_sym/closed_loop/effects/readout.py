@@ -12,10 +12,16 @@ import numpy as np
 from cdpr_sym.as_built import Sensing
 from cdpr_sym.as_built.geometry import true_geometry_function
 from cdpr_sym.closed_loop.effects.encoders import corrected, raw_reading, reading_bound
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
+    from collections.abc import Iterable
+
+    from cdpr_sym.as_built import AsBuiltDraw
     from cdpr_sym.closed_loop.plant import Plant
+    from cdpr_sym.control import Controller
+    from cdpr_sym.robot import Robot
 
 
 def anchor_offsets(model: SymbolicModel, plant: Plant) -> np.ndarray:
@@ -97,3 +103,65 @@ class AsBuiltReadout:
         bound = reading_bound(self.model.n, self.model.m, sensing.resolution,
                               sensing.consistency)
         return np.array(q).ravel() if float(ok) > 0.5 and float(residual) <= bound else None
+
+    def check_readable(self, start: np.ndarray, plant: Plant) -> None:
+        """Raise :class:`InvalidCase` (``sensing``) when forward kinematics could not read
+        ``plant`` held at rest at ``start`` (m, rad) from its encoders: a controller that
+        reads the pose would stop at t = 0 (``lost_pose``). The message lists what makes
+        the readings disagree with the model: the cables' stretch under the static tension
+        (the encoders count unstretched lengths), the anchor and encoder-zero errors and the
+        encoder resolution."""
+        spec = plant.as_built
+        if spec is None or spec.sensing is None:
+            return
+        tension = self.true_static(start, plant)[0]
+        reading = self.encoder_reading(start, tension, plant)
+        if self.read_pose(reading, start, spec.sensing) is not None:
+            return
+        causes = "; ".join(self._misreadings(start, tension, plant))
+        bound = f"{1e3 * spec.sensing.consistency:g} mm"
+        raise InvalidCase("sensing", f"the encoders cannot read the start pose of "
+                          f"{self.model.robot.name} ({causes}): forward kinematics finds no "
+                          f"pose that fits the readings within the consistency bound ({bound}) "
+                          "in its iterations; use stiffer cables, calibrated anchors "
+                          "(--calibration), finer encoders, exact state (no sensing) or a "
+                          "controller that reads the drives (ida-winch)")
+
+    def _misreadings(self, start: np.ndarray, tension: np.ndarray, plant: Plant) -> list[str]:
+        """What makes the encoders disagree with the model's geometry at ``start``, in words
+        (the effects the plant has)."""
+        spec = plant.as_built
+        causes = []
+        if spec.actuation is not None:
+            stretch = self.true_lengths(start, plant) - self.unstretched_lengths(
+                start, tension, plant)
+            causes.append(f"held at rest the cables stretch by up to "
+                          f"{1e3 * float(np.max(stretch)):.3g} mm under tensions up to "
+                          f"{float(np.max(tension)):.4g} N, cable_stiffness "
+                          f"{spec.actuation.cable_stiffness:g} N")
+        if spec.anchor_offsets is not None:
+            causes.append(f"the anchors are off by up to "
+                          f"{1e3 * float(np.abs(spec.anchor_offsets).max()):.3g} mm")
+        if spec.encoder_offsets is not None:
+            causes.append(f"the encoders' zeros are off by up to "
+                          f"{1e3 * float(np.abs(spec.encoder_offsets).max()):.3g} mm")
+        causes.append(f"the encoders count in steps of {1e3 * spec.sensing.resolution:g} mm")
+        return causes
+
+
+def check_draw_readable(robot: Robot, draw: AsBuiltDraw, seed: int, start: np.ndarray,
+                        controllers: Iterable[Controller]) -> None:
+    """Before any build or run: raise :class:`InvalidCase` (``sensing``) when a controller
+    of ``controllers`` that reads the pose could not read pair 0's robot as built (seed
+    ``seed``) held at ``start`` (:meth:`AsBuiltReadout.check_readable`). A robot whose
+    cables stretch too far for its encoders fails on every draw alike; one draw and one
+    pose find it."""
+    from cdpr_sym.closed_loop.plant import Plant
+    from cdpr_sym.control import capabilities
+
+    if draw.sensing is None or all(capabilities(controller).reads_drives
+                                   for controller in controllers):
+        return
+    mass_scale, spec = draw.draw_pair(robot, seed, 0)
+    AsBuiltReadout(SymbolicModel(robot)).check_readable(
+        np.asarray(start, dtype=float), Plant(mass_scale=mass_scale, as_built=spec))

@@ -1,0 +1,158 @@
+"""Whether the numbers of a robot as built make a plant the fixed-step integrator can follow.
+
+A run integrates the elastic cables and the drums with RK4 at ``dt / substeps``. Numbers
+that are valid one by one can still make that impossible, and the run then ends at t = 0
+with a wrong reason (``singular`` or ``lost_pose``, although W is regular). Two checks,
+made before anything is built or run:
+
+**Strain.** A cable at T_max stretches by the strain T_max / EA. Synthetic and steel
+cables break at a few per cent of strain (UHMWPE fibre about 3.5 %, steel wire rope about
+1-2 %), so a stiffness EA < T_max / :data:`MAX_STRAIN` is not a cable; the plant's rest
+state l0 = l / (1 + T / EA) would put the drums metres off.
+
+**The fastest cable-drum dynamics.** With every cable taut, linearise the plant about a pose
+q at rest. In the coordinates (q, l0) the kinetic energy is
+1/2 dq^T M(q) dq + 1/2 sum_i (J / r^2) dl0_i^2 and the spring energy
+sum_i EA (l_i(q) - l0_i)^2 / (2 l0_i). The stretch varies as ds = J_a dq - dl0, so the
+stiffness is K = G^T diag(EA / l0_i) G with G = [J_a(q), -I] and the mass
+M_f = diag(M(q), (J / r^2) I); the cable damping adds G^T diag(c_EA / l0_i) G and the drums
+diag(0, (b + tau_c / w_f) / r^2 I) (viscous friction, and the slope at rest of the smooth
+Coulomb sign, w_f = :data:`~cdpr_sym.as_built.spec.FRICTION_SPEED`). (Geometric and
+gravity stiffness, of order T / l, are left out beside EA / l.) With
+A = [[0, I], [-M_f^-1 K, -M_f^-1 C]], the fastest rate is rho = max |eig(A)|, 1/s: the
+frequency omega of the fastest mode when it is lightly damped, or the rate of the
+stiffest damper. RK4's stability region holds the half-disc |z| <= 2.5, Re z <= 0 (it
+reaches 2.83 on the imaginary axis and 2.78 on the negative real one), so the check asks
+for rho h <= :data:`~cdpr_sym.as_built.spec.TORQUE_LOOP_STEP_LIMIT` (2.5), like the torque
+loop's. The stiffest pose of a run is where the cables are shortest; the check is made at
+the poses it is given (a run's start and goal), with l0 = l(q).
+
+On the default winches (EA = 1e5 N, J = 1e-4 kg m^2, r = 0.03 m) the fastest rate is
+650-920 1/s on the presets, set by the cables' stiffness and the drums' Coulomb slope at
+rest: rho h <= 0.46 at 1 kHz with two substeps.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Iterable
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.as_built.spec import (
+    FRICTION_SPEED,
+    SUBSTEP_RANGE,
+    TORQUE_LOOP_STEP_LIMIT,
+    Actuation,
+)
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SymbolicModel
+
+#: Largest strain T_max / EA of a plausible cable (cables break at a few per cent).
+MAX_STRAIN = 0.05
+
+
+def check_strain(actuation: Actuation, t_max: float) -> None:
+    """Raise :class:`InvalidCase` (``cable_stiffness``) when a cable at ``t_max`` (N) would
+    stretch by more than :data:`MAX_STRAIN`."""
+    strain = t_max / actuation.cable_stiffness
+    if strain > MAX_STRAIN:
+        raise InvalidCase("cable_stiffness", f"EA = {actuation.cable_stiffness:g} N stretches a "
+                          f"cable at T_max = {t_max:g} N by {strain:.3g} (T_max / EA); cables "
+                          f"break at a few per cent: expected EA >= "
+                          f"{t_max / MAX_STRAIN:g} N")
+
+
+@functools.cache
+def _linear_parts(model: SymbolicModel) -> ca.Function:
+    """q -> (J_a (m x n), M (n x n), l (m)) of the controller's model."""
+    q = ca.SX.sym("q", model.n)
+    return ca.Function("linear_parts", [q], [model.jacobian_ja(q), model.mass_matrix(q),
+                                             model.cable_lengths(q)])
+
+
+def _linearised(model: SymbolicModel, actuation: Actuation, q: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(M_f, K, C) of the taut plant linearised at rest at ``q`` (module notes)."""
+    J_a, M, lengths = (np.array(value) for value in _linear_parts(model)(q))
+    m, n = J_a.shape
+    G = np.hstack([J_a, -np.eye(m)])
+    per_length = 1.0 / lengths.ravel()
+    K = G.T @ np.diag(actuation.cable_stiffness * per_length) @ G
+    C = G.T @ np.diag(actuation.cable_damping * per_length) @ G
+    radius = float(actuation.drum_radius)
+    friction = (actuation.viscous + actuation.coulomb / FRICTION_SPEED) / radius / radius
+    C[n:, n:] += friction * np.eye(m)
+    drum = actuation.inertia / radius / radius
+    M_f = np.block([[M, np.zeros((n, m))], [np.zeros((m, n)), drum * np.eye(m)]])
+    return M_f, K, C
+
+
+def fastest_mode(model: SymbolicModel, actuation: Actuation, q: np.ndarray) -> float:
+    """omega_max (rad/s) of the taut plant linearised at rest at ``q``, damping and friction
+    left out (module notes), with ``model``'s geometry and ``mass_scale`` 1."""
+    M_f, K, _ = _linearised(model, actuation, q)
+    # lambda_max of M_f^-1 K through the symmetric form L^-1 K L^-T, M_f = L L^T
+    inverse = np.linalg.inv(np.linalg.cholesky(M_f))
+    return float(math.sqrt(max(np.linalg.eigvalsh(inverse @ K @ inverse.T)[-1], 0.0)))
+
+
+def fastest_rate(model: SymbolicModel, actuation: Actuation, q: np.ndarray) -> float:
+    """rho = max |eig(A)| (1/s) of the taut plant linearised at rest at ``q``, damping and
+    friction included (module notes); inf when the numbers overflow."""
+    with np.errstate(all="ignore"):
+        M_f, K, C = _linearised(model, actuation, q)
+        size = M_f.shape[0]
+        if not (np.isfinite(M_f).all() and np.isfinite(K).all() and np.isfinite(C).all()):
+            return math.inf
+        solve = np.linalg.solve(M_f, np.hstack([K, C]))
+        A = np.block([[np.zeros((size, size)), np.eye(size)],
+                      [-solve[:, :size], -solve[:, size:]]])
+        if not np.isfinite(A).all():
+            return math.inf
+        return float(np.abs(np.linalg.eigvals(A)).max())
+
+
+def check_integrable(model: SymbolicModel, actuation: Actuation | None, dt: float,
+                     substeps: int, poses: Iterable[np.ndarray]) -> None:
+    """Raise :class:`InvalidCase` before a run whose cables and drums RK4 cannot follow.
+
+    ``substeps`` when more substeps would do (the message says how many); ``actuation``
+    when even :data:`~cdpr_sym.as_built.spec.SUBSTEP_RANGE`'s largest would not (the
+    stiffness or the drum inertia is implausible); ``cable_stiffness`` for a strain beyond
+    :data:`MAX_STRAIN` at T_max.
+
+    Parameters
+    ----------
+    model : SymbolicModel
+        The robot's model (its geometry and mass matrix).
+    actuation : Actuation or None
+        The winches; None (rigid cables) passes.
+    dt : float
+        Control period, s.
+    substeps : int
+        RK4 steps per control period.
+    poses : iterable of ndarray
+        Poses at rest to check (m, rad), e.g. a run's start and goal.
+    """
+    if actuation is None:
+        return
+    check_strain(actuation, model.robot.t_max)
+    rate = max(fastest_rate(model, actuation, np.asarray(q, dtype=float)) for q in poses)
+    if rate * dt / substeps <= TORQUE_LOOP_STEP_LIMIT:
+        return
+    needed = rate * dt / TORQUE_LOOP_STEP_LIMIT
+    numbers = (f"cable_stiffness {actuation.cable_stiffness:g} N, cable_damping "
+               f"{actuation.cable_damping:g} N s, inertia {actuation.inertia:g} kg m^2, "
+               f"drum_radius {actuation.drum_radius:g} m, viscous {actuation.viscous:g} "
+               f"N m s/rad, coulomb {actuation.coulomb:g} N m")
+    if needed <= SUBSTEP_RANGE[1]:
+        raise InvalidCase("substeps", f"expected at least {math.ceil(needed)} RK4 substeps: "
+                          f"the cables and drums move at rates up to {rate:.4g} 1/s "
+                          f"({numbers}), and at dt = {dt:g} s rate dt / substeps must stay <= "
+                          f"{TORQUE_LOOP_STEP_LIMIT:g}; got {substeps}")
+    raise InvalidCase("actuation", f"the cables and drums move at rates up to {rate:.4g} 1/s "
+                      f"({numbers}), too fast for {SUBSTEP_RANGE[1]} RK4 substeps of "
+                      f"dt = {dt:g} s; expected a physical cable, drum and friction")
