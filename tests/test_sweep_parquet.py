@@ -392,3 +392,72 @@ def test_any_damage_to_a_parquet_dataset_is_repaired_by_a_resume(parquet_sweep, 
         _assert_same_rows(load_table(out)[0], load_table(parquet_sweep)[0])
 
     check()
+
+
+# -- a report counts only the rows of the sweep its sidecar names ----------------------------
+@pytest.fixture(scope="module")
+def other_csv_sweep(tmp_path_factory) -> Path:
+    """A CSV sweep of the same shape, drawn with another seed."""
+    return run_sweep(SweepConfig(robot="aras3", controllers=("pd-sat",), pairs=3, duration=0.5,
+                                 seed=CONFIG.seed + 7),
+                     tmp_path_factory.mktemp("other_csv") / "results.csv", workers=1,
+                     progress=False)
+
+
+def test_a_row_of_another_draw_in_its_place_is_refused(capsys, csv_sweep, other_csv_sweep,
+                                                       tmp_path):
+    table = tmp_path / "results.csv"
+    header, _, *rest = csv_sweep.read_text().splitlines()
+    foreign = other_csv_sweep.read_text().splitlines()[1]  # pair 0 of pd-sat, another start
+    table.write_text("\n".join([header, foreign, *rest]) + "\n")
+    shutil.copy(sidecar_path(csv_sweep), sidecar_path(table))
+    status, err = _report(capsys, table, tmp_path)
+    assert status == 2 and len(err.strip().splitlines()) == 1
+    assert "seed 0 does not draw for pair 0" in err
+
+
+def test_a_sidecar_of_another_sweep_is_refused(capsys, csv_sweep, other_csv_sweep, tmp_path):
+    table = tmp_path / "results.csv"
+    shutil.copy(csv_sweep, table)
+    shutil.copy(sidecar_path(other_csv_sweep), sidecar_path(table))
+    status, err = _report(capsys, table, tmp_path)
+    assert status == 2 and "does not draw" in err
+
+
+def test_a_parquet_part_of_another_draw_replacing_one_is_refused(capsys, parquet_sweep,
+                                                                other_sweep, tmp_path):
+    dataset = _copy(parquet_sweep, tmp_path / "results")
+    parquet_parts(dataset)[0].unlink()
+    shutil.copy(parquet_parts(other_sweep)[0], dataset / "part-foreign.parquet")
+    status, err = _report(capsys, dataset, tmp_path)
+    assert status == 2 and "does not draw" in err
+
+
+@pytest.mark.parametrize("damage", ["no sidecar", "header only", "binary"])
+def test_tables_a_report_cannot_count_are_refused_in_one_line(capsys, csv_sweep, tmp_path,
+                                                             damage):
+    table = tmp_path / "results.csv"
+    text = csv_sweep.read_text()
+    if damage == "header only":
+        text = text.splitlines()[0] + "\n"
+    elif damage == "binary":
+        text = "\x7fELF\x02\x01\x01" + "\x00" * 40
+    table.write_text(text)
+    if damage != "no sidecar":
+        shutil.copy(sidecar_path(csv_sweep), sidecar_path(table))
+    status, err = _report(capsys, table, tmp_path)
+    assert status == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert not (tmp_path / "report" / "report.md").exists()
+
+
+def test_a_study_refuses_a_table_of_another_configuration(csv_sweep):
+    """What a study reading its own folder passes: the pairs, seed and designs it ran."""
+    from cdpr_sym.sweep.tables import load_sweep_table
+
+    rows, _ = load_sweep_table(csv_sweep, pairs=CONFIG.pairs, seed=CONFIG.seed,
+                               controllers=list(CONFIG.controllers))
+    assert len(rows) == CONFIG.pairs
+    for wrong in ({"controllers": ["l2", "pd-sat"]}, {"seed": CONFIG.seed + 1},
+                  {"pairs": CONFIG.pairs + 1}):
+        with pytest.raises(InvalidCase, match="not the .* of the study that reads it"):
+            load_sweep_table(csv_sweep, **wrong)

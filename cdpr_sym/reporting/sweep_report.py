@@ -10,8 +10,9 @@ from matplotlib.figure import Figure
 from cdpr_sym.errors import CdprError, InvalidCase
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results.judging import OUTCOMES, outcome, summarise
-from cdpr_sym.results.store import load_table, write_json
+from cdpr_sym.results.store import write_json
 from cdpr_sym.robot import Robot
+from cdpr_sym.sweep.tables import load_sweep_table
 
 
 def summary_table(summary: dict[str, dict[str, Any]]) -> str:
@@ -74,7 +75,7 @@ SWEEP_KEYS = ("pair", "controller", "status")
 
 def write_sweep_report(results: Path, out_dir: Path) -> Path:
     """``cdpr-sym report sweep``: report.md, summary.json and maps from stored results."""
-    rows, meta = load_table(results)
+    rows, meta = load_sweep_table(results)
     missing = [name for name in SWEEP_KEYS if rows and name not in rows[0]]
     if missing:
         raise InvalidCase("results", f"{results} is not a sweep table (no column "

@@ -135,6 +135,8 @@ def checked_csv_rows(table: Path) -> list[dict[str, str]]:
     table is repaired by running the same sweep command again.
     """
     records, torn = read_csv_records(table)
+    if not records and torn:
+        raise InvalidCase("results", f"{table} is not a CSV table (no complete line)")
     if not records:
         raise InvalidCase("results", f"{table} is empty: no header and no rows")
     if any("\0" in cell for record in records for cell in record):

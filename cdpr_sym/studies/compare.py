@@ -21,7 +21,7 @@ from cdpr_sym.reporting.sweep_report import feasibility_maps
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results import Trajectory
 from cdpr_sym.results.judging import summarise
-from cdpr_sym.results.store import load_table, read_json, write_json
+from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
 from cdpr_sym.studies.compute import control_costs
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyOptions, StudyRequest
@@ -36,6 +36,7 @@ from cdpr_sym.studies.outline import (
     write_study,
 )
 from cdpr_sym.sweep import SweepConfig, robot_reference
+from cdpr_sym.sweep.tables import load_sweep_table
 
 DESIGNS = ("l2", "linf", "box", "pd-sat", "nmpc")
 #: States of each paper-case run where the fast path is checked against cvxpy.
@@ -118,8 +119,10 @@ class CompareStudy(Study):
 
     def aggregate(self, folder: Path) -> None:
         study = read_study(folder)
+        sweep = study["config"]
+        rows, _ = load_sweep_table(folder / SWEEP_FILE, pairs=sweep["pairs"],
+                                   seed=sweep["seed"], controllers=sweep["controllers"])
         runs = load_runs(folder)
-        rows, _ = load_table(folder / SWEEP_FILE)
         plots.figure_cases(runs, folder / "paper_case_tensions.png")
         plots.figure_errors(runs, folder / "paper_case_errors.png",
                             title="Paper case: distance to the goal")

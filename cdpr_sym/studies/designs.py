@@ -15,7 +15,7 @@ from typing import Any
 from cdpr_sym.reporting import plots
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results.judging import summarise
-from cdpr_sym.results.store import load_table, read_json, write_json
+from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
 from cdpr_sym.studies.compute import control_costs
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyOptions, StudyRequest
@@ -30,6 +30,7 @@ from cdpr_sym.studies.outline import (
     write_study,
 )
 from cdpr_sym.sweep import SweepConfig, robot_reference
+from cdpr_sym.sweep.tables import load_sweep_table
 
 DESIGNS = ("l2", "linf", "box", "pd-sat", "ida-ref", "smooth", "nmpc")
 MASS_SCALES = (1.0, 1.1, 0.9)
@@ -100,12 +101,14 @@ class DesignsStudy(Study):
 
     def aggregate(self, folder: Path) -> None:
         study = read_study(folder)
+        sweeps = {scale: load_sweep_table(folder / _table(scale), pairs=study["pairs"],
+                                          seed=study["seed"], controllers=study["designs"],
+                                          mass_scale=scale)[0]
+                  for scale in study["mass_scales"]}
         runs = load_runs(folder)
         plots.figure_cases(runs, folder / "paper_case.png")
         plots.figure_errors(runs, folder / "paper_case_errors.png",
                             title="Paper case: distance to the goal")
-        sweeps = {scale: load_table(folder / _table(scale))[0]
-                  for scale in study["mass_scales"]}
         plots.figure_distributions(sweeps[1.0], folder / "distributions.png")
         table = {f"{scale:.1f}": {name: summary["meets_target"]
                                   for name, summary in summarise(rows).items()}

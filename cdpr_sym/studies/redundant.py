@@ -33,6 +33,7 @@ from cdpr_sym.robot import Robot, preset
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyOptions, StudyRequest
 from cdpr_sym.studies.outline import SUMMARY_FILE, read_study, study_sweep, write_study
 from cdpr_sym.sweep import SweepConfig
+from cdpr_sym.sweep.tables import load_sweep_table
 from cdpr_sym.workspace import (
     WorkspaceEvaluator,
     WrenchEvaluator,
@@ -225,8 +226,9 @@ class RedundantStudy(Study):
             "same_pairs": {"counts": same["counts"],
                            **{name: summarise([r for r in same["rows"] if r["robot"] == name])
                               for name in SAME_FRAME}},
-            "sweeps": {name: summarise(load_table(_sweep_table(folder, name))[0])
-                       for name in study["designs"]},
+            "sweeps": {name: summarise(load_sweep_table(
+                _sweep_table(folder, name), pairs=study["pairs"], seed=study["seed"],
+                controllers=designs)[0]) for name, designs in study["designs"].items()},
             "l2_fallback": {name: _median_fallback(_sweep_table(folder, name))
                             for name, designs in study["designs"].items() if "l2" in designs},
             "pairs": study["pairs"], "seed": study["seed"]})

@@ -22,7 +22,7 @@ from cdpr_sym.model import SymbolicModel
 from cdpr_sym.reporting import plots
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results.judging import summarise
-from cdpr_sym.results.store import load_table, read_json, write_json
+from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyOptions, StudyRequest
 from cdpr_sym.studies.outline import (
@@ -36,6 +36,7 @@ from cdpr_sym.studies.outline import (
     write_study,
 )
 from cdpr_sym.sweep import SweepConfig, robot_reference
+from cdpr_sym.sweep.tables import load_sweep_table
 from cdpr_sym.workspace import WorkspaceEvaluator, frame_shares, interior_box
 
 ROBOTS = ("planar3", "spatial6")
@@ -133,11 +134,16 @@ class RigidStudy(Study):
 
     def aggregate(self, folder: Path) -> None:
         summary = {}
-        for name, measured in read_study(folder)["robots"].items():
+        study = read_study(folder)
+        # every table checked before anything is drawn
+        tables = {name: load_sweep_table(_sweep_table(folder, name), pairs=study["pairs"],
+                                         seed=study["seed"])[0]
+                  for name in study["robots"]}
+        for name, measured in study["robots"].items():
             robot = Robot(**measured["robot"])
             runs = load_runs(folder / name)
             plots.figure_cases({key: runs[key] for key in SHOWN}, folder / f"{name}_case.png")
-            rows, _ = load_table(_sweep_table(folder, name))
+            rows = tables[name]
             summary[name] = {
                 "kind": robot.kind, "n": robot.n, "n_j": robot.n_j,
                 "case": {key: run.metrics() for key, run in runs.items()},
