@@ -9,6 +9,7 @@ computed the study, so any drift of a template, a number format or a verdict rul
 
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 from pathlib import Path
@@ -83,3 +84,19 @@ def test_the_per_run_files_are_left_out_of_git(path):
     done = _git("check-ignore", "--no-index", "--quiet", path)
     assert done.returncode == 0, f"{path} is not ignored"
     assert _git("ls-files", path).stdout == ""
+
+
+@pytest.mark.parametrize("record", [
+    {"study": "compare"}, {"study": "compare", "robot": "x"}, [], {"study": 7}],
+    ids=["no fields", "robot a string", "a list", "kind a number"])
+@pytest.mark.parametrize("name", ["compare", "designs"])
+def test_a_study_record_of_the_wrong_shape_is_refused_in_one_line(name, record, tmp_path,
+                                                                  capsys):
+    folder = _as_cloned(name, tmp_path)
+    if isinstance(record, dict) and record.get("study") == "compare":
+        record = {**record, "study": name}
+    (folder / "study.json").write_text(json.dumps(record))
+    (folder / "summary.json").write_text(json.dumps({"sweep": 3}))
+    assert main(["report", name, str(folder)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("cdpr-sym: error: results:")

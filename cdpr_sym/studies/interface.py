@@ -139,12 +139,20 @@ class Study(abc.ABC):
             ``results``: neither the per-run files nor the aggregate files are there.
         """
         folder = Path(folder)
-        if self.has_runs(folder):
-            self.aggregate(folder)
-        elif not all(path.exists() for path in self.aggregate_files(folder)):
-            raise InvalidCase("results", f"{folder} has no stored runs ({self.runs_note}); "
-                              f"run 'cdpr-sym study {self.name}' to compute them")
-        return self.render(folder)
+        try:
+            if self.has_runs(folder):
+                self.aggregate(folder)
+            elif not all(path.exists() for path in self.aggregate_files(folder)):
+                raise InvalidCase("results", f"{folder} has no stored runs "
+                                  f"({self.runs_note}); run 'cdpr-sym study {self.name}' to "
+                                  "compute them")
+            return self.render(folder)
+        except (KeyError, TypeError, AttributeError, IndexError) as failure:
+            # the stored files are input here: a field missing or of the wrong kind is a
+            # damaged or foreign file, refused in one line
+            raise InvalidCase("results", f"the stored files of {folder} are not a computed "
+                              f"{self.name} study's ({type(failure).__name__}: {failure}); "
+                              f"run 'cdpr-sym study {self.name}' to compute them") from None
 
     def run(self, folder: Path, request: StudyRequest) -> Any:
         """Compute into ``folder``, then report from the files; returns the result."""
@@ -168,4 +176,5 @@ class Study(abc.ABC):
         data = read_json(study)
         kind = data.get("study") if isinstance(data, dict) else None
         if kind != self.name:
-            raise InvalidCase("results", f"{folder} holds a {kind} study, not {self.name}")
+            held = f"a {kind} study" if isinstance(kind, str) else "no study's record"
+            raise InvalidCase("results", f"{folder} holds {held}, not {self.name}")

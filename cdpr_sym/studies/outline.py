@@ -18,6 +18,7 @@ from typing import Any
 
 from cdpr_sym.closed_loop import simulate
 from cdpr_sym.control import controller_by_name
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results import Trajectory
 from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
@@ -70,6 +71,10 @@ def write_study(folder: Path, kind: str, robot: Robot | None, *, indent: int | N
 def read_study(folder: Path) -> dict[str, Any]:
     """``study.json`` of a computed study (its ``robot`` rebuilt as a :class:`Robot`)."""
     data = read_json(folder / STUDY_FILE)
+    if not isinstance(data, dict):
+        raise InvalidCase("results", f"{folder / STUDY_FILE} is not a study's record")
     if data.get("robot") is not None:
+        if not isinstance(data["robot"], dict):
+            raise InvalidCase("results", f"{folder / STUDY_FILE} names no robot description")
         data["robot"] = Robot(**data["robot"])
     return data
