@@ -49,3 +49,15 @@ def test_an_as_built_of_wrong_parts_or_shapes_is_refused_naming_the_field(change
 def test_numpy_numbers_are_numbers():
     assert Actuation(cable_stiffness=np.float64(2e5)).cable_stiffness == 2e5
     assert AsBuilt(anchor_offsets=np.zeros((3, 3))).anchor_offsets.shape == (3, 3)
+
+
+@pytest.mark.parametrize(("fields", "field"), [
+    ({"as_built": "yes"}, "as_built"), ({"as_built": Actuation()}, "as_built"),
+    ({"slack": "no"}, "slack"), ({"slack": 1}, "slack"), ({"mass_scale": "1"}, "mass_scale"),
+    ({"mass_scale": True}, "mass_scale"), ({"rate_limit": "5"}, "rate_limit")])
+def test_a_plant_of_wrong_types_is_refused_naming_the_field(fields, field):
+    from cdpr_sym import Plant
+
+    with pytest.raises(InvalidCase) as refused:
+        Plant(**fields)
+    assert refused.value.field == field

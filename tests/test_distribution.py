@@ -217,3 +217,29 @@ def test_a_distribution_function_refuses_a_tension_box_that_is_not_one(t_min, t_
     with pytest.raises(InvalidCase) as refused:
         distribution_function("min_norm", 2, 3, t_min, t_max)
     assert refused.value.field == field
+
+
+@pytest.mark.parametrize(("arguments", "field"), [
+    ((np.eye(3, 4), np.ones(3), 60.0, 2.0), "t_max"),
+    ((np.eye(3, 4), np.ones(3), -5.0, 60.0), "t_min"),
+    ((np.eye(3, 4) * np.nan, np.ones(3), 2.0, 60.0), "W"),
+    ((np.ones(12), np.ones(3), 2.0, 60.0), "W"),
+    (("W", np.ones(3), 2.0, 60.0), "W"),
+    ((np.eye(4, 3), np.ones(4), 2.0, 60.0), "W"),
+    ((np.eye(3, 4), np.ones(2), 2.0, 60.0), "wrench"),
+    ((np.eye(3, 4), [1.0, np.inf, 1.0], 2.0, 60.0), "wrench"),
+], ids=["inverted box", "negative t_min", "NaN W", "flat W", "text W", "fewer cables",
+        "short wrench", "infinite wrench"])
+def test_the_cvxpy_references_refuse_bad_arguments_naming_them(arguments, field):
+    for reference in (min_norm_reference, linf_reference):
+        with pytest.raises(InvalidCase) as refused:
+            reference(*arguments)
+        assert refused.value.field == field
+
+
+@pytest.mark.parametrize(("n", "m", "field"), [("3", 4, "n"), (0, 4, "n"), (-1, 4, "n"),
+                                               (2, 2.5, "m"), (2, True, "m")])
+def test_a_distribution_function_refuses_sizes_that_are_not_counts(n, m, field):
+    with pytest.raises(InvalidCase) as refused:
+        distribution_function("min_norm", n, m, 2.0, 60.0)
+    assert refused.value.field == field

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from cdpr_sym.checks import positive_number
 from cdpr_sym.errors import InvalidCase
 
 #: Largest 2 pi bandwidth h of one RK4 substep of the torque loop: RK4's stability interval
@@ -48,12 +49,7 @@ def _whole(value: object) -> bool:
 def _positive(field: str, value: float, unit: str, *, zero: bool = False) -> None:
     """Raise :class:`InvalidCase` naming ``field`` unless ``value`` is a real number (not a
     bool, not a numeric string), finite and positive (or zero, when ``zero``)."""
-    real = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
-        value, (bool, np.bool_))
-    ok = real and math.isfinite(value) and (value >= 0 if zero else value > 0)
-    if not ok:
-        kind = "a non-negative" if zero else "a positive"
-        raise InvalidCase(field, f"expected {kind} number in {unit}, got {value!r}")
+    positive_number(field, value, unit, zero=zero)
 
 
 @dataclasses.dataclass(frozen=True)

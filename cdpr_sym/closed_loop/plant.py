@@ -14,8 +14,10 @@ import math
 from collections.abc import Callable
 
 import casadi as ca
+import numpy as np
 
 from cdpr_sym.as_built import AsBuilt
+from cdpr_sym.checks import is_real
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 
@@ -46,12 +48,18 @@ class Plant:
     as_built: AsBuilt | None = None
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.mass_scale) and self.mass_scale > 0):
-            raise InvalidCase("mass_scale", f"expected a positive factor, got {self.mass_scale}")
-        if self.rate_limit is not None and not (math.isfinite(self.rate_limit)
+        if not (is_real(self.mass_scale) and math.isfinite(self.mass_scale)
+                and self.mass_scale > 0):
+            raise InvalidCase("mass_scale", f"expected a positive factor, got {self.mass_scale!r}")
+        if self.rate_limit is not None and not (is_real(self.rate_limit)
+                                                and math.isfinite(self.rate_limit)
                                                 and self.rate_limit > 0):
             raise InvalidCase("rate_limit", f"expected a positive rate in N/s, "
-                              f"got {self.rate_limit}")
+                              f"got {self.rate_limit!r}")
+        if not isinstance(self.slack, (bool, np.bool_)):
+            raise InvalidCase("slack", f"expected True or False, got {self.slack!r}")
+        if self.as_built is not None and not isinstance(self.as_built, AsBuilt):
+            raise InvalidCase("as_built", f"expected AsBuilt(...) or None, got {self.as_built!r}")
         if self.as_built is not None and self.rate_limit is not None:
             raise InvalidCase("rate_limit", "an as-built plant limits the tension through its "
                               "winches (as_built.actuation); leave rate_limit unset")

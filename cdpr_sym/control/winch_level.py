@@ -62,6 +62,7 @@ import casadi as ca
 
 from cdpr_sym.as_built import Actuation
 from cdpr_sym.as_built.actuation import friction_torque
+from cdpr_sym.checks import positive_number
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
 from cdpr_sym.control.interface import Capabilities, ControlLaw, DriveReading
 from cdpr_sym.control.parts import beta_margin, flag_if
@@ -73,11 +74,7 @@ from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 def _positive(field: str, value: object, unit: str, *, zero: bool = False) -> float:
     """``value`` as a float, or InvalidCase naming ``field`` unless it is a finite positive
     number (or zero, with ``zero``)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or not (0 <= value if zero else 0 < value) or not value < float("inf"):
-        kind = "a number >= 0" if zero else "a positive number"
-        raise InvalidCase(field, f"expected {kind} in {unit}, got {value!r}")
-    return float(value)
+    return positive_number(field, value, unit, zero=zero)
 
 
 @dataclasses.dataclass(frozen=True)

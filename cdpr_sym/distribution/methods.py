@@ -47,6 +47,9 @@ def fitting_methods(n: int, m: int) -> tuple[str, ...]:
 def check_method(name: str, n: int, m: int) -> str:
     """The method called ``name`` (:data:`AUTO` resolved) for n degrees of freedom and m
     cables, or :class:`InvalidCase` (``distribution``) naming what it needs."""
+    for field, value in (("n", n), ("m", m)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise InvalidCase(field, f"expected a whole number >= 1, got {value!r}")
     if m < n:
         raise InvalidCase("distribution", f"expected at least as many cables as degrees of "
                           f"freedom, got m = {m} for n = {n}")

@@ -13,6 +13,7 @@ import time
 import cvxpy as cp
 import numpy as np
 
+from cdpr_sym.distribution.methods import check_bounds
 from cdpr_sym.errors import InvalidCase
 
 #: Clarabel's tolerances: tight, so the reference is good to well below 1e-6 N.
@@ -34,6 +35,7 @@ class ReferenceTension:
 def min_norm_reference(W: np.ndarray, w: np.ndarray, t_min: float, t_max: float
                        ) -> ReferenceTension:
     """min |tau|_2 subject to W tau = w, t_min <= tau <= t_max (a QP)."""
+    W, w = _checked(W, w, t_min, t_max)
     tau = cp.Variable(W.shape[1])
     return _solve(cp.Minimize(cp.sum_squares(tau)), tau, W, w, t_min, t_max)
 
@@ -42,17 +44,39 @@ def linf_reference(W: np.ndarray, w: np.ndarray, t_min: float, t_max: float
                    ) -> ReferenceTension:
     """min max_i |tau_i - (t_min + t_max) / 2| subject to W tau = w and the box (an LP): the
     tension that keeps the largest distance to the box's middle smallest."""
+    W, w = _checked(W, w, t_min, t_max)
     tau = cp.Variable(W.shape[1])
     middle = 0.5 * (t_min + t_max)
     return _solve(cp.Minimize(cp.norm(tau - middle, "inf")), tau, W, w, t_min, t_max)
 
 
-def _solve(objective, tau, W: np.ndarray, w: np.ndarray, t_min: float, t_max: float
-           ) -> ReferenceTension:
-    W, w = np.asarray(W, dtype=float), np.asarray(w, dtype=float)
-    if W.ndim != 2 or w.shape != (W.shape[0],):
+def _checked(W: object, w: object, t_min: float, t_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """W (n x m, m >= n) and w (n) as finite float arrays, and the box checked; else
+    :class:`InvalidCase` naming the argument."""
+    check_bounds(t_min, t_max)
+    arrays = []
+    for field, value, ndim in (("W", W, 2), ("wrench", w, 1)):
+        try:
+            array = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidCase(field, f"expected a {ndim}-D array of numbers, got {value!r}"
+                              ) from None
+        if array.ndim != ndim or not array.size or not np.isfinite(array).all():
+            raise InvalidCase(field, f"expected a finite {ndim}-D array of numbers, got "
+                              f"shape {array.shape}")
+        arrays.append(array)
+    W, w = arrays
+    if W.shape[1] < W.shape[0]:
+        raise InvalidCase("W", f"expected at least as many columns (cables) as rows, got "
+                          f"shape {W.shape}")
+    if w.shape != (W.shape[0],):
         raise InvalidCase("wrench", f"expected {W.shape[0]} values for W of shape {W.shape}, "
                           f"got shape {w.shape}")
+    return W, w
+
+
+def _solve(objective, tau, W: np.ndarray, w: np.ndarray, t_min: float, t_max: float
+           ) -> ReferenceTension:
     problem = cp.Problem(objective, [W @ tau == w, tau >= t_min, tau <= t_max])
     start = time.perf_counter()
     problem.solve(solver=cp.CLARABEL, **SOLVER_OPTIONS)

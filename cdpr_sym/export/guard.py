@@ -19,8 +19,8 @@ what failed.
 from __future__ import annotations
 
 import dataclasses
-import math
 
+from cdpr_sym.checks import positive_number
 from cdpr_sym.errors import InvalidCase
 
 #: Fault bits of the status, by name, with their words (the header's comments).
@@ -92,7 +92,4 @@ class GuardLimits:
 
 
 def _check(field: str, value: object, unit: str, zero: bool) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or not math.isfinite(value) or value < 0 or (value == 0 and not zero):
-        kind = "a finite number >= 0" if zero else "a finite positive number"
-        raise InvalidCase(field, f"expected {kind} in {unit}, got {value!r}")
+    positive_number(field, value, unit, zero=zero)
