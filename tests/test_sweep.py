@@ -5,6 +5,9 @@ from __future__ import annotations
 import csv
 import json
 import shutil
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import casadi
@@ -294,3 +297,53 @@ def test_rows_read_back_in_the_order_the_sweep_defines_whatever_finished_first(t
     rows, _ = load_table(out)
     assert [(row["pair"], row["controller"]) for row in rows] == [
         (0, "pd"), (0, "l2"), (1, "pd"), (1, "l2"), (3, "pd"), (3, "l2")]
+
+
+@pytest.mark.slow  # a real scheduler and worker started and killed: about 30 s
+def test_a_lost_dask_scheduler_ends_the_sweep_in_one_line_and_keeps_its_rows(tmp_path):
+    """The scheduler process is killed mid-sweep: one ``cdpr-sym:`` line saying how to
+    resume, exit status 1, the finished rows kept; the resume (here on local processes)
+    completes the table without a repeated row."""
+    pytest.importorskip("dask.distributed")
+    bin_dir = Path(sys.executable).parent
+    address_file = tmp_path / "scheduler.json"
+    scheduler = subprocess.Popen([str(bin_dir / "dask"), "scheduler", "--port", "0",
+                                  "--no-dashboard", "--scheduler-file", str(address_file)],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    worker = None
+    try:
+        for _ in range(300):
+            if address_file.exists() and address_file.stat().st_size:
+                break
+            time.sleep(0.1)
+        address = json.loads(address_file.read_text())["address"]
+        worker = subprocess.Popen([str(bin_dir / "dask"), "worker", address, "--nworkers", "1",
+                                   "--nthreads", "1", "--no-dashboard"],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        out = tmp_path / "rows.csv"
+        command = [str(bin_dir / "cdpr-sym"), "sweep", "--robot", "aras3", "--controllers",
+                   "pd-sat", "--pairs", "3000", "--duration", "1", "--out", str(out)]
+        sweep = subprocess.Popen([*command, "--dask", address], stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True)
+        for _ in range(1200):  # until some rows are stored
+            if out.exists() and len(out.read_text().splitlines()) > 100:
+                break
+            time.sleep(0.1)
+        scheduler.kill()
+        _, err = sweep.communicate(timeout=180)
+    finally:
+        for process in (scheduler, worker):
+            if process is not None:
+                process.kill()
+                process.wait()
+    lines = err.strip().splitlines()
+    assert sweep.returncode == 1, err
+    assert len(lines) == 1 and lines[0].startswith("cdpr-sym:"), err
+    assert "Dask cluster stopped answering" in lines[0] and "again to resume" in lines[0]
+    kept = len(out.read_text().splitlines()) - 1
+    assert 100 <= kept < 3000
+    resumed = subprocess.run([*command, "--workers", "2"], capture_output=True, text=True,
+                             timeout=600)
+    assert resumed.returncode == 0, resumed.stderr
+    rows = _keyed(_read(out))
+    assert len(rows) == 3000

@@ -333,7 +333,8 @@ def run_sweep(config: SweepConfig, out: Path, *, workers: int | None = None,
             _collect(results, out, format, robot.n, len(runs), progress, extra)
         finally:
             if client is not None:
-                client.close()
+                with contextlib.suppress(Exception):  # a lost scheduler: nothing to close
+                    client.close(timeout=5)
     return out
 
 

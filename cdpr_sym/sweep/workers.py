@@ -14,6 +14,7 @@ waiting on it for ever).
 from __future__ import annotations
 
 import contextlib
+import logging
 import multiprocessing
 import os
 import pickle
@@ -68,7 +69,8 @@ def _exit_with_parent(parent: int) -> None:
 
 
 class WorkerLost(RuntimeError):
-    """A local worker process ended before returning its chunk (killed, out of memory)."""
+    """A local worker process ended before returning its chunk (killed, out of memory), or
+    the Dask scheduler or a worker of its cluster was lost."""
 
 
 def _worker_setup(parent: int) -> None:
@@ -184,6 +186,9 @@ def dask_client(address: str, timeout: float = DASK_TIMEOUT) -> Any:
     except ImportError:
         raise InvalidCase("dask", "dask.distributed is not installed; "
                           "pip install 'cdpr_sym[dask]'") from None
+    # the client logs a lost scheduler's reconnection as tracebacks at ERROR level, also
+    # after the sweep has ended; the sweep says what happened in one line (WorkerLost)
+    logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
     try:
         return Client(address, timeout=f"{timeout}s")
     except (OSError, TimeoutError, ValueError) as failure:
@@ -205,6 +210,28 @@ def dask_map(client: Any, work: Work, job: Any, chunks: Sequence[Any]) -> Iterat
     futures = client.map(work, [shared] * len(chunks), chunks, pure=False)
     try:
         for future in as_completed(futures):
-            yield future.result()
+            try:
+                result = future.result()
+            except _cluster_failures() as failure:
+                first = str(failure).strip().splitlines()[0] if str(failure).strip() else ""
+                raise WorkerLost(f"the Dask cluster stopped answering ({type(failure).__name__}"
+                                 f"{': ' + first if first else ''})") from None
+            yield result
     finally:
-        client.cancel([*futures, shared])
+        with contextlib.suppress(Exception):  # a lost scheduler cannot cancel anything
+            client.cancel([*futures, shared])
+
+
+
+def _cluster_failures() -> tuple[type[BaseException], ...]:
+    """The errors of a lost Dask scheduler or worker (not of the work itself): a cancelled
+    future (the scheduler forgot it, or its connection closed), a killed worker, a closed
+    connection or a timeout."""
+    import asyncio
+    import concurrent.futures
+
+    from distributed.comm.core import CommClosedError
+    from distributed.scheduler import KilledWorker
+
+    return (asyncio.CancelledError, concurrent.futures.CancelledError, KilledWorker,
+            CommClosedError, OSError, TimeoutError)
