@@ -319,3 +319,41 @@ def _run_allowing_failure(program: Path) -> str:
     import subprocess
 
     return subprocess.run([str(program)], capture_output=True, text=True, check=False).stdout
+
+
+@pytest.mark.slow
+def test_limits_that_are_no_guard_are_refused_by_sample(winch_package, tmp_path):
+    """A caller who sets t_min below zero (the guard's tension check then never trips), an
+    inverted box, a zero rate limit or NaN gets INVALID_ARGUMENT, never a status of 0."""
+    result, build = winch_package
+    prefix, upper = result.prefix, result.prefix.upper()
+    (tmp_path / "limits.c").write_text(f"""#include <math.h>
+#include <stdio.h>
+#include "{prefix}.h"
+static {prefix}_controller c;
+static int sample_with(int which) {{
+  double counts[{upper}_M];
+  {prefix}_output out;
+  int i;
+  if ({prefix}_init(&c, NULL, NULL) != 0) return 99;
+  for (i = 0; i < {upper}_M; ++i) counts[i] = 0.0;
+  if (which == 1) c.limits.t_min = -100.0;
+  if (which == 2) c.limits.t_max = c.limits.t_min;
+  if (which == 3) c.limits.rate_limit = 0.0;
+  if (which == 4) c.limits.max_speed = NAN;
+  if (which == 5) c.limits.late_periods = 0.5;
+  return {prefix}_sample(&c, counts, 0.0, 0, &out);
+}}
+int main(void) {{
+  int which;
+  for (which = 1; which <= 5; ++which) {{
+    printf("%d\\n", sample_with(which) == {upper}_INVALID_ARGUMENT);
+  }}
+  printf("%d\\n", sample_with(0) != {upper}_INVALID_ARGUMENT);
+  return 0;
+}}
+""")
+    library = next(build.glob(f"lib{prefix}.a"))
+    _run([_tool("gcc"), "-std=c99", "-Wall", "-Werror", "-I", result.out_dir,
+          tmp_path / "limits.c", library, "-lm", "-o", tmp_path / "limits"])
+    assert _run([tmp_path / "limits"]).split() == ["1"] * 6

@@ -106,8 +106,8 @@ def _declaration(header: str, start: str) -> str:
 
 
 def test_the_parameters_function_is_declared_as_documented(header):
-    declaration = _declaration(header, "void cdpr_planar2_smooth_parameters(")
-    assert declaration == ("void cdpr_planar2_smooth_parameters(const double q_goal[2], "
+    declaration = _declaration(header, "int cdpr_planar2_smooth_parameters(")
+    assert declaration == ("int cdpr_planar2_smooth_parameters(const double q_goal[2], "
                            "const double k[2], const double r_d[2], double dt, "
                            "double mass_scale, int slack, double p[9])")
 
@@ -208,16 +208,18 @@ def test_the_step_lists_every_field_of_x_and_the_log_with_its_unit(header, layou
 
 def test_the_parameters_function_takes_and_documents_every_field_of_p(header, layout):
     fields = [name for name in layout.p.names if layout.p.width(name)]
-    declaration = _declaration(header, "void cdpr_planar2_smooth_parameters(")
+    declaration = _declaration(header, "int cdpr_planar2_smooth_parameters(")
     assert re.findall(r"(\w+)(?:\[\d+\])?(?:, |\))", declaration) == [*fields, "p"]
-    comment = _comment_above(header, "void cdpr_planar2_smooth_parameters(")
+    comment = _comment_above(header, "int cdpr_planar2_smooth_parameters(")
+    comment, returns = comment.split(". p is always written; ")
+    assert returns.startswith("returns 0, or -1 when") and "dt <= 0" in returns
     case = re.search(r"above\)\. ([\w, ]+): ([^(]+) \(([^)]+) for angles\), each NULL for the "
                      r"robot's case values; ", comment)
     names, positions, angles = (part.split(", ") for part in case.groups())
     assert names == ["q_goal", "k", "r_d"]
     assert positions == [FIELD_UNITS[name][0] for name in names]
     assert angles == [FIELD_UNITS[name][1] for name in names]
-    others = comment[case.end():].removesuffix(".").split("; ")
+    others = comment[case.end():].split("; ")
     assert [piece.split(":")[0].strip() for piece in others] == fields[len(names):]
     for name, piece in zip(fields[len(names):], others, strict=True):
         if FIELD_UNITS[name]:

@@ -174,7 +174,9 @@ def _input_faults(controller: str) -> dict[str, Case]:
               "+inf in dq": Case(start, one(rest, 1, np.inf), goal),
               "nan in q_goal": Case(start, rest, one(goal, n - 1, np.nan)),
               "-inf in k": Case(start, rest, goal, k=one(robot.k, 0, -np.inf), r_d=robot.r_d),
-              "nan in r_d": Case(start, rest, goal, k=robot.k, r_d=one(robot.r_d, 2, np.nan))}
+              "nan in r_d": Case(start, rest, goal, k=robot.k, r_d=one(robot.r_d, 2, np.nan)),
+              "negative k": Case(start, rest, goal, k=one(robot.k, 1, -1.0), r_d=robot.r_d),
+              "negative r_d": Case(start, rest, goal, k=robot.k, r_d=one(robot.r_d, 0, -1e-3))}
     if _memory_size(robot, controller):
         plan = Case(start, rest, goal).memory_of(robot, controller)
         faults["nan in memory"] = Case(start, rest, goal, memory=one(plan, 0, np.nan))
@@ -188,7 +190,8 @@ def _input_faults(controller: str) -> dict[str, Case]:
     pytest.param(name, marks=pytest.mark.slow) if name == "smooth" else name
     for name in CONTROLLERS])
 def test_non_finite_input_gives_the_safe_command(built, controller, tmp_path):
-    """NaN in q, +inf in dq, NaN in q_goal (and gains, memory, dt): refused, never a command."""
+    """NaN in q, +inf in dq, NaN in q_goal (and gains, memory, dt), a negative gain: refused,
+    never a command."""
     package = built(controller)
     faults = _input_faults(controller)
     outputs = _call(package, list(faults.values()), tmp_path)
@@ -324,3 +327,41 @@ def test_unusable_prefixes_are_refused_in_one_line(prefix, tmp_path, capsys):
     assert len(err.splitlines()) == 1 and len(err) < 300, err
     assert err.startswith("cdpr-sym: error: prefix:") and REFUSED_PREFIXES[prefix] in err, err
     assert not out.exists()
+
+
+_PARAMETERS_PROGRAM = """
+#include <math.h>
+#include <stdio.h>
+#include CDPR_HEADER
+#define CALL(name) CDPR_CAT(CDPR_PREFIX, name)
+#define CDPR_NP(upper) CDPR_CAT3(upper, NP)
+#define CDPR_CAT3(a, b) CDPR_CAT4(a, b)
+#define CDPR_CAT4(a, b) a##_##b
+#define CDPR_CAT(a, b) CDPR_CAT2(a, b)
+#define CDPR_CAT2(a, b) a##_##b
+int main(void) {
+  double p[CDPR_NP(CDPR_UPPER)], k[3] = {1200.0, -1.0, 1200.0}, goal[3] = {0.0, NAN, 1.0};
+  printf("%d %d %d %d %d %d %d\\n",
+         CALL(parameters)(0, 0, 0, 1e-3, 1.0, 0, p),
+         CALL(parameters)(0, 0, 0, 0.0, 1.0, 0, p),
+         CALL(parameters)(0, 0, 0, -1e-3, 1.0, 0, p),
+         CALL(parameters)(0, 0, 0, 1e-3, -1.0, 0, p),
+         CALL(parameters)(0, k, 0, 1e-3, 1.0, 0, p),
+         CALL(parameters)(goal, 0, 0, 1e-3, 1.0, 0, p),
+         CALL(parameters)(0, 0, 0, INFINITY, 1.0, 0, p));
+  return 0;
+}
+"""
+
+
+def test_parameters_report_a_step_that_is_not_one(built, tmp_path):
+    """dt <= 0, a negative mass scale, a negative gain or a NaN goal: _parameters says so."""
+    package = built("l2")
+    source = tmp_path / "parameters.c"
+    source.write_text(_PARAMETERS_PROGRAM)
+    program = tmp_path / "parameters"
+    _run([_tool("gcc"), *STRICT, f'-DCDPR_HEADER="{package.prefix}.h"',
+          f"-DCDPR_PREFIX={package.prefix}", f"-DCDPR_UPPER={package.prefix.upper()}", "-I",
+          package.out_dir, source,
+          package.out_dir / f"lib{package.prefix}.a", "-lm", "-o", program])
+    assert _run([program]).split() == ["0", "-1", "-1", "-1", "-1", "-1", "-1"]

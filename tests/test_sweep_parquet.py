@@ -459,5 +459,5 @@ def test_a_study_refuses_a_table_of_another_configuration(csv_sweep):
     assert len(rows) == CONFIG.pairs
     for wrong in ({"controllers": ["l2", "pd-sat"]}, {"seed": CONFIG.seed + 1},
                   {"pairs": CONFIG.pairs + 1}):
-        with pytest.raises(InvalidCase, match="not the .* of the study that reads it"):
+        with pytest.raises(InvalidCase, match=r"not the .* of the study that reads it"):
             load_sweep_table(csv_sweep, **wrong)
