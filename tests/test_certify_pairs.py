@@ -60,6 +60,9 @@ def test_the_numpy_plan_is_the_models_feed_forward():
 @pytest.mark.parametrize(("change", "field"), [
     ({"controller": "ida-ref"}, "controller"),
     ({"width": 0.0}, "width"),
+    ({"width": 1e300}, "width"),
+    ({"min_width": 1e-300}, "min_width"),
+    ({"min_width": 0.2}, "min_width"),
     ({"starts": ([0, 0], [1, 1])}, "starts"),
     ({"goals": (GOALS[1], GOALS[0])}, "goals"),
     ({"goals": (GOALS[0], GOALS[1] + 10)}, "goals"),

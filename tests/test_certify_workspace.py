@@ -105,8 +105,9 @@ def test_compiled_and_numpy_walks_agree_and_a_missing_rounding_is_caught(rng):
 
 
 def test_refusals_name_their_field():
-    with pytest.raises(InvalidCase, match="min_width:"):
-        certified.certify_workspace(preset("planar2"), min_width=0.0)
+    for width in (0.0, 1e-300, 9e-6, 1e300, float("nan")):  # all refused at once, no work
+        with pytest.raises(InvalidCase, match="min_width:"):
+            certified.certify_workspace(preset("planar2"), min_width=width)
     with pytest.raises(InvalidCase, match="until:"):
         certified.certify_workspace(preset("planar2"), until=1.5)
     with pytest.raises(InvalidCase, match="orientation:"):

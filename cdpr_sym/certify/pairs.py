@@ -16,7 +16,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cdpr_sym.certify.workspace import CramerVerdicts, bisect
+from cdpr_sym.certify.workspace import (
+    MAX_LEVEL_BOXES,
+    CramerVerdicts,
+    bisect,
+    check_min_width,
+)
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
@@ -147,6 +152,11 @@ def certify_pairs(robot: Robot, controller: str, *, starts, goals, width: float 
     """
     _check_controller(controller)
     _check_width(width)
+    d = robot.dimension
+    check_min_width(width, float(np.max(np.subtract(robot.frame_upper[:d],
+                                                    robot.frame_lower[:d]))), "width")
+    if min_width is not None:
+        check_min_width(min_width, float(width))
     start_boxes = grid(*_region(robot, "starts", starts), width)
     goal_boxes = grid(*_region(robot, "goals", goals), width)
     pairs = len(start_boxes[0]) * len(goal_boxes[0])
@@ -194,6 +204,7 @@ def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, 
     _check_controller(controller)
     min_width = width if min_width is None else min_width
     _check_width(min_width, "min_width")
+    check_min_width(min_width, float(width))
     model = SymbolicModel(robot)
     proof = SmoothPairProof(model, design if design is not None else SmoothReference(),
                             tracking_margin)
@@ -210,6 +221,9 @@ def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, 
     lower, upper = lower[inside], upper[inside]
     total, done, inherited = len(lower), 0, None
     while len(lower):
+        if len(lower) > MAX_LEVEL_BOXES:
+            raise InvalidCase("min_width", f"{len(lower):,} pair boxes at one level; choose "
+                              f"a larger minimum width than {min_width} m")
         verdict = proof(lower[:, :n], upper[:, :n], lower[:, n:], upper[:, n:],
                         inherited=inherited)
         # a side within rounding of min_width counts as narrow enough

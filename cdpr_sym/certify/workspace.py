@@ -64,6 +64,9 @@ CRAMER_UP_TO = 3
 #: Most boxes one level of the branch-and-bound may hold (memory: a few hundred bytes each
 #: per margin).
 MAX_LEVEL_BOXES = 4_000_000
+#: Narrowest box a certificate refines to, m: ten micrometres, far below what any cable robot
+#: is built or measured to; a narrower --min-width only asks for an endless refinement.
+MIN_BOX_WIDTH = 1e-5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -178,6 +181,15 @@ def margin_function(model: SymbolicModel, orientation: np.ndarray,
                        [ca.vertcat(determinant, margins - spread, -margins - spread)])
 
 
+def check_min_width(min_width: float, largest: float, field: str = "min_width") -> None:
+    """Refuse a minimum box width that is not a number in [:data:`MIN_BOX_WIDTH`,
+    ``largest``] (m; the widest side there is to split), naming ``field``."""
+    if isinstance(min_width, bool) or not isinstance(min_width, (int, float)) \
+            or not MIN_BOX_WIDTH <= min_width <= largest:
+        raise InvalidCase(field, f"expected a width in m from {MIN_BOX_WIDTH:g} to "
+                          f"{largest:g} (the widest side to split), got {min_width!r}")
+
+
 def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.005,
                       until: float = 1.0, compiled: bool = True, half_widths=None,
                       prop: str = "static", progress=None) -> WorkspaceCertificate:
@@ -215,10 +227,9 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
         width not positive (``min_width``), a wrench box of the wrong size or negative
         (``half_widths``).
     """
-    if isinstance(min_width, bool) or not isinstance(min_width, (int, float)) \
-            or not 0 < min_width < float("inf"):
-        raise InvalidCase("min_width", f"expected a positive width in m, got {min_width!r}")
     d = robot.dimension
+    check_min_width(min_width, float(np.max(np.subtract(robot.frame_upper[:d],
+                                                          robot.frame_lower[:d]))))
     rotations = robot.n - d
     orientation = (np.asarray(robot.start[d:], dtype=float) if orientation is None
                    else np.asarray(orientation, dtype=float).ravel())

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from cdpr_sym.cli.output import Output
+from cdpr_sym.cli.paths import check_file
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
 
@@ -93,10 +94,9 @@ def calibrate_command(args: argparse.Namespace, out: Output) -> int:
     if args.out is None or args.out.suffix != ".toml":
         raise InvalidCase("out", f"expected the calibrated robot file's path ending .toml, "
                           f"got {args.out}")
-    if args.out.exists() and args.out.is_dir():
-        raise InvalidCase("out", f"{args.out} is a folder")
     if not args.out.parent.exists():
         raise InvalidCase("out", f"no folder {args.out.parent} to write into")
+    check_file("out", args.out)
     if args.attachments and robot.kind == "point":
         raise InvalidCase("attachments", "a point mass has no attachment points")
     campaign = campaign_from_table(args.measurements, robot, noise=_noise(args),
@@ -135,8 +135,8 @@ def _plan(args: argparse.Namespace, out: Output) -> int:
                           f"{args.poses}")
     if args.seed < 0:
         raise InvalidCase("seed", f"expected a seed >= 0, got {args.seed}")
-    if args.out is not None and args.out.is_dir():
-        raise InvalidCase("out", f"{args.out} is a folder")
+    if args.out is not None:
+        check_file("out", args.out)
     kind = args.kind.replace("-", " ")
     if kind == "self" and robot.m <= robot.n:
         raise InvalidCase("kind", "self-calibration needs more cables than degrees of freedom")

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from cdpr_sym.cli.output import Output
+from cdpr_sym.cli.paths import check_folder
 from cdpr_sym.cli.robots import add_wrench_options
 from cdpr_sym.errors import InvalidCase
 
@@ -70,8 +71,7 @@ def certify_command(args: argparse.Namespace, out: Output) -> int:
     robot = checked_robot(args.robot)
     if args.seed < 0:
         raise InvalidCase("seed", f"expected a whole number >= 0, got {args.seed}")
-    if args.out.exists() and not args.out.is_dir():
-        raise InvalidCase("out", f"expected a folder, got the existing file {args.out}")
+    check_folder("out", args.out)
     if args.what == "pairs":
         if args.force is not None or args.moment is not None:
             raise InvalidCase("force", "--force and --moment apply to certify workspace")

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -19,6 +18,7 @@ from cdpr_sym.cli.calibrate import calibrate_command
 from cdpr_sym.cli.certify import certify_command
 from cdpr_sym.cli.output import Output, quantity, yes_no
 from cdpr_sym.cli.parser import MAX_WORKERS
+from cdpr_sym.cli.paths import check_file, check_folder
 from cdpr_sym.cli.robots import checked_robot, with_wrench_box
 from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
@@ -193,7 +193,7 @@ def check_study_args(study: Study, args: argparse.Namespace) -> tuple[StudyReque
         raise InvalidCase("out", f"the robot file {args.robot} is named like the preset "
                           f"{stem!r}, whose report folder it would replace; pass --out")
     folder = args.out or Path("reports") / (study.name if default else f"{study.name}_{stem}")
-    _check_folder("out", folder)
+    check_folder("out", folder)
     request = StudyRequest(robot=robot, source=source, pairs=args.pairs, seed=args.seed,
                            progress=_progress(args))
     study.check_request(request)
@@ -218,7 +218,7 @@ def check_workspace_args(args: argparse.Namespace) -> tuple[Robot, np.ndarray | 
 
     robot = with_wrench_box(checked_robot(args.robot), args.force, args.moment)
     orientation = check_grid(robot, args.resolution, args.orientation)
-    _check_folder("out", args.out)
+    check_folder("out", args.out)
     return robot, orientation
 
 
@@ -270,6 +270,7 @@ def sweep_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.sweep import run_sweep
 
     config = check_sweep_args(args)
+    (check_folder if args.format == "parquet" else check_file)("out", args.out)
     table = run_sweep(config, args.out, workers=args.workers, dask_address=args.dask,
                       progress=_progress(args), format=args.format)
     out.result({"results": str(table), "config": config.as_dict()}, [f"results: {table}"])
@@ -333,32 +334,6 @@ def _export_encoders(args: argparse.Namespace, robot, out: Output) -> int:
                         f"{result.operations['first_sample']}, plan "
                         f"{result.operations['plan']})"])
     return 0
-
-
-def _check_folder(field: str, folder: Path) -> None:
-    """Refuse, before any work, an output folder that is a file or cannot be made or
-    written. The folders that do not exist yet are made to prove it, and removed again:
-    checking arguments leaves nothing behind."""
-    if folder.exists() and not folder.is_dir():
-        raise InvalidCase(field, f"expected a folder, got the existing file {folder}")
-    missing = []
-    while not folder.exists() and folder != folder.parent:
-        missing.append(folder)
-        folder = folder.parent
-    made = []
-    try:
-        for path in reversed(missing):
-            path.mkdir()
-            made.append(path)
-        target = made[-1] if made else folder
-        if not os.access(target, os.W_OK | os.X_OK):
-            raise InvalidCase(field, f"cannot write into the folder {target}")
-    except OSError as failure:
-        raise InvalidCase(field, f"cannot make the folder {missing[0]}: "
-                          f"{failure.strerror or failure}") from None
-    finally:
-        for path in reversed(made):
-            path.rmdir()
 
 
 HANDLERS = {"simulate": simulate_command, "study": study_command, "bench": bench_command,

@@ -78,8 +78,12 @@ def exclusive_output(out: Path) -> Iterator[None]:
     ``kill -9`` leaves no stale lock behind. The lock file is removed on leaving the
     block; a process that locked a file since removed tries again on the new one.
     """
-    out.parent.mkdir(parents=True, exist_ok=True)
     path = lock_path(out)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        open(path, "a+").close()
+    except OSError as failure:
+        raise InvalidCase("out", f"cannot write {out}: {failure.strerror or failure}") from None
     while True:
         handle = open(path, "a+")
         try:
