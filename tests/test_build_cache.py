@@ -141,6 +141,19 @@ def test_a_swapped_library_is_rebuilt_instead_of_giving_other_numbers(tmp_path):
     assert _sha256(again.path) != _sha256(tripling.path)
 
 
+def test_a_swapped_library_with_a_fresh_record_is_rebuilt(tmp_path):
+    """Another key's library copied in together with a record of its own sha256 (what
+    ``sha256sum lib.so > lib.so.sha256`` writes): it lacks this key's mark, so it is
+    rebuilt, not loaded under the wrong name."""
+    doubling = _build(tmp_path, 2.0)
+    tripling = _build(tmp_path, 3.0)
+    shutil.copyfile(tripling.path, doubling.path)
+    _record(doubling).write_text(f"{_sha256(doubling.path)}  tiny.so\n")
+    again = _build(tmp_path, 2.0)
+    assert again.compiled_now is True
+    assert _evaluate(again) == 6.0
+
+
 def test_the_record_is_in_place_before_the_library_is_published(tmp_path, monkeypatch):
     renamed: list[str] = []
     replace = os.replace
@@ -221,7 +234,7 @@ def test_an_interrupt_while_writing_the_record_leaves_no_library(tmp_path, monke
     monkeypatch.setattr(build_module, "write_atomically", write_then_interrupt)
     with pytest.raises(KeyboardInterrupt):
         _build(tmp_path)
-    assert calls == ["tiny.c", "tiny.so.sha256"]
+    assert calls == ["tiny.c", "tiny_key.c", "tiny.so.sha256"]
     assert _leftovers(tmp_path) == [] and list(tmp_path.rglob("*.so*")) == []
     monkeypatch.undo()
     assert _build(tmp_path).compiled_now is True
@@ -264,7 +277,7 @@ def test_temporary_files_of_a_dead_build_are_removed_under_the_lock(tmp_path):
     waiting.join(timeout=10)
     assert not waiting.is_alive() and results[0].compiled_now is False
     assert _leftovers(tmp_path) == []
-    assert {p.name for p in folder.iterdir()} == {".lock", "tiny.c", "tiny.so",
+    assert {p.name for p in folder.iterdir()} == {".lock", "tiny.c", "tiny_key.c", "tiny.so",
                                                   "tiny.so.sha256"}
     assert _build(tmp_path).compiled_now is False
 

@@ -8,8 +8,9 @@ call path) or through ctypes (:mod:`cdpr_sym.codegen.native`), which avoids CasA
 per-call overhead in hot loops.
 
 Cache layout: one folder ``<name>-<key>`` per key in the cache folder, holding the C source
-``<name>.c``, the library ``<name>.so``, its record ``<name>.so.sha256`` (one line
-``<sha256 hex>  <name>.so``, the format ``sha256sum -c`` reads) and a lock file ``.lock``.
+``<name>.c``, the key's mark ``<name>_key.c``, the library ``<name>.so``, its record
+``<name>.so.sha256`` (one line ``<sha256 hex>  <name>.so``, the format ``sha256sum -c``
+reads) and a lock file ``.lock``.
 
 Concurrency: a build holds an exclusive file lock on its key folder for its whole life (cache
 hits included) and publishes the library by an atomic rename, so two processes building the
@@ -18,9 +19,13 @@ in the folder, so temporary files found there (``*.tmp``) were left by a process
 mid-build, and are removed.
 
 Verification: the record is written (atomically) before the library is renamed into place,
-and a cache hit is returned only when the library's sha256 equals its record. A library that
-is damaged, truncated, swapped for another one or has no record is deleted and rebuilt under
-the lock: an unverified file is never handed out to be loaded. Hashing costs about 0.6 ms per
+and a cache hit is returned only when the library's sha256 equals its record and the library
+carries its own key (a string compiled into it from ``<name>_key.c``). A library that is
+damaged, truncated, swapped for another one (even with a fresh record) or has no record is
+deleted and rebuilt under the lock: an unverified file is never handed out to be loaded.
+What this guards against is accident (a crash mid-write, a disk error, a file copied over
+another); it is no defence against someone who can write the cache folder, who can make a
+library with any key and record, and so run code as the user. Hashing costs about 0.6 ms per
 MB of library here (70 us for a 70 kB one), small next to generating the C for the key.
 
 Recipes: generating the C only to find its key costs tens of milliseconds per library, most
@@ -311,12 +316,12 @@ def build(functions: Sequence[ca.Function], name: str, *, extra_source: str = ""
     source = folder / f"{name}.c"
     with _locked_folder(root, folder):
         _remove_temporaries(folder)
-        if _verified(library):
+        if _verified(library, key):
             return CompiledLibrary(library, source, key, compiled_now=False)
         try:
             _discard(library)
             write_atomically(source, source_text)
-            _compile(compiler, options.flags, source, library, timeout=options.timeout)
+            _compile(compiler, options.flags, source, library, key, timeout=options.timeout)
         except OSError as error:
             raise _unusable_cache(root, folder, error) from None
     return CompiledLibrary(library, source, key, compiled_now=True)
@@ -373,7 +378,7 @@ def built_recipe(recipe: str, name: str, *, options: BuildOptions = BuildOptions
         return None
     library = folder / f"{name}.so"
     with _locked_folder(root, folder):
-        if _verified(library):
+        if _verified(library, key):
             return CompiledLibrary(library, folder / f"{name}.c", key, compiled_now=False)
     return None
 
@@ -478,15 +483,23 @@ def _file_sha256(path: Path) -> str:
         return hashlib.file_digest(file, "sha256").hexdigest()
 
 
-def _verified(library: Path) -> bool:
-    """Whether ``library`` exists and its sha256 equals the one its record holds."""
+def _key_mark(key: str) -> bytes:
+    """The bytes a library built under ``key`` carries (see :func:`_compile`)."""
+    return f"cdpr_sym build key {key}".encode()
+
+
+def _verified(library: Path, key: str) -> bool:
+    """Whether ``library`` exists, its sha256 equals the one its record holds, and it was
+    built under ``key`` (it carries :func:`_key_mark`): a library of another key copied in
+    with a fresh record is not this key's."""
     try:
         fields = _record_of(library).read_text().split()
         if len(fields) != 2 or fields[1] != library.name:
             return False
-        return _file_sha256(library) == fields[0]
+        data = library.read_bytes()
     except (OSError, UnicodeDecodeError):
         return False
+    return hashlib.sha256(data).hexdigest() == fields[0] and _key_mark(key) in data
 
 
 def _discard(library: Path) -> None:
@@ -511,20 +524,25 @@ def write_atomically(path: Path, text: str) -> None:
         partial.unlink(missing_ok=True)
 
 
-def _compile(compiler: str, flags: Sequence[str], source: Path, library: Path, *,
+def _compile(compiler: str, flags: Sequence[str], source: Path, library: Path, key: str, *,
              timeout: float) -> None:
     """Compile ``source`` into ``library`` and publish it with its sha256 record.
 
-    The compiler writes a temporary file; its record is written before it is renamed to
-    ``library``, so a published library always has one. The temporary file is removed on
-    any failure, interruptions included. ``timeout`` is in seconds.
+    A second translation unit gives the library the string :func:`_key_mark` of ``key``,
+    which :func:`_verified` looks for. The compiler writes a temporary file; its record is
+    written before it is renamed to ``library``, so a published library always has one.
+    The temporary file is removed on any failure, interruptions included. ``timeout`` is in
+    seconds.
     """
     handle, name = tempfile.mkstemp(dir=library.parent, suffix=".so" + _TEMPORARY_SUFFIX)
     os.close(handle)
     partial = Path(name)
+    mark = library.with_name(library.stem + "_key.c")
+    symbol = "cdpr_sym_build_key_" + "".join(c if c.isalnum() else "_" for c in library.stem)
+    write_atomically(mark, f'const char {symbol}[] = "{_key_mark(key).decode()}";\n')
     try:
-        run_command([compiler, *flags, *_LINK_FLAGS, str(source), "-o", str(partial), "-lm"],
-                    timeout=timeout)
+        run_command([compiler, *flags, *_LINK_FLAGS, str(source), str(mark), "-o",
+                     str(partial), "-lm"], timeout=timeout)
         write_atomically(_record_of(library), f"{_file_sha256(partial)}  {library.name}\n")
         os.replace(partial, library)
     finally:
