@@ -13,6 +13,7 @@ Sphinx reads its sources, and the notebooks are executed on every build that rea
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import sys
 from pathlib import Path
@@ -93,11 +94,23 @@ def _write_cli_help(target: Path) -> None:
 
 _write_cli_help(DOCS / "generated" / "cli")
 
+
+def _drop_stale_stubs(page: Path, stubs: Path) -> None:
+    """autosummary writes a page per listed name but never deletes one: drop the pages of
+    names no longer listed on the API page (else Sphinx warns they are in no toctree)."""
+    listed = set(re.findall(r"^ {3}(cdpr_sym\.[\w.]+)\s*$", page.read_text(), re.MULTILINE))
+    for stub in stubs.glob("*.rst"):
+        if stub.stem not in listed:
+            stub.unlink()
+
+
+_drop_stale_stubs(DOCS / "api" / "index.md", DOCS / "api" / "generated")
+
 # -- Project -------------------------------------------------------------------------------
 
 project = "cdpr_sym"
-author = "the cdpr_sym authors"
-copyright = "the cdpr_sym authors, MIT licence"  # noqa: A001
+author = "the cdpr_sym developers"
+copyright = "2026, the cdpr_sym developers (MIT License)"
 release = cdpr_sym.__version__
 version = release
 
@@ -154,8 +167,6 @@ html_static_path: list[str] = []
 # terminal), which reStructuredText takes for substitution references. Outside literal
 # blocks, doctests and inline literals, such bars are escaped before the docstring is
 # parsed, so the text reads as written. Tables (lines starting with + or |) are left alone.
-import re  # noqa: E402
-
 _INLINE_LITERAL = re.compile(r"(``.+?``|:[a-z:]+:`[^`]+`|`[^`]+`_?)")
 
 
