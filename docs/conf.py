@@ -130,6 +130,8 @@ source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-n
 exclude_patterns = ["_build", "**.ipynb_checkpoints", "Thumbs.db", ".DS_Store"]
 templates_path = ["_templates"]
 root_doc = "index"
+# literal blocks without a language are the docstrings' plain-text formulas, not Python
+highlight_language = "text"
 
 # -- MyST and notebooks --------------------------------------------------------------------
 
