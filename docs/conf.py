@@ -12,6 +12,7 @@ Sphinx reads its sources, and the notebooks are executed on every build that rea
 
 from __future__ import annotations
 
+import logging
 import os
 import re
 import shutil
@@ -143,6 +144,8 @@ nb_execution_timeout = 300  # s per cell; all six notebooks take well under a mi
 nb_execution_raise_on_error = True  # a failing cell fails the build
 nb_execution_show_tb = True
 nb_execution_in_temp = True  # the notebooks write their files in temporary folders anyway
+# nbclient announces every notebook at INFO level, even under sphinx -q
+logging.getLogger("traitlets").setLevel(logging.WARNING)
 nb_merge_streams = True
 
 # -- API reference -------------------------------------------------------------------------
