@@ -323,8 +323,9 @@ def _run_allowing_failure(program: Path) -> str:
 
 @pytest.mark.slow
 def test_limits_that_are_no_guard_are_refused_by_sample(winch_package, tmp_path):
-    """A caller who sets t_min below zero (the guard's tension check then never trips), an
-    inverted box, a zero rate limit or NaN gets INVALID_ARGUMENT, never a status of 0."""
+    """A caller who widens the tension box (t_min below zero: the tension check then never
+    trips; t_max far above T_max), inverts it, or sets a negative rate limit, NaN or less
+    than one period of lateness gets INVALID_ARGUMENT, never a status of 0."""
     result, build = winch_package
     prefix, upper = result.prefix, result.prefix.upper()
     (tmp_path / "limits.c").write_text(f"""#include <math.h>
@@ -339,14 +340,15 @@ static int sample_with(int which) {{
   for (i = 0; i < {upper}_M; ++i) counts[i] = 0.0;
   if (which == 1) c.limits.t_min = -100.0;
   if (which == 2) c.limits.t_max = c.limits.t_min;
-  if (which == 3) c.limits.rate_limit = 0.0;
+  if (which == 3) c.limits.rate_limit = -1.0;
   if (which == 4) c.limits.max_speed = NAN;
   if (which == 5) c.limits.late_periods = 0.5;
+  if (which == 6) c.limits.t_max = 1e300;
   return {prefix}_sample(&c, counts, 0.0, 0, &out);
 }}
 int main(void) {{
   int which;
-  for (which = 1; which <= 5; ++which) {{
+  for (which = 1; which <= 6; ++which) {{
     printf("%d\\n", sample_with(which) == {upper}_INVALID_ARGUMENT);
   }}
   printf("%d\\n", sample_with(0) != {upper}_INVALID_ARGUMENT);
@@ -356,4 +358,4 @@ int main(void) {{
     library = next(build.glob(f"lib{prefix}.a"))
     _run([_tool("gcc"), "-std=c99", "-Wall", "-Werror", "-I", result.out_dir,
           tmp_path / "limits.c", library, "-lm", "-o", tmp_path / "limits"])
-    assert _run([tmp_path / "limits"]).split() == ["1"] * 6
+    assert _run([tmp_path / "limits"]).split() == ["1"] * 7
