@@ -61,3 +61,10 @@ def test_a_plant_of_wrong_types_is_refused_naming_the_field(fields, field):
     with pytest.raises(InvalidCase) as refused:
         Plant(**fields)
     assert refused.value.field == field
+
+
+def test_anchor_offsets_of_another_frame_are_refused():
+    AsBuilt(anchor_offsets=np.full((3, 3), 0.1))
+    with pytest.raises(InvalidCase) as refused:
+        AsBuilt(anchor_offsets=np.full((3, 3), 1e3))
+    assert refused.value.field == "anchor_offsets"

@@ -93,7 +93,12 @@ def _spoil_outside(header, lines):
     lines[6][header.index("z")] = "9.5"
 
 
+def _spoil_repeat(header, lines):
+    lines.append(list(lines[3]))  # a copied measurement
+
+
 @pytest.mark.parametrize("spoil, words", [
+    (_spoil_repeat, "repeats line 5"),
     (_spoil_nan, "row 5, column length_2"), (_spoil_text, "row 3, column length_1"),
     (_spoil_missing, "column 'y' missing"), (_spoil_unknown, "unknown column 'lenght_1'"),
     (_spoil_outside, "row 7"),

@@ -175,6 +175,10 @@ class Sensing:
 SENSING_PARAMETERS = ("resolution", "velocity_cutoff", "consistency")
 
 
+#: Largest anchor error, m (as the as-built file's anchor_error): a robot built this far
+#: from its model is another robot, not a model error.
+MAX_ANCHOR_OFFSET = 0.1
+
 #: Longest command delay, control periods (each a state of the generated step per cable).
 MAX_DELAY = 100
 
@@ -244,6 +248,11 @@ class AsBuilt:
         object.__setattr__(self, "delay", int(self.delay))
         object.__setattr__(self, "substeps", int(self.substeps))
         self._set_offsets("anchor_offsets", 2, "a finite (cables x dimension) array in m")
+        if self.anchor_offsets is not None and np.abs(self.anchor_offsets).max(
+                initial=0.0) > MAX_ANCHOR_OFFSET:
+            raise InvalidCase("anchor_offsets", f"expected offsets within "
+                              f"{MAX_ANCHOR_OFFSET:g} m of the model's anchors, got "
+                              f"{np.abs(self.anchor_offsets).max():g} m: that is another frame")
         if self.encoder_offsets is not None and self.sensing is None:
             raise InvalidCase("encoder_offsets", "encoder offsets need sensing (the "
                               "controller reads no encoder without it)")

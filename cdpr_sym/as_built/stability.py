@@ -52,6 +52,9 @@ from cdpr_sym.model import SymbolicModel
 
 #: Largest strain T_max / EA of a plausible cable (cables break at a few per cent).
 MAX_STRAIN = 0.05
+#: Largest reflected drum mass J / r^2 per cable, in platform masses: the default drum
+#: weighs 0.11 kg on its cable against aras3's 4 kg.
+MAX_DRUM_MASS_RATIO = 100.0
 
 
 def check_strain(actuation: Actuation, t_max: float) -> None:
@@ -140,6 +143,12 @@ def check_integrable(model: SymbolicModel, actuation: Actuation | None, dt: floa
     if actuation is None:
         return
     check_strain(actuation, model.robot.t_max)
+    reflected = actuation.inertia / actuation.drum_radius / actuation.drum_radius
+    if reflected > MAX_DRUM_MASS_RATIO * model.robot.mass:
+        raise InvalidCase("inertia", f"the drums weigh {reflected:.3g} kg on their cables "
+                          f"(inertia / drum_radius^2), over {MAX_DRUM_MASS_RATIO:g} times the "
+                          f"platform's {model.robot.mass:g} kg: the motors could not move the "
+                          "robot; expected a physical drum")
     rate = max(fastest_rate(model, actuation, np.asarray(q, dtype=float)) for q in poses)
     if rate * dt / substeps <= TORQUE_LOOP_STEP_LIMIT:
         return

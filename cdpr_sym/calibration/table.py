@@ -80,10 +80,17 @@ def _rows(path: Path) -> tuple[list[list[str]], list[str]]:
     duplicates = sorted({name for name in header if header.count(name) > 1})
     if duplicates:
         raise InvalidCase("measurements", f"column {duplicates[0]!r} appears twice in {path}")
+    first: dict[tuple[str, ...], int] = {}
     for number, row in numbered[1:]:
         if len(row) != len(header):
             raise InvalidCase("measurements", f"line {number} of {path} has {len(row)} "
                               f"cells, the header {len(header)}")
+        key = tuple(cell.strip() for cell in row)
+        if key in first:  # real readings differ by their noise: this is a copy
+            raise InvalidCase("measurements", f"line {number} of {path} repeats line "
+                              f"{first[key]}: a copied measurement would count as a second, "
+                              "independent one (and shrink the reported uncertainty)")
+        first[key] = number
     return [row for _, row in numbered[1:]], header
 
 
