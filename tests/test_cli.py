@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cdpr_sym import SymbolicModel, load_robot, preset, simulate
+from cdpr_sym import SymbolicModel, __version__, load_robot, preset, simulate
 from cdpr_sym.cli import main
 from cdpr_sym.control import CONTROLLERS, capabilities, controller_by_name
 from cdpr_sym.results.store import sidecar_path
@@ -354,3 +354,41 @@ def test_the_workspace_report_says_what_feasible_means_for_the_cables(capsys, tm
     assert f"Feasible ({meaning}" in text
     # a redundant robot has no W⁻¹: its report must not claim one
     assert ("W⁻¹" in text) == (preset(robot).m == preset(robot).n)
+
+
+def test_sweep_and_report_print_what_each_design_achieved(capsys, tmp_path):
+    """The per-design summary, in text and in --json, equals summarise() of the stored rows
+    (recomputed here from the table the sweep wrote)."""
+    from cdpr_sym.results.judging import summarise
+    from cdpr_sym.results.store import load_table
+
+    out = tmp_path / "rows.csv"
+    status, text, _ = _run(capsys, "sweep", "--controllers", "pd-sat,smooth", "--pairs", "3",
+                           "--duration", "2", "--workers", "1", "--out", str(out))
+    assert status == 0
+    expected = summarise(load_table(out)[0])
+    for name, row in expected.items():
+        assert (f"{name:<12} meets the target on {100 * row['meets_target']:5.1f} % of "
+                f"{row['runs']} runs") in text
+    status, text, _ = _run(capsys, "report", "sweep", str(out), "--out",
+                           str(tmp_path / "report"), "--json")
+    assert status == 0 and json.loads(text)["summary"] == json.loads(json.dumps(expected))
+
+
+def test_the_default_sweep_compares_the_paper_design_with_the_recommended_ones():
+    from cdpr_sym.cli.parser import build_parser
+
+    args = build_parser().parse_args(["sweep", "--pairs", "1", "--out", "x.csv"])
+    assert args.controllers.split(",") == ["l2", "smooth", "ida-ref"]
+
+
+def test_version_answers_without_loading_numpy_or_casadi():
+    import subprocess
+    import sys
+
+    code = ("import sys\nsys.argv = ['cdpr-sym', '--version']\nfrom cdpr_sym.cli import run\n"
+            "try:\n    run()\nexcept SystemExit as stop:\n"
+            "    print(stop.code, 'casadi' in sys.modules, 'numpy' in sys.modules)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True)
+    assert done.stdout.splitlines() == [f"cdpr-sym {__version__}", "0 False False"]

@@ -273,8 +273,30 @@ def sweep_command(args: argparse.Namespace, out: Output) -> int:
     (check_folder if args.format == "parquet" else check_file)("out", args.out)
     table = run_sweep(config, args.out, workers=args.workers, dask_address=args.dask,
                       progress=_progress(args), format=args.format)
-    out.result({"results": str(table), "config": config.as_dict()}, [f"results: {table}"])
+    summary = _sweep_summary(table)
+    out.result({"results": str(table), "config": config.as_dict(), "summary": summary},
+               [*_summary_lines(summary), f"results: {table}"])
     return 0
+
+
+def _sweep_summary(table: Path) -> dict[str, dict[str, object]]:
+    """Per design, the shares of :func:`~cdpr_sym.results.judging.summarise` over a stored
+    sweep table (its rows checked as a report checks them)."""
+    from cdpr_sym.results.judging import summarise
+    from cdpr_sym.sweep.tables import load_sweep_table
+
+    return summarise(load_sweep_table(table)[0])
+
+
+def _summary_lines(summary: dict[str, dict[str, object]]) -> list[str]:
+    """One line per design: the share meeting the target and what it is made of."""
+    lines = []
+    for name, row in summary.items():
+        lines.append(f"{name:<12} meets the target on {100 * row['meets_target']:5.1f} % of "
+                     f"{row['runs']} runs (tension-feasible {100 * row['feasible']:.1f} %, "
+                     f"converged {100 * row['converged']:.1f} %, stopped or failed "
+                     f"{row['stopped_or_failed']})")
+    return lines
 
 
 def report_command(args: argparse.Namespace, out: Output) -> int:
@@ -282,7 +304,9 @@ def report_command(args: argparse.Namespace, out: Output) -> int:
         from cdpr_sym.reporting.sweep_report import write_sweep_report
 
         path = write_sweep_report(args.results, args.out)
-        out.result({"report": str(path)}, [f"report: {path}"])
+        summary = _sweep_summary(args.results)
+        out.result({"report": str(path), "summary": summary},
+                   [*_summary_lines(summary), f"report: {path}"])
         return 0
     study = study_by_name(args.kind)
     study.check_folder(args.results)

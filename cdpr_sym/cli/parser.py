@@ -41,7 +41,8 @@ def _common(*, progress: bool = False) -> argparse.ArgumentParser:
     common.add_argument("--json", action="store_true", default=argparse.SUPPRESS,
                         help="print the result as one JSON object")
     common.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
-                        help="print nothing but the result (JSON) and errors")
+                        help="no text and no progress: only the JSON result (with --json) "
+                             "and errors")
     if progress:
         common.add_argument("--no-progress", action="store_true", default=argparse.SUPPRESS,
                             help="no progress bar (it hides itself when not on a terminal)")
@@ -68,7 +69,8 @@ def build_parser() -> argparse.ArgumentParser:
         "parallel robots.")
     parser.add_argument("--version", action="version", version=f"cdpr-sym {__version__}")
     parser.add_argument("-q", "--quiet", action="store_true",
-                        help="print nothing but results (JSON) and errors")
+                        help="no text and no progress: only the JSON result (with --json) "
+                             "and errors")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def command(name: str, text: str, *, progress: bool = False) -> argparse.ArgumentParser:
@@ -129,8 +131,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     sweep = command("sweep", "run many start/goal pairs (resumable)", progress=True)
     sweep.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
-    sweep.add_argument("--controllers", default="l2,linf,pd-sat",
-                       help="comma-separated controller names (see the list below)")
+    sweep.add_argument("--controllers", default="l2,smooth,ida-ref",
+                       help="comma-separated controller names (see the list below; the "
+                            "default: the paper's design and the two recommended ones)")
     sweep.add_argument("--pairs", type=int, required=True,
                        help=f"start/goal pairs (at most {MAX_PAIRS:,})")
     sweep.add_argument("--seed", type=int, default=0, help="seed of the pair draw (>= 0)")

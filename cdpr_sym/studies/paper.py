@@ -9,6 +9,7 @@ the report's text (``reporting/templates/paper.md.j2``) is written from those.
 from __future__ import annotations
 
 import dataclasses
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -54,10 +55,11 @@ def run_paper_study(out_dir: Path, *, robot: Robot | None = None, duration: floa
 
 
 def compute_paper_study(out_dir: Path, *, robot: Robot | None = None, duration: float = 10.0,
-                        long_duration: float = 100.0) -> None:
-    """The runs (``runs/``) and the LS construction gap on the l2 run (``study.json``)."""
+                        long_duration: float = 100.0, progress: bool = False) -> None:
+    """The runs (``runs/``) and the LS construction gap on the l2 run (``study.json``);
+    with ``progress``, a line on stderr as each run starts (the first ones compile)."""
     robot = robot or preset("aras3")
-    runs = _simulate_all(robot, duration, long_duration)
+    runs = _simulate_all(robot, duration, long_duration, progress)
     save_runs(runs, out_dir)
     l2 = runs["l2"]
     gap = construction_gap(SymbolicModel(robot), l2.q, l2.dq, l2.q_goal, robot.k, robot.r_d)
@@ -70,18 +72,25 @@ def write_paper_report(out_dir: Path) -> list[Claim]:
     return STUDY.report(out_dir)
 
 
-def _simulate_all(robot: Robot, duration: float, long_duration: float) -> dict[str, Trajectory]:
+def _simulate_all(robot: Robot, duration: float, long_duration: float,
+                  progress: bool = False) -> dict[str, Trajectory]:
     paper, min_norm = L2Design(construction="paper"), L2Design(construction="min_norm")
-    return {
-        "l2": simulate(robot, paper, duration=duration),
-        "l2-minnorm": simulate(robot, min_norm, duration=duration),
-        "l2-dt1e-4": simulate(robot, paper, duration=duration, dt=1e-4),
-        "l2-cvodes": simulate_adaptive(robot, paper, duration=duration),
-        "l2-long": simulate(robot, paper, duration=long_duration),
-        "pd-sat": simulate(robot, SaturatedPD(), duration=duration),
-        "pd-sat-cvodes": simulate_adaptive(robot, SaturatedPD(), duration=duration),
-        "pd": simulate(robot, PD(), duration=duration),
+    plans = {
+        "l2": lambda: simulate(robot, paper, duration=duration),
+        "l2-minnorm": lambda: simulate(robot, min_norm, duration=duration),
+        "l2-dt1e-4": lambda: simulate(robot, paper, duration=duration, dt=1e-4),
+        "l2-cvodes": lambda: simulate_adaptive(robot, paper, duration=duration),
+        "l2-long": lambda: simulate(robot, paper, duration=long_duration),
+        "pd-sat": lambda: simulate(robot, SaturatedPD(), duration=duration),
+        "pd-sat-cvodes": lambda: simulate_adaptive(robot, SaturatedPD(), duration=duration),
+        "pd": lambda: simulate(robot, PD(), duration=duration),
     }
+    runs = {}
+    for index, (name, plan) in enumerate(plans.items(), start=1):
+        if progress:
+            print(f"paper: run {index} of {len(plans)}, {name}", file=sys.stderr, flush=True)
+        runs[name] = plan()
+    return runs
 
 
 def _figures(runs: dict[str, Trajectory], out_dir: Path) -> None:
@@ -127,7 +136,7 @@ class PaperStudy(Study):
     options = StudyOptions()
 
     def compute(self, folder: Path, request: StudyRequest) -> None:
-        compute_paper_study(folder, robot=request.robot)
+        compute_paper_study(folder, robot=request.robot, progress=request.progress)
 
     def run_files(self, folder: Path) -> list[Path]:
         return [folder / RUNS / "index.json"]
