@@ -96,10 +96,10 @@ def test_the_read_offset_is_where_model_anchors_place_the_stretched_lengths(
         np.testing.assert_allclose(offset, pose - q, rtol=0, atol=1e-9)
         assert np.linalg.norm(offset) > 1e-3
     ideal = Plant(as_built=AsBuilt(sensing=Sensing()))
-    # anchors 2 m higher than the model's: the model explains these lengths only with the
-    # goal (1 m up) below the floor, outside the frame, so no pose is read
-    raised = Plant(as_built=AsBuilt(sensing=Sensing(), anchor_offsets=np.tile([0, 0, 2.0],
-                                                                             (3, 1))))
+    # encoders whose zeros are 2 m off (anchor errors that large are refused as another
+    # frame): the model explains these lengths only with the goal (1 m up) below the
+    # floor, outside the frame, so no pose is read
+    raised = Plant(as_built=AsBuilt(sensing=Sensing(), encoder_offsets=np.full(3, 2.0)))
     assert np.isnan(get_simulator(
         aras3, controller_by_name("smooth"), build_options=build_options,
         as_built=raised.as_built.structure()).read_offset(aras3.goal, raised)).all()

@@ -52,7 +52,7 @@ NOT_FOR_A_SWEEP = ("cdpr_sym.as_built.static", "cdpr_sym.closed_loop.adaptive",
 
 _SWEEP_AND_LIST_MODULES = """
 import json, sys
-from cdpr_sym.cli.main import main
+from cdpr_sym.cli.program import main
 status = main(sys.argv[1:])
 print(json.dumps({"status": status, "modules": sorted(sys.modules)}))
 """

@@ -19,7 +19,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cdpr_sym.cli.main import main
+from cdpr_sym.cli.program import main
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results.store import sidecar_path
 from cdpr_sym.sweep import SweepConfig, run_sweep

@@ -13,8 +13,8 @@ from typing import NoReturn
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``cdpr-sym`` with ``argv`` (default ``sys.argv[1:]``); return the exit status
-    (see :func:`cdpr_sym.cli.main.main`)."""
-    from cdpr_sym.cli.main import main as program
+    (see :func:`cdpr_sym.cli.program.main`)."""
+    from cdpr_sym.cli.program import main as program
 
     return program(None if argv is None else list(argv))
 
@@ -26,7 +26,7 @@ def run() -> NoReturn:
 
         print(f"cdpr-sym {__version__}")
         sys.exit(0)
-    from cdpr_sym.cli.main import run as program
+    from cdpr_sym.cli.program import run as program
 
     program()
 
