@@ -374,6 +374,7 @@ def _damage(out: Path, other: Path, kind: str, index: int, step: int) -> None:
         shutil.copy(foreign[index % len(foreign)], out / f"part-foreign{step}.parquet")
 
 
+@pytest.mark.slow  # a dozen damaged datasets, each resumed: left to CI
 def test_any_damage_to_a_parquet_dataset_is_repaired_by_a_resume(parquet_sweep, other_sweep,
                                                                 tmp_path_factory):
     """Property: whatever parts are deleted, copied, cut, emptied or brought in from
