@@ -80,8 +80,9 @@ def controller_by_name(name: str | Controller) -> Controller:
     Parameters
     ----------
     name : str or Controller
-        One of :data:`CONTROLLERS` (``"pd"``, ``"pd-sat"``, ``"l2"``, ``"l2-minnorm"``,
-        ``"linf"``, ``"box"``, ``"smooth"``, ``"ida-ref"``), or a controller.
+        One of :data:`CONTROLLERS` (``"pd"``, ``"pd-sat"``, ``"l2"``, ``"smooth"``,
+        ``"ida-winch"``, ``"nmpc"``, ...; ``cdpr-sym --help`` lists them all with a line
+        each), or a controller.
 
     Returns
     -------

@@ -176,9 +176,12 @@ def preset(name: str) -> Robot:
     Parameters
     ----------
     name : str
-        ``aras3`` (the paper's Section IV robot), ``planar2`` (a planar point mass on two
-        cables), ``planar3`` (a planar rigid body on three cables) or ``spatial6`` (a
-        suspended 6-DOF platform on six cables).
+        One of :data:`PRESET_NAMES`: ``aras3`` (the paper's Section IV robot), ``planar2``
+        (a planar point mass on two cables), ``planar3`` (a planar rigid body on three
+        cables), ``spatial6`` (a suspended 6-DOF platform on six cables), and with more
+        cables than degrees of freedom ``planar4`` (a planar point mass on four cables),
+        ``spatial4`` (aras3's frame with a fourth cable) and ``ipanema8`` (a 6-DOF
+        platform on eight cables).
 
     Returns
     -------
