@@ -12,6 +12,7 @@ build targets or the C library either build (make and CMake) or are refused in o
 from __future__ import annotations
 
 import dataclasses
+import functools
 import re
 import subprocess
 from collections.abc import Callable
@@ -103,8 +104,22 @@ class Case:
         """The memory passed: given, or the plan of the case's move."""
         if self.memory is not None:
             return np.asarray(self.memory, dtype=float)
-        plan = initial_memory_function(SymbolicModel(robot), controller_by_name(controller))
+        plan = _plan_function(robot.name, controller)
         return np.array(plan(robot.start, robot.goal, robot.k, robot.r_d).full()).ravel()
+
+
+@functools.cache
+def _plan_function(robot_name: str, controller: str):
+    """The design's plan of a move as a CasADi function, built once per preset and design."""
+    return initial_memory_function(SymbolicModel(preset(robot_name)),
+                                   controller_by_name(controller))
+
+
+@functools.cache
+def _law_function(robot_name: str, controller: str):
+    """The design's law as a CasADi function, built once per preset and design (graph
+    building per call made the smooth check take 100 s)."""
+    return law_function(SymbolicModel(preset(robot_name)), controller_by_name(controller))
 
 
 def _memory_size(robot: Robot, controller: str) -> int:
@@ -136,9 +151,8 @@ def _call(built: Built, cases: list[Case], folder: Path) -> list[dict[str, np.nd
 def _python_law(controller: str, case: Case) -> list[np.ndarray]:
     """The Python law (CasADi's virtual machine) at ``case``: tau, alpha, beta, j, flags, ..."""
     robot = preset(ROBOT)
-    model, law = SymbolicModel(robot), controller_by_name(controller)
     memory = case.memory_of(robot, controller) if _memory_size(robot, controller) else []
-    values = law_function(model, law)(case.q, case.dq, case.q_goal,
+    values = _law_function(ROBOT, controller)(case.q, case.dq, case.q_goal,
                                       robot.k if case.k is None else case.k,
                                       robot.r_d if case.r_d is None else case.r_d,
                                       np.asarray(memory, dtype=float), case.dt)
