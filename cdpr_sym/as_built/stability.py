@@ -34,8 +34,8 @@ rest: rho h <= 0.46 at 1 kHz with two substeps.
 
 from __future__ import annotations
 
-import functools
 import math
+import weakref
 from collections.abc import Iterable
 
 import casadi as ca
@@ -68,12 +68,20 @@ def check_strain(actuation: Actuation, t_max: float) -> None:
                           f"{t_max / MAX_STRAIN:g} N")
 
 
-@functools.cache
+#: The functions of :func:`_linear_parts`, per model while the model lives (a calibrated
+#: sweep makes a model per pair: a plain cache would keep them all).
+_LINEAR_PARTS: weakref.WeakKeyDictionary[SymbolicModel, ca.Function] = (
+    weakref.WeakKeyDictionary())
+
+
 def _linear_parts(model: SymbolicModel) -> ca.Function:
-    """q -> (J_a (m x n), M (n x n), l (m)) of the controller's model."""
-    q = ca.SX.sym("q", model.n)
-    return ca.Function("linear_parts", [q], [model.jacobian_ja(q), model.mass_matrix(q),
-                                             model.cable_lengths(q)])
+    """q -> (J_a (m x n), M (n x n), l (m)) of the controller's model, built once per model."""
+    if model not in _LINEAR_PARTS:
+        q = ca.SX.sym("q", model.n)
+        _LINEAR_PARTS[model] = ca.Function(
+            "linear_parts", [q], [model.jacobian_ja(q), model.mass_matrix(q),
+                                  model.cable_lengths(q)])
+    return _LINEAR_PARTS[model]
 
 
 def _linearised(model: SymbolicModel, actuation: Actuation, q: np.ndarray
