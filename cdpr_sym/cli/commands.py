@@ -13,7 +13,6 @@ import dataclasses
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from cdpr_sym.as_built.stability import check_integrable
 from cdpr_sym.cli.calibrate import calibrate_command
 from cdpr_sym.cli.certify import certify_command
 from cdpr_sym.cli.output import Output, quantity, yes_no
@@ -22,11 +21,10 @@ from cdpr_sym.cli.paths import check_file, check_folder
 from cdpr_sym.cli.robots import checked_robot, with_wrench_box
 from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
-from cdpr_sym.closed_loop.effects.readout import check_draw_readable
+from cdpr_sym.closed_loop.effects.readout import check_draw_runs
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import Controller, controller_by_name
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.model import SymbolicModel
 from cdpr_sym.results.trajectory import Trajectory, save_path
 from cdpr_sym.robot import PRESET_NAMES, Robot, resolve_robot
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyRequest
@@ -67,8 +65,10 @@ def check_as_built_args(args: argparse.Namespace, robot: Robot,
                         controller: Controller | None = None,
                         start: np.ndarray | None = None) -> AsBuiltDraw | None:
     """The as-built specification of ``--as-built`` (None without it), checked with
-    ``--calibration`` and the control period before any work: no other plant option beside
-    it (the draw sets the mass), a calibration only on a robot as built that can take it."""
+    ``--calibration`` before any work: no other plant option beside it (the draw sets the
+    mass), a calibration only on a robot as built that can take it; with ``controller``
+    (``simulate``), also that its draw can be run (:func:`check_draw_runs`; a sweep's
+    :class:`~cdpr_sym.sweep.SweepConfig` checks that for its designs)."""
     from cdpr_sym.as_built import load_as_built_draw
     from cdpr_sym.calibration.drawn import check_calibration
 
@@ -83,13 +83,10 @@ def check_as_built_args(args: argparse.Namespace, robot: Robot,
     draw = load_as_built_draw(args.as_built)
     check_calibration(args.calibration, robot, draw)
     check_seed(args.seed)
-    _, spec = draw.draw_pair(robot, args.seed, 0)
-    spec.check_period(args.dt)
-    check_integrable(SymbolicModel(robot), spec.actuation, args.dt, spec.substeps,
-                     (robot.start, robot.goal))
-    if controller is not None and args.calibration == "none":
-        check_draw_readable(robot, draw, args.seed, robot.start if start is None else start,
-                            [controller])
+    if controller is not None:  # a sweep's configuration checks the draw of its designs
+        check_draw_runs(robot, draw, args.seed, args.dt,
+                        robot.start if start is None else start, [controller],
+                        calibration=args.calibration)
     return draw
 
 
@@ -302,9 +299,10 @@ def _summary_lines(summary: dict[str, dict[str, object]]) -> list[str]:
 def report_command(args: argparse.Namespace, out: Output) -> int:
     if args.kind == "sweep":
         from cdpr_sym.reporting.sweep_report import write_sweep_report
+        from cdpr_sym.results.store import read_json
 
         path = write_sweep_report(args.results, args.out)
-        summary = _sweep_summary(args.results)
+        summary = read_json(path.parent / "summary.json")  # the report's own, not read again
         out.result({"report": str(path), "summary": summary},
                    [*_summary_lines(summary), f"report: {path}"])
         return 0

@@ -34,7 +34,7 @@ from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
 from cdpr_sym.as_built.draw import DEFAULT_DRAW
 from cdpr_sym.calibration.drawn import SELF_POSES, TRACKER_NOISE, TRACKER_POSES, drawn_robot
 from cdpr_sym.closed_loop import Plant, get_simulator
-from cdpr_sym.closed_loop.effects.readout import check_draw_readable
+from cdpr_sym.closed_loop.effects.readout import check_draw_runs
 from cdpr_sym.control import capabilities, controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.reporting.text import render_report
@@ -494,8 +494,8 @@ class RobustnessStudy(Study):
                               f"freedom, and {robot.name} has {robot.m} for n = {robot.n}. "
                               "Compare designs for more cables with 'cdpr-sym sweep "
                               "--as-built SPEC --controllers ...' instead")
-        check_draw_readable(robot, DEFAULT_DRAW, request.seed, robot.start,
-                            [controller_by_name(name) for name in DESIGNS])
+        check_draw_runs(robot, DEFAULT_DRAW, request.seed, DT, robot.start,
+                        [controller_by_name(name) for name in DESIGNS])
 
     def compute(self, folder: Path, request: StudyRequest) -> None:
         compute_robustness_study(request.robot, folder, pairs=request.pairs,

@@ -9,13 +9,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cdpr_sym.as_built.stability import check_integrable
 from cdpr_sym.closed_loop import Plant
 from cdpr_sym.closed_loop.case import check_timing
-from cdpr_sym.closed_loop.effects.readout import check_draw_readable
+from cdpr_sym.closed_loop.effects.readout import check_draw_runs
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import PRESET_NAMES, Robot, preset, resolve_robot
 from cdpr_sym.workspace import WorkspaceEvaluator, sample_static_workspace
 
@@ -118,13 +116,9 @@ class SweepConfig:
         draw = self.draw()  # a missing or malformed file is refused here, before any run
         if draw is not None:
             robot = resolve_robot(self.robot)
-            _, spec = draw.draw_pair(robot, self.seed, 0)
-            spec.check_period(self.dt)
-            check_integrable(SymbolicModel(robot), spec.actuation, self.dt, spec.substeps,
-                             (robot.start, robot.goal))
-            if self.calibration == "none":
-                check_draw_readable(robot, draw, self.seed, robot.start,
-                                    [controller_by_name(name) for name in self.controllers])
+            check_draw_runs(robot, draw, self.seed, self.dt, robot.start,
+                            [controller_by_name(name) for name in self.controllers],
+                            calibration=self.calibration)
 
     def as_dict(self) -> dict[str, Any]:
         """The configuration as plain values; a sweep of the ideal plant leaves out the

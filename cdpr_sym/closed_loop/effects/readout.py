@@ -149,19 +149,26 @@ class AsBuiltReadout:
         return causes
 
 
-def check_draw_readable(robot: Robot, draw: AsBuiltDraw, seed: int, start: np.ndarray,
-                        controllers: Iterable[Controller]) -> None:
-    """Before any build or run: raise :class:`InvalidCase` (``sensing``) when a controller
-    of ``controllers`` that reads the pose could not read pair 0's robot as built (seed
-    ``seed``) held at ``start`` (:meth:`AsBuiltReadout.check_readable`). A robot whose
-    cables stretch too far for its encoders fails on every draw alike; one draw and one
-    pose find it."""
+def check_draw_runs(robot: Robot, draw: AsBuiltDraw, seed: int, dt: float, start: np.ndarray,
+                    controllers: Iterable[Controller], *, calibration: str = "none") -> None:
+    """Before any build or run: raise :class:`InvalidCase` when pair 0's robot as built
+    (seed ``seed``) cannot be run at the control period ``dt``: too few substeps for its
+    torque loop or a velocity filter at Nyquist (:meth:`AsBuilt.check_period`), cables and
+    drums no fixed-step run can follow (:func:`~cdpr_sym.as_built.stability.check_integrable`,
+    at the robot's case), or, uncalibrated, encoders that a controller of ``controllers``
+    reading the pose could not read held at ``start`` (:meth:`AsBuiltReadout.check_readable`,
+    ``sensing``). A robot whose cables stretch too far for its encoders fails on every draw
+    alike; one draw and one pose find it."""
+    from cdpr_sym.as_built.stability import check_integrable
     from cdpr_sym.closed_loop.plant import Plant
     from cdpr_sym.control import capabilities
 
-    if draw.sensing is None or all(capabilities(controller).reads_drives
-                                   for controller in controllers):
-        return
     mass_scale, spec = draw.draw_pair(robot, seed, 0)
-    AsBuiltReadout(SymbolicModel(robot)).check_readable(
-        np.asarray(start, dtype=float), Plant(mass_scale=mass_scale, as_built=spec))
+    spec.check_period(dt)
+    model = SymbolicModel(robot)
+    check_integrable(model, spec.actuation, dt, spec.substeps, (robot.start, robot.goal))
+    if calibration != "none" or spec.sensing is None or all(
+            capabilities(controller).reads_drives for controller in controllers):
+        return
+    AsBuiltReadout(model).check_readable(np.asarray(start, dtype=float),
+                                         Plant(mass_scale=mass_scale, as_built=spec))
