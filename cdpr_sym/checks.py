@@ -11,9 +11,8 @@ from cdpr_sym.errors import InvalidCase
 
 def is_real(value: object) -> bool:
     """Whether ``value`` is a real number: an int or float (numpy's too), not a bool and
-    not text that reads as one."""
-    return isinstance(value, Real) and not isinstance(value, bool) and \
-        type(value).__name__ != "bool_"
+    not text that reads as one (numpy's bools are not :class:`numbers.Real`)."""
+    return isinstance(value, Real) and not isinstance(value, bool)
 
 
 def positive_number(field: str, value: object, unit: str, *, zero: bool = False) -> float:
