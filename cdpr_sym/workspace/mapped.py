@@ -30,7 +30,10 @@ class MappedEvaluator:
             inputs.append(ca.MX.sym(single.name_in(1), single.size1_in(1)))
         block_name = f"{name}_block"
         self._sizes = [single.size1_out(i) for i in range(single.n_out())]
-        self._mapped = ca.Function(block_name, inputs, single.map(BLOCK)(*inputs),
+        outputs = single.map(BLOCK)(*inputs)
+        if not isinstance(outputs, (list, tuple)):  # CasADi returns a lone output bare
+            outputs = [outputs]
+        self._mapped = ca.Function(block_name, inputs, list(outputs),
                                    single.name_in(), single.name_out())
         self._native = None
         if build_options.resolved_backend() == "c":
