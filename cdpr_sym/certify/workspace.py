@@ -50,7 +50,13 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.certify.evaluate import centred
+from cdpr_sym.certify.anchored import (
+    AnchoredVerdicts,
+    normals_function,
+    slopes_function,
+    terms_function,
+)
+from cdpr_sym.certify.evaluate import IntervalFunction, centred
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
@@ -245,13 +251,16 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
     wrench = _checked_half_widths(robot, half_widths)
     _check_property(robot, prop, wrench)
     model = SymbolicModel(robot)
-    if prop == "assumption-1":
+    method = proof_method(robot, wrench is not None, prop)
+    if method == "assumption-1":
         decide = _AssumptionVerdicts(model, orientation, compiled)
-    elif robot.m > robot.n or (wrench is not None and robot.n > CRAMER_UP_TO):
+    elif method == "anchored":
+        decide = anchored_verdicts(model, orientation, compiled)
+    elif method == "facets":
         decide = _FacetVerdicts(model, orientation, wrench, compiled)
-    elif wrench is not None:
+    elif method == "cramer-wrench":
         decide = _WrenchCramerVerdicts(model, orientation, wrench, compiled)
-    elif robot.n <= CRAMER_UP_TO:
+    elif method == "cramer":
         decide = CramerVerdicts(model, orientation, compiled)
     else:
         decide = _KrawczykVerdicts(model, orientation, compiled)
@@ -289,6 +298,32 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
                                 np.array(VERDICTS, dtype=object)[codes], float(min_width),
                                 seconds, evaluated,
                                 np.zeros(0) if wrench is None else wrench, prop)
+
+
+#: How a box is decided, by robot and property (:func:`proof_method`), in words.
+METHODS = {
+    "cramer": "Cramer's margins s (N_i - T_min D), s (T_max D - N_i), mean-value form",
+    "cramer-wrench": "Cramer's margins less the wrench box's spread, mean-value form",
+    "krawczyk": "Krawczyk's method on [W] T = [grad V] from W's enclosed entries",
+    "facets": "hyperplane shifting over boxes: every facet margin enclosed",
+    "anchored": "a tension path and a Farkas direction chosen at each box's centre, proven "
+                "over the box by the mean-value form and Krawczyk's method",
+    "assumption-1": "beta D^2 enclosed by the mean-value form",
+}
+
+
+def proof_method(robot: Robot, wrench: bool, prop: str = "static") -> str:
+    """The key of :data:`METHODS` that decides ``robot``'s boxes (``wrench``: a wrench box
+    is asked for)."""
+    if prop == "assumption-1":
+        return "assumption-1"
+    if robot.m > robot.n and robot.n > CRAMER_UP_TO and not wrench:
+        return "anchored"
+    if robot.m > robot.n or (wrench and robot.n > CRAMER_UP_TO):
+        return "facets"
+    if wrench:
+        return "cramer-wrench"
+    return "cramer" if robot.n <= CRAMER_UP_TO else "krawczyk"
 
 
 #: The properties a workspace certificate can be of.
@@ -341,6 +376,31 @@ def _checked_half_widths(robot: Robot, half_widths) -> np.ndarray | None:
     if not np.any(box):
         return None
     return box
+
+
+def anchored_verdicts(model: SymbolicModel, orientation: np.ndarray, compiled: bool
+                      ) -> AnchoredVerdicts:
+    """The certificates anchored at each box's centre (:mod:`cdpr_sym.certify.anchored`):
+    W and grad V at the centre and their slopes over the box, by the natural extension
+    rounded outward, in generated C or numpy."""
+    from cdpr_sym.codegen import BuildOptions
+    from cdpr_sym.robot import robot_key
+    from cdpr_sym.workspace.vectorised import pose_evaluator
+
+    robot = model.robot
+    point = terms_function(model, orientation)
+    slopes = slopes_function(model, orientation)
+    options = BuildOptions() if compiled else BuildOptions(backend="casadi")
+    normals = pose_evaluator(robot, lambda: normals_function(model), "facet_normals",
+                             build_options=options, recipe=f"{robot_key(robot)}\0normals")
+    evaluate = lambda poses: normals.evaluate(poses)[0]  # noqa: E731
+    if compiled:
+        from cdpr_sym.certify.interval_c import CompiledIntervalFunction
+
+        return AnchoredVerdicts(model, orientation, CompiledIntervalFunction(point),
+                                CompiledIntervalFunction(slopes), evaluate)
+    return AnchoredVerdicts(model, orientation, IntervalFunction(point),
+                            IntervalFunction(slopes), evaluate)
 
 
 def _enclosure(function: ca.Function, compiled: bool):

@@ -1,0 +1,332 @@
+"""Static feasibility over boxes by certificates anchored at each box's centre (n > 3).
+
+The facet margins of hyperplane shifting are products of (n - 1) x (n - 1) minors; for six
+degrees of freedom their interval enclosures are wider than the margins themselves, and the
+Cramer/Krawczyk enclosure of the tension from W's entries overestimates its variation about
+eight times (ipanema8: 2,800 N/m against 350 N/m sampled). Here each box gets a certificate
+chosen numerically at its centre x0 and then *proven* over the box; how it was chosen does not
+matter to the proof.
+
+**Feasible** (for every pose of the box some tension in [T_min, T_max] holds the platform):
+at x0 pick an interior tension T0 with W(x0) T0 = grad V(x0) (the most interior one the
+smoothed max-min search of :func:`interior_tensions` finds) and an orthonormal basis Z of W(x0)'s
+null space (m - n rows). For every x of the box let T(x) solve the square system
+
+    A(x) T = r(x),   A = [W(x); Z],   r = [grad V(x); Z T0],
+
+so W(x) T(x) = grad V(x), T(x0) = T0. The box is feasible when A is proven regular on it and
+
+    T(x) in T(x0) + sum_k [dT/dx_k](box) [-rho_k, rho_k]   lies in [T_min, T_max],
+
+the mean-value form (rho the box's half-widths), with dT/dx_k = A^{-1} (dr/dx_k - dA/dx_k T)
+enclosed over the box: A's and its slopes' entries enclosed over the box (rounded outward),
+T over the box by Krawczyk's method, then each column by Krawczyk's method again
+(:mod:`~cdpr_sym.certify.linear`). Its overestimate shrinks with the box's width squared.
+
+**Infeasible** (no pose of the box has a tension in the box): a Farkas direction c with
+
+    c . grad V(x) > sum_j max(T_min c . w_j(x), T_max c . w_j(x))   for every x of the box,
+
+since the right side is the largest c . W(x) T over the tension box. c is the unit normal
+of the facet of the available zonotope {W(x0) T : T in the box} that grad V(x0) lies
+farthest outside of (hyperplane shifting at the centre alone, :func:`farkas_directions`),
+and both sides are enclosed by the mean-value form with c fixed: unlike the facet margins
+as functions of x, nothing here multiplies minors.
+
+Sound at any rank, for any m >= n (with m = n, Z is empty and T(x) = W(x)^{-1} grad V(x)).
+Every float product and sum is bounded (Higham's gamma_n) and inflated as in
+:mod:`~cdpr_sym.certify.linear`.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.certify.linear import _TINY, _U, _gamma, _inflate, _mid_rad, enclose_solutions
+from cdpr_sym.model import SymbolicModel
+
+#: The smoothed max-min search: sharpness schedule, as multiples of 1 / (T_max - T_min), and
+#: Newton steps per sharpness. The last sharpness leaves the smoothed optimum within
+#: (T_max - T_min) log(2 m) / 1024 of the exact max-min (about 2 N on ipanema8).
+SHARPNESS = (4.0, 16.0, 64.0, 256.0, 1024.0)
+NEWTON_STEPS = 6
+#: Step lengths tried along the Newton direction and along the gradient (in units of
+#: 1 / (kappa max|G|)), the best kept.
+NEWTON_LENGTHS = (1.0, 0.5, 0.25, 0.0625)
+ASCENT_LENGTHS = (16.0, 4.0, 1.0)
+
+
+def terms_function(model: SymbolicModel, orientation: np.ndarray) -> ca.Function:
+    """positions (d) -> [vec W (n m, column-major), grad V (n)] at the fixed orientation."""
+    position, q = _pose(model, orientation)
+    return ca.Function("terms", [position], [ca.vertcat(
+        ca.vec(ca.densify(model.structure_matrix(q))), ca.densify(model.grad_potential(q)))])
+
+
+def slopes_function(model: SymbolicModel, orientation: np.ndarray) -> ca.Function:
+    """positions (d) -> the Jacobian of :func:`terms_function`'s output (n m + n rows, d
+    columns), column-major: d blocks of [vec dW/dx_k, d grad V/dx_k]."""
+    position, q = _pose(model, orientation)
+    terms = ca.vertcat(ca.vec(ca.densify(model.structure_matrix(q))),
+                       ca.densify(model.grad_potential(q)))
+    return ca.Function("slopes", [position], [ca.densify(ca.jacobian(terms, position))])
+
+
+def _pose(model: SymbolicModel, orientation: np.ndarray) -> tuple[ca.SX, ca.SX]:
+    position = ca.SX.sym("p", model.robot.dimension)
+    q = ca.vertcat(position, ca.DM(orientation)) if len(orientation) else position
+    return position, q
+
+
+def normals_function(model: SymbolicModel) -> ca.Function:
+    """pose q (n) -> the facet normals of hyperplane shifting, one per set of n - 1 cables
+    (:func:`~cdpr_sym.workspace.wrench.facet_normals`), stacked (facets x n)."""
+    from cdpr_sym.workspace.wrench import facet_normals
+
+    q = ca.SX.sym("q", model.n)
+    normals = facet_normals(model.structure_matrix(q))
+    return ca.Function("facet_normals", [q], [ca.vertcat(*(c for _, c in normals))])
+
+
+def farkas_directions(normals: np.ndarray, W: np.ndarray, f: np.ndarray, t_min: float,
+                      t_max: float) -> np.ndarray:
+    """Per pose, the unit normal c of the facet of the available zonotope that grad V lies
+    farthest outside of (the least capacity margin, Gouttefarde et al. 2011), signed so that
+    c . (f - W tau_mid) > 0: normals (poses, facets, n), W (poses, n, m), f (poses, n)."""
+    middle, half = 0.5 * (t_min + t_max), 0.5 * (t_max - t_min)
+    offset = f - middle * W.sum(axis=2)
+    size = np.linalg.norm(normals, axis=2)
+    size = np.where(size > 0, size, np.inf)
+    along = np.einsum("bkn,bn->bk", normals, offset)
+    with np.errstate(invalid="ignore"):
+        margin = (half * np.abs(np.einsum("bkn,bnm->bkm", normals, W)).sum(axis=2)
+                  - np.abs(along)) / size
+    margin = np.where(np.isfinite(margin), margin, np.inf)
+    facet = margin.argmin(axis=1)
+    rows = np.arange(len(normals))
+    return normals[rows, facet] / size[rows, facet][:, None] * np.sign(along[rows, facet])[:, None]
+
+
+def interior_tensions(W: np.ndarray, f: np.ndarray, t_min: float, t_max: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(T0, margin, Z) per pose: W (poses, n, m), f (poses, n).
+
+    T0 = T_p + Z^T lam solves W T0 = f (T_p the closest solution to the box's middle) with
+    lam maximising a smoothed min_i min(T0_i - T_min, T_max - T0_i) (log-sum-exp, Newton
+    steps with halving, :data:`SHARPNESS`); ``margin`` is that min at T0 (< 0: T0 leaves the
+    box); Z (poses, m - n, m) the null-space basis. Numerical choices only: the proofs hold
+    for any of them.
+    """
+    poses, n, m = W.shape
+    middle, spread = 0.5 * (t_min + t_max), t_max - t_min
+    U, S, Vt = np.linalg.svd(W)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        y = np.einsum("bij,bi->bj", U, f - middle * W.sum(axis=2)) / S
+    particular = middle + np.einsum("bij,bi->bj", Vt[:, :n, :], y)
+    Z = Vt[:, n:, :]
+    G = np.concatenate([np.transpose(Z, (0, 2, 1)), -np.transpose(Z, (0, 2, 1))], axis=1)
+    base = np.concatenate([particular - t_min, t_max - particular], axis=1)  # (poses, 2m)
+    lam = np.zeros((poses, m - n))
+    G_size = 1.0  # Z's rows are orthonormal: |G lam| <= |lam| entrywise
+
+    def constraints(lam: np.ndarray) -> np.ndarray:
+        g = base.copy()
+        for j in range(m - n):  # m - n is small: a sum beats a batched product
+            g += G[:, :, j] * lam[:, j, None]
+        return g
+
+    def smooth(lam: np.ndarray, kappa: float, weights: bool = False):
+        """The smoothed min at lam (and the softmin weights, if asked)."""
+        g = base.copy()
+        for j in range(m - n):  # m - n is small: a sum beats a batched product
+            g += G[:, :, j] * lam[:, j, None]
+        low = g.min(axis=1)
+        terms = np.exp(-kappa * (g - low[:, None]))
+        total = terms.sum(axis=1)
+        value = low - np.log(total) / kappa
+        return (value, terms / total[:, None]) if weights else value
+
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for sharpness in SHARPNESS:
+            kappa = sharpness / spread
+            for _ in range(NEWTON_STEPS if m > n else 0):
+                value, weights = smooth(lam, kappa, weights=True)
+                gradient = np.einsum("bi,bij->bj", weights, G)
+                mean_outer = np.einsum("bi,bij,bik->bjk", weights, G, G)
+                hessian = kappa * (mean_outer - gradient[:, :, None] * gradient[:, None, :])
+                hessian = hessian + 1e-6 * kappa * np.eye(m - n)[None]
+                newton = np.linalg.solve(hessian, gradient[..., None])[..., 0]
+                # the smoothed objective rises at most ~1/kappa per unit of |G| lam: a
+                # gradient step of that length where the Newton step stalls
+                norm = np.linalg.norm(gradient, axis=1, keepdims=True)
+                ascent = gradient / np.where(norm > 0, norm, 1.0) / (kappa * G_size)
+                best, best_lam = value, lam
+                for trial in (*(lam + length * newton for length in NEWTON_LENGTHS),
+                              *(lam + length * ascent for length in ASCENT_LENGTHS)):
+                    trial_value = smooth(trial, kappa)
+                    better = np.isfinite(trial_value) & (trial_value > best)
+                    best = np.where(better, trial_value, best)
+                    best_lam = np.where(better[:, None], trial, best_lam)
+                lam = best_lam
+        T0 = particular + np.einsum("bij,bi->bj", Z, lam)
+        margin = np.minimum(T0 - t_min, t_max - T0).min(axis=1)
+    return T0, margin, Z
+
+
+def _magnitude(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    return np.maximum(np.abs(lo), np.abs(hi))
+
+
+def _reach(slope_bound: np.ndarray, rho: np.ndarray, signature: str) -> np.ndarray:
+    """An upper bound of sum_k |slope_k| rho_k, the mean-value form's reach from the centre:
+    ``slope_bound`` bounds |slope| (boxes, d, ...), ``signature`` sums its axis k with rho's
+    (boxes, d)."""
+    return _inflate(np.einsum(signature, slope_bound, rho), rho.shape[1])
+
+
+class AnchoredVerdicts:
+    """Verdicts (0 feasible, 1 infeasible, 2 undecided per box) by the module's certificates.
+
+    ``point`` and ``slopes`` are interval evaluators (generated C or numpy) of
+    :func:`terms_function` and :func:`slopes_function`: called with (lower, upper) bounds of
+    shape (d, boxes), they return [(lo, hi)] of shape (rows, boxes). ``normals`` maps poses
+    (N, n) to :func:`normals_function`'s values (N, facets n); ``orientation`` completes a
+    position into a pose."""
+
+    def __init__(self, model: SymbolicModel, orientation: np.ndarray, point, slopes,
+                 normals) -> None:
+        self.n, self.m, self.d = model.n, model.m, model.robot.dimension
+        self.t_min, self.t_max = model.robot.t_min, model.robot.t_max
+        self.orientation = np.asarray(orientation, dtype=float)
+        self.point, self.slopes, self.normals = point, slopes, normals
+
+    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        n, m, d = self.n, self.m, self.d
+        boxes = len(lower)
+        centre = 0.5 * (lower + upper)
+        # x - x0 lies in [-rho, rho]: rho an upper bound of both sides, rounded up
+        rho = _inflate(np.maximum(upper - centre, centre - lower), 1)
+        lo, hi = self.point((centre.T, centre.T))[0]
+        W0 = (lo[: n * m].T.reshape(boxes, m, n).transpose(0, 2, 1),
+              hi[: n * m].T.reshape(boxes, m, n).transpose(0, 2, 1))
+        f0 = (lo[n * m:].T, hi[n * m:].T)
+        s_lo, s_hi = self.slopes((lower.T, upper.T))[0]
+        rows = n * m + n
+        # (boxes, d, n, m) and (boxes, d, n): the slopes' enclosures over the box
+        dW = tuple(s[: , :].T.reshape(boxes, d, rows)[:, :, : n * m]
+                   .reshape(boxes, d, m, n).transpose(0, 1, 3, 2) for s in (s_lo, s_hi))
+        df = tuple(s.T.reshape(boxes, d, rows)[:, :, n * m:] for s in (s_lo, s_hi))
+        verdict = np.full(boxes, 2)
+        usable = (np.all(np.isfinite(W0[0]) & np.isfinite(W0[1]), axis=(1, 2))
+                  & np.all(np.isfinite(dW[0]) & np.isfinite(dW[1]), axis=(1, 2, 3))
+                  & np.all(np.isfinite(df[0]) & np.isfinite(df[1]), axis=(1, 2)))
+        if not usable.any():
+            return verdict
+        index = np.nonzero(usable)[0]
+        W_mid = 0.5 * W0[0][index] + 0.5 * W0[1][index]
+        f_mid = 0.5 * f0[0][index] + 0.5 * f0[1][index]
+        T0, margin, Z = interior_tensions(W_mid, f_mid, self.t_min, self.t_max)
+        pick = lambda pair, where: tuple(part[where] for part in pair)  # noqa: E731
+        candidates = margin > 0
+        if candidates.any():
+            at = index[candidates]
+            proven = self._feasible(pick(W0, at), pick(f0, at), pick(dW, at), pick(df, at),
+                                    rho[at], Z[candidates], T0[candidates])
+            verdict[at[proven]] = 0
+        # a box whose centre holds a tension in the box cannot be infeasible
+        rest = (verdict[index] == 2) & ~candidates
+        if rest.any():
+            at = index[rest]
+            poses = np.hstack([centre[at], np.tile(self.orientation, (len(at), 1))])
+            normals = self.normals(poses).reshape(len(at), -1, n)
+            c = farkas_directions(normals, W_mid[rest], f_mid[rest], self.t_min, self.t_max)
+            proven = self._infeasible(c, pick(W0, at), pick(f0, at), pick(dW, at),
+                                      pick(df, at), rho[at])
+            verdict[at[proven]] = 1
+        return verdict
+
+    def _feasible(self, W0, f0, dW, df, rho, Z, T0) -> np.ndarray:
+        """The feasibility certificate of the module docstring, per box."""
+        n, m, d = self.n, self.m, self.d
+        extra = m - n
+        z = np.einsum("bij,bj->bi", Z, T0)
+        A0 = (np.concatenate([W0[0], Z], axis=1), np.concatenate([W0[1], Z], axis=1))
+        r0 = (np.concatenate([f0[0], z], axis=1), np.concatenate([f0[1], z], axis=1))
+        at_centre_lo, at_centre_hi, regular = enclose_solutions(*A0, *r0)
+        # A and r over the box: centre + slopes * [-rho, rho] (mean-value form)
+        reach_W = _reach(_magnitude(*dW), rho, "bknm,bk->bnm")
+        reach_f = _reach(_magnitude(*df), rho, "bkn,bk->bn")
+        zeros = np.zeros((len(rho), extra, m))
+        A_box = (np.concatenate([_down(W0[0] - reach_W), Z], axis=1),
+                 np.concatenate([_up(W0[1] + reach_W), Z], axis=1))
+        r_box = (np.concatenate([_down(f0[0] - reach_f), z], axis=1),
+                 np.concatenate([_up(f0[1] + reach_f), z], axis=1))
+        t_lo, t_hi, regular_box = enclose_solutions(*A_box, *r_box)
+        regular = regular & regular_box
+        t_mid, t_rad = _mid_rad(t_lo, t_hi, m)
+        t_mid = np.where(regular[:, None], t_mid, 0.0)
+        t_rad = np.where(regular[:, None], t_rad, 0.0)
+        slopes_T = []
+        for k in range(d):
+            # rhs_k = [d grad V / dx_k; 0] - [dA/dx_k] [T], enclosed in midpoint-radius form
+            D_mid, D_rad = _mid_rad(dW[0][:, k], dW[1][:, k], m)
+            product = np.einsum("bnm,bm->bn", D_mid, t_mid)
+            spread = _inflate(np.einsum("bnm,bm->bn", np.abs(D_mid), t_rad)
+                              + np.einsum("bnm,bm->bn", D_rad, np.abs(t_mid) + t_rad)
+                              + _gamma(m + 2) * np.einsum("bnm,bm->bn", np.abs(D_mid),
+                                                          np.abs(t_mid)), m)
+            g_lo, g_hi = df[0][:, k], df[1][:, k]
+            rhs_lo = _down(g_lo - product - spread - 4 * _U * np.abs(g_lo - product))
+            rhs_hi = _up(g_hi - product + spread + 4 * _U * np.abs(g_hi - product))
+            rhs = (np.concatenate([rhs_lo, zeros[:, :, 0]], axis=1),
+                   np.concatenate([rhs_hi, zeros[:, :, 0]], axis=1))
+            j_lo, j_hi, regular_k = enclose_solutions(*A_box, *rhs)
+            regular = regular & regular_k
+            slopes_T.append(_magnitude(j_lo, j_hi))
+        reach_T = _reach(np.stack(slopes_T, axis=1), rho, "bkm,bk->bm")
+        low = np.maximum(_down(at_centre_lo - reach_T), t_lo)
+        high = np.minimum(_up(at_centre_hi + reach_T), t_hi)
+        return regular & np.all((low >= self.t_min) & (high <= self.t_max), axis=1)
+
+    def _infeasible(self, c, W0, f0, dW, df, rho) -> np.ndarray:
+        """The Farkas certificate of the module docstring, per box, for directions c."""
+        n, m = self.n, self.m
+        w_mid, w_rad = _mid_rad(*W0, n)
+        magnitude_c = np.abs(c)
+        projection = np.einsum("bn,bnm->bm", c, w_mid)
+        projection_error = _inflate(np.einsum("bn,bnm->bm", magnitude_c, w_rad)
+                                    + _gamma(n + 2) * np.einsum("bn,bnm->bm", magnitude_c,
+                                                                np.abs(w_mid)), n)
+        D_mid, D_rad = _mid_rad(*dW, n)
+        slope = np.abs(np.einsum("bn,bknm->bkm", c, D_mid)) + _inflate(
+            np.einsum("bn,bknm->bkm", magnitude_c, D_rad)
+            + _gamma(n + 2) * np.einsum("bn,bknm->bkm", magnitude_c, np.abs(D_mid)), n)
+        reach = _reach(slope, rho, "bkm,bk->bm")
+        a_hi = _up(projection + projection_error + reach + 4 * _U * np.abs(projection))
+        f_mid, f_rad = _mid_rad(*f0, n)
+        g_mid, g_rad = _mid_rad(*df, n)
+        weight = np.einsum("bn,bn->b", c, f_mid)
+        weight_error = _inflate(np.einsum("bn,bn->b", magnitude_c, f_rad)
+                                + _gamma(n + 2) * np.einsum("bn,bn->b", magnitude_c,
+                                                            np.abs(f_mid)), n)
+        weight_slope = np.abs(np.einsum("bn,bkn->bk", c, g_mid)) + _inflate(
+            np.einsum("bn,bkn->bk", magnitude_c, g_rad)
+            + _gamma(n + 2) * np.einsum("bn,bkn->bk", magnitude_c, np.abs(g_mid)), n)
+        weight_reach = _reach(weight_slope, rho, "bk,bk->b")
+        b_lo = _down(weight - weight_error - weight_reach - 4 * _U * np.abs(weight))
+        support = np.maximum(self.t_min * a_hi, self.t_max * a_hi)
+        support_hi = _up(support.sum(axis=1) + _gamma(m + 2) * np.abs(support).sum(axis=1))
+        gap = b_lo - support_hi
+        with np.errstate(invalid="ignore"):
+            return np.isfinite(gap) & (gap - 4 * _U * (np.abs(b_lo) + np.abs(support_hi))
+                                       - _TINY > 0)
+
+
+def _up(x: np.ndarray) -> np.ndarray:
+    """One float step up: x was computed in round-to-nearest from upper bounds."""
+    return np.nextafter(x, np.inf)
+
+
+def _down(x: np.ndarray) -> np.ndarray:
+    return np.nextafter(x, -np.inf)
