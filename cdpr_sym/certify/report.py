@@ -23,7 +23,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.certify.workspace import WorkspaceCertificate
+from cdpr_sym.certify.workspace import METHODS, WorkspaceCertificate, proof_method
 from cdpr_sym.model import SymbolicModel
 
 
@@ -99,14 +99,23 @@ def summary(certificate: WorkspaceCertificate, check: dict[str, Any] | None) -> 
     """certificate.json's content."""
     shares = certificate.shares()
     wrench = certificate.half_widths
-    prop = ("static feasibility: the unique tension W^-1 grad V in [T_min, T_max] on every "
-            "cable" if not wrench.size else "wrench feasibility: the tension W^-1 (grad V - "
-            "J^T w) in [T_min, T_max] on every cable for every external wrench w of the box")
+    robot = certificate.robot
+    if robot.m > robot.n:
+        prop = ("static feasibility: some tension T in [T_min, T_max] on every cable with "
+                "W T = grad V" if not wrench.size else "wrench feasibility: for every "
+                "external wrench w of the box some tension T in [T_min, T_max] on every "
+                "cable with W T = grad V - J^T w")
+    else:
+        prop = ("static feasibility: the unique tension W^-1 grad V in [T_min, T_max] on "
+                "every cable" if not wrench.size else "wrench feasibility: the tension W^-1 "
+                "(grad V - J^T w) in [T_min, T_max] on every cable for every external "
+                "wrench w of the box")
     if certificate.prop == "assumption-1":
         prop = ("the paper's Assumption 1: beta = (T_max - T_min) / 2 - |tau_1 - (T_min + "
                 "T_max) / 2|_2 > 0 with tau_1 = W^-1 grad V; where it holds and dq != 0, "
                 "Theorem 1 keeps the l2 design's command in the tension box")
-    return {"robot": certificate.robot.name, "property": prop,
+    method = proof_method(robot, bool(wrench.size), certificate.prop)
+    return {"robot": robot.name, "property": prop, "method": METHODS[method],
             "wrench_half_widths": wrench.tolist(),
             "coordinates": list(certificate.names),
             "orientation": certificate.orientation.tolist(),
