@@ -38,6 +38,11 @@ shifting over boxes (:func:`facet_function`, :class:`_FacetVerdicts`): every fac
 the box and some facet spread sum_j |c . w_j| > 0 on it (W of full rank at every pose) prove
 it feasible; a facet margin < 0 on the whole box proves it infeasible.
 
+**More cables than degrees of freedom with n > :data:`CRAMER_UP_TO`** (no wrench box): the
+facet margins' products of minors are too wide over boxes; each box gets a tension path and
+a Farkas direction chosen at its centre and proven over it instead
+(:mod:`cdpr_sym.certify.anchored`). :func:`proof_method` names the method per robot.
+
 What is not certified here: orientation ranges.
 """
 
