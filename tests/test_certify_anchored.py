@@ -182,3 +182,91 @@ def test_a_robot_not_among_the_presets_is_certified_and_agrees_with_samples(rng)
                          for v in certificate.verdicts[boxes]])
     assert _contradictions(robot, certificate.lower[boxes], certificate.upper[boxes],
                            verdicts, rng, per_box=1) == (0, 0)
+
+
+# -- the enclosures themselves, against sampled values ------------------------------------------
+def _custom_verdicts(robot, pulled: bool):
+    """The verdicts with their evaluators built here; ``pulled`` adds a force that varies
+    with position, grad V + B p^2 (every robot's weight is constant in position at a fixed
+    orientation, which leaves the slopes of grad V at zero)."""
+    from cdpr_sym.certify.evaluate import IntervalFunction
+
+    model = SymbolicModel(robot)
+    d = robot.dimension
+    orientation = np.asarray(robot.start[d:])
+    position = ca.SX.sym("p", d)
+    q = ca.vertcat(position, ca.DM(orientation))
+    pull = ca.DM(np.random.default_rng(7).normal(0, 40, (robot.n, d)))
+    force = model.grad_potential(q) + (pull @ (position * position) if pulled else 0)
+    terms = ca.vertcat(ca.vec(ca.densify(model.structure_matrix(q))), ca.densify(force))
+    point = ca.Function("terms", [position], [terms])
+    slopes = ca.Function("slopes", [position], [ca.densify(ca.jacobian(terms, position))])
+    normals = anchored.normals_function(model)
+    verdicts = anchored.AnchoredVerdicts(
+        model, orientation, IntervalFunction(point), IntervalFunction(slopes),
+        lambda poses: np.array(normals.map(len(poses))(poses.T)).T)
+    return verdicts, point, slopes
+
+
+@pytest.mark.parametrize(("robot_name", "pulled"), [("ipanema8", False), ("ipanema8", True),
+                                                    ("spatial6", True)])
+def test_sampled_tensions_and_projections_lie_in_their_enclosures(robot_name, pulled, rng):
+    """T(x) and dT/dx, solved here in numpy at sampled x, lie in their enclosures over the
+    box; c . w_j(x) <= a_hi_j and c . f(x) >= b_lo for random unit directions c."""
+    robot = preset(robot_name)
+    n, m, d = robot.n, robot.m, robot.dimension
+    verdicts, point, slopes = _custom_verdicts(robot, pulled)
+    lower, upper = _boxes(robot, 300, rng, widths=(0.002, 0.01, 0.04, 0.1, 0.2))
+    terms = verdicts.box_terms(lower, upper)
+    W_mid = 0.5 * (terms.W0[0] + terms.W0[1])
+    f_mid = 0.5 * (terms.f0[0] + terms.f0[1])
+    T0, _, Z = anchored.interior_tensions(W_mid, f_mid, robot.t_min, robot.t_max)
+    low, high, regular, (slope_lo, slope_hi) = verdicts.tension_enclosure(terms, Z, T0)
+    assert regular.mean() > 0.5
+    c = rng.normal(size=(len(lower), n))
+    c /= np.linalg.norm(c, axis=1, keepdims=True)
+    a_hi, b_lo = verdicts.farkas_bounds(terms, c)
+    samples = 16
+    x = lower[:, None] + (upper - lower)[:, None] * rng.random((len(lower), samples, d))
+    values = np.array(point.map(len(lower) * samples)(x.reshape(-1, d).T)).T
+    W = values[:, : n * m].reshape(len(lower), samples, m, n).transpose(0, 1, 3, 2)
+    f = values[:, n * m:].reshape(len(lower), samples, n)
+    Z_all = np.broadcast_to(Z[:, None], (len(lower), samples, m - n, m))
+    A = np.concatenate([W, Z_all], axis=2)
+    r = np.concatenate([f, np.einsum("bij,bj->bi", Z, T0)[:, None].repeat(samples, 1)], axis=2)
+    T = np.linalg.solve(A, r[..., None])[..., 0]
+    inside = (T >= low[:, None]) & (T <= high[:, None])
+    assert np.all(inside[regular]), np.argwhere(~inside[regular])[:3]
+    # dT/dx_k = A^-1 (d grad V/dx_k - dA/dx_k T), derived here at the samples
+    jacobian = np.array(slopes.map(len(lower) * samples)(x.reshape(-1, d).T)).T.reshape(
+        len(lower), samples, d, n * m + n)
+    dW = jacobian[..., : n * m].reshape(len(lower), samples, d, m, n).transpose(0, 1, 2, 4, 3)
+    dA = np.concatenate([dW, np.zeros((len(lower), samples, d, m - n, m))], axis=3)
+    dr = np.concatenate([jacobian[..., n * m:], np.zeros((len(lower), samples, d, m - n))],
+                        axis=3)
+    rhs = dr - np.einsum("bskij,bsj->bski", dA, T)
+    dT = np.linalg.solve(A[:, :, None], rhs[..., None])[..., 0]  # (boxes, samples, d, m)
+    slope_inside = (dT >= slope_lo[:, None]) & (dT <= slope_hi[:, None])
+    assert np.all(slope_inside[regular])
+    assert np.all(np.einsum("bn,bsnm->bsm", c, W) <= a_hi[:, None])
+    assert np.all(np.einsum("bn,bsn->bs", c, f) >= b_lo[:, None])
+    # and the enclosures are not vacuous: within 6 times the sampled spread on small boxes
+    small = regular & (np.max(upper - lower, axis=1) <= 0.002)
+    spread = T.max(axis=1) - T.min(axis=1)
+    assert np.all((high - low)[small] <= 6 * spread[small] + 0.05)
+
+
+def test_the_proof_method_and_the_property_are_named():
+    from cdpr_sym.certify.report import summary
+
+    named = {name: certified.proof_method(preset(name), False)
+             for name in ("aras3", "planar4", "spatial6", "ipanema8")}
+    assert named == {"aras3": "cramer", "planar4": "facets", "spatial6": "krawczyk",
+                     "ipanema8": "anchored"}
+    assert certified.proof_method(preset("aras3"), True) == "cramer-wrench"
+    assert certified.proof_method(preset("ipanema8"), True) == "facets"
+    redundant = summary(certified.certify_workspace(preset("planar4"), min_width=0.1), None)
+    assert redundant["property"].startswith("static feasibility: some tension T")
+    assert "hyperplane shifting" in redundant["method"]
+    square = summary(certified.certify_workspace(preset("planar2"), min_width=0.1), None)
+    assert "unique tension" in square["property"] and "Cramer" in square["method"]

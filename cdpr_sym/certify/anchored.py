@@ -33,12 +33,15 @@ farthest outside of (hyperplane shifting at the centre alone, :func:`farkas_dire
 and both sides are enclosed by the mean-value form with c fixed: unlike the facet margins
 as functions of x, nothing here multiplies minors.
 
-Sound at any rank, for any m >= n (with m = n, Z is empty and T(x) = W(x)^{-1} grad V(x)).
+The infeasibility proof holds at any rank; the feasibility proof proves A, and so W, of full
+rank on the box. Any m >= n (with m = n, Z is empty and T(x) = W(x)^{-1} grad V(x)).
 Every float product and sum is bounded (Higham's gamma_n) and inflated as in
 :mod:`~cdpr_sym.certify.linear`.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import casadi as ca
 import numpy as np
@@ -128,7 +131,7 @@ def interior_tensions(W: np.ndarray, f: np.ndarray, t_min: float, t_max: float
     G = np.concatenate([np.transpose(Z, (0, 2, 1)), -np.transpose(Z, (0, 2, 1))], axis=1)
     base = np.concatenate([particular - t_min, t_max - particular], axis=1)  # (poses, 2m)
     lam = np.zeros((poses, m - n))
-    G_size = 1.0  # Z's rows are orthonormal: |G lam| <= |lam| entrywise
+    G_size = 1.0  # Z's rows are orthonormal: |(G lam)_i| <= |lam|_2
 
     def constraints(lam: np.ndarray) -> np.ndarray:
         g = base.copy()
@@ -185,6 +188,31 @@ def _reach(slope_bound: np.ndarray, rho: np.ndarray, signature: str) -> np.ndarr
     return _inflate(np.einsum(signature, slope_bound, rho), rho.shape[1])
 
 
+@dataclasses.dataclass(frozen=True)
+class BoxTerms:
+    """Enclosures per box: ``centre`` (boxes, d) and ``rho`` (boxes, d, m: the half-widths
+    rounded up); (lo, hi) pairs of W at the centre (boxes, n, m), grad V at the centre
+    (boxes, n), dW/dx_k over the box (boxes, d, n, m) and d grad V/dx_k (boxes, d, n)."""
+
+    centre: np.ndarray
+    rho: np.ndarray
+    W0: tuple[np.ndarray, np.ndarray]
+    f0: tuple[np.ndarray, np.ndarray]
+    W_slopes: tuple[np.ndarray, np.ndarray]
+    f_slopes: tuple[np.ndarray, np.ndarray]
+
+    def finite(self) -> np.ndarray:
+        """Boxes whose enclosures are all finite (elsewhere nothing is proven)."""
+        pairs = (self.W0, self.f0, self.W_slopes, self.f_slopes)
+        return np.all([np.all(np.isfinite(part), axis=tuple(range(1, part.ndim)))
+                       for pair in pairs for part in pair], axis=0)
+
+    def take(self, where: np.ndarray) -> BoxTerms:
+        pick = lambda pair: tuple(part[where] for part in pair)  # noqa: E731
+        return BoxTerms(self.centre[where], self.rho[where], pick(self.W0), pick(self.f0),
+                        pick(self.W_slopes), pick(self.f_slopes))
+
+
 class AnchoredVerdicts:
     """Verdicts (0 feasible, 1 infeasible, 2 undecided per box) by the module's certificates.
 
@@ -198,10 +226,13 @@ class AnchoredVerdicts:
                  normals) -> None:
         self.n, self.m, self.d = model.n, model.m, model.robot.dimension
         self.t_min, self.t_max = model.robot.t_min, model.robot.t_max
+        if not 0 <= self.t_min < self.t_max:  # the Farkas support is increasing in c . w_j
+            raise ValueError(f"expected 0 <= t_min < t_max, got {self.t_min}, {self.t_max}")
         self.orientation = np.asarray(orientation, dtype=float)
         self.point, self.slopes, self.normals = point, slopes, normals
 
-    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    def box_terms(self, lower: np.ndarray, upper: np.ndarray) -> BoxTerms:
+        """W and grad V at the boxes' centres and their slopes over the boxes, enclosed."""
         n, m, d = self.n, self.m, self.d
         boxes = len(lower)
         centre = 0.5 * (lower + upper)
@@ -213,42 +244,55 @@ class AnchoredVerdicts:
         f0 = (lo[n * m:].T, hi[n * m:].T)
         s_lo, s_hi = self.slopes((lower.T, upper.T))[0]
         rows = n * m + n
-        # (boxes, d, n, m) and (boxes, d, n): the slopes' enclosures over the box
-        dW = tuple(s[: , :].T.reshape(boxes, d, rows)[:, :, : n * m]
+        # (boxes, d, n, m) and (boxes, d, n): column-major Jacobian, d blocks of rows
+        dW = tuple(s.T.reshape(boxes, d, rows)[:, :, : n * m]
                    .reshape(boxes, d, m, n).transpose(0, 1, 3, 2) for s in (s_lo, s_hi))
         df = tuple(s.T.reshape(boxes, d, rows)[:, :, n * m:] for s in (s_lo, s_hi))
-        verdict = np.full(boxes, 2)
-        usable = (np.all(np.isfinite(W0[0]) & np.isfinite(W0[1]), axis=(1, 2))
-                  & np.all(np.isfinite(dW[0]) & np.isfinite(dW[1]), axis=(1, 2, 3))
-                  & np.all(np.isfinite(df[0]) & np.isfinite(df[1]), axis=(1, 2)))
+        return BoxTerms(centre, rho, W0, f0, dW, df)
+
+    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        n = self.n
+        terms = self.box_terms(lower, upper)
+        verdict = np.full(len(lower), 2)
+        usable = terms.finite()
         if not usable.any():
             return verdict
         index = np.nonzero(usable)[0]
-        W_mid = 0.5 * W0[0][index] + 0.5 * W0[1][index]
-        f_mid = 0.5 * f0[0][index] + 0.5 * f0[1][index]
+        terms = terms.take(index)
+        W_mid = 0.5 * terms.W0[0] + 0.5 * terms.W0[1]
+        f_mid = 0.5 * terms.f0[0] + 0.5 * terms.f0[1]
         T0, margin, Z = interior_tensions(W_mid, f_mid, self.t_min, self.t_max)
-        pick = lambda pair, where: tuple(part[where] for part in pair)  # noqa: E731
-        candidates = margin > 0
-        if candidates.any():
-            at = index[candidates]
-            proven = self._feasible(pick(W0, at), pick(f0, at), pick(dW, at), pick(df, at),
-                                    rho[at], Z[candidates], T0[candidates])
-            verdict[at[proven]] = 0
+        candidates = np.nonzero(margin > 0)[0]
+        if len(candidates):
+            low, high, regular, _ = self.tension_enclosure(terms.take(candidates), Z[candidates],
+                                                        T0[candidates])
+            proven = regular & np.all((low >= self.t_min) & (high <= self.t_max), axis=1)
+            verdict[index[candidates[proven]]] = 0
         # a box whose centre holds a tension in the box cannot be infeasible
-        rest = (verdict[index] == 2) & ~candidates
-        if rest.any():
-            at = index[rest]
-            poses = np.hstack([centre[at], np.tile(self.orientation, (len(at), 1))])
-            normals = self.normals(poses).reshape(len(at), -1, n)
+        rest = np.nonzero(margin <= 0)[0]
+        if len(rest):
+            poses = np.hstack([terms.centre[rest], np.tile(self.orientation, (len(rest), 1))])
+            normals = self.normals(poses).reshape(len(rest), -1, n)
             c = farkas_directions(normals, W_mid[rest], f_mid[rest], self.t_min, self.t_max)
-            proven = self._infeasible(c, pick(W0, at), pick(f0, at), pick(dW, at),
-                                      pick(df, at), rho[at])
-            verdict[at[proven]] = 1
+            a_hi, b_lo = self.farkas_bounds(terms.take(rest), c)
+            support = np.maximum(self.t_min * a_hi, self.t_max * a_hi)  # T_min >= 0
+            support_hi = _up(support.sum(axis=1)
+                             + _gamma(self.m + 2) * np.abs(support).sum(axis=1))
+            gap = b_lo - support_hi
+            with np.errstate(invalid="ignore"):
+                proven = np.isfinite(gap) & (
+                    gap - 4 * _U * (np.abs(b_lo) + np.abs(support_hi)) - _TINY > 0)
+            verdict[index[rest[proven]]] = 1
         return verdict
 
-    def _feasible(self, W0, f0, dW, df, rho, Z, T0) -> np.ndarray:
-        """The feasibility certificate of the module docstring, per box."""
-        n, m, d = self.n, self.m, self.d
+    def tension_enclosure(self, terms: BoxTerms, Z: np.ndarray, T0: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple]:
+        """(low, high, regular, slopes) per box: every T(x) of the box (module docstring: the
+        solution of [W(x); Z] T = [grad V(x); Z T0]) lies in [low, high] and every dT/dx_k
+        in slopes = (lo, hi) of shape (boxes, d, m), where ``regular`` (A proven regular on
+        the box); elsewhere nothing is proven."""
+        n, m = self.n, self.m
+        W0, f0, dW, df, rho = terms.W0, terms.f0, terms.W_slopes, terms.f_slopes, terms.rho
         extra = m - n
         z = np.einsum("bij,bj->bi", Z, T0)
         A0 = (np.concatenate([W0[0], Z], axis=1), np.concatenate([W0[1], Z], axis=1))
@@ -257,18 +301,19 @@ class AnchoredVerdicts:
         # A and r over the box: centre + slopes * [-rho, rho] (mean-value form)
         reach_W = _reach(_magnitude(*dW), rho, "bknm,bk->bnm")
         reach_f = _reach(_magnitude(*df), rho, "bkn,bk->bn")
-        zeros = np.zeros((len(rho), extra, m))
+        zeros = np.zeros((len(rho), extra))
         A_box = (np.concatenate([_down(W0[0] - reach_W), Z], axis=1),
                  np.concatenate([_up(W0[1] + reach_W), Z], axis=1))
         r_box = (np.concatenate([_down(f0[0] - reach_f), z], axis=1),
                  np.concatenate([_up(f0[1] + reach_f), z], axis=1))
+        # regular on the box: every A(x) of the box is in A_box, which Krawczyk proves regular
         t_lo, t_hi, regular_box = enclose_solutions(*A_box, *r_box)
         regular = regular & regular_box
         t_mid, t_rad = _mid_rad(t_lo, t_hi, m)
         t_mid = np.where(regular[:, None], t_mid, 0.0)
         t_rad = np.where(regular[:, None], t_rad, 0.0)
-        slopes_T = []
-        for k in range(d):
+        slopes_lo, slopes_hi = [], []
+        for k in range(self.d):
             # rhs_k = [d grad V / dx_k; 0] - [dA/dx_k] [T], enclosed in midpoint-radius form
             D_mid, D_rad = _mid_rad(dW[0][:, k], dW[1][:, k], m)
             product = np.einsum("bnm,bm->bn", D_mid, t_mid)
@@ -279,19 +324,23 @@ class AnchoredVerdicts:
             g_lo, g_hi = df[0][:, k], df[1][:, k]
             rhs_lo = _down(g_lo - product - spread - 4 * _U * np.abs(g_lo - product))
             rhs_hi = _up(g_hi - product + spread + 4 * _U * np.abs(g_hi - product))
-            rhs = (np.concatenate([rhs_lo, zeros[:, :, 0]], axis=1),
-                   np.concatenate([rhs_hi, zeros[:, :, 0]], axis=1))
+            rhs = (np.concatenate([rhs_lo, zeros], axis=1),
+                   np.concatenate([rhs_hi, zeros], axis=1))
             j_lo, j_hi, regular_k = enclose_solutions(*A_box, *rhs)
             regular = regular & regular_k
-            slopes_T.append(_magnitude(j_lo, j_hi))
-        reach_T = _reach(np.stack(slopes_T, axis=1), rho, "bkm,bk->bm")
+            slopes_lo.append(j_lo)
+            slopes_hi.append(j_hi)
+        slopes = (np.stack(slopes_lo, axis=1), np.stack(slopes_hi, axis=1))
+        reach_T = _reach(_magnitude(*slopes), rho, "bkm,bk->bm")
         low = np.maximum(_down(at_centre_lo - reach_T), t_lo)
         high = np.minimum(_up(at_centre_hi + reach_T), t_hi)
-        return regular & np.all((low >= self.t_min) & (high <= self.t_max), axis=1)
+        return low, high, regular, slopes
 
-    def _infeasible(self, c, W0, f0, dW, df, rho) -> np.ndarray:
-        """The Farkas certificate of the module docstring, per box, for directions c."""
-        n, m = self.n, self.m
+    def farkas_bounds(self, terms: BoxTerms, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(a_hi, b_lo) per box for fixed directions c (boxes, n): c . w_j(x) <= a_hi_j and
+        c . grad V(x) >= b_lo for every x of the box (NaN where nothing is bounded)."""
+        n = self.n
+        W0, f0, dW, df, rho = terms.W0, terms.f0, terms.W_slopes, terms.f_slopes, terms.rho
         w_mid, w_rad = _mid_rad(*W0, n)
         magnitude_c = np.abs(c)
         projection = np.einsum("bn,bnm->bm", c, w_mid)
@@ -315,12 +364,7 @@ class AnchoredVerdicts:
             + _gamma(n + 2) * np.einsum("bn,bkn->bk", magnitude_c, np.abs(g_mid)), n)
         weight_reach = _reach(weight_slope, rho, "bk,bk->b")
         b_lo = _down(weight - weight_error - weight_reach - 4 * _U * np.abs(weight))
-        support = np.maximum(self.t_min * a_hi, self.t_max * a_hi)
-        support_hi = _up(support.sum(axis=1) + _gamma(m + 2) * np.abs(support).sum(axis=1))
-        gap = b_lo - support_hi
-        with np.errstate(invalid="ignore"):
-            return np.isfinite(gap) & (gap - 4 * _U * (np.abs(b_lo) + np.abs(support_hi))
-                                       - _TINY > 0)
+        return a_hi, b_lo
 
 
 def _up(x: np.ndarray) -> np.ndarray:
