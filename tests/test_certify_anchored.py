@@ -270,3 +270,81 @@ def test_the_proof_method_and_the_property_are_named():
     assert "hyperplane shifting" in redundant["method"]
     square = summary(certified.certify_workspace(preset("planar2"), min_width=0.1), None)
     assert "unique tension" in square["property"] and "Cramer" in square["method"]
+
+
+# -- against an external wrench box -------------------------------------------------------------
+#: ipanema8 held against +-20 N and +-2 N m on every axis.
+WRENCH = np.array([20.0, 20.0, 20.0, 2.0, 2.0, 2.0])
+
+
+def _wrench_contradictions(robot, lower, upper, verdicts, box, rng, per_box=8):
+    """As :func:`_contradictions`, by the sampled workspace's hyperplane shifting with the
+    wrench box (generated C, :mod:`cdpr_sym.workspace.wrench`)."""
+    from cdpr_sym.workspace.wrench import WrenchEvaluator
+
+    d = robot.dimension
+    classify = WrenchEvaluator(robot).classify
+    found = []
+    for verdict, wrong in ((0, False), (1, True)):
+        chosen = np.nonzero(verdicts == verdict)[0]
+        points = (lower[chosen, None, :] + (upper - lower)[chosen, None, :]
+                  * rng.random((len(chosen), per_box, d))).reshape(-1, d)
+        poses = np.hstack([points, np.tile(robot.start[d:], (len(points), 1))])
+        feasible = classify(poses, box).feasible
+        found.append(int(np.sum(np.any((feasible == wrong).reshape(len(chosen), per_box),
+                                       axis=1))))
+    return tuple(found)
+
+
+@pytest.mark.slow  # about 15 s
+def test_wrench_boxes_agree_with_hyperplane_shifting_and_forgetting_the_wrench_is_caught(rng):
+    robot = preset("ipanema8")
+    model = SymbolicModel(robot)
+    orientation = np.asarray(robot.start[robot.dimension:])
+    lower, upper = _boxes(robot, 800, rng)
+    verdicts = certified.anchored_verdicts(model, orientation, True, WRENCH)(lower, upper)
+    assert np.mean(verdicts == 0) > 0.25 and np.mean(verdicts == 1) > 0.15
+    assert _wrench_contradictions(robot, lower, upper, verdicts, WRENCH, rng) == (0, 0)
+    forgetful = certified.anchored_verdicts(model, orientation, True)(lower, upper)
+    assert _wrench_contradictions(robot, lower, upper, forgetful, WRENCH, rng)[0] > 0
+
+
+def test_every_wrench_of_the_box_moves_the_tension_within_the_spread(rng):
+    """T(x, w) solved here in numpy for wrenches at the box's corners and inside it lies in
+    the tension enclosure widened by the spread; the worst wrench's push is at least the
+    bound (sum_j h_j |c . J^T_j(x)| >= push at sampled x)."""
+    robot = preset("ipanema8")
+    n, m, d = robot.n, robot.m, robot.dimension
+    model = SymbolicModel(robot)
+    orientation = np.asarray(robot.start[d:])
+    verdicts = certified.anchored_verdicts(model, orientation, False, WRENCH)
+    point = anchored.terms_function(model, orientation, wrench=True)
+    lower, upper = _boxes(robot, 150, rng, widths=(0.002, 0.01, 0.04))
+    terms = verdicts.box_terms(lower, upper)
+    W_mid, f_mid = 0.5 * (terms.W0[0] + terms.W0[1]), 0.5 * (terms.f0[0] + terms.f0[1])
+    T0, _, Z = anchored.interior_tensions(W_mid, f_mid, robot.t_min, robot.t_max)
+    low, high, regular, _ = verdicts.tension_enclosure(terms, Z, T0)
+    spread, held = verdicts.wrench_spread(terms, Z)
+    regular &= held
+    assert regular.mean() > 0.5
+    c = rng.normal(size=(len(lower), n))
+    c /= np.linalg.norm(c, axis=1, keepdims=True)
+    push = verdicts.wrench_push(terms, c)
+    samples = 12
+    x = lower[:, None] + (upper - lower)[:, None] * rng.random((len(lower), samples, d))
+    values = np.array(point.map(len(lower) * samples)(x.reshape(-1, d).T)).T
+    values = values.reshape(len(lower), samples, -1)
+    W = values[..., : n * m].reshape(len(lower), samples, m, n).transpose(0, 1, 3, 2)
+    f = values[..., n * m: n * m + n]
+    J_T = values[..., n * m + n:].reshape(len(lower), samples, 6, n).transpose(0, 1, 3, 2)
+    w = WRENCH * rng.choice([-1.0, 1.0], size=(len(lower), samples, 6))
+    w[:, ::2] *= rng.random((len(lower), (samples + 1) // 2, 6))  # some inside the box
+    A = np.concatenate([W, np.broadcast_to(Z[:, None], (len(lower), samples, m - n, m))],
+                       axis=2)
+    z = np.einsum("bij,bj->bi", Z, T0)[:, None].repeat(samples, 1)
+    r = np.concatenate([f - np.einsum("bsnj,bsj->bsn", J_T, w), z], axis=2)
+    T = np.linalg.solve(A, r[..., None])[..., 0]
+    inside = (T >= (low - spread)[:, None]) & (T <= (high + spread)[:, None])
+    assert np.all(inside[regular])
+    worst = np.abs(np.einsum("bn,bsnj->bsj", c, J_T)) @ WRENCH
+    assert np.all(worst >= push[:, None])

@@ -60,20 +60,29 @@ NEWTON_LENGTHS = (1.0, 0.5, 0.25, 0.0625)
 ASCENT_LENGTHS = (16.0, 4.0, 1.0)
 
 
-def terms_function(model: SymbolicModel, orientation: np.ndarray) -> ca.Function:
-    """positions (d) -> [vec W (n m, column-major), grad V (n)] at the fixed orientation."""
+def terms_function(model: SymbolicModel, orientation: np.ndarray, wrench: bool = False
+                   ) -> ca.Function:
+    """positions (d) -> [vec W (n m, column-major), grad V (n)] at the fixed orientation;
+    with ``wrench`` also vec J^T (n k, column-major: the generalized force of each axis of
+    the external wrench)."""
     position, q = _pose(model, orientation)
-    return ca.Function("terms", [position], [ca.vertcat(
-        ca.vec(ca.densify(model.structure_matrix(q))), ca.densify(model.grad_potential(q)))])
+    return ca.Function("terms", [position], [_terms(model, q, wrench)])
 
 
-def slopes_function(model: SymbolicModel, orientation: np.ndarray) -> ca.Function:
-    """positions (d) -> the Jacobian of :func:`terms_function`'s output (n m + n rows, d
-    columns), column-major: d blocks of [vec dW/dx_k, d grad V/dx_k]."""
+def slopes_function(model: SymbolicModel, orientation: np.ndarray, wrench: bool = False
+                    ) -> ca.Function:
+    """positions (d) -> the Jacobian of :func:`terms_function`'s output (rows, d columns),
+    column-major: d blocks of [vec dW/dx_k, d grad V/dx_k (, vec dJ^T/dx_k)]."""
     position, q = _pose(model, orientation)
-    terms = ca.vertcat(ca.vec(ca.densify(model.structure_matrix(q))),
-                       ca.densify(model.grad_potential(q)))
-    return ca.Function("slopes", [position], [ca.densify(ca.jacobian(terms, position))])
+    return ca.Function("slopes", [position],
+                       [ca.densify(ca.jacobian(_terms(model, q, wrench), position))])
+
+
+def _terms(model: SymbolicModel, q: ca.SX, wrench: bool) -> ca.SX:
+    parts = [ca.vec(ca.densify(model.structure_matrix(q))), ca.densify(model.grad_potential(q))]
+    if wrench:
+        parts.append(ca.vec(ca.densify(model.wrench_jacobian(q).T)))
+    return ca.vertcat(*parts)
 
 
 def _pose(model: SymbolicModel, orientation: np.ndarray) -> tuple[ca.SX, ca.SX]:
@@ -93,18 +102,23 @@ def normals_function(model: SymbolicModel) -> ca.Function:
 
 
 def farkas_directions(normals: np.ndarray, W: np.ndarray, f: np.ndarray, t_min: float,
-                      t_max: float) -> np.ndarray:
-    """Per pose, the unit normal c of the facet of the available zonotope that grad V lies
-    farthest outside of (the least capacity margin, Gouttefarde et al. 2011), signed so that
-    c . (f - W tau_mid) > 0: normals (poses, facets, n), W (poses, n, m), f (poses, n)."""
+                      t_max: float, J_T: np.ndarray | None = None,
+                      half_widths: np.ndarray | None = None) -> np.ndarray:
+    """Per pose, the unit normal c of the facet of the available zonotope that the required
+    set lies farthest outside of (the least capacity margin, Gouttefarde et al. 2011), signed
+    so that c . (f - W tau_mid) > 0: normals (poses, facets, n), W (poses, n, m), f (poses,
+    n); with a wrench box, J_T (poses, n, k) and its half-widths (k)."""
     middle, half = 0.5 * (t_min + t_max), 0.5 * (t_max - t_min)
     offset = f - middle * W.sum(axis=2)
     size = np.linalg.norm(normals, axis=2)
     size = np.where(size > 0, size, np.inf)
     along = np.einsum("bkn,bn->bk", normals, offset)
+    pushed = 0.0
+    if half_widths is not None and len(half_widths):
+        pushed = np.abs(np.einsum("bkn,bnj->bkj", normals, J_T)) @ half_widths
     with np.errstate(invalid="ignore"):
         margin = (half * np.abs(np.einsum("bkn,bnm->bkm", normals, W)).sum(axis=2)
-                  - np.abs(along)) / size
+                  - np.abs(along) - pushed) / size
     margin = np.where(np.isfinite(margin), margin, np.inf)
     facet = margin.argmin(axis=1)
     rows = np.arange(len(normals))
@@ -192,7 +206,8 @@ def _reach(slope_bound: np.ndarray, rho: np.ndarray, signature: str) -> np.ndarr
 class BoxTerms:
     """Enclosures per box: ``centre`` (boxes, d) and ``rho`` (boxes, d, m: the half-widths
     rounded up); (lo, hi) pairs of W at the centre (boxes, n, m), grad V at the centre
-    (boxes, n), dW/dx_k over the box (boxes, d, n, m) and d grad V/dx_k (boxes, d, n)."""
+    (boxes, n), dW/dx_k over the box (boxes, d, n, m) and d grad V/dx_k (boxes, d, n); J^T
+    at the centre (boxes, n, k) and dJ^T/dx_k (boxes, d, n, k), k = 0 without a wrench box."""
 
     centre: np.ndarray
     rho: np.ndarray
@@ -200,17 +215,20 @@ class BoxTerms:
     f0: tuple[np.ndarray, np.ndarray]
     W_slopes: tuple[np.ndarray, np.ndarray]
     f_slopes: tuple[np.ndarray, np.ndarray]
+    J0: tuple[np.ndarray, np.ndarray]
+    J_slopes: tuple[np.ndarray, np.ndarray]
 
     def finite(self) -> np.ndarray:
         """Boxes whose enclosures are all finite (elsewhere nothing is proven)."""
-        pairs = (self.W0, self.f0, self.W_slopes, self.f_slopes)
+        pairs = (self.W0, self.f0, self.W_slopes, self.f_slopes, self.J0, self.J_slopes)
         return np.all([np.all(np.isfinite(part), axis=tuple(range(1, part.ndim)))
                        for pair in pairs for part in pair], axis=0)
 
     def take(self, where: np.ndarray) -> BoxTerms:
         pick = lambda pair: tuple(part[where] for part in pair)  # noqa: E731
         return BoxTerms(self.centre[where], self.rho[where], pick(self.W0), pick(self.f0),
-                        pick(self.W_slopes), pick(self.f_slopes))
+                        pick(self.W_slopes), pick(self.f_slopes), pick(self.J0),
+                        pick(self.J_slopes))
 
 
 class AnchoredVerdicts:
@@ -223,12 +241,16 @@ class AnchoredVerdicts:
     position into a pose."""
 
     def __init__(self, model: SymbolicModel, orientation: np.ndarray, point, slopes,
-                 normals) -> None:
+                 normals, half_widths: np.ndarray | None = None) -> None:
         self.n, self.m, self.d = model.n, model.m, model.robot.dimension
         self.t_min, self.t_max = model.robot.t_min, model.robot.t_max
         if not 0 <= self.t_min < self.t_max:  # the Farkas support is increasing in c . w_j
             raise ValueError(f"expected 0 <= t_min < t_max, got {self.t_min}, {self.t_max}")
         self.orientation = np.asarray(orientation, dtype=float)
+        #: the external wrench box's half-widths (force N, moment N m; empty: none)
+        self.half_widths = (np.zeros(0) if half_widths is None
+                            else np.asarray(half_widths, dtype=float))
+        self.k = len(self.half_widths)
         self.point, self.slopes, self.normals = point, slopes, normals
 
     def box_terms(self, lower: np.ndarray, upper: np.ndarray) -> BoxTerms:
@@ -241,14 +263,19 @@ class AnchoredVerdicts:
         lo, hi = self.point((centre.T, centre.T))[0]
         W0 = (lo[: n * m].T.reshape(boxes, m, n).transpose(0, 2, 1),
               hi[: n * m].T.reshape(boxes, m, n).transpose(0, 2, 1))
-        f0 = (lo[n * m:].T, hi[n * m:].T)
+        f0 = (lo[n * m: n * m + n].T, hi[n * m: n * m + n].T)
         s_lo, s_hi = self.slopes((lower.T, upper.T))[0]
-        rows = n * m + n
+        k, start = self.k, n * m + n
+        rows = start + n * k
+        J0 = (lo[start:].T.reshape(boxes, k, n).transpose(0, 2, 1),
+              hi[start:].T.reshape(boxes, k, n).transpose(0, 2, 1))
         # (boxes, d, n, m) and (boxes, d, n): column-major Jacobian, d blocks of rows
         dW = tuple(s.T.reshape(boxes, d, rows)[:, :, : n * m]
                    .reshape(boxes, d, m, n).transpose(0, 1, 3, 2) for s in (s_lo, s_hi))
-        df = tuple(s.T.reshape(boxes, d, rows)[:, :, n * m:] for s in (s_lo, s_hi))
-        return BoxTerms(centre, rho, W0, f0, dW, df)
+        df = tuple(s.T.reshape(boxes, d, rows)[:, :, n * m: start] for s in (s_lo, s_hi))
+        dJ = tuple(s.T.reshape(boxes, d, rows)[:, :, start:].reshape(boxes, d, k, n)
+                   .transpose(0, 1, 3, 2) for s in (s_lo, s_hi))
+        return BoxTerms(centre, rho, W0, f0, dW, df, J0, dJ)
 
     def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
         n = self.n
@@ -264,8 +291,12 @@ class AnchoredVerdicts:
         T0, margin, Z = interior_tensions(W_mid, f_mid, self.t_min, self.t_max)
         candidates = np.nonzero(margin > 0)[0]
         if len(candidates):
-            low, high, regular, _ = self.tension_enclosure(terms.take(candidates), Z[candidates],
-                                                        T0[candidates])
+            chosen = terms.take(candidates)
+            low, high, regular, _ = self.tension_enclosure(chosen, Z[candidates],
+                                                           T0[candidates])
+            if self.k:
+                spread, held = self.wrench_spread(chosen, Z[candidates])
+                low, high, regular = _down(low - spread), _up(high + spread), regular & held
             proven = regular & np.all((low >= self.t_min) & (high <= self.t_max), axis=1)
             verdict[index[candidates[proven]]] = 0
         # a box whose centre holds a tension in the box cannot be infeasible
@@ -273,8 +304,13 @@ class AnchoredVerdicts:
         if len(rest):
             poses = np.hstack([terms.centre[rest], np.tile(self.orientation, (len(rest), 1))])
             normals = self.normals(poses).reshape(len(rest), -1, n)
-            c = farkas_directions(normals, W_mid[rest], f_mid[rest], self.t_min, self.t_max)
-            a_hi, b_lo = self.farkas_bounds(terms.take(rest), c)
+            chosen = terms.take(rest)
+            J_mid = 0.5 * chosen.J0[0] + 0.5 * chosen.J0[1]
+            c = farkas_directions(normals, W_mid[rest], f_mid[rest], self.t_min, self.t_max,
+                                  J_mid, self.half_widths)
+            a_hi, b_lo = self.farkas_bounds(chosen, c)
+            if self.k:  # the worst wrench of the box pushes c . (grad V - J^T w) up
+                b_lo = _down(b_lo + self.wrench_push(chosen, c))
             support = np.maximum(self.t_min * a_hi, self.t_max * a_hi)  # T_min >= 0
             support_hi = _up(support.sum(axis=1)
                              + _gamma(self.m + 2) * np.abs(support).sum(axis=1))
@@ -335,6 +371,51 @@ class AnchoredVerdicts:
         low = np.maximum(_down(at_centre_lo - reach_T), t_lo)
         high = np.minimum(_up(at_centre_hi + reach_T), t_hi)
         return low, high, regular, slopes
+
+    def wrench_spread(self, terms: BoxTerms, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(spread, regular) per box: T(x, w) = T(x, 0) - sum_j w_j S_j(x) with
+        S_j = A^{-1} [J^T_j; 0], so every wrench of the box moves T by at most
+        spread = sum_j h_j |S_j| (each S_j enclosed over the box by Krawczyk's method)."""
+        n, m = self.n, self.m
+        W0, dW, rho = terms.W0, terms.W_slopes, terms.rho
+        reach_W = _reach(_magnitude(*dW), rho, "bknm,bk->bnm")
+        A_box = (np.concatenate([_down(W0[0] - reach_W), Z], axis=1),
+                 np.concatenate([_up(W0[1] + reach_W), Z], axis=1))
+        reach_J = _reach(_magnitude(*terms.J_slopes), rho, "bknj,bk->bnj")
+        J_lo, J_hi = _down(terms.J0[0] - reach_J), _up(terms.J0[1] + reach_J)
+        zeros = np.zeros((len(rho), m - n))
+        spread = np.zeros((len(rho), m))
+        regular = np.ones(len(rho), dtype=bool)
+        for j, h in enumerate(self.half_widths):
+            if not h:
+                continue
+            s_lo, s_hi, held = enclose_solutions(
+                *A_box, np.concatenate([J_lo[:, :, j], zeros], axis=1),
+                np.concatenate([J_hi[:, :, j], zeros], axis=1))
+            regular &= held
+            spread = spread + h * _magnitude(s_lo, s_hi)
+        return _inflate(spread, self.k), regular
+
+    def wrench_push(self, terms: BoxTerms, c: np.ndarray) -> np.ndarray:
+        """A lower bound, per box, of max over the wrench box of -c . J^T(x) w =
+        sum_j h_j |c . J^T_j(x)|, for every x of the box: h_j times the least |.| of the
+        enclosure of c . J^T_j (0 where it may change sign)."""
+        n = self.n
+        J_mid, J_rad = _mid_rad(*terms.J0, n)
+        magnitude_c = np.abs(c)
+        centre = np.einsum("bn,bnj->bj", c, J_mid)
+        error = _inflate(np.einsum("bn,bnj->bj", magnitude_c, J_rad)
+                         + _gamma(n + 2) * np.einsum("bn,bnj->bj", magnitude_c, np.abs(J_mid)),
+                         n)
+        D_mid, D_rad = _mid_rad(*terms.J_slopes, n)
+        slope = np.abs(np.einsum("bn,bknj->bkj", c, D_mid)) + _inflate(
+            np.einsum("bn,bknj->bkj", magnitude_c, D_rad)
+            + _gamma(n + 2) * np.einsum("bn,bknj->bkj", magnitude_c, np.abs(D_mid)), n)
+        reach = _reach(slope, terms.rho, "bkj,bk->bj")
+        least = np.maximum(_down(np.abs(centre) - _up(error + reach + 4 * _U * np.abs(centre))),
+                           0.0)
+        push = least @ self.half_widths
+        return np.maximum(_down(push - _gamma(self.k + 2) * push), 0.0)
 
     def farkas_bounds(self, terms: BoxTerms, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(a_hi, b_lo) per box for fixed directions c (boxes, n): c . w_j(x) <= a_hi_j and

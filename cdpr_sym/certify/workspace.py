@@ -260,7 +260,7 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
     if method == "assumption-1":
         decide = _AssumptionVerdicts(model, orientation, compiled)
     elif method == "anchored":
-        decide = anchored_verdicts(model, orientation, compiled)
+        decide = anchored_verdicts(model, orientation, compiled, wrench)
     elif method == "facets":
         decide = _FacetVerdicts(model, orientation, wrench, compiled)
     elif method == "cramer-wrench":
@@ -322,7 +322,7 @@ def proof_method(robot: Robot, wrench: bool, prop: str = "static") -> str:
     is asked for)."""
     if prop == "assumption-1":
         return "assumption-1"
-    if robot.m > robot.n and robot.n > CRAMER_UP_TO and not wrench:
+    if robot.m > robot.n and robot.n > CRAMER_UP_TO:
         return "anchored"
     if robot.m > robot.n or (wrench and robot.n > CRAMER_UP_TO):
         return "facets"
@@ -383,8 +383,8 @@ def _checked_half_widths(robot: Robot, half_widths) -> np.ndarray | None:
     return box
 
 
-def anchored_verdicts(model: SymbolicModel, orientation: np.ndarray, compiled: bool
-                      ) -> AnchoredVerdicts:
+def anchored_verdicts(model: SymbolicModel, orientation: np.ndarray, compiled: bool,
+                      half_widths: np.ndarray | None = None) -> AnchoredVerdicts:
     """The certificates anchored at each box's centre (:mod:`cdpr_sym.certify.anchored`):
     W and grad V at the centre and their slopes over the box, by the natural extension
     rounded outward, in generated C or numpy."""
@@ -393,8 +393,9 @@ def anchored_verdicts(model: SymbolicModel, orientation: np.ndarray, compiled: b
     from cdpr_sym.workspace.vectorised import pose_evaluator
 
     robot = model.robot
-    point = terms_function(model, orientation)
-    slopes = slopes_function(model, orientation)
+    wrench = half_widths is not None
+    point = terms_function(model, orientation, wrench)
+    slopes = slopes_function(model, orientation, wrench)
     options = BuildOptions() if compiled else BuildOptions(backend="casadi")
     normals = pose_evaluator(robot, lambda: normals_function(model), "facet_normals",
                              build_options=options, recipe=f"{robot_key(robot)}\0normals")
@@ -403,9 +404,9 @@ def anchored_verdicts(model: SymbolicModel, orientation: np.ndarray, compiled: b
         from cdpr_sym.certify.interval_c import CompiledIntervalFunction
 
         return AnchoredVerdicts(model, orientation, CompiledIntervalFunction(point),
-                                CompiledIntervalFunction(slopes), evaluate)
+                                CompiledIntervalFunction(slopes), evaluate, half_widths)
     return AnchoredVerdicts(model, orientation, IntervalFunction(point),
-                            IntervalFunction(slopes), evaluate)
+                            IntervalFunction(slopes), evaluate, half_widths)
 
 
 def _enclosure(function: ca.Function, compiled: bool):
