@@ -264,7 +264,8 @@ def test_the_proof_method_and_the_property_are_named():
     assert named == {"aras3": "cramer", "planar4": "facets", "spatial6": "krawczyk",
                      "ipanema8": "anchored"}
     assert certified.proof_method(preset("aras3"), True) == "cramer-wrench"
-    assert certified.proof_method(preset("ipanema8"), True) == "facets"
+    assert certified.proof_method(preset("ipanema8"), True) == "anchored"
+    assert certified.proof_method(preset("spatial6"), True) == "facets"
     redundant = summary(certified.certify_workspace(preset("planar4"), min_width=0.1), None)
     assert redundant["property"].startswith("static feasibility: some tension T")
     assert "hyperplane shifting" in redundant["method"]

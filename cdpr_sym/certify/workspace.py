@@ -223,7 +223,7 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
         enclosures within a few ulps.
     half_widths : sequence of float, optional
         The external wrench box (force N per axis, then moment N m for a rigid body):
-        certify the wrench-feasible workspace (n <= :data:`CRAMER_UP_TO`). Default none.
+        certify the wrench-feasible workspace (:func:`proof_method` says how). Default none.
     prop : {"static", "assumption-1"}
         The property: static (or wrench) feasibility, or the paper's Assumption 1, under
         which its Theorem 1 keeps the tension box (:func:`assumption_function`; m = n <=
