@@ -335,3 +335,12 @@ def test_assumption_1_is_refused_where_it_is_not_certified():
         assert refused.value.field == "property"
     with pytest.raises(InvalidCase, match="property:"):
         certified.certify_workspace(preset("planar2"), prop="dynamic")
+
+
+def test_a_level_decided_in_chunks_gives_the_same_boxes(monkeypatch):
+    robot = preset("planar2")
+    whole = certified.certify_workspace(robot, min_width=0.02)
+    monkeypatch.setattr(certified, "CHUNK", 7)
+    chunked = certified.certify_workspace(robot, min_width=0.02)
+    assert np.array_equal(whole.lower, chunked.lower)
+    assert np.array_equal(whole.verdicts, chunked.verdicts)

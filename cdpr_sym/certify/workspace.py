@@ -75,6 +75,10 @@ CRAMER_UP_TO = 3
 #: Most boxes one level of the branch-and-bound may hold (memory: a few hundred bytes each
 #: per margin).
 MAX_LEVEL_BOXES = 4_000_000
+#: Boxes decided in one call: a level of millions of boxes is decided in chunks, so the
+#: per-box work arrays (the anchored certificates hold several (boxes, m, m) of them) stay at
+#: a few GiB; a whole-frame ipanema8 run against a wrench box was killed for memory without.
+CHUNK = 200_000
 #: Narrowest box a certificate refines to, m: ten micrometres, far below what any cable robot
 #: is built or measured to; a narrower --min-width only asks for an endless refinement.
 MIN_BOX_WIDTH = 1e-5
@@ -280,7 +284,8 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
             raise InvalidCase("min_width", f"{len(lower):,} boxes at one level; choose a "
                               f"larger minimum width than {min_width} m")
         evaluated += len(lower)
-        verdict = decide(lower, upper)
+        verdict = np.concatenate([decide(lower[start:start + CHUNK], upper[start:start + CHUNK])
+                                  for start in range(0, len(lower), CHUNK)])
         widths = upper - lower
         final = (verdict != 2) | (widths.max(axis=1) <= min_width)
         undecided_volume = float(np.prod(widths[verdict == 2], axis=1).sum())
