@@ -325,7 +325,7 @@ def test_every_wrench_of_the_box_moves_the_tension_within_the_spread(rng):
     W_mid, f_mid = 0.5 * (terms.W0[0] + terms.W0[1]), 0.5 * (terms.f0[0] + terms.f0[1])
     T0, _, Z = anchored.interior_tensions(W_mid, f_mid, robot.t_min, robot.t_max)
     low, high, regular, _ = verdicts.tension_enclosure(terms, Z, T0)
-    spread, held = verdicts.wrench_spread(terms, Z)
+    spread, held = verdicts.wrench_spread(terms, verdicts.box_matrix(terms, Z))
     regular &= held
     assert regular.mean() > 0.5
     c = rng.normal(size=(len(lower), n))

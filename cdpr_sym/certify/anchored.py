@@ -145,7 +145,6 @@ def interior_tensions(W: np.ndarray, f: np.ndarray, t_min: float, t_max: float
     G = np.concatenate([np.transpose(Z, (0, 2, 1)), -np.transpose(Z, (0, 2, 1))], axis=1)
     base = np.concatenate([particular - t_min, t_max - particular], axis=1)  # (poses, 2m)
     lam = np.zeros((poses, m - n))
-    G_size = 1.0  # Z's rows are orthonormal: |(G lam)_i| <= |lam|_2
 
     def constraints(lam: np.ndarray) -> np.ndarray:
         g = base.copy()
@@ -174,10 +173,11 @@ def interior_tensions(W: np.ndarray, f: np.ndarray, t_min: float, t_max: float
                 hessian = kappa * (mean_outer - gradient[:, :, None] * gradient[:, None, :])
                 hessian = hessian + 1e-6 * kappa * np.eye(m - n)[None]
                 newton = np.linalg.solve(hessian, gradient[..., None])[..., 0]
-                # the smoothed objective rises at most ~1/kappa per unit of |G| lam: a
-                # gradient step of that length where the Newton step stalls
+                # the smoothed objective rises at most ~1/kappa per unit of |G lam| (Z's rows
+                # orthonormal: |(G lam)_i| <= |lam|_2): a gradient step of that length where
+                # the Newton step stalls
                 norm = np.linalg.norm(gradient, axis=1, keepdims=True)
-                ascent = gradient / np.where(norm > 0, norm, 1.0) / (kappa * G_size)
+                ascent = gradient / np.where(norm > 0, norm, 1.0) / kappa
                 best, best_lam = value, lam
                 for trial in (*(lam + length * newton for length in NEWTON_LENGTHS),
                               *(lam + length * ascent for length in ASCENT_LENGTHS)):
@@ -200,6 +200,27 @@ def _reach(slope_bound: np.ndarray, rho: np.ndarray, signature: str) -> np.ndarr
     ``slope_bound`` bounds |slope| (boxes, d, ...), ``signature`` sums its axis k with rho's
     (boxes, d)."""
     return _inflate(np.einsum(signature, slope_bound, rho), rho.shape[1])
+
+
+def _directed(c: np.ndarray, at_centre: tuple[np.ndarray, np.ndarray],
+              slopes: tuple[np.ndarray, np.ndarray], rho: np.ndarray, n: int
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(value, error, reach) of c . X(x) for fixed directions c (boxes, n), X enclosed at the
+    centre by ``at_centre`` (lo, hi) of shape (boxes, n, ...) and its slopes dX/dx_k over the
+    box by ``slopes`` of shape (boxes, d, n, ...): for every x of the box, c . X(x) lies within
+    error + reach of value, up to the rounding of value itself (4 u |value|, the caller's).
+    ``error`` bounds the centre's width and the rounding of the products (Higham's gamma),
+    ``reach`` the mean-value form's sum_k |c . dX/dx_k| rho_k."""
+    mid, rad = _mid_rad(*at_centre, n)
+    magnitude_c = np.abs(c)
+    value = np.einsum("bn,bn...->b...", c, mid)
+    error = _inflate(np.einsum("bn,bn...->b...", magnitude_c, rad)
+                     + _gamma(n + 2) * np.einsum("bn,bn...->b...", magnitude_c, np.abs(mid)), n)
+    D_mid, D_rad = _mid_rad(*slopes, n)
+    slope = np.abs(np.einsum("bn,bkn...->bk...", c, D_mid)) + _inflate(
+        np.einsum("bn,bkn...->bk...", magnitude_c, D_rad)
+        + _gamma(n + 2) * np.einsum("bn,bkn...->bk...", magnitude_c, np.abs(D_mid)), n)
+    return value, error, _reach(slope, rho, "bk...,bk->b...")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -292,10 +313,11 @@ class AnchoredVerdicts:
         candidates = np.nonzero(margin > 0)[0]
         if len(candidates):
             chosen = terms.take(candidates)
+            A_box = self.box_matrix(chosen, Z[candidates])
             low, high, regular, _ = self.tension_enclosure(chosen, Z[candidates],
-                                                           T0[candidates])
+                                                           T0[candidates], A_box)
             if self.k:
-                spread, held = self.wrench_spread(chosen, Z[candidates])
+                spread, held = self.wrench_spread(chosen, A_box)
                 low, high, regular = _down(low - spread), _up(high + spread), regular & held
             proven = regular & np.all((low >= self.t_min) & (high <= self.t_max), axis=1)
             verdict[index[candidates[proven]]] = 0
@@ -321,12 +343,21 @@ class AnchoredVerdicts:
             verdict[index[rest[proven]]] = 1
         return verdict
 
-    def tension_enclosure(self, terms: BoxTerms, Z: np.ndarray, T0: np.ndarray
+    def box_matrix(self, terms: BoxTerms, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) of shape (boxes, m, m) holding A(x) = [W(x); Z] for every x of the box:
+        W at the centre plus its slopes times [-rho, rho] (mean-value form)."""
+        W0, rho = terms.W0, terms.rho
+        reach_W = _reach(_magnitude(*terms.W_slopes), rho, "bknm,bk->bnm")
+        return (np.concatenate([_down(W0[0] - reach_W), Z], axis=1),
+                np.concatenate([_up(W0[1] + reach_W), Z], axis=1))
+
+    def tension_enclosure(self, terms: BoxTerms, Z: np.ndarray, T0: np.ndarray,
+                          A_box: tuple[np.ndarray, np.ndarray] | None = None
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple]:
         """(low, high, regular, slopes) per box: every T(x) of the box (module docstring: the
         solution of [W(x); Z] T = [grad V(x); Z T0]) lies in [low, high] and every dT/dx_k
         in slopes = (lo, hi) of shape (boxes, d, m), where ``regular`` (A proven regular on
-        the box); elsewhere nothing is proven."""
+        the box); elsewhere nothing is proven. ``A_box``: :meth:`box_matrix`, if built."""
         n, m = self.n, self.m
         W0, f0, dW, df, rho = terms.W0, terms.f0, terms.W_slopes, terms.f_slopes, terms.rho
         extra = m - n
@@ -335,11 +366,10 @@ class AnchoredVerdicts:
         r0 = (np.concatenate([f0[0], z], axis=1), np.concatenate([f0[1], z], axis=1))
         at_centre_lo, at_centre_hi, regular = enclose_solutions(*A0, *r0)
         # A and r over the box: centre + slopes * [-rho, rho] (mean-value form)
-        reach_W = _reach(_magnitude(*dW), rho, "bknm,bk->bnm")
+        if A_box is None:
+            A_box = self.box_matrix(terms, Z)
         reach_f = _reach(_magnitude(*df), rho, "bkn,bk->bn")
         zeros = np.zeros((len(rho), extra))
-        A_box = (np.concatenate([_down(W0[0] - reach_W), Z], axis=1),
-                 np.concatenate([_up(W0[1] + reach_W), Z], axis=1))
         r_box = (np.concatenate([_down(f0[0] - reach_f), z], axis=1),
                  np.concatenate([_up(f0[1] + reach_f), z], axis=1))
         # regular on the box: every A(x) of the box is in A_box, which Krawczyk proves regular
@@ -372,15 +402,13 @@ class AnchoredVerdicts:
         high = np.minimum(_up(at_centre_hi + reach_T), t_hi)
         return low, high, regular, slopes
 
-    def wrench_spread(self, terms: BoxTerms, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def wrench_spread(self, terms: BoxTerms, A_box: tuple[np.ndarray, np.ndarray]
+                      ) -> tuple[np.ndarray, np.ndarray]:
         """(spread, regular) per box: T(x, w) = T(x, 0) - sum_j w_j S_j(x) with
         S_j = A^{-1} [J^T_j; 0], so every wrench of the box moves T by at most
-        spread = sum_j h_j |S_j| (each S_j enclosed over the box by Krawczyk's method)."""
-        n, m = self.n, self.m
-        W0, dW, rho = terms.W0, terms.W_slopes, terms.rho
-        reach_W = _reach(_magnitude(*dW), rho, "bknm,bk->bnm")
-        A_box = (np.concatenate([_down(W0[0] - reach_W), Z], axis=1),
-                 np.concatenate([_up(W0[1] + reach_W), Z], axis=1))
+        spread = sum_j h_j |S_j| (each S_j enclosed over the box by Krawczyk's method;
+        ``A_box`` is :meth:`box_matrix`)."""
+        n, m, rho = self.n, self.m, terms.rho
         reach_J = _reach(_magnitude(*terms.J_slopes), rho, "bknj,bk->bnj")
         J_lo, J_hi = _down(terms.J0[0] - reach_J), _up(terms.J0[1] + reach_J)
         zeros = np.zeros((len(rho), m - n))
@@ -400,18 +428,7 @@ class AnchoredVerdicts:
         """A lower bound, per box, of max over the wrench box of -c . J^T(x) w =
         sum_j h_j |c . J^T_j(x)|, for every x of the box: h_j times the least |.| of the
         enclosure of c . J^T_j (0 where it may change sign)."""
-        n = self.n
-        J_mid, J_rad = _mid_rad(*terms.J0, n)
-        magnitude_c = np.abs(c)
-        centre = np.einsum("bn,bnj->bj", c, J_mid)
-        error = _inflate(np.einsum("bn,bnj->bj", magnitude_c, J_rad)
-                         + _gamma(n + 2) * np.einsum("bn,bnj->bj", magnitude_c, np.abs(J_mid)),
-                         n)
-        D_mid, D_rad = _mid_rad(*terms.J_slopes, n)
-        slope = np.abs(np.einsum("bn,bknj->bkj", c, D_mid)) + _inflate(
-            np.einsum("bn,bknj->bkj", magnitude_c, D_rad)
-            + _gamma(n + 2) * np.einsum("bn,bknj->bkj", magnitude_c, np.abs(D_mid)), n)
-        reach = _reach(slope, terms.rho, "bkj,bk->bj")
+        centre, error, reach = _directed(c, terms.J0, terms.J_slopes, terms.rho, self.n)
         least = np.maximum(_down(np.abs(centre) - _up(error + reach + 4 * _U * np.abs(centre))),
                            0.0)
         push = least @ self.half_widths
@@ -420,30 +437,10 @@ class AnchoredVerdicts:
     def farkas_bounds(self, terms: BoxTerms, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(a_hi, b_lo) per box for fixed directions c (boxes, n): c . w_j(x) <= a_hi_j and
         c . grad V(x) >= b_lo for every x of the box (NaN where nothing is bounded)."""
-        n = self.n
-        W0, f0, dW, df, rho = terms.W0, terms.f0, terms.W_slopes, terms.f_slopes, terms.rho
-        w_mid, w_rad = _mid_rad(*W0, n)
-        magnitude_c = np.abs(c)
-        projection = np.einsum("bn,bnm->bm", c, w_mid)
-        projection_error = _inflate(np.einsum("bn,bnm->bm", magnitude_c, w_rad)
-                                    + _gamma(n + 2) * np.einsum("bn,bnm->bm", magnitude_c,
-                                                                np.abs(w_mid)), n)
-        D_mid, D_rad = _mid_rad(*dW, n)
-        slope = np.abs(np.einsum("bn,bknm->bkm", c, D_mid)) + _inflate(
-            np.einsum("bn,bknm->bkm", magnitude_c, D_rad)
-            + _gamma(n + 2) * np.einsum("bn,bknm->bkm", magnitude_c, np.abs(D_mid)), n)
-        reach = _reach(slope, rho, "bkm,bk->bm")
+        n, rho = self.n, terms.rho
+        projection, projection_error, reach = _directed(c, terms.W0, terms.W_slopes, rho, n)
         a_hi = _up(projection + projection_error + reach + 4 * _U * np.abs(projection))
-        f_mid, f_rad = _mid_rad(*f0, n)
-        g_mid, g_rad = _mid_rad(*df, n)
-        weight = np.einsum("bn,bn->b", c, f_mid)
-        weight_error = _inflate(np.einsum("bn,bn->b", magnitude_c, f_rad)
-                                + _gamma(n + 2) * np.einsum("bn,bn->b", magnitude_c,
-                                                            np.abs(f_mid)), n)
-        weight_slope = np.abs(np.einsum("bn,bkn->bk", c, g_mid)) + _inflate(
-            np.einsum("bn,bkn->bk", magnitude_c, g_rad)
-            + _gamma(n + 2) * np.einsum("bn,bkn->bk", magnitude_c, np.abs(g_mid)), n)
-        weight_reach = _reach(weight_slope, rho, "bk,bk->b")
+        weight, weight_error, weight_reach = _directed(c, terms.f0, terms.f_slopes, rho, n)
         b_lo = _down(weight - weight_error - weight_reach - 4 * _U * np.abs(weight))
         return a_hi, b_lo
 
