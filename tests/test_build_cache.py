@@ -15,6 +15,7 @@ import importlib
 import math
 import os
 import shutil
+import signal
 import subprocess
 import threading
 import time
@@ -219,6 +220,32 @@ def test_ctrl_c_during_a_compile_kills_the_compiler_and_removes_its_output(tmp_p
         _build(cache, compiler=str(interrupting))
     assert _dies_soon(int(pid_file.read_text())), "the compiler's own child survived"
     assert _leftovers(cache) == [] and list(cache.rglob("*.so*")) == []
+
+
+def test_ctrl_c_while_the_compiler_starts_is_held_until_its_group_can_be_killed(
+        tmp_path, monkeypatch):
+    """A Ctrl-C landing inside ``Popen``, after the compiler started but before the call
+    holds its process, used to leave the compiler running (the test above failed now and
+    then under load): it is now delivered once the process is known, and the group dies."""
+    pid_file = tmp_path / "sleep.pid"
+    compiler = _script(tmp_path, "slow-cc", f'sleep 30 &\necho $! > "{pid_file}"\nwait\n')
+
+    class InterruptedWhileStarting(subprocess.Popen):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            deadline = time.monotonic() + 10.0
+            while not (pid_file.exists() and pid_file.read_text().endswith("\n")):
+                assert time.monotonic() < deadline, "the compiler never started its child"
+                time.sleep(0.01)
+            os.kill(os.getpid(), signal.SIGINT)  # Python's handler runs inside __init__
+            time.sleep(0.2)
+
+    monkeypatch.setattr(build_module.subprocess, "Popen", InterruptedWhileStarting)
+    with pytest.raises(KeyboardInterrupt):
+        _build(tmp_path / "cache", compiler=str(compiler))
+    monkeypatch.undo()
+    assert _dies_soon(int(pid_file.read_text())), "the compiler's own child survived"
+    assert _leftovers(tmp_path / "cache") == []
 
 
 def test_an_interrupt_while_writing_the_record_leaves_no_library(tmp_path, monkeypatch):

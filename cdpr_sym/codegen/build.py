@@ -56,6 +56,7 @@ import shutil
 import signal
 import subprocess
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -135,8 +136,9 @@ def run_command(command: Sequence[str], *, timeout: float | None = None) -> str:
     # one try from the start: an interruption right after the program started (before a
     # narrower try was entered) would otherwise leave its process group running
     try:
-        process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                   text=True, errors="replace", **_own_process_group())
+        with _interrupts_held():  # a Ctrl-C during the start raises once process is set
+            process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                       text=True, errors="replace", **_own_process_group())
         stdout, stderr = _communicate_in_slices(process, timeout)
     except subprocess.TimeoutExpired:  # raised by the wait alone: the program runs
         _kill_group(process)
@@ -159,6 +161,32 @@ def run_command(command: Sequence[str], *, timeout: float | None = None) -> str:
             f"{' '.join(command)} failed with exit code {process.returncode}:\n"
             f"{stderr[-4000:]}")
     return stdout
+
+
+@contextmanager
+def _interrupts_held() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM (those with a Python handler) while a program starts, then run
+    each handler once for what arrived. Raised inside ``Popen``, before its process is known,
+    a ``KeyboardInterrupt`` would leave the program's process group running (a compiler
+    interrupted an instant after it started outlived its caller); on leaving, the caller
+    holds the process and kills its group. Off the main thread, where Python runs no signal
+    handler, nothing is held."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    handlers, arrived = {}, []
+    for number in (signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(number)
+        if callable(handler):  # not SIG_IGN or SIG_DFL, nor set outside Python
+            handlers[number] = handler
+            signal.signal(number, lambda number, frame: arrived.append(number))
+    try:
+        yield
+    finally:
+        for number, handler in handlers.items():
+            signal.signal(number, handler)
+        for number in dict.fromkeys(arrived):
+            handlers[number](number, None)
 
 
 #: Longest wait inside one call while a program runs, s: a Ctrl-C that the kernel delivered
