@@ -55,13 +55,22 @@ def planar2_model(planar2: Robot) -> SymbolicModel:
     return SymbolicModel(planar2)
 
 
+#: Set (CI sets it), the sessions build into this folder instead of a fresh one, so the slow
+#: run reuses the libraries the quick run compiled; unset, each session starts empty.
+SHARED_CACHE_HOME = "CDPR_SYM_TEST_CACHE_HOME"
+
+
 @pytest.fixture(scope="session", autouse=True)
 def private_cache_home(tmp_path_factory: pytest.TempPathFactory):
-    """``XDG_CACHE_HOME`` of the whole session: a temporary folder, restored afterwards.
+    """``XDG_CACHE_HOME`` of the whole session: a temporary folder, restored afterwards
+    (or :data:`SHARED_CACHE_HOME`'s folder, when that is set).
 
     Parallel workers (pytest-xdist) share one: builds lock their folder and publish by an
     atomic rename, so each library is still compiled once per run."""
-    if os.environ.get("PYTEST_XDIST_WORKER"):
+    if os.environ.get(SHARED_CACHE_HOME):
+        home = Path(os.environ[SHARED_CACHE_HOME])
+        home.mkdir(parents=True, exist_ok=True)
+    elif os.environ.get("PYTEST_XDIST_WORKER"):
         home = tmp_path_factory.getbasetemp().parent / "cache_home"
         home.mkdir(exist_ok=True)
     else:
