@@ -178,9 +178,12 @@ class Simulator:
         if capabilities(controller).sampled:
             from cdpr_sym.closed_loop.sampled import SampledSolver
 
+            # the solver is the model's and the design's problem, whatever the plant and
+            # whatever options only the loop reads: named by the robot alone, it is found
+            # by its content's key (aras3's was compiled five times by the quick suite)
             self.sampled = SampledSolver(self.model, controller, backend=self.backend,
                                          build_options=build_options,
-                                         library_name=self.library_name)
+                                         library_name=f"cdpr_{c_identifier(robot.name)}")
 
     @functools.cached_property
     def step(self) -> ca.Function:
