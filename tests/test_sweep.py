@@ -141,7 +141,7 @@ def test_dask_local_cluster_gives_the_same_table(local_sweep, tmp_path):
     distributed = pytest.importorskip("dask.distributed")
     out = tmp_path / "results.csv"
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address=":0") as cluster:  # any free port
         run_sweep(CONFIG, out, dask_address=cluster.scheduler_address, progress=False)
     assert _keyed(_read(out)) == _keyed(_read(local_sweep))
 
@@ -274,7 +274,7 @@ def test_an_nmpc_sweep_of_a_redundant_robot_on_dask_equals_the_local_one(tmp_pat
     local, remote = tmp_path / "local.csv", tmp_path / "dask.csv"
     run_sweep(config, local, workers=1, progress=False)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address=":0") as cluster:  # any free port
         run_sweep(config, remote, dask_address=cluster.scheduler_address, progress=False)
     rows = _keyed(_read(local))
     assert len(rows) == 6 and {row["status"] for row in rows.values()} == {"ok"}

@@ -244,7 +244,7 @@ def test_dask_parquet_sweep_gives_the_same_rows(parquet_sweep, tmp_path):
     distributed = pytest.importorskip("dask.distributed")
     out = tmp_path / "results"
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address=":0") as cluster:  # any free port
         run_sweep(CONFIG, out, dask_address=cluster.scheduler_address, progress=False,
                   format="parquet", chunk_size=1)
     assert len(parquet_parts(out)) == CONFIG.pairs

@@ -126,7 +126,7 @@ def test_a_dask_sweep_runs_on_the_robot_it_started_with(preset_rows, tmp_path, m
     monkeypatch.setattr(runner, "dask_client", connect_then_remove)
     out = tmp_path / "rows.csv"
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address=":0") as cluster:  # any free port
         run_sweep(SweepConfig(robot=str(path), **SETTINGS), out,
                   dask_address=cluster.scheduler_address, chunk_size=1, progress=False)
     assert not path.exists()
