@@ -163,9 +163,9 @@ class Simulator:
         self.backend = build_options.resolved_backend()
         self.library: CompiledLibrary | None = None
         suffix = "_rate" if rate_limited else _as_built_suffix(as_built)
+        robot_name = f"cdpr_{c_identifier(robot.name)}"
         #: The base name of this loop's compiled libraries.
-        self.library_name = (f"cdpr_{c_identifier(robot.name)}_"
-                             f"{controller_identifier(controller)}{suffix}")
+        self.library_name = f"{robot_name}_{controller_identifier(controller)}{suffix}"
         if self.backend == "c":
             self.library = self._compiled_library(build_options)
             native = self.library.native()
@@ -183,7 +183,7 @@ class Simulator:
             # by its content's key (aras3's was compiled five times by the quick suite)
             self.sampled = SampledSolver(self.model, controller, backend=self.backend,
                                          build_options=build_options,
-                                         library_name=f"cdpr_{c_identifier(robot.name)}")
+                                         library_name=robot_name)
 
     @functools.cached_property
     def step(self) -> ca.Function:
