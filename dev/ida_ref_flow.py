@@ -29,10 +29,16 @@ B (X + [0, h] f(B) inside B, Picard-Lindelöf). The set is carried as centre + A
 the slope e^{Lh} + h phi_1 G grad q(X) times A as a point matrix, re-orthogonalised by QR,
 D's column kept apart with its exact half-width; everything else goes into the box of r.
 min and max are written (a + b -+ |a - b|) / 2 so that the interval derivative holds both
-slopes at a kink; grad q is the hull over slices of the travel. Between steps, y and c stay
-within the hull of their enclosures widened by h^2 / 8 sup |y''|, |c''|. Once
-H_d = 1/2 m (v^2 + w^2) + 1/2 k e^2 + V(x), which never increases, is below what bounds
-|c| by ``final_coupling`` inside the linear well, the storage bound holds the rest.
+slopes at a kink, except d0 - |x| = min(u, 2 D - u) in CasADi's own fmin (tight near the
+start; its slope is unbounded where x straddles 0, so no enclosure passes over the goal);
+grad q is the hull over slices of the travel. For |x| < 1e-12 the design's pull is
+F x |x| / (1e-12 delta), not F x / delta: V then differs from F r^2 / (2 delta) by
+F 1e-24 / (6 delta), far inside the outward rounding of the bounds that use it. Between
+steps, y and c stay within the hull of their enclosures widened by h^2 / 8 sup |y''|,
+|c''|. Once H_d = 1/2 m (v^2 + w^2) + 1/2 k e^2 + V(x), which never increases, is below what
+bounds |c| by ``final_coupling`` inside the linear well, the storage bound holds the rest.
+The flow is of the loop in continuous time; the controller steps its particle by a
+semi-implicit Euler step at its rate, a difference of O(dt) a certificate would bound too.
 
 **What it shows** (aras3's gains, m = 4 kg, k = 1200 N/m, r_d = 100 N s/m): a single start
 distance is enclosed through the cruise, the brake and the well's kink, the coupling force
@@ -124,6 +130,18 @@ def rhs_functions(gains: LineGains) -> tuple[ca.Function, ca.Function]:
             ca.Function("line_grad_q", [ca.vertcat(X, T)], [ca.densify(ca.gradient(q, X))]))
 
 
+def _check_exact(gains: LineGains) -> None:
+    """L's entries, 1/m and k + 2 r_d^2 / m must be floats exactly (they are for aras3's
+    m = 4 kg, k = 1200 N/m, r_d = 100 N s/m): f - L X = G q then holds without a residual."""
+    from fractions import Fraction
+
+    m, k, r_d = (Fraction(value) for value in (gains.mass, gains.k, gains.r_d))
+    for value in (k / m, r_d / m, 2 * k / m, 2 * r_d / m, 1 / m, k + 2 * r_d**2 / m):
+        if Fraction(float(value)) != value:
+            raise ValueError(f"the line system's constants are not exact floats for m = "
+                             f"{gains.mass}, k = {gains.k}, r_d = {gains.r_d}")
+
+
 def linear_part(gains: LineGains) -> np.ndarray:
     """L, the constant part of f = L X + g (coupling spring and damper, the travel's rate)."""
     m, k, r_d = gains.mass, gains.k, gains.r_d
@@ -206,6 +224,7 @@ class LineFlow:
         rhs, grad_q = rhs_functions(gains)
         self._f = CompiledIntervalFunction(rhs, centred=True, varying=STATES)
         self._grad_q = CompiledIntervalFunction(grad_q)
+        _check_exact(gains)
         self.L = linear_part(gains)
         self._E = exponential_series(self.L, self.h, 0)
         self._phi = exponential_series(self.L, self.h, 1)
@@ -259,16 +278,21 @@ class LineFlow:
             previous = centre
             centre, A, rho, second_y, second_c, failed = self._step(centre, A, rho, T)
             after = self._line_values(centre, A, rho)
-            reach = 0.125 * h * h
+            reach = _constant(0.125 * h * h, 0.125, h, second_y[0])
             y_span = _widen(iv.hull(now[0], after[0]), reach, second_y)
             c_span = _widen(iv.hull(now[1], after[1]), reach, second_c)
-            view = (kappa_low[ids], kappa_high[ids])
-            escaped[ids] |= _record(*view, y_span, c_span, D)
-            widest[ids] = np.maximum(widest[ids], np.where(~failed, c_span[1] - c_span[0], 0))
-            kappa_low[ids], kappa_high[ids] = view
+            # a flow that gave up at this step (no a priori box) records nothing of it
+            good = ids[~failed]
+            view = (kappa_low[good], kappa_high[good])
+            escaped[good] |= _record(*view, _rows(y_span, ~failed), _rows(c_span, ~failed),
+                                     _rows(D, ~failed))
+            kappa_low[good], kappa_high[good] = view
+            widest[good] = np.maximum(widest[good], (c_span[1] - c_span[0])[~failed])
             now = after
             if trace is not None:
                 for j, flow in enumerate(ids):
+                    if failed[j]:
+                        continue
                     trace.setdefault(int(flow), []).append((t + h, after[1][0][j],
                                                             after[1][1][j]))
             t += h
@@ -307,7 +331,9 @@ class LineFlow:
                         iv.add(iv.mul(iv.point(0.5 * g.k, r[0]), iv.square(e)), potential))
         bound = energy[1]
         # inside r*, the pull is the linear well: V = F r^2 / (2 delta) there
-        core = iv.mul(D, iv.point(1 - design.ramp * (1 - design.start_share), r[0]))
+        one = iv.point(1.0, r[0])
+        core = iv.mul(D, iv.sub(one, iv.mul(iv.point(design.ramp, r[0]),
+                                            iv.sub(one, iv.point(design.start_share, r[0])))))
         core = (np.minimum(core[0], design.delta), np.minimum(core[1], design.delta))
         floor = iv.div(iv.mul(force, iv.square(core)), iv.twice(delta))[0]
         done = (bound <= self.final_energy) & (bound < floor)
@@ -340,26 +366,6 @@ class LineFlow:
                             np.vstack([hi.T, np.repeat(T, pieces)])))[0]
         return (out[0].T.reshape(-1, pieces, STATES).min(axis=1),
                 out[1].T.reshape(-1, pieces, STATES).max(axis=1))
-
-    def _gradient_on_set(self, centre, A, rho, T) -> iv.Interval:
-        """dq / dX over the set {centre + A r : |r| <= rho}: the hull over GRADIENT_PIECES
-        slices along D's column (the set is thin across it, its box hull is not)."""
-        pieces, moving = GRADIENT_PIECES, STATES - 1
-        flows = len(centre)
-        rest = _upper(np.einsum("fij,fj->fi", np.abs(A[:, :, :moving]), rho[:, :moving]))
-        edges = np.linspace(-1.0, 1.0, pieces + 1)  # share of D's half-width
-        column = A[:, :, moving] * rho[:, moving:]  # (flows, 5): the whole column's reach
-        start = centre[:, None, :] + edges[None, :-1, None] * column[:, None, :]
-        end = centre[:, None, :] + edges[None, 1:, None] * column[:, None, :]
-        # each slice: its segment's hull, widened by its rounding and by the rest of the set
-        slack = _upper(rest[:, None, :] + ROUNDING * (np.abs(centre)[:, None, :]
-                                                       + np.abs(column)[:, None, :]))
-        lo = (np.minimum(start, end) - slack).reshape(flows * pieces, STATES)
-        hi = (np.maximum(start, end) + slack).reshape(flows * pieces, STATES)
-        lo, hi = iv.outward(lo, hi)
-        grad = self._gradient((lo, hi), np.repeat(T, pieces))
-        return (grad[0].reshape(flows, pieces, STATES).min(axis=1),
-                grad[1].reshape(flows, pieces, STATES).max(axis=1))
 
     def _apriori(self, box: iv.Interval, T: np.ndarray) -> tuple[iv.Interval, np.ndarray]:
         """A box B with X + [0, h] f(B) inside B, per flow (and a mask of the flows where
@@ -394,7 +400,7 @@ class LineFlow:
         grad_B = self._gradient(B, T)
         rate = _dot(grad_B, f_B)  # q' over the step, N/s
         G = self._G
-        gamma = self._particle_rows(iv.mul(iv.point(0.5 * h * h, rate[0]), rate))
+        gamma = self._particle_rows(iv.mul(_constant(0.5 * h * h, 0.5, h, rate[0]), rate))
         magnitude = np.maximum(np.abs(gamma[0]), np.abs(gamma[1]))
         extra = _upper(magnitude @ self._E_minus_I.T)
         remainder = iv.add(gamma, (-extra, extra))
@@ -419,7 +425,7 @@ class LineFlow:
         column = h * (phi @ G)  # h phi_1 G
         M = E[None] + column[None, :, None] * grad_mid[:, None, :]
         M_rad = _upper(E_rad[None] + np.abs(column)[None, :, None] * grad_rad[:, None, :]
-                       + h * (np.abs(phi_rad @ G))[None, :, None]
+                       + h * (phi_rad @ np.abs(G))[None, :, None]
                        * np.maximum(np.abs(grad_X[0]), np.abs(grad_X[1]))[:, None, :]
                        + ROUNDING * (np.abs(E)[None] + np.abs(column)[None, :, None]
                                      * np.abs(grad_mid)[:, None, :]))
@@ -485,16 +491,6 @@ def _inflate(box: iv.Interval, start: iv.Interval) -> iv.Interval:
     return box[0] - pad, box[1] + pad
 
 
-def _matvec(matrix: iv.Interval, vector: iv.Interval) -> iv.Interval:
-    """Interval (flows, 5, 5) times interval (flows, 5), rounded outward."""
-    total = iv.mul((matrix[0][:, :, 0], matrix[1][:, :, 0]),
-                   (vector[0][:, :1], vector[1][:, :1]))
-    for j in range(1, STATES):
-        total = iv.add(total, iv.mul((matrix[0][:, :, j], matrix[1][:, :, j]),
-                                     (vector[0][:, j:j + 1], vector[1][:, j:j + 1])))
-    return total
-
-
 def _matvec_row(form: np.ndarray, vector: iv.Interval) -> iv.Interval:
     """The exact row ``form`` times an interval vector (flows, 5), rounded outward."""
     total = iv.mul(iv.point(form[0], vector[0][:, 0]), (vector[0][:, 0], vector[1][:, 0]))
@@ -504,10 +500,20 @@ def _matvec_row(form: np.ndarray, vector: iv.Interval) -> iv.Interval:
     return total
 
 
-def _widen(interval: iv.Interval, reach: float, second: iv.Interval) -> iv.Interval:
+def _widen(interval: iv.Interval, reach: iv.Interval, second: iv.Interval) -> iv.Interval:
     """interval +- reach sup |second|, rounded outward."""
-    by = iv.mul(iv.point(reach, second[0]), iv.absolute(second))[1]
+    by = iv.mul(reach, iv.absolute(second))[1]
     return iv.add(interval, (-by, by))
+
+
+def _constant(value: float, factor: float, h: float, like: np.ndarray) -> iv.Interval:
+    """factor h^2 (``value`` its float) as an interval holding the real product."""
+    exact = iv.mul(iv.point(factor, like), iv.square(iv.point(h, like)))
+    return np.minimum(exact[0], value), np.maximum(exact[1], value)
+
+
+def _rows(interval: iv.Interval, mask: np.ndarray) -> iv.Interval:
+    return interval[0][mask], interval[1][mask]
 
 
 def _box(centre: np.ndarray, A: np.ndarray, rho: np.ndarray) -> iv.Interval:
