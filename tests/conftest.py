@@ -9,6 +9,7 @@ never in the user's cache.
 from __future__ import annotations
 
 import os
+import signal
 from collections.abc import Callable
 from pathlib import Path
 
@@ -145,3 +146,14 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if item.nodeid in SLOW_CASES:
             item.add_marker(pytest.mark.slow)
+
+
+@pytest.fixture
+def python_sigint():
+    """SIGINT raising ``KeyboardInterrupt`` in this process, and at its default in the
+    programs it starts, for the test's duration. A runner may start the suite with SIGINT
+    ignored (a non-interactive shell's background job): Python then installs no handler,
+    children inherit the ignoring, and a test's Ctrl-C would never arrive."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)

@@ -209,7 +209,8 @@ _OUTPUT_OF_ARGS = 'while [ $# -gt 0 ]; do [ "$1" = -o ] && out="$2"; shift; done
 
 
 @pytest.mark.slow  # a real SIGINT to this process: flaky once in the full quick suite
-def test_ctrl_c_during_a_compile_kills_the_compiler_and_removes_its_output(tmp_path):
+def test_ctrl_c_during_a_compile_kills_the_compiler_and_removes_its_output(tmp_path,
+                                                                           python_sigint):
     pid_file = tmp_path / "sleep.pid"
     interrupting = _script(tmp_path, "interrupting-cc", _OUTPUT_OF_ARGS + (
         'printf "half a library" > "$out"\n'
@@ -223,7 +224,7 @@ def test_ctrl_c_during_a_compile_kills_the_compiler_and_removes_its_output(tmp_p
 
 
 def test_ctrl_c_while_the_compiler_starts_is_held_until_its_group_can_be_killed(
-        tmp_path, monkeypatch):
+        tmp_path, monkeypatch, python_sigint):
     """A Ctrl-C landing inside ``Popen``, after the compiler started but before the call
     holds its process, used to leave the compiler running (the test above failed now and
     then under load): it is now delivered once the process is known, and the group dies."""

@@ -308,7 +308,7 @@ def _alive(pid: int) -> bool:
 @pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="needs Linux /proc")
 @pytest.mark.parametrize(("signum", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_an_interrupted_sweep_stops_within_a_second_keeps_its_rows_and_resumes(
-        signum, status, tmp_path):
+        signum, status, tmp_path, python_sigint):
     out = tmp_path / "rows.csv"
     process = _start_sweep(out)
     _wait_for_rows(out, process)
