@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import matplotlib
 import numpy as np
@@ -185,6 +186,27 @@ def test_sweep_results_have_a_short_repr_a_table_view_and_a_frame(tmp_path):
     assert results._repr_html_().count("<tr>") == 3  # header and one row per design
     frame = results.to_pandas()
     assert len(frame) == 4 and set(frame["controller"]) == {"pd-sat", "smooth"}
+
+
+def test_a_sweeps_frame_has_the_stored_column_types():
+    """The table parses every number as a float and an empty cell as None; the frame gives
+    the pair and the step counts back as integers and the metrics as floats (NaN where empty)."""
+    from cdpr_sym.results.sweep_results import SweepResults
+
+    ran = {"pair": 0.0, "controller": "pd", "status": "ok", "error": None, "settle_time": None,
+           "final_error": 0.5, "converged": False, "fallback_steps": 3.0, "stop_reason": None}
+    failed = {**ran, "pair": 1.0, "status": "error", "error": "diverged", "final_error": None,
+              "converged": None, "fallback_steps": None}
+    frame = SweepResults(Path("s.csv"), [ran], {}).to_pandas()
+    assert str(frame["pair"].dtype) == "int64" and frame["pair"].tolist() == [0]
+    assert str(frame["fallback_steps"].dtype) == "int64" and frame["fallback_steps"][0] == 3
+    assert str(frame["settle_time"].dtype) == "float64" and np.isnan(frame["settle_time"][0])
+    assert str(frame["converged"].dtype) == "bool"
+    both = SweepResults(Path("s.csv"), [ran, failed], {}).to_pandas()
+    assert str(both["fallback_steps"].dtype) == "Int64"
+    assert both["fallback_steps"].isna().tolist() == [False, True]
+    assert str(both["converged"].dtype) == "boolean" and both["pair"].tolist() == [0, 1]
+    assert both["final_error"].isna().tolist() == [False, True]
 
 
 def test_sweep_command_writes_parquet_that_report_reads(tmp_path, capsys):

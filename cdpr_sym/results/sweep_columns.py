@@ -69,6 +69,13 @@ def sweep_columns(n: int, extra: dict[str, str] | None = None) -> list[str]:
             *_OUTCOME, *(extra or {}), *SCALAR_METRICS]
 
 
+def known_column_types() -> dict[str, str]:
+    """The stored types of the columns every sweep table has whatever its robot (the pair,
+    the controller, the outcome and the metrics), by name."""
+    return {**_LEADING, **_OUTCOME, **dict.fromkeys(SCALAR_METRICS, "float64"),
+            **_TYPED_METRICS}
+
+
 def sweep_column_types(n: int, extra: dict[str, str] | None = None) -> dict[str, str]:
     """The columns of :func:`sweep_columns` with their stored (Parquet) types, in table order.
 

@@ -10,6 +10,7 @@ from typing import Any
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results.judging import summarise
 from cdpr_sym.results.store import load_table
+from cdpr_sym.results.sweep_columns import known_column_types
 
 
 @dataclasses.dataclass(frozen=True, repr=False)
@@ -35,13 +36,27 @@ class SweepResults:
         return summarise(self.rows)
 
     def to_pandas(self) -> Any:
-        """The rows as a ``pandas.DataFrame`` (``pip install 'cdpr_sym[pandas]'``)."""
+        """The rows as a ``pandas.DataFrame`` (``pip install 'cdpr_sym[pandas]'``), its
+        columns of the stored types: ``pair`` and the step counts integers (pandas' ``Int64``
+        where a failed run left one empty), the metrics floats (an empty one, such as a
+        settle time never reached, NaN), the flags booleans, names and reasons strings."""
         try:
             import pandas as pd
         except ImportError:
             raise InvalidCase("pandas", "to_pandas needs pandas; pip install "
                               "'cdpr_sym[pandas]'") from None
-        return pd.DataFrame(self.rows)
+        frame = pd.DataFrame(self.rows)
+        for name, kind in known_column_types().items():
+            if name not in frame:
+                continue
+            empty = frame[name].isna().any()
+            if kind == "int64":
+                frame[name] = frame[name].astype("Int64" if empty else "int64")
+            elif kind == "float64":
+                frame[name] = frame[name].astype("float64")
+            elif kind == "bool":
+                frame[name] = frame[name].astype("boolean" if empty else "bool")
+        return frame
 
     def __repr__(self) -> str:
         config = self.meta.get("config", {})
