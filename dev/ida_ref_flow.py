@@ -131,12 +131,15 @@ def rhs_functions(gains: LineGains) -> tuple[ca.Function, ca.Function]:
 
 
 def _check_exact(gains: LineGains) -> None:
-    """L's entries, 1/m and k + 2 r_d^2 / m must be floats exactly (they are for aras3's
-    m = 4 kg, k = 1200 N/m, r_d = 100 N s/m): f - L X = G q then holds without a residual."""
+    """L's entries, 1/m, k + 2 r_d^2 / m and the coupling's row times L must be floats
+    exactly (they are for aras3's m = 4 kg, k = 1200 N/m, r_d = 100 N s/m): f - L X = G q
+    and c'' = l . (L f + G q') then hold without a residual."""
     from fractions import Fraction
 
     m, k, r_d = (Fraction(value) for value in (gains.mass, gains.k, gains.r_d))
-    for value in (k / m, r_d / m, 2 * k / m, 2 * r_d / m, 1 / m, k + 2 * r_d**2 / m):
+    # L's entries, 1/m, the storage's gain, and c's row times L (c'' = l . L f + ...)
+    for value in (k / m, r_d / m, 2 * k / m, 2 * r_d / m, 1 / m, k + 2 * r_d**2 / m,
+                  2 * r_d * k / m, k - 2 * r_d**2 / m):
         if Fraction(float(value)) != value:
             raise ValueError(f"the line system's constants are not exact floats for m = "
                              f"{gains.mass}, k = {gains.k}, r_d = {gains.r_d}")
@@ -493,11 +496,8 @@ def _inflate(box: iv.Interval, start: iv.Interval) -> iv.Interval:
 
 def _matvec_row(form: np.ndarray, vector: iv.Interval) -> iv.Interval:
     """The exact row ``form`` times an interval vector (flows, 5), rounded outward."""
-    total = iv.mul(iv.point(form[0], vector[0][:, 0]), (vector[0][:, 0], vector[1][:, 0]))
-    for j in range(1, STATES):
-        total = iv.add(total, iv.mul(iv.point(form[j], vector[0][:, j]),
-                                     (vector[0][:, j], vector[1][:, j])))
-    return total
+    row = np.broadcast_to(form, vector[0].shape)
+    return _dot((row, row), vector)
 
 
 def _widen(interval: iv.Interval, reach: iv.Interval, second: iv.Interval) -> iv.Interval:
