@@ -91,5 +91,5 @@ def sweep_column_types(n: int, extra: dict[str, str] | None = None) -> dict[str,
     dict of str to str
         Each column's type: ``int64``, ``float64``, ``bool`` or ``string``.
     """
-    fixed = {**_LEADING, **_OUTCOME, **_TYPED_METRICS, **(extra or {})}
+    fixed = {**known_column_types(), **(extra or {})}
     return {name: fixed.get(name, "float64") for name in sweep_columns(n, extra)}

@@ -39,7 +39,8 @@ class SweepResults:
         """The rows as a ``pandas.DataFrame`` (``pip install 'cdpr_sym[pandas]'``), its
         columns of the stored types: ``pair`` and the step counts integers (pandas' ``Int64``
         where a failed run left one empty), the metrics floats (an empty one, such as a
-        settle time never reached, NaN), the flags booleans, names and reasons strings."""
+        settle time never reached, NaN), the flags booleans (pandas' ``boolean`` where one
+        is empty); text columns as pandas reads them."""
         try:
             import pandas as pd
         except ImportError:
