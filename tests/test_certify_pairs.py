@@ -58,7 +58,7 @@ def test_the_numpy_plan_is_the_models_feed_forward():
 
 
 @pytest.mark.parametrize(("change", "field"), [
-    ({"controller": "ida-ref"}, "controller"),
+    ({"controller": "pd"}, "controller"),
     ({"width": 0.0}, "width"),
     ({"width": 1e300}, "width"),
     ({"min_width": 1e-300}, "min_width"),

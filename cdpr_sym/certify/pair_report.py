@@ -38,6 +38,14 @@ from cdpr_sym.control.planned import SmoothReference
 
 #: Instants per move in the plan check.
 PLAN_INSTANTS = 2001
+#: What each design's certificate assumes.
+ASSUMPTIONS = {
+    "smooth": "nominal model (mass, geometry), continuous time, a start at rest; tracking "
+              "errors must stay within the tracking margin",
+    "ida-ref": "nominal model (mass, geometry), continuous time, a start at rest with the "
+               "particle on the platform, J_d = 0 (lam = inf), no observer or command filter; "
+               "the sampled loop's differences must stay within the tracking margin",
+}
 #: Simulated seconds per closed-loop run (the plan's longest duration and time to settle).
 RUN_SECONDS = 6.0
 
@@ -117,8 +125,48 @@ def plan_check(certificate: PairCertificate, starts: np.ndarray, goals: np.ndarr
             "durations_chosen_s": sorted({float(T) for T in chosen_T})}
 
 
+def loop_check(certificate: PairCertificate, starts: np.ndarray, goals: np.ndarray,
+               boxes: np.ndarray, design) -> dict[str, Any]:
+    """``ida-ref``'s check: the loop re-derived in numpy in continuous time
+    (:mod:`cdpr_sym.certify.loop_check`) for :data:`RUN_SECONDS` s, at the duration the plan
+    picks and at its shortest one (the bound's); a disagreement is a pair whose tension
+    leaves [T_min + mu, T_max - mu], or whose H_d rises, or which leaves what the storage
+    bounds of its box (H_0, the coupling bound C and the reach rho about the goal)."""
+    from cdpr_sym.certify.loop_check import simulate
+    from cdpr_sym.certify.storage_pairs import largest_distance, storage_bounds
+
+    robot, mu = certificate.robot, certificate.tracking_margin
+    bounds = storage_bounds(largest_distance(
+        certificate.start_lower[boxes], certificate.start_upper[boxes],
+        certificate.goal_lower[boxes], certificate.goal_upper[boxes]),
+        mass=robot.mass, k=robot.k, r_d=robot.r_d, design=design)
+    chosen_T, _ = chosen_plans(certificate, starts, goals, design.plan)
+    shortest = min(design.plan.durations)
+    wrong = np.zeros(len(starts), bool)
+    room, used = np.inf, 0.0
+    for which, durations in ((np.arange(len(starts)), chosen_T),
+                             (np.flatnonzero(chosen_T != shortest), None)):
+        if not len(which):
+            continue
+        run = simulate(robot, design, starts[which], goals[which],
+                       np.full(len(which), shortest) if durations is None else durations,
+                       seconds=RUN_SECONDS)
+        room = min(room, float(np.min(np.minimum(run["lowest"] - robot.t_min - mu,
+                                                 robot.t_max - mu - run["highest"]))))
+        used = max(used, float(np.max(run["largest_coupling"] / bounds.coupling[which])))
+        wrong[which] |= ((run["lowest"] < robot.t_min + mu)
+                         | (run["highest"] > robot.t_max - mu)
+                         | (run["energy"] > bounds.energy[which])
+                         | (run["energy_rise"] > 1e-6 * run["energy"] + 1e-12)
+                         | (run["largest_coupling"] > bounds.coupling[which])
+                         | (run["farthest"] > bounds.reach[which]))
+    return {"pairs": len(starts), "disagreements": int(wrong.sum()),
+            "smallest_room_N": room, "largest_coupling_over_bound": used,
+            "durations_chosen_s": sorted({float(T) for T in chosen_T})}
+
+
 def closed_loop_check(certificate: PairCertificate, starts: np.ndarray, goals: np.ndarray,
-                      design: SmoothReference) -> dict[str, Any]:
+                      design) -> dict[str, Any]:
     """The closed-loop check of the module docstring, of the design that was proven (clipped
     steps counted from the run's flags)."""
     from cdpr_sym.closed_loop import Plant, get_simulator, summarise_many
@@ -178,8 +226,7 @@ def summary(certificate: PairCertificate, checks: dict[str, Any]) -> dict[str, A
               for verdict in ("proven", "disproven", "undecided", "outside")}
     return {"robot": certificate.robot.name, "controller": certificate.controller,
             "property": PROPERTIES[certificate.controller],
-            "assumptions": "nominal model (mass, geometry), continuous time, a start at rest; "
-                           "tracking errors must stay within the tracking margin",
+            "assumptions": ASSUMPTIONS[certificate.controller],
             "tracking_margin_N": certificate.tracking_margin,
             "coordinates": list(certificate.names), "box_width_m": certificate.width,
             "min_width_m": certificate.min_width,
@@ -207,45 +254,87 @@ def write_pair_certificate(certificate: PairCertificate, out: Path,
 
 
 def figure(certificate: PairCertificate, path: Path) -> None:
-    """Per start cell (left) and goal cell (right) of the grid, in the plane of the first two
-    coordinates: the proven share of the volume of its pairs (cells stacked along the third
-    coordinate pooled; grey: only pairs outside the static workspace)."""
+    """Per start cell (left) and goal cell (middle) of the grid, in the plane of the first
+    two coordinates: the proven share of the volume of its pairs (cells stacked along the
+    third coordinate pooled; grey: only pairs outside the static workspace), drawn over the
+    cells' extent; right: the proven, disproven and undecided shares of the volume by the
+    distance between a pair box's centres (how long its moves are)."""
     import matplotlib.pyplot as plt
     from matplotlib.collections import PatchCollection
     from matplotlib.colors import Normalize
     from matplotlib.patches import Rectangle
 
     robot = certificate.robot
-    frame_lower = np.asarray(robot.frame_lower[:2], dtype=float)
-    frame_upper = np.asarray(robot.frame_upper[:2], dtype=float)
     volumes = certificate.volumes()
     proven = np.where(certificate.verdicts == "proven", volumes, 0.0)
     inside = np.where(certificate.verdicts != "outside", volumes, 0.0)
     norm, cmap = Normalize(0.0, 1.0), plt.get_cmap("viridis")
-    fig, axes = plt.subplots(1, 2, figsize=(10, 5.2), layout="constrained")
-    for ax, (lower, what) in zip(axes, ((certificate.start_lower, "start"),
-                                        (certificate.goal_lower, "goal")), strict=True):
-        cells = np.floor((lower[:, :2] - frame_lower) / certificate.width + 1e-9).astype(int)
+    fig, axes = plt.subplots(1, 3, figsize=(15, 5.2), layout="constrained")
+    width = certificate.width
+    for ax, (lower, upper, what) in zip(axes[:2], (
+            (certificate.start_lower, certificate.start_upper, "start"),
+            (certificate.goal_lower, certificate.goal_upper, "goal")), strict=True):
+        origin = lower[:, :2].min(axis=0)  # the grid's corner (parts fall in their box)
+        cells = np.floor((lower[:, :2] - origin) / width + 1e-9).astype(int)
         keys, inverse = np.unique(cells, axis=0, return_inverse=True)
         inverse = inverse.ravel()
         held = np.bincount(inverse, inside, len(keys))
         share = np.bincount(inverse, proven, len(keys)) / np.where(held > 0, held, 1.0)
-        corners = frame_lower + keys * certificate.width
-        patches = [Rectangle(tuple(corner), certificate.width, certificate.width)
-                   for corner in corners]
+        corners = origin + keys * width
+        patches = [Rectangle(tuple(corner), width, width) for corner in corners]
         colours = [cmap(norm(value)) if weight > 0 else "#bbbbbb"
                    for value, weight in zip(share, held, strict=True)]
         ax.add_collection(PatchCollection(patches, facecolors=colours, edgecolors="white",
                                           linewidths=0.3))
-        ax.set_xlim(frame_lower[0], frame_upper[0])
-        ax.set_ylim(frame_lower[1], frame_upper[1])
+        low, high = lower[:, :2].min(axis=0) - width, upper[:, :2].max(axis=0) + width
+        ax.set_xlim(low[0], high[0])
+        ax.set_ylim(low[1], high[1])
         ax.set_aspect("equal")
         ax.set_xlabel(f"{certificate.names[0]} of the {what} (m)")
         ax.set_ylabel(f"{certificate.names[1]} of the {what} (m)")
         ax.set_title(f"proven share of each {what} cell's pairs", fontsize=10)
-    fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, label="proven share")
+    fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes[:2],
+                 label="proven share", location="left")
+    _by_distance(axes[2], certificate, volumes)
     fig.suptitle(f"{robot.name}, {certificate.controller}: certified pairs "
-                 f"({certificate.width:g} m cells, parts down to {certificate.min_width:g} m, "
+                 f"({width:g} m cells, parts down to {certificate.min_width:g} m, "
                  f"tracking margin {certificate.tracking_margin:g} N)", fontsize=11)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _by_distance(ax, certificate: PairCertificate, volumes: np.ndarray) -> None:
+    """Stacked shares of the (start, goal) volume per bin of the distance between the
+    centres of a pair box's start and goal boxes (pairs outside left out)."""
+    inside = certificate.verdicts != "outside"
+    distance = np.linalg.norm(0.5 * (certificate.goal_lower + certificate.goal_upper
+                                     - certificate.start_lower - certificate.start_upper),
+                              axis=1)[inside]
+    verdicts, weights = certificate.verdicts[inside], volumes[inside]
+    if not len(distance):
+        ax.set_axis_off()
+        return
+    # a grid's pair boxes come at few distinct distances: one bar each, else 20 bins
+    distinct = np.unique(np.round(distance, 9))
+    if len(distinct) <= 40:
+        gap = np.diff(distinct).min() if len(distinct) > 1 else certificate.width
+        edges = np.sort(np.concatenate([distinct - 0.4 * gap, distinct + 0.4 * gap]))
+        keep = slice(0, None, 2)  # bins between bars are empty and not drawn
+    else:
+        edges = np.linspace(distance.min(), distance.max() * (1 + 1e-9) + 1e-12, 21)
+        keep = slice(None)
+    total = np.histogram(distance, edges, weights=weights)[0]
+    bottom = np.zeros(len(total))
+    for verdict, colour in (("proven", "#2a9d8f"), ("disproven", "#e76f51"),
+                            ("undecided", "#cccccc")):
+        part = np.histogram(distance[verdicts == verdict], edges,
+                            weights=weights[verdicts == verdict])[0]
+        share = np.divide(part, total, out=np.zeros_like(part), where=total > 0)
+        ax.bar(edges[:-1][keep], share[keep], width=np.diff(edges)[keep],
+               bottom=bottom[keep], align="edge", color=colour, label=verdict)
+        bottom += share
+    ax.set_xlabel("distance between the centres of start and goal boxes (m)")
+    ax.set_ylabel("share of the volume in the bin")
+    ax.set_ylim(0, 1)
+    ax.set_title("verdicts by move length", fontsize=10)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=3, fontsize=8)

@@ -5,7 +5,8 @@ The domain is the pairs whose start box and goal box are both proven statically 
 (:mod:`cdpr_sym.certify.workspace`, each grid box taken whole): a box only partly in the
 static workspace holds starts at which no design can hold the platform, so its pairs are
 reported ``outside`` and left out of the shares. What a proven pair box proves is the
-design's (:data:`PROPERTIES`); ``smooth``'s argument is :mod:`.smooth_pairs`.
+design's (:data:`PROPERTIES`); ``smooth``'s argument is :mod:`.smooth_pairs`, ``ida-ref``'s
+:mod:`.storage_pairs`.
 """
 
 from __future__ import annotations
@@ -33,6 +34,10 @@ PROPERTIES = {
               "duration it picks, its feed-forward tension (the command on the nominal model "
               "in continuous time, tracking exact) stays in [T_min + mu, T_max - mu] at every "
               "instant of the move, with det W of one sign along the path",
+    "ida-ref": "for every start and goal in the boxes, the command (the nominal model in "
+               "continuous time, from rest) stays in [T_min + mu, T_max - mu] at every "
+               "instant, for ever, over the set where the design's storage H_d keeps the "
+               "motion, with det W of one sign on it",
 }
 #: Most pair boxes one certificate may hold.
 MAX_PAIRS = 2_000_000
@@ -198,16 +203,14 @@ def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, 
     :func:`certify_pairs`. An undecided pair box is bisected along its widest side (in the
     2n coordinates of start and goal) until narrower than ``min_width`` (default: no
     bisection), and its parts get their own verdicts."""
-    from cdpr_sym.certify.smooth_pairs import Learnt, SmoothPairProof
-    from cdpr_sym.control.planned import SmoothReference
+    from cdpr_sym.certify.smooth_pairs import Learnt
 
     _check_controller(controller)
     min_width = width if min_width is None else min_width
     _check_width(min_width, "min_width")
     check_min_width(min_width, float(width))
     model = SymbolicModel(robot)
-    proof = SmoothPairProof(model, design if design is not None else SmoothReference(),
-                            tracking_margin)
+    proof = pair_proof(model, controller, design, tracking_margin, min_width)
     started = time.perf_counter()
     lower, unique = np.unique(np.hstack([starts[0], goals[0]]), axis=0, return_index=True)
     upper = np.hstack([starts[1], goals[1]])[unique]
@@ -246,6 +249,33 @@ def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, 
                            np.array(VERDICTS, dtype=object)[np.concatenate(found_codes)],
                            np.concatenate(found_shortest), float(width), float(min_width),
                            float(tracking_margin), time.perf_counter() - started)
+
+
+def default_design(controller: str):
+    """The design a pair certificate of ``controller`` is of, with its default options."""
+    from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
+
+    _check_controller(controller)
+    return {"smooth": SmoothReference, "ida-ref": VirtualReferenceIdaPbc}[controller]()
+
+
+def pair_proof(model: SymbolicModel, controller: str, design, tracking_margin: float,
+               min_width: float):
+    """The proof of ``controller``'s property (:data:`PROPERTIES`) for ``design`` (None:
+    :func:`default_design`); ``ida-ref``'s capacity cells are a quarter of ``min_width``
+    (within 5 mm to 2.5 cm)."""
+    from cdpr_sym.certify import storage_pairs
+    from cdpr_sym.certify.smooth_pairs import SmoothPairProof
+
+    design = default_design(controller) if design is None else design
+    if type(design) is not type(default_design(controller)):
+        raise InvalidCase("design", f"a pair certificate of {controller} needs its design, "
+                          f"got {type(design).__name__}")
+    if controller == "ida-ref":
+        cell = min(max(storage_pairs.CELL_FRACTION * min_width, storage_pairs.SMALLEST_CELL),
+                   storage_pairs.LARGEST_CELL)
+        return storage_pairs.StoragePairProof(model, design, tracking_margin, cell)
+    return SmoothPairProof(model, design, tracking_margin)
 
 
 def _check_controller(controller: str) -> None:

@@ -24,8 +24,8 @@ def add_parser(command) -> None:
     """The ``certify`` command's options."""
     parser = command("certify", "prove over regions instead of sampling: the static (or "
                      "wrench-feasible) workspace over boxes of the frame, or a design's "
-                     "tension box over pairs of start and goal boxes (smooth, point masses, "
-                     "m = n <= 3)")
+                     "tension box over pairs of start and goal boxes (smooth or ida-ref, point "
+                     "masses, m = n <= 3)")
     parser.add_argument("what", choices=["workspace", "pairs"], help="what to certify")
     parser.add_argument("--robot", default="aras3", help="a preset or a robot file")
     parser.add_argument("--orientation", nargs="+", type=float, metavar="RAD",
@@ -45,7 +45,7 @@ def add_parser(command) -> None:
                              "300) of the sampled check (0: none)")
     pairs = parser.add_argument_group("pairs")
     pairs.add_argument("--controller", default="smooth",
-                       help="the design whose pairs are certified (smooth)")
+                       help="the design whose pairs are certified (smooth or ida-ref)")
     pairs.add_argument("--starts", nargs="+", type=float, metavar="M",
                        help="the start region's lower then upper corner (default: the case's "
                             "start +- 0.15 m)")
@@ -54,7 +54,8 @@ def add_parser(command) -> None:
     pairs.add_argument("--box", type=float, default=0.1,
                        help="side of the start and goal boxes, m")
     pairs.add_argument("--tracking-margin", type=float, default=0.5,
-                       help="room the proven feed-forward leaves to both tension bounds, N")
+                       help="room the proven command (smooth: its feed-forward) leaves to both "
+                            "tension bounds, N")
     pairs.add_argument("--sweep", type=Path,
                        help="a sweep table (CSV): certify the boxes (of a grid anchored at the "
                             "frame's corner) holding its pairs instead of the regions, and "
@@ -144,12 +145,17 @@ def _pairs(args: argparse.Namespace, robot, out: Output) -> int:
     from cdpr_sym.certify.pair_report import (
         closed_loop_check,
         draw_proven,
+        loop_check,
         plan_check,
         sweep_check,
         write_pair_certificate,
     )
-    from cdpr_sym.certify.pairs import boxes_holding, certify_pair_boxes, certify_pairs
-    from cdpr_sym.control.planned import SmoothReference
+    from cdpr_sym.certify.pairs import (
+        boxes_holding,
+        certify_pair_boxes,
+        certify_pairs,
+        default_design,
+    )
 
     samples = 300 if args.samples is None else args.samples
     if isinstance(samples, bool) or not 0 <= samples <= MAX_PAIR_SAMPLES:
@@ -157,7 +163,7 @@ def _pairs(args: argparse.Namespace, robot, out: Output) -> int:
     if args.sweep is not None and not args.sweep.is_file():
         raise InvalidCase("sweep", f"no sweep table at {args.sweep}")
     n = robot.n
-    design = SmoothReference()
+    design = default_design(args.controller)
     if args.sweep is None:
         starts = _corners("starts", args.starts, robot.start[:n])
         goals = _corners("goals", args.goals, robot.goal[:n])
@@ -179,7 +185,10 @@ def _pairs(args: argparse.Namespace, robot, out: Output) -> int:
     if samples and proven:
         rng = np.random.default_rng(args.seed)
         drawn = draw_proven(certificate, samples, rng)
-        checks["plan"] = plan_check(certificate, *drawn, design)
+        if args.controller == "smooth":
+            checks["plan"] = plan_check(certificate, *drawn, design)
+        else:
+            checks["loop"] = loop_check(certificate, *drawn, design)
         checks["closed_loop"] = closed_loop_check(certificate, *drawn[:2], design)
     if args.sweep is not None:
         checks["sweep"] = sweep_check(certificate, runs, args.sweep.name)
