@@ -42,9 +42,10 @@ PLAN_INSTANTS = 2001
 ASSUMPTIONS = {
     "smooth": "nominal model (mass, geometry), continuous time, a start at rest; tracking "
               "errors must stay within the tracking margin",
-    "ida-ref": "nominal model (mass, geometry), continuous time, a start at rest with the "
-               "particle on the platform, J_d = 0 (lam = inf), no observer or command filter; "
-               "the sampled loop's differences must stay within the tracking margin",
+    "ida-ref": "nominal model (mass, geometry) with the robot's gains k and r_d, continuous "
+               "time, a start at rest with the particle on the platform, J_d = 0 (lam = inf), "
+               "no observer, command filter or goal_stiffness; the sampled loop's "
+               "differences must stay within the tracking margin",
 }
 #: Simulated seconds per closed-loop run (the plan's longest duration and time to settle).
 RUN_SECONDS = 6.0

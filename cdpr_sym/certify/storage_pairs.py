@@ -27,10 +27,11 @@ VirtualReferenceIdaPbc.pull_profile`, piecewise linear, integrated exactly betwe
 kinks) and F = 2 m boost 5.77 D / T^2 for the duration T the plan picks, T >= the shortest
 of its list; V_xi(D) increases with D (F does, and so does f(s) at each s), so over a pair
 box H_0 <= V_xi(D_max) at the shortest duration, D_max the largest distance between the boxes.
-(The design's pull is -grad V_xi except within 1e-12 m of the goal, where it divides by
-1e-12 instead of r: the energy that can change there is below F 1e-24 / delta, inside the
-1e-12 relative widening of H_0 ~ F D^2 / (2 delta) whenever D > 1.5e-6 m, far below the
-narrowest box; its damping's regularisation only adds dissipation.)
+(The design's pull, which the particle feels as -pull, is grad V_xi except within 1e-12 m of
+the goal, where it divides by 1e-12 instead of r. It is still the gradient of some U with
+V_xi - F 1e-24 / (6 delta) <= U <= V_xi, equal to V_xi less that constant beyond 1e-12 m,
+so the storage with U never increases and H_d <= V_xi(D) still holds; the damping's
+regularisation only adds dissipation.)
 
 The tension at a pose q with a coupling c is W^{-1}(grad V - c); by Cramer's rule
 tau_i = (N_i - c . B_i) / det W, where N_i (B_ij) is det W with column i replaced by grad V
@@ -49,11 +50,12 @@ when the start tension alone (c = 0 at rest, the command of the first instant) c
 leaves [T_min + mu, T_max - mu] for every start of the box.
 
 **What it proves, and what not.** H_d knows only the energy, not where it goes: the bound
-grows as D^1.5 / T (32 N for a 10 cm move on aras3 at T = 1 s, where the move really needs
-about 3.5 N, and the ball reaches to the start's mirror image beyond the goal), so it proves
-short moves only. Not covered: the sampled loop (the particle advanced by a semi-implicit
-Euler step, the tension held over a step; mu is the room left for them), model error, an
-elastic plant, settling.
+grows as D^1.5 / T for moves shorter than the well's radius delta (as D / T beyond): 32 N
+for a 10 cm move on aras3 at T = 1 s, where the move really needs about 0.45 N; and the ball
+reaches to the start's mirror image beyond the goal. So it proves short moves only. Not
+covered: the sampled loop (the particle advanced by a semi-implicit Euler step, the tension
+held over a step; mu is the room assumed to cover them), model error, an elastic plant,
+settling.
 """
 
 from __future__ import annotations
@@ -268,9 +270,10 @@ class StoragePairProof:
         bounds = self.bounds(start_lower, start_upper, goal_lower, goal_upper)
         reach_lower = goal_lower - bounds.reach[:, None]
         reach_upper = goal_upper + bounds.reach[:, None]
-        # no cell holds more than (T_max - T_min - 2 mu) / 2 sqrt(n): some tension moves by
-        # at least |c| / |W| >= |c| / sqrt(n) (W's columns are unit vectors), and one of its
-        # two margins is at most half the shrunk box; beyond that no map is needed
+        # no cell's capacity exceeds ((T_max - T_min) / 2 - mu) sqrt(n): W's columns are unit
+        # vectors, so sigma_min(W)^2 <= trace(W^T W) / n = 1, and c along W^-1's top singular
+        # direction moves the tensions by |W^-1 c| >= |c|, one of them by >= |c| / sqrt(n),
+        # while one of its two margins is at most half the shrunk box; no map is needed there
         possible = bounds.coupling <= (0.5 * (self.robot.t_max - self.robot.t_min)
                                        - self.mu) * math.sqrt(self.n)
         inside = (possible & np.all(reach_lower >= self.frame_lower, axis=1)
@@ -288,7 +291,7 @@ class StoragePairProof:
             for row in np.flatnonzero(inside):
                 a, b = low[row] - offset, high[row] - offset
                 if np.any(a < 0) or np.any(b > capacity.shape):
-                    continue  # outside the first call's range: never for parts of its boxes
+                    continue  # outside the first call's map (a part of a box it skipped)
                 block = capacity[tuple(slice(i, j) for i, j in zip(a, b, strict=True))]
                 proven[row] = block.size > 0 and block.min() >= bounds.coupling[row]
         disproven = self._start_fails(start_lower, start_upper) & ~proven
