@@ -47,6 +47,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.certify.linear import _TINY, _U, _gamma, _inflate, _mid_rad, enclose_solutions
+from cdpr_sym.certify.poses import pose_inputs
 from cdpr_sym.model import SymbolicModel
 
 #: The smoothed max-min search: sharpness schedule, as multiples of 1 / (T_max - T_min), and
@@ -85,10 +86,10 @@ def _terms(model: SymbolicModel, q: ca.SX, wrench: bool) -> ca.SX:
     return ca.vertcat(*parts)
 
 
-def _pose(model: SymbolicModel, orientation: np.ndarray) -> tuple[ca.SX, ca.SX]:
-    position = ca.SX.sym("p", model.robot.dimension)
-    q = ca.vertcat(position, ca.DM(orientation)) if len(orientation) else position
-    return position, q
+def _pose(model: SymbolicModel, orientation: np.ndarray | None) -> tuple[ca.SX, ca.SX]:
+    """The functions' input and the pose: positions at a fixed orientation, or the whole pose
+    (``orientation=None``)."""
+    return pose_inputs(model.robot, orientation)
 
 
 def normals_function(model: SymbolicModel) -> ca.Function:
@@ -263,11 +264,14 @@ class AnchoredVerdicts:
 
     def __init__(self, model: SymbolicModel, orientation: np.ndarray, point, slopes,
                  normals, half_widths: np.ndarray | None = None) -> None:
-        self.n, self.m, self.d = model.n, model.m, model.robot.dimension
+        # the boxes span the positions, or the whole pose (``orientation=None``)
+        self.n, self.m = model.n, model.m
+        self.d = model.n if orientation is None else model.robot.dimension
         self.t_min, self.t_max = model.robot.t_min, model.robot.t_max
         if not 0 <= self.t_min < self.t_max:  # the Farkas support is increasing in c . w_j
             raise ValueError(f"expected 0 <= t_min < t_max, got {self.t_min}, {self.t_max}")
-        self.orientation = np.asarray(orientation, dtype=float)
+        self.orientation = np.zeros(0) if orientation is None else np.asarray(orientation,
+                                                                              dtype=float)
         #: the external wrench box's half-widths (force N, moment N m; empty: none)
         self.half_widths = (np.zeros(0) if half_widths is None
                             else np.asarray(half_widths, dtype=float))

@@ -36,8 +36,9 @@ def sampled_check(certificate: WorkspaceCertificate, samples: int,
     boxes = rng.choice(len(volumes), size=samples, p=volumes / volumes.sum())
     lower, upper = certificate.lower[boxes], certificate.upper[boxes]
     positions = lower + (upper - lower) * rng.random(lower.shape)
+    angles = sampled_orientations(certificate, boxes, rng)
     if robot.m > robot.n:
-        feasible = _hyperplane_shifting(certificate, positions)
+        feasible = _hyperplane_shifting(certificate, positions, angles)
         return _counts(certificate, boxes, feasible)
     model = SymbolicModel(robot)
     q = ca.SX.sym("q", robot.n)
@@ -47,7 +48,7 @@ def sampled_check(certificate: WorkspaceCertificate, samples: int,
     feasible = np.zeros(samples, dtype=bool)
     for start in range(0, samples, 100_000):
         chunk = positions[start:start + 100_000]
-        poses = np.hstack([chunk, np.tile(certificate.orientation, (len(chunk), 1))])
+        poses = np.hstack([chunk, angles[start:start + 100_000]])
         W, gravity, transposed = terms.map(len(chunk))(poses.T)
         W = np.array(W).T.reshape(len(chunk), robot.n, robot.m).transpose(0, 2, 1)
         tension = np.linalg.solve(W, np.array(gravity).T[..., None])[..., 0]
@@ -67,8 +68,25 @@ def sampled_check(certificate: WorkspaceCertificate, samples: int,
     return _counts(certificate, boxes, feasible)
 
 
-def _hyperplane_shifting(certificate: WorkspaceCertificate, positions: np.ndarray
-                         ) -> np.ndarray:
+def sampled_orientations(certificate: WorkspaceCertificate, boxes: np.ndarray,
+                         rng: np.random.Generator) -> np.ndarray:
+    """The orientation of each sampled pose (rows, rad): the fixed one; over a range, uniform
+    in the range, except in an infeasible box, where it is uniform in the piece that proved
+    the box infeasible (every orientation there must be infeasible; elsewhere in the range
+    some may not be)."""
+    samples = len(boxes)
+    if certificate.orientation_range is None:
+        return np.tile(certificate.orientation, (samples, 1))
+    lower, upper = (np.tile(corner, (samples, 1)) for corner in certificate.orientation_range)
+    witness = certificate.witness[boxes]
+    infeasible = witness >= 0
+    lower[infeasible] = certificate.pieces[0][witness[infeasible]]
+    upper[infeasible] = certificate.pieces[1][witness[infeasible]]
+    return lower + (upper - lower) * rng.random(lower.shape)
+
+
+def _hyperplane_shifting(certificate: WorkspaceCertificate, positions: np.ndarray,
+                         angles: np.ndarray) -> np.ndarray:
     """More cables than degrees of freedom: each pose classified by the sampled workspace's
     hyperplane-shifting test in generated C (:mod:`cdpr_sym.workspace.wrench`), which sees
     the pose, not the box (its facet normals normalised, a near-singular W refused)."""
@@ -77,7 +95,7 @@ def _hyperplane_shifting(certificate: WorkspaceCertificate, positions: np.ndarra
     robot = certificate.robot
     box = (certificate.half_widths if certificate.half_widths.size
            else np.zeros(robot.wrench_half_widths.size))
-    poses = np.hstack([positions, np.tile(certificate.orientation, (len(positions), 1))])
+    poses = np.hstack([positions, angles])
     evaluator = WrenchEvaluator(robot)
     return np.concatenate([evaluator.classify(poses[start:start + 100_000], box).feasible
                            for start in range(0, len(poses), 100_000)])
@@ -114,11 +132,19 @@ def summary(certificate: WorkspaceCertificate, check: dict[str, Any] | None) -> 
         prop = ("the paper's Assumption 1: beta = (T_max - T_min) / 2 - |tau_1 - (T_min + "
                 "T_max) / 2|_2 > 0 with tau_1 = W^-1 grad V; where it holds and dq != 0, "
                 "Theorem 1 keeps the l2 design's command in the tension box")
+    if certificate.orientation_range is not None:
+        prop += (" at every orientation of the range (the total orientation workspace; an "
+                 "infeasible box is infeasible over one piece of the range)")
     method = proof_method(robot, bool(wrench.size), certificate.prop)
     return {"robot": robot.name, "property": prop, "method": METHODS[method],
             "wrench_half_widths": wrench.tolist(),
             "coordinates": list(certificate.names),
-            "orientation": certificate.orientation.tolist(),
+            "orientation": (certificate.orientation.tolist()
+                            if certificate.orientation_range is None else None),
+            "orientation_range": (None if certificate.orientation_range is None else
+                                  [corner.tolist() for corner in certificate.orientation_range]),
+            "orientation_pieces": (None if certificate.pieces is None
+                                   else len(certificate.pieces[0])),
             "min_width_m": certificate.min_width, "boxes": len(certificate.verdicts),
             "boxes_evaluated": certificate.evaluated, "seconds": certificate.seconds,
             "feasible_share": shares["feasible"], "infeasible_share": shares["infeasible"],
@@ -158,6 +184,10 @@ def figure(certificate: WorkspaceCertificate, path: Path) -> None:
         cut = (lower[:, 2] <= height) & (upper[:, 2] >= height)
         lower, upper, verdicts = lower[cut], upper[cut], verdicts[cut]
         title += f" at {certificate.names[2]} = {height:g} m"
+    if certificate.orientation_range is not None:
+        low, high = certificate.orientation_range
+        angles = ", ".join(f"[{a:g}, {b:g}]" for a, b in zip(low, high, strict=True))
+        title += f"\nat every orientation of {angles} rad"
     fig = Figure(figsize=(6.5, 5.5))
     ax = fig.add_subplot()
     for verdict, colour in _COLOURS.items():

@@ -43,7 +43,8 @@ facet margins' products of minors are too wide over boxes; each box gets a tensi
 a Farkas direction chosen at its centre and proven over it instead
 (:mod:`cdpr_sym.certify.anchored`). :func:`proof_method` names the method per robot.
 
-What is not certified here: orientation ranges.
+**Orientation ranges** (the total orientation workspace: every orientation of a range
+feasible at each position of a box): :mod:`cdpr_sym.certify.poses`.
 """
 
 from __future__ import annotations
@@ -62,6 +63,7 @@ from cdpr_sym.certify.anchored import (
     terms_function,
 )
 from cdpr_sym.certify.evaluate import IntervalFunction, centred
+from cdpr_sym.certify.poses import OverOrientations, orientation_pieces, pose_inputs
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
@@ -82,6 +84,10 @@ CHUNK = 200_000
 #: Narrowest box a certificate refines to, m: ten micrometres, far below what any cable robot
 #: is built or measured to; a narrower --min-width only asks for an endless refinement.
 MIN_BOX_WIDTH = 1e-5
+#: The orientation range's pieces: at most this wide on every angle by default (rad), and
+#: at most this many.
+ORIENTATION_STEP = 0.05
+MAX_PIECES = 4096
 
 
 @dataclasses.dataclass(frozen=True)
@@ -110,6 +116,15 @@ class WorkspaceCertificate:
         the static workspace).
     prop : str
         ``static`` (static or wrench feasibility) or ``assumption-1`` (the paper's).
+    orientation_range : tuple of ndarray, optional
+        (lower, upper) angles, rad: the boxes hold at every orientation of this range
+        (:mod:`cdpr_sym.certify.poses`; ``orientation`` is then empty). None: at
+        ``orientation``.
+    pieces : tuple of ndarray, optional
+        The range's pieces (lowers, uppers), (pieces, angles) each.
+    witness : ndarray, optional
+        Per box, the piece over which an infeasible box was proven infeasible (-1 for the
+        other boxes).
     """
 
     robot: Robot
@@ -123,6 +138,9 @@ class WorkspaceCertificate:
     evaluated: int
     half_widths: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     prop: str = "static"
+    orientation_range: tuple[np.ndarray, np.ndarray] | None = None
+    pieces: tuple[np.ndarray, np.ndarray] | None = None
+    witness: np.ndarray | None = None
 
     def volumes(self) -> np.ndarray:
         return np.prod(self.upper - self.lower, axis=1)
@@ -166,9 +184,7 @@ def margin_function(model: SymbolicModel, orientation: np.ndarray,
     ``orientation``; with wrench ``half_widths`` (not all zero) -> [D, those margins less
     P_i (2n), their negatives less P_i (2n)], the second block for D < 0 (module docstring)."""
     robot = model.robot
-    d = robot.dimension
-    position = ca.SX.sym("p", d)
-    q = ca.vertcat(position, ca.DM(orientation)) if len(orientation) else position
+    position, q = pose_inputs(robot, orientation)
     W = model.structure_matrix(q)
     gravity = model.grad_potential(q)
     determinant = ca.det(W)
@@ -207,7 +223,9 @@ def check_min_width(min_width: float, largest: float, field: str = "min_width") 
 
 def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.005,
                       until: float = 1.0, compiled: bool = True, half_widths=None,
-                      prop: str = "static", progress=None) -> WorkspaceCertificate:
+                      prop: str = "static", orientation_range=None,
+                      orientation_step: float = ORIENTATION_STEP,
+                      progress=None) -> WorkspaceCertificate:
     """The certified static workspace of ``robot`` over its frame (module docstring).
 
     Parameters
@@ -232,51 +250,51 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
         The property: static (or wrench) feasibility, or the paper's Assumption 1, under
         which its Theorem 1 keeps the tension box (:func:`assumption_function`; m = n <=
         :data:`CRAMER_UP_TO`, no wrench).
+    orientation_range : (sequence of float, sequence of float), optional
+        A rigid body's (lower, upper) angles, rad, instead of a fixed ``orientation``: the
+        property must hold at every orientation of the range (the total orientation
+        workspace, :mod:`cdpr_sym.certify.poses`).
+    orientation_step : float
+        The range is decided in pieces at most this wide on every angle, rad.
     progress : callable, optional
         Called with (level, boxes at that level, decided volume share so far).
 
     Raises
     ------
     InvalidCase
-        An orientation of the wrong size or outside the frame (``orientation``), a minimum
-        width not positive (``min_width``), a wrench box of the wrong size or negative
-        (``half_widths``).
+        An orientation of the wrong size or outside the frame (``orientation``), a range
+        given with it, of the wrong size, empty or outside the frame
+        (``orientation_range``), a step not positive or cutting the range into more than
+        :data:`MAX_PIECES` pieces (``orientation_step``), a minimum width not positive
+        (``min_width``), a wrench box of the wrong size or negative (``half_widths``).
     """
     d = robot.dimension
     check_min_width(min_width, float(np.max(np.subtract(robot.frame_upper[:d],
                                                           robot.frame_lower[:d]))))
-    rotations = robot.n - d
-    orientation = (np.asarray(robot.start[d:], dtype=float) if orientation is None
-                   else np.asarray(orientation, dtype=float).ravel())
-    if orientation.size != rotations or not np.all(np.isfinite(orientation)):
-        raise InvalidCase("orientation", f"expected {rotations} finite angles (rad), got "
-                          f"{orientation.tolist()}")
-    if rotations and not np.all((orientation >= robot.frame_lower[d:])
-                                & (orientation <= robot.frame_upper[d:])):
-        raise InvalidCase("orientation", f"{orientation.tolist()} is outside the frame's "
-                          f"angle ranges")
+    pieces = None
+    if orientation_range is not None:
+        if orientation is not None:
+            raise InvalidCase("orientation_range", "give a fixed orientation or a range, "
+                              "not both")
+        pieces = orientation_pieces(*_checked_range(robot, orientation_range),
+                                    _checked_step(robot, orientation_range,
+                                                  orientation_step))
+        orientation = np.zeros(0)
+    else:
+        orientation = _checked_orientation(robot, orientation)
     if isinstance(until, bool) or not isinstance(until, (int, float)) or not 0 < until <= 1:
         raise InvalidCase("until", f"expected a share in (0, 1], got {until!r}")
     wrench = _checked_half_widths(robot, half_widths)
     _check_property(robot, prop, wrench)
     model = SymbolicModel(robot)
     method = proof_method(robot, wrench is not None, prop)
-    if method == "assumption-1":
-        decide = _AssumptionVerdicts(model, orientation, compiled)
-    elif method == "anchored":
-        decide = anchored_verdicts(model, orientation, compiled, wrench)
-    elif method == "facets":
-        decide = _FacetVerdicts(model, orientation, wrench, compiled)
-    elif method == "cramer-wrench":
-        decide = _WrenchCramerVerdicts(model, orientation, wrench, compiled)
-    elif method == "cramer":
-        decide = CramerVerdicts(model, orientation, compiled)
-    else:
-        decide = _KrawczykVerdicts(model, orientation, compiled)
+    decide = _verdicts_by(method, model, None if pieces else orientation, compiled, wrench)
+    if pieces:
+        decide = OverOrientations(decide, *pieces)
     started = time.perf_counter()
     lower = np.asarray(robot.frame_lower[:d], dtype=float)[None, :]
     upper = np.asarray(robot.frame_upper[:d], dtype=float)[None, :]
-    decided_lower, decided_upper, decided = [], [], []
+    decided_lower, decided_upper, decided, witnesses = [], [], [], []
     evaluated, level, total = 0, 0, float(np.prod(upper - lower))
     done_volume = 0.0
     while len(lower):
@@ -284,8 +302,11 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
             raise InvalidCase("min_width", f"{len(lower):,} boxes at one level; choose a "
                               f"larger minimum width than {min_width} m")
         evaluated += len(lower)
-        verdict = np.concatenate([decide(lower[start:start + CHUNK], upper[start:start + CHUNK])
-                                  for start in range(0, len(lower), CHUNK)])
+        parts, found = [], []
+        for start in range(0, len(lower), CHUNK):
+            parts.append(decide(lower[start:start + CHUNK], upper[start:start + CHUNK]))
+            found.append(decide.witnesses if pieces else np.full(len(parts[-1]), -1))
+        verdict, witness = np.concatenate(parts), np.concatenate(found)
         widths = upper - lower
         final = (verdict != 2) | (widths.max(axis=1) <= min_width)
         undecided_volume = float(np.prod(widths[verdict == 2], axis=1).sum())
@@ -295,6 +316,7 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
         decided_lower.append(lower[final])
         decided_upper.append(upper[final])
         decided.append(verdict[final])
+        witnesses.append(witness[final])
         done_volume += float(np.prod(widths[final & (verdict != 2)], axis=1).sum())
         if progress is not None:
             progress(level, len(lower), done_volume / total)
@@ -307,7 +329,82 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
                                 np.vstack(decided_upper),
                                 np.array(VERDICTS, dtype=object)[codes], float(min_width),
                                 seconds, evaluated,
-                                np.zeros(0) if wrench is None else wrench, prop)
+                                np.zeros(0) if wrench is None else wrench, prop,
+                                None if pieces is None else _checked_range(robot,
+                                                                           orientation_range),
+                                pieces, np.concatenate(witnesses))
+
+
+def _verdicts_by(method: str, model: SymbolicModel, orientation: np.ndarray | None,
+                 compiled: bool, wrench: np.ndarray | None):
+    """The box verdicts of ``method`` (:data:`METHODS`) at the fixed ``orientation``, or
+    over whole-pose boxes (``orientation=None``)."""
+    if method == "assumption-1":
+        return _AssumptionVerdicts(model, orientation, compiled)
+    if method == "anchored":
+        return anchored_verdicts(model, orientation, compiled, wrench)
+    if method == "facets":
+        return _FacetVerdicts(model, orientation, wrench, compiled)
+    if method == "cramer-wrench":
+        return _WrenchCramerVerdicts(model, orientation, wrench, compiled)
+    if method == "cramer":
+        return CramerVerdicts(model, orientation, compiled)
+    return _KrawczykVerdicts(model, orientation, compiled)
+
+
+def _checked_orientation(robot: Robot, orientation) -> np.ndarray:
+    """The fixed orientation (default the case's start's), checked against the frame."""
+    d, rotations = robot.dimension, robot.n - robot.dimension
+    orientation = (np.asarray(robot.start[d:], dtype=float) if orientation is None
+                   else np.asarray(orientation, dtype=float).ravel())
+    if orientation.size != rotations or not np.all(np.isfinite(orientation)):
+        raise InvalidCase("orientation", f"expected {rotations} finite angles (rad), got "
+                          f"{orientation.tolist()}")
+    if rotations and not np.all((orientation >= robot.frame_lower[d:])
+                                & (orientation <= robot.frame_upper[d:])):
+        raise InvalidCase("orientation", f"{orientation.tolist()} is outside the frame's "
+                          f"angle ranges")
+    return orientation
+
+
+def _checked_range(robot: Robot, orientation_range) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) of an orientation range, checked against the robot and its frame."""
+    d, rotations = robot.dimension, robot.n - robot.dimension
+    if not rotations:
+        raise InvalidCase("orientation_range", f"{robot.name} is a point mass: it has no "
+                          f"orientation")
+    try:
+        lower, upper = (np.asarray(corner, dtype=float).ravel() for corner in orientation_range)
+    except (TypeError, ValueError):
+        raise InvalidCase("orientation_range", f"expected (lower, upper) angles, got "
+                          f"{orientation_range!r}") from None
+    if lower.size != rotations or upper.size != rotations \
+            or not np.all(np.isfinite(lower) & np.isfinite(upper)):
+        raise InvalidCase("orientation_range", f"expected {rotations} finite lower and "
+                          f"{rotations} upper angles (rad), got {lower.tolist()} and "
+                          f"{upper.tolist()}")
+    if not np.all(lower < upper):
+        raise InvalidCase("orientation_range", f"expected lower < upper on every angle, got "
+                          f"{lower.tolist()} and {upper.tolist()}")
+    if np.any(lower < robot.frame_lower[d:]) or np.any(upper > robot.frame_upper[d:]):
+        raise InvalidCase("orientation_range", f"{lower.tolist()} to {upper.tolist()} "
+                          f"leaves the frame's angle ranges")
+    return lower, upper
+
+
+def _checked_step(robot: Robot, orientation_range, step) -> float:
+    """The pieces' largest width, rad, checked (at most :data:`MAX_PIECES` pieces)."""
+    if isinstance(step, bool) or not isinstance(step, (int, float)) \
+            or not 0 < step < float("inf"):
+        raise InvalidCase("orientation_step", f"expected a positive width in rad, got "
+                          f"{step!r}")
+    lower, upper = _checked_range(robot, orientation_range)
+    count = float(np.prod(np.maximum(np.ceil((upper - lower) / step - 1e-9), 1)))
+    if count > MAX_PIECES:
+        raise InvalidCase("orientation_step", f"{count:,.0f} pieces of the orientation range "
+                          f"(more than {MAX_PIECES:,}); choose a wider step or a smaller "
+                          f"range")
+    return float(step)
 
 
 #: How a box is decided, by robot and property (:func:`proof_method`), in words.
@@ -357,8 +454,7 @@ def assumption_function(model: SymbolicModel, orientation: np.ndarray) -> ca.Fun
     exactly when the second entry is > 0. Where it holds (and dq != 0) Theorem 1's alpha
     and J_d keep the command in [T_min, T_max]."""
     robot = model.robot
-    position = ca.SX.sym("p", robot.dimension)
-    q = ca.vertcat(position, ca.DM(orientation)) if len(orientation) else position
+    position, q = pose_inputs(robot, orientation)
     W = model.structure_matrix(q)
     gravity = model.grad_potential(q)
     determinant = ca.det(W)
@@ -459,8 +555,7 @@ def facet_function(model: SymbolicModel, orientation: np.ndarray,
     from cdpr_sym.workspace.wrench import facet_normals, facet_projections
 
     robot = model.robot
-    position = ca.SX.sym("p", robot.dimension)
-    q = ca.vertcat(position, ca.DM(orientation)) if len(orientation) else position
+    position, q = pose_inputs(robot, orientation)
     W = model.structure_matrix(q)
     mid, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
     offset = model.grad_potential(q) - W @ ca.DM.ones(model.m) * mid
@@ -518,8 +613,7 @@ class _KrawczykVerdicts:
 
     def __init__(self, model: SymbolicModel, orientation: np.ndarray, compiled: bool) -> None:
         robot = model.robot
-        position = ca.SX.sym("p", robot.dimension)
-        q = ca.vertcat(position, ca.DM(orientation)) if len(orientation) else position
+        position, q = pose_inputs(robot, orientation)
         terms = ca.Function("terms", [position], [ca.vertcat(
             ca.vec(ca.densify(model.structure_matrix(q))), model.grad_potential(q))])
         self.terms = _enclosure(terms, compiled)

@@ -29,7 +29,12 @@ def add_parser(command) -> None:
     parser.add_argument("what", choices=["workspace", "pairs"], help="what to certify")
     parser.add_argument("--robot", default="aras3", help="a preset or a robot file")
     parser.add_argument("--orientation", nargs="+", type=float, metavar="RAD",
-                        help="a rigid body's fixed orientation (default: the case's start's)")
+                        help="a rigid body's fixed orientation (default: the case's start's), "
+                             "or a range, its lower then its upper angles: every orientation "
+                             "of it must be feasible (the total orientation workspace)")
+    parser.add_argument("--orientation-step", type=float, default=None, metavar="RAD",
+                        help="an orientation range is decided in pieces at most this wide on "
+                             "every angle (default: 0.05)")
     add_wrench_options(parser, scope="workspace: ")
     parser.add_argument("--property", default="static", choices=["static", "assumption-1"],
                         help="workspace: static (or wrench) feasibility, or the region where "
@@ -78,6 +83,9 @@ def certify_command(args: argparse.Namespace, out: Output) -> int:
             raise InvalidCase("force", "--force and --moment apply to certify workspace")
         if args.property != "static":
             raise InvalidCase("property", "--property applies to certify workspace")
+        if args.orientation is not None or args.orientation_step is not None:
+            raise InvalidCase("orientation", "--orientation and --orientation-step apply to "
+                              "certify workspace")
         return _pairs(args, robot, out)
     return _workspace(args, robot, out)
 
@@ -94,7 +102,13 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     if isinstance(samples, bool) or not 0 <= samples <= MAX_SAMPLES:
         raise InvalidCase("samples", f"expected 0 to {MAX_SAMPLES:,} poses, got {samples}")
     min_width = 0.005 if args.min_width is None else args.min_width
-    certificate = certify_workspace(robot, orientation=args.orientation,
+    orientation, orientation_range = _orientation(robot, args.orientation)
+    if orientation_range is None and args.orientation_step is not None:
+        raise InvalidCase("orientation_step", "--orientation-step applies to an orientation "
+                          "range (--orientation with lower and upper angles)")
+    step = {} if args.orientation_step is None else {"orientation_step": args.orientation_step}
+    certificate = certify_workspace(robot, orientation=orientation,
+                                    orientation_range=orientation_range, **step,
                                     min_width=min_width, until=args.until,
                                     half_widths=half_widths, prop=args.property)
     check = (sampled_check(certificate, samples, np.random.default_rng(args.seed))
@@ -114,6 +128,15 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     lines.append(f"written: {args.out}")
     out.result(content, lines)
     return 0
+
+
+def _orientation(robot, values) -> tuple[list | None, tuple | None]:
+    """(fixed orientation, orientation range) from --orientation's numbers: as many as the
+    robot has angles (fixed), or twice as many (the range's lower, then upper angles)."""
+    rotations = robot.n - robot.dimension
+    if values is None or len(values) != 2 * rotations or not rotations:
+        return values, None
+    return None, (values[:rotations], values[rotations:])
 
 
 def _corners(field: str, values, default_centre) -> tuple[np.ndarray, np.ndarray]:
