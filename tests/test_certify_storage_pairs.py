@@ -32,8 +32,9 @@ from cdpr_sym.robot import preset
 
 ARAS3 = preset("aras3")
 DESIGN = VirtualReferenceIdaPbc()
-#: A 6 cm cube where aras3's tension box leaves the most room to a coupling force.
-REGION = (np.array([0.39, -2.23, 2.72]), np.array([0.45, -2.17, 2.78]))
+#: A 20 cm cube where aras3's tension box leaves the most room to a coupling force.
+REGION = (np.array([0.32, -2.3, 2.65]), np.array([0.52, -2.1, 2.85]))
+WIDTH = 0.05
 
 
 def _tensions(robot, q: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -93,7 +94,7 @@ def test_the_coupling_bound_is_the_largest_coupling_on_the_sublevel_set(k, r_d):
         problem = cp.Problem(cp.Maximize(coupling), held)
         problem.solve(solver=cp.CLARABEL)
         largest = max(largest, problem.value)
-    expected = float(bound.coupling[0]) * np.sqrt(energy / float(bound.energy[0]))
+    expected = float(bound.by_storage[0]) * np.sqrt(energy / float(bound.energy[0]))
     assert largest == pytest.approx(expected, rel=1e-5)
     assert largest > 0.999 * expected
 
@@ -200,7 +201,7 @@ def test_the_capacity_function_is_cramers_rule(proof, rng):
 
 @pytest.fixture(scope="module")
 def certificate():
-    return certify_pairs(ARAS3, "ida-ref", starts=REGION, goals=REGION, width=0.02)
+    return certify_pairs(ARAS3, "ida-ref", starts=REGION, goals=REGION, width=WIDTH)
 
 
 def test_short_moves_are_proven_and_long_ones_are_not(certificate):
@@ -229,7 +230,7 @@ def test_a_coupling_bound_below_the_real_coupling_is_caught_by_the_loop_check(
     def too_small(*args, **kwargs):
         bounds = honest(*args, **kwargs)
         return storage_pairs.StorageBounds(bounds.energy, bounds.coupling / 1000,
-                                           bounds.reach)
+                                           bounds.reach, bounds.by_storage, bounds.by_impulse)
 
     monkeypatch.setattr(storage_pairs, "storage_bounds", too_small)
     assert loop_check(certificate, *drawn, DESIGN)["disagreements"] > 0
@@ -262,7 +263,7 @@ def test_a_start_whose_first_tension_leaves_the_box_is_disproven():
 ])
 def test_options_the_storage_argument_does_not_cover_are_refused(design, field):
     with pytest.raises(InvalidCase) as refused:
-        certify_pairs(ARAS3, "ida-ref", starts=REGION, goals=REGION, width=0.02,
+        certify_pairs(ARAS3, "ida-ref", starts=REGION, goals=REGION, width=WIDTH,
                       design=design)
     assert refused.value.field == field
 
@@ -271,7 +272,7 @@ def test_another_designs_options_are_refused():
     from cdpr_sym.control.planned import SmoothReference
 
     with pytest.raises(InvalidCase) as refused:
-        certify_pairs(ARAS3, "ida-ref", starts=REGION, goals=REGION, width=0.02,
+        certify_pairs(ARAS3, "ida-ref", starts=REGION, goals=REGION, width=WIDTH,
                       design=SmoothReference())
     assert refused.value.field == "design"
 
@@ -289,7 +290,7 @@ def test_the_command_refuses_robots_it_does_not_cover_in_one_line(capsys, tmp_pa
 def test_the_command_writes_the_certificate_with_its_checks(capsys, tmp_path):
     status = main(["certify", "pairs", "--robot", "aras3", "--controller", "ida-ref",
                    "--starts", *map(str, [*REGION[0], *REGION[1]]), "--goals",
-                   *map(str, [*REGION[0], *REGION[1]]), "--box", "0.03", "--samples", "4",
+                   *map(str, [*REGION[0], *REGION[1]]), "--box", "0.1", "--samples", "4",
                    "--json", "--out", str(tmp_path / "pairs")])
     value = json.loads(capsys.readouterr().out)
     assert status == 0 and value["controller"] == "ida-ref"
@@ -297,7 +298,7 @@ def test_the_command_writes_the_certificate_with_its_checks(capsys, tmp_path):
     assert value["proven_share"] > 0
     assert value["checks"]["loop"]["disagreements"] == 0
     assert value["checks"]["closed_loop"]["disagreements"] == 0
-    lower, _ = grid(*REGION, 0.03)
+    lower, _ = grid(*REGION, 0.1)
     rows = (tmp_path / "pairs" / "pairs.csv").read_text().splitlines()
     assert len(rows) == 1 + len(lower) ** 2
 
@@ -321,3 +322,64 @@ def test_the_numpy_loop_is_the_compiled_design_as_its_step_shrinks():
                           for r in runs])
         errors.append(np.abs(found - expected).max())
     assert errors[1] < 0.02 and errors[1] < 0.5 * errors[0]
+
+
+def _impulse_response_l1(mass: float, k: float, r_d: float) -> float:
+    """int |h| by dense quadrature (step 1 us, to 3 s) of h(t) = [k r] e^{At} B, e^{At} from
+    numpy's eigendecomposition of the state matrix A."""
+    A = np.array([[0.0, 1.0], [-2 * k / mass, -2 * r_d / mass]])
+    poles, vectors = np.linalg.eig(A)
+    weights = (np.array([k, r_d]) @ vectors) * np.linalg.solve(vectors, [0.0, 1.0 / mass])
+    t = np.arange(0.0, 3.0, 1e-6)
+    h = np.real(np.exp(np.outer(t, poles)) @ weights)
+    return float(np.sum(0.5 * (np.abs(h[1:]) + np.abs(h[:-1]))) * 1e-6)
+
+
+@pytest.mark.parametrize(("k", "r_d", "exact"), [
+    (1200.0, 100.0, True),    # aras3: poles -20 and -30
+    (1200.0, 30.0, False),    # complex poles: the bound, not the value
+    (2000.0, 150.0, True),   # poles -17 and -58
+])
+def test_the_impulse_bound_holds_the_integral_of_the_impulse_response(k, r_d, exact):
+    bound = storage_pairs.impulse_l1(4.0, k, r_d)
+    found = _impulse_response_l1(4.0, k, r_d)
+    assert bound >= found * (1 - 1e-7)  # the quadrature's own error is below 1e-8
+    if exact:
+        assert bound == pytest.approx(found, rel=1e-6)
+
+
+def test_nearly_equal_poles_give_no_impulse_bound():
+    k = 100.0**2 / (2 * 4.0)  # 4 r^2 = 8 m k: a double pole
+    assert storage_pairs.impulse_l1(4.0, k, 100.0) == np.inf
+    bounds = storage_bounds(np.array([0.05]), mass=4.0, k=k, r_d=100.0, design=DESIGN)
+    assert bounds.coupling[0] == bounds.by_storage[0]
+
+
+def test_the_particle_force_bound_holds_the_designs_force_at_any_distance_and_speed():
+    """|pull| + R_xi |dxi| from the design's own CasADi profile and the docstring's damping,
+    over a dense grid of distances r <= D, at the largest speed H_0 allows."""
+    r, r0 = ca.SX.sym("r"), ca.SX.sym("r0")
+    profile = ca.Function("f", [r, r0], [DESIGN.pull_profile(r, r0, DESIGN.delta)])
+    shortest = min(DESIGN.plan.durations)
+    for distance in (0.02, 0.1, 0.3, 0.8, 2.0):
+        bounds = storage_bounds(np.array([distance]), mass=ARAS3.mass, k=ARAS3.k,
+                                r_d=ARAS3.r_d, design=DESIGN)
+        bound = storage_pairs.particle_force_bound(np.array([distance]), bounds.energy,
+                                                   mass=ARAS3.mass, design=DESIGN)[0]
+        accel = DESIGN.boost * 5.77 * distance / shortest**2
+        force = 2 * ARAS3.mass * accel
+        x = np.linspace(1e-9, distance, 200_001)
+        pull = force * np.array(profile(x, distance)).ravel()
+        damping = (pull / np.sqrt(2 * DESIGN.brake * accel * x + 1e-12)
+                   + 2 * np.sqrt(2 * ARAS3.mass * force / DESIGN.delta)
+                   * DESIGN.delta**2 / (DESIGN.delta**2 + x**2))
+        speed = np.sqrt(2 * bounds.energy[0] / ARAS3.mass)
+        largest = np.max(pull + damping * speed)
+        assert largest <= bound and largest >= 0.5 * bound
+
+
+def test_a_halved_impulse_bound_is_caught(monkeypatch):
+    honest = storage_pairs.impulse_l1
+    monkeypatch.setattr(storage_pairs, "impulse_l1", lambda *a: 0.5 * honest(*a))
+    with pytest.raises(AssertionError):
+        test_the_impulse_bound_holds_the_integral_of_the_impulse_response(1200.0, 100.0, True)

@@ -19,8 +19,16 @@ c = K (q - xi) + R_d (dq - dxi):
 
 * |xi - q_g| <= D (V_xi increases with the distance) and |q - xi| <= sqrt(2 H_0 / k), so
   q stays in the ball of radius rho = D + sqrt(2 H_0 / k) about q_g;
-* |c| <= C = sqrt(2 H_0 max_i(K_i + 2 R_d,i^2 / m)) (Cauchy-Schwarz on the three energy
-  terms; the bound is attained on the sublevel set, so no better one follows from H_d).
+* |c| <= sqrt(2 H_0 max_i(K_i + 2 R_d,i^2 / m)) (Cauchy-Schwarz on the three energy
+  terms; the bound is attained on the sublevel set, so no better one follows from H_d);
+* and, tighter for short moves, through the relative motion e = q - xi: from
+  m q'' = -c and m xi'' = c - u, u = pull + R_xi dxi the particle's own force,
+  m e'' + 2 R_d e' + 2 K e = u with e(0) = e'(0) = 0, so c = K e + R_d e' is u filtered by
+  a stable second-order system: |c(t)| <= |h|_1 sup |u| (one gain on every axis; else
+  axis by axis, sqrt(sum_i |h_i|_1^2) sup |u|), h its impulse response
+  (:func:`impulse_l1`). On the sublevel set |pull| <= F min(D / delta, 1) (r <= D),
+  R_xi <= F max_r min(r / delta, 1) / sqrt(2 brake a r) + R_crit, at r = min(D, delta), and
+  |dxi| <= sqrt(2 H_0 / m) (:func:`particle_force_bound`). C is the smaller of the two.
 
 V_xi(D) = F int_0^D f(s) ds with f the design's pull profile (:meth:`~cdpr_sym.control.planned.
 VirtualReferenceIdaPbc.pull_profile`, piecewise linear, integrated exactly between its
@@ -49,10 +57,11 @@ over the frame; a pair box is **proven** when every cell meeting the box of posi
 when the start tension alone (c = 0 at rest, the command of the first instant) certainly
 leaves [T_min + mu, T_max - mu] for every start of the box.
 
-**What it proves, and what not.** H_d knows only the energy, not where it goes: the bound
-grows as D^1.5 / T for moves shorter than the well's radius delta (as D / T beyond): 32 N
-for a 10 cm move on aras3 at T = 1 s, where the move really needs about 0.45 N; and the ball
-reaches to the start's mirror image beyond the goal. So it proves short moves only. Not
+**What it proves, and what not.** H_d knows only the energy, not where it goes: for a 10 cm
+move on aras3 at T = 1 s the Cauchy-Schwarz bound is 32 N and the impulse bound 4.9 N,
+where the move really needs about 0.45 N; both grow faster than the move (about D^2 for the
+impulse bound), and the ball reaches to the start's mirror image beyond the goal. So it
+proves short moves only. Not
 covered: the sampled loop (the particle advanced by a semi-implicit Euler step, the tension
 held over a step; mu is the room assumed to cover them), model error, an elastic plant,
 settling.
@@ -105,12 +114,69 @@ def profile_integral(distance: float, delta: float, ramp: float, start_share: fl
 @dataclasses.dataclass(frozen=True)
 class StorageBounds:
     """What H_d bounds for pair boxes (arrays, one entry per box): the initial storage
-    ``energy`` H_0 (J), the ``coupling`` bound C (N) and the ``reach`` rho (m) of the
-    platform about the goal."""
+    ``energy`` H_0 (J), the ``coupling`` bound C (N, the smaller of the two bounds of the
+    module docstring), the ``reach`` rho (m) of the platform about the goal, and the two
+    coupling bounds: ``by_storage`` (Cauchy-Schwarz on H_d) and ``by_impulse`` (the
+    relative motion's impulse response, inf where it does not apply)."""
 
     energy: np.ndarray
     coupling: np.ndarray
     reach: np.ndarray
+    by_storage: np.ndarray
+    by_impulse: np.ndarray
+
+
+def impulse_l1(mass: float, k: float, r_d: float) -> float:
+    """An upper bound of int_0^inf |h(t)| dt, h the impulse response from u to
+    c = k e + r_d e' of m e'' + 2 r_d e' + 2 k e = u (one axis; module docstring).
+
+    Distinct real poles p1 > p2: h = A1 e^{p1 t} + A2 e^{p2 t} changes sign at most once,
+    and the integral of |h| is taken exactly on both sides of that instant (widened by 1e-9,
+    far above the rounding of these few operations). Complex poles -s +- i w:
+    h = e^{-s t} (a cos w t + b sin w t), bounded by sqrt(a^2 + b^2) / s. Nearly equal poles
+    (closer than 1e-3 of their size, where the exact formula cancels): inf (no bound)."""
+    discriminant = 4 * r_d**2 - 8 * mass * k
+    if discriminant < 0:  # complex poles
+        sigma, omega = r_d / mass, math.sqrt(-discriminant) / (2 * mass)
+        a = r_d / mass                                   # [k r] B
+        b = (k / mass + r_d / mass * (sigma - 2 * r_d / mass)) / omega  # [k r](A+sI)B/w
+        return math.hypot(a, b) / sigma * (1 + 1e-9)
+    root = math.sqrt(discriminant)
+    p1, p2 = (-2 * r_d + root) / (2 * mass), (-2 * r_d - root) / (2 * mass)
+    if p1 - p2 <= 1e-3 * abs(p2):
+        return math.inf
+    a1 = (k + r_d * p1) / (mass * (p1 - p2))
+    a2 = (k + r_d * p2) / (mass * (p2 - p1))
+
+    def integral(start: float, end: float) -> float:  # of h over [start, end]
+        return sum(amplitude * (math.exp(pole * end) - math.exp(pole * start)) / pole
+                   for amplitude, pole in ((a1, p1), (a2, p2)))
+
+    ratio = -a2 / a1 if a1 else 0.0
+    if ratio > 1:  # A1 e^{p1 t} = -A2 e^{p2 t} at t* > 0
+        crossing = math.log(ratio) / (p1 - p2)
+        total = abs(integral(0.0, crossing)) + abs(-integral(0.0, crossing)
+                                                   - sum(a / p for a, p in ((a1, p1), (a2, p2))))
+    else:
+        total = abs(sum(a / p for a, p in ((a1, p1), (a2, p2))))
+    return total * (1 + 1e-9)
+
+
+def particle_force_bound(distance: np.ndarray, energy: np.ndarray, *, mass: float,
+                         design: VirtualReferenceIdaPbc) -> np.ndarray:
+    """An upper bound (N) of |pull + R_xi dxi| at every instant of moves up to ``distance``
+    (m) with H_d <= ``energy`` (J), at the plan's shortest duration (module docstring)."""
+    shortest = min(design.plan.durations)
+    distance = np.atleast_1d(np.asarray(distance, float))
+    accel = design.boost * 5.77 * distance / shortest**2
+    force = 2 * mass * accel
+    delta = design.delta
+    pull = force * np.minimum(distance / delta, 1.0)
+    nearest = np.minimum(distance, delta)  # where min(r / delta, 1) / sqrt(r) peaks
+    per_speed = (force * np.sqrt(nearest) / (delta * np.sqrt(2 * design.brake * accel))
+                 + 2 * np.sqrt(2 * mass * force / delta))
+    speed = np.sqrt(2 * energy / mass)
+    return _up(_up(pull) + _up(_up(per_speed) * _up(speed)))
 
 
 def largest_distance(start_lower, start_upper, goal_lower, goal_upper) -> np.ndarray:
@@ -131,9 +197,15 @@ def storage_bounds(distance: np.ndarray, *, mass: float, k, r_d,
         * profile_integral(d, design.delta, design.ramp, design.start_share)
         for d in np.atleast_1d(distance)])
     energy = _up(energy)
-    coupling = _up(np.sqrt(_up(2 * energy * float(np.max(k + 2 * r_d**2 / mass)))))
+    by_storage = _up(np.sqrt(_up(2 * energy * float(np.max(k + 2 * r_d**2 / mass)))))
+    k, r_d = np.broadcast_arrays(k, r_d)
+    l1 = [impulse_l1(mass, float(a), float(b)) for a, b in zip(k, r_d, strict=True)]
+    # one gain on every axis: |c| <= |h|_1 sup |u|; else axis by axis
+    gain = l1[0] if len(set(zip(k, r_d, strict=True))) == 1 else math.sqrt(sum(x * x for x in l1))
+    by_impulse = _up(gain * particle_force_bound(distance, energy, mass=mass, design=design))
     reach = _up(np.atleast_1d(distance) + np.sqrt(_up(2 * energy / float(np.min(k)))))
-    return StorageBounds(energy, coupling, reach)
+    return StorageBounds(energy, np.minimum(by_storage, by_impulse), reach, by_storage,
+                         by_impulse)
 
 
 def capacity_function(model: SymbolicModel, low: float, high: float) -> ca.Function:
