@@ -107,6 +107,8 @@ def test_a_six_dof_range_with_more_cables_agrees_with_sampled_poses():
     ({"orientation_range": RANGE, "orientation_step": 0.0}, "orientation_step"),
     ({"orientation_range": RANGE, "orientation_step": True}, "orientation_step"),
     ({"orientation_range": RANGE, "orientation_step": 1e-6}, "orientation_step"),
+    ({"orientation_range": ([0.1], [0.1])}, "orientation_range"),
+    ({"orientation_step": 0.1}, "orientation_step"),
 ])
 def test_bad_ranges_are_refused_naming_the_field(arguments, field):
     with pytest.raises(InvalidCase) as refused:
@@ -130,11 +132,21 @@ def test_the_command_takes_a_range_as_lower_then_upper_angles(capsys, tmp_path):
     assert "every orientation of the range" in value["property"]
     check = value["sampled_check"]
     assert check["disagreements_feasible"] == 0 and check["disagreements_infeasible"] == 0
+    rows = (tmp_path / "range" / "boxes.csv").read_text().splitlines()
+    assert rows[0].endswith(",verdict,witness_lower_theta,witness_upper_theta")
+    for row in rows[1:]:  # an infeasible box names the piece it fails over, inside the range
+        cells = row.split(",")
+        if cells[4] == "infeasible":
+            low, high = float(cells[5]), float(cells[6])
+            assert -0.1 <= low < high <= 0.1 and high - low <= 0.1
+        else:
+            assert cells[5:] == ["", ""]
 
 
 @pytest.mark.parametrize("argv", [
     ["workspace", "--robot", "planar3", "--orientation", "0.1", "-0.1"],
     ["workspace", "--robot", "planar3", "--orientation", "0", "0.1", "0.2"],
+    ["workspace", "--robot", "spatial6", "--orientation", "0", "0", "0", "0.1"],
     ["workspace", "--robot", "planar3", "--orientation-step", "0.1"],
     ["workspace", "--robot", "planar3", "--orientation", "-0.1", "0.1", "--orientation-step",
      "-1"],

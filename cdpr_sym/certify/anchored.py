@@ -63,7 +63,8 @@ ASCENT_LENGTHS = (16.0, 4.0, 1.0)
 
 def terms_function(model: SymbolicModel, orientation: np.ndarray, wrench: bool = False
                    ) -> ca.Function:
-    """positions (d) -> [vec W (n m, column-major), grad V (n)] at the fixed orientation;
+    """positions (d) -> [vec W (n m, column-major), grad V (n)] at the fixed orientation (or
+    the whole pose (n) with ``orientation=None``);
     with ``wrench`` also vec J^T (n k, column-major: the generalized force of each axis of
     the external wrench)."""
     position, q = _pose(model, orientation)
@@ -72,7 +73,8 @@ def terms_function(model: SymbolicModel, orientation: np.ndarray, wrench: bool =
 
 def slopes_function(model: SymbolicModel, orientation: np.ndarray, wrench: bool = False
                     ) -> ca.Function:
-    """positions (d) -> the Jacobian of :func:`terms_function`'s output (rows, d columns),
+    """positions (d; the whole pose with ``orientation=None``) -> the Jacobian of
+    :func:`terms_function`'s output (rows, d columns),
     column-major: d blocks of [vec dW/dx_k, d grad V/dx_k (, vec dJ^T/dx_k)]."""
     position, q = _pose(model, orientation)
     return ca.Function("slopes", [position],

@@ -11,7 +11,11 @@ computes the static tension of each by a numeric solve of W T = grad V (CasADi's
 functions evaluated at points, LU in numpy, not the interval code; with a wrench box, the
 tension's spread |W^-1 J^T| h over it) and counts the poses whose box's verdict it
 contradicts. With more cables than degrees of freedom each pose is classified by the sampled
-workspace's hyperplane-shifting test instead. A proof is sound only if that count is zero.
+workspace's hyperplane-shifting test instead. Over an orientation range each pose's angles
+are drawn uniformly over the range, or over the witness piece in an infeasible box (there
+every orientation must fail); ``sampled_feasible_share`` is then the share among those
+draws, not an estimate of the total orientation workspace. A proof is sound only if that
+count is zero.
 """
 
 from __future__ import annotations
@@ -145,6 +149,9 @@ def summary(certificate: WorkspaceCertificate, check: dict[str, Any] | None) -> 
                                   [corner.tolist() for corner in certificate.orientation_range]),
             "orientation_pieces": (None if certificate.pieces is None
                                    else len(certificate.pieces[0])),
+            "orientation_pieces_per_angle": (
+                None if certificate.pieces is None
+                else [len(np.unique(column)) for column in certificate.pieces[0].T]),
             "min_width_m": certificate.min_width, "boxes": len(certificate.verdicts),
             "boxes_evaluated": certificate.evaluated, "seconds": certificate.seconds,
             "feasible_share": shares["feasible"], "infeasible_share": shares["infeasible"],

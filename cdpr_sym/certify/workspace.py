@@ -50,6 +50,7 @@ feasible at each position of a box): :mod:`cdpr_sym.certify.poses`.
 from __future__ import annotations
 
 import dataclasses
+import numbers
 import time
 from pathlib import Path
 
@@ -85,9 +86,10 @@ CHUNK = 200_000
 #: is built or measured to; a narrower --min-width only asks for an endless refinement.
 MIN_BOX_WIDTH = 1e-5
 #: The orientation range's pieces: at most this wide on every angle by default (rad), and
-#: at most this many.
+#: at most this many (each multiplies the work of a fixed orientation: a 6-DOF robot's
+#: whole angle range at the default step would be thousands of pieces, days of work).
 ORIENTATION_STEP = 0.05
-MAX_PIECES = 4096
+MAX_PIECES = 512
 
 
 @dataclasses.dataclass(frozen=True)
@@ -168,21 +170,33 @@ class WorkspaceCertificate:
         return found
 
     def write_csv(self, path: Path) -> None:
-        """``boxes.csv``: lower_<name>, upper_<name> per position coordinate, verdict."""
+        """``boxes.csv``: lower_<name>, upper_<name> per position coordinate, verdict; over an
+        orientation range also the witness piece of an infeasible box,
+        witness_lower_<angle> and witness_upper_<angle> (empty for the other boxes)."""
+        angles = (self.robot.coordinate_names[len(self.names):]
+                  if self.orientation_range is not None else ())
         header = [f"lower_{name}" for name in self.names] + [
-            f"upper_{name}" for name in self.names] + ["verdict"]
+            f"upper_{name}" for name in self.names] + ["verdict"] + [
+            f"witness_{side}_{angle}" for side in ("lower", "upper") for angle in angles]
         rows = [",".join(header)]
-        for lo, hi, verdict in zip(self.lower, self.upper, self.verdicts, strict=True):
+        for index, (lo, hi, verdict) in enumerate(zip(self.lower, self.upper, self.verdicts,
+                                                      strict=True)):
+            witness = []
+            if angles:
+                piece = self.witness[index]
+                witness = ([repr(float(v)) for corner in self.pieces
+                            for v in corner[piece]] if piece >= 0 else [""] * 2 * len(angles))
             rows.append(",".join([*(repr(float(v)) for v in lo), *(repr(float(v)) for v in hi),
-                                  verdict]))
+                                  verdict, *witness]))
         path.write_text("\n".join(rows) + "\n")
 
 
 def margin_function(model: SymbolicModel, orientation: np.ndarray,
                     half_widths: np.ndarray | None = None) -> ca.Function:
     """positions (d) -> [D, N_i - T_min D (n), T_max D - N_i (n)] at the fixed
-    ``orientation``; with wrench ``half_widths`` (not all zero) -> [D, those margins less
-    P_i (2n), their negatives less P_i (2n)], the second block for D < 0 (module docstring)."""
+    ``orientation`` (``None``: of the whole pose, n); with wrench ``half_widths`` (not all
+    zero) -> [D, those margins less P_i (2n), their negatives less P_i (2n)], the second
+    block for D < 0 (module docstring)."""
     robot = model.robot
     position, q = pose_inputs(robot, orientation)
     W = model.structure_matrix(q)
@@ -224,7 +238,7 @@ def check_min_width(min_width: float, largest: float, field: str = "min_width") 
 def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.005,
                       until: float = 1.0, compiled: bool = True, half_widths=None,
                       prop: str = "static", orientation_range=None,
-                      orientation_step: float = ORIENTATION_STEP,
+                      orientation_step: float | None = None,
                       progress=None) -> WorkspaceCertificate:
     """The certified static workspace of ``robot`` over its frame (module docstring).
 
@@ -253,9 +267,11 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
     orientation_range : (sequence of float, sequence of float), optional
         A rigid body's (lower, upper) angles, rad, instead of a fixed ``orientation``: the
         property must hold at every orientation of the range (the total orientation
-        workspace, :mod:`cdpr_sym.certify.poses`).
-    orientation_step : float
-        The range is decided in pieces at most this wide on every angle, rad.
+        workspace, :mod:`cdpr_sym.certify.poses`). An angle with lower = upper is held
+        fixed.
+    orientation_step : float, optional
+        The range is decided in pieces at most this wide on every angle, rad (default
+        :data:`ORIENTATION_STEP`; only with a range).
     progress : callable, optional
         Called with (level, boxes at that level, decided volume share so far).
 
@@ -276,10 +292,12 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
         if orientation is not None:
             raise InvalidCase("orientation_range", "give a fixed orientation or a range, "
                               "not both")
+        step = ORIENTATION_STEP if orientation_step is None else orientation_step
         pieces = orientation_pieces(*_checked_range(robot, orientation_range),
-                                    _checked_step(robot, orientation_range,
-                                                  orientation_step))
+                                    _checked_step(robot, orientation_range, step))
         orientation = np.zeros(0)
+    elif orientation_step is not None:
+        raise InvalidCase("orientation_step", "a step applies to an orientation range")
     else:
         orientation = _checked_orientation(robot, orientation)
     if isinstance(until, bool) or not isinstance(until, (int, float)) or not 0 < until <= 1:
@@ -383,9 +401,9 @@ def _checked_range(robot: Robot, orientation_range) -> tuple[np.ndarray, np.ndar
         raise InvalidCase("orientation_range", f"expected {rotations} finite lower and "
                           f"{rotations} upper angles (rad), got {lower.tolist()} and "
                           f"{upper.tolist()}")
-    if not np.all(lower < upper):
-        raise InvalidCase("orientation_range", f"expected lower < upper on every angle, got "
-                          f"{lower.tolist()} and {upper.tolist()}")
+    if not np.all(lower <= upper) or not np.any(lower < upper):
+        raise InvalidCase("orientation_range", f"expected lower <= upper on every angle and "
+                          f"lower < upper on one, got {lower.tolist()} and {upper.tolist()}")
     if np.any(lower < robot.frame_lower[d:]) or np.any(upper > robot.frame_upper[d:]):
         raise InvalidCase("orientation_range", f"{lower.tolist()} to {upper.tolist()} "
                           f"leaves the frame's angle ranges")
@@ -394,12 +412,13 @@ def _checked_range(robot: Robot, orientation_range) -> tuple[np.ndarray, np.ndar
 
 def _checked_step(robot: Robot, orientation_range, step) -> float:
     """The pieces' largest width, rad, checked (at most :data:`MAX_PIECES` pieces)."""
-    if isinstance(step, bool) or not isinstance(step, (int, float)) \
+    if isinstance(step, bool) or not isinstance(step, numbers.Real) \
             or not 0 < step < float("inf"):
         raise InvalidCase("orientation_step", f"expected a positive width in rad, got "
                           f"{step!r}")
     lower, upper = _checked_range(robot, orientation_range)
-    count = float(np.prod(np.maximum(np.ceil((upper - lower) / step - 1e-9), 1)))
+    with np.errstate(over="ignore"):
+        count = float(np.prod(np.maximum(np.ceil((upper - lower) / step - 1e-9), 1)))
     if count > MAX_PIECES:
         raise InvalidCase("orientation_step", f"{count:,.0f} pieces of the orientation range "
                           f"(more than {MAX_PIECES:,}); choose a wider step or a smaller "

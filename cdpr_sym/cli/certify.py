@@ -118,6 +118,9 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     held, failed = (("proven to hold Assumption 1", "proven not to")
                     if args.property == "assumption-1"
                     else ("proven feasible", "proven infeasible"))
+    if orientation_range is not None:
+        what += (f" at every orientation of {list(orientation_range[0])} to "
+                 f"{list(orientation_range[1])} rad")
     lines = [f"{robot.name}{what}: {100 * content['decided_share']:.2f} % of the frame decided "
              f"({100 * content['feasible_share']:.2f} % {held}, "
              f"{100 * content['infeasible_share']:.2f} % {failed}) in "
@@ -134,7 +137,13 @@ def _orientation(robot, values) -> tuple[list | None, tuple | None]:
     """(fixed orientation, orientation range) from --orientation's numbers: as many as the
     robot has angles (fixed), or twice as many (the range's lower, then upper angles)."""
     rotations = robot.n - robot.dimension
-    if values is None or len(values) != 2 * rotations or not rotations:
+    if values is None:
+        return None, None
+    if rotations and len(values) not in (rotations, 2 * rotations):
+        raise InvalidCase("orientation", f"expected {rotations} angles (rad), or "
+                          f"{2 * rotations} for a range: the lower angles, then the upper "
+                          f"ones; got {len(values)}")
+    if not rotations or len(values) == rotations:
         return values, None
     return None, (values[:rotations], values[rotations:])
 
