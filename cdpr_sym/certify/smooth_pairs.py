@@ -135,6 +135,18 @@ class Learnt(NamedTuple):
     sign: np.ndarray
 
 
+def check_pair_case(robot, tracking_margin: float) -> None:
+    """Refuse a robot no pair certificate covers (``robot``: point masses with m = n <= 3)
+    and a tracking margin out of [0, half the tension box) (``tracking_margin``)."""
+    if robot.kind != "point" or robot.m != robot.n or robot.n > 3:
+        raise InvalidCase("robot", f"{robot.name}: pair certificates cover point masses "
+                          f"with as many cables as degrees of freedom (n <= 3) so far")
+    if isinstance(tracking_margin, bool) or not isinstance(tracking_margin, (int, float)) \
+            or not 0 <= tracking_margin < 0.5 * (robot.t_max - robot.t_min):
+        raise InvalidCase("tracking_margin", f"expected a margin in N from 0 to half the "
+                          f"tension box, got {tracking_margin!r}")
+
+
 class SmoothPairProof:
     """The certificate of the module docstring for one design and robot.
 
@@ -151,13 +163,7 @@ class SmoothPairProof:
     def __init__(self, model: SymbolicModel, design: SmoothReference,
                  tracking_margin: float) -> None:
         robot = model.robot
-        if robot.kind != "point" or robot.m != robot.n or robot.n > 3:
-            raise InvalidCase("robot", f"{robot.name}: pair certificates cover point masses "
-                              f"with as many cables as degrees of freedom (n <= 3) so far")
-        if isinstance(tracking_margin, bool) or not isinstance(tracking_margin, (int, float)) \
-                or not 0 <= tracking_margin < 0.5 * (robot.t_max - robot.t_min):
-            raise InvalidCase("tracking_margin", f"expected a margin in N from 0 to half the "
-                              f"tension box, got {tracking_margin!r}")
+        check_pair_case(robot, tracking_margin)
         # the command is the feed-forward only when nothing filters or clips it
         if design.command_cutoff is not None:
             raise InvalidCase("design", "a filtered command (command_cutoff) is not the "

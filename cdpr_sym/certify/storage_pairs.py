@@ -77,7 +77,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.certify.interval_c import CompiledIntervalFunction
-from cdpr_sym.certify.smooth_pairs import PairVerdicts
+from cdpr_sym.certify.smooth_pairs import PairVerdicts, check_pair_case
 from cdpr_sym.control.planned import VirtualReferenceIdaPbc
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
@@ -263,13 +263,7 @@ class StoragePairProof:
     def __init__(self, model: SymbolicModel, design: VirtualReferenceIdaPbc,
                  tracking_margin: float, cell: float) -> None:
         robot = model.robot
-        if robot.kind != "point" or robot.m != robot.n or robot.n > 3:
-            raise InvalidCase("robot", f"{robot.name}: pair certificates cover point masses "
-                              f"with as many cables as degrees of freedom (n <= 3) so far")
-        if isinstance(tracking_margin, bool) or not isinstance(tracking_margin, (int, float)) \
-                or not 0 <= tracking_margin < 0.5 * (robot.t_max - robot.t_min):
-            raise InvalidCase("tracking_margin", f"expected a margin in N from 0 to half the "
-                              f"tension box, got {tracking_margin!r}")
+        check_pair_case(robot, tracking_margin)
         for field, value, why in (
                 ("lam", math.isinf(design.lam), "a finite lam adds J_d dq to the command"),
                 ("observer_rate", design.observer_rate is None, "the observer's estimate "
