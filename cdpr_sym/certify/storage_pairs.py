@@ -299,7 +299,7 @@ class StoragePairProof:
         if self._map is None:
             counts = np.maximum(high - low, 0)
             if np.prod(counts.astype(float)) > MAX_CELLS:
-                raise InvalidCase("box", f"{int(np.prod(counts.astype(float))):,} capacity "
+                raise InvalidCase("width", f"{int(np.prod(counts.astype(float))):,} capacity "
                                   f"cells of {self.cell:g} m; choose a larger box width or "
                                   f"smaller regions")
             index = np.stack(np.meshgrid(*(np.arange(a, b) for a, b in zip(low, high,
