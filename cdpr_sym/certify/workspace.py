@@ -287,14 +287,14 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
     d = robot.dimension
     check_min_width(min_width, float(np.max(np.subtract(robot.frame_upper[:d],
                                                           robot.frame_lower[:d]))))
-    pieces = None
+    pieces = span = None
     if orientation_range is not None:
         if orientation is not None:
             raise InvalidCase("orientation_range", "give a fixed orientation or a range, "
                               "not both")
+        span = _checked_range(robot, orientation_range)
         step = ORIENTATION_STEP if orientation_step is None else orientation_step
-        pieces = orientation_pieces(*_checked_range(robot, orientation_range),
-                                    _checked_step(robot, orientation_range, step))
+        pieces = orientation_pieces(*span, _checked_step(span, step))
         orientation = np.zeros(0)
     elif orientation_step is not None:
         raise InvalidCase("orientation_step", "a step applies to an orientation range")
@@ -347,9 +347,7 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
                                 np.vstack(decided_upper),
                                 np.array(VERDICTS, dtype=object)[codes], float(min_width),
                                 seconds, evaluated,
-                                np.zeros(0) if wrench is None else wrench, prop,
-                                None if pieces is None else _checked_range(robot,
-                                                                           orientation_range),
+                                np.zeros(0) if wrench is None else wrench, prop, span,
                                 pieces, np.concatenate(witnesses))
 
 
@@ -410,13 +408,14 @@ def _checked_range(robot: Robot, orientation_range) -> tuple[np.ndarray, np.ndar
     return lower, upper
 
 
-def _checked_step(robot: Robot, orientation_range, step) -> float:
-    """The pieces' largest width, rad, checked (at most :data:`MAX_PIECES` pieces)."""
+def _checked_step(span: tuple[np.ndarray, np.ndarray], step) -> float:
+    """The pieces' largest width, rad, checked against the (checked) range ``span`` (at
+    most :data:`MAX_PIECES` pieces)."""
     if isinstance(step, bool) or not isinstance(step, numbers.Real) \
             or not 0 < step < float("inf"):
         raise InvalidCase("orientation_step", f"expected a positive width in rad, got "
                           f"{step!r}")
-    lower, upper = _checked_range(robot, orientation_range)
+    lower, upper = span
     with np.errstate(over="ignore"):
         count = float(np.prod(np.maximum(np.ceil((upper - lower) / step - 1e-9), 1)))
     if count > MAX_PIECES:
