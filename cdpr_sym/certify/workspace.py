@@ -297,7 +297,8 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
         pieces = orientation_pieces(*span, _checked_step(span, step))
         orientation = np.zeros(0)
     elif orientation_step is not None:
-        raise InvalidCase("orientation_step", "a step applies to an orientation range")
+        raise InvalidCase("orientation_step", "a step applies to an orientation range (lower "
+                          "and upper angles)")
     else:
         orientation = _checked_orientation(robot, orientation)
     if isinstance(until, bool) or not isinstance(until, (int, float)) or not 0 < until <= 1:

@@ -103,12 +103,9 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
         raise InvalidCase("samples", f"expected 0 to {MAX_SAMPLES:,} poses, got {samples}")
     min_width = 0.005 if args.min_width is None else args.min_width
     orientation, orientation_range = _orientation(robot, args.orientation)
-    if orientation_range is None and args.orientation_step is not None:
-        raise InvalidCase("orientation_step", "--orientation-step applies to an orientation "
-                          "range (--orientation with lower and upper angles)")
-    step = {} if args.orientation_step is None else {"orientation_step": args.orientation_step}
     certificate = certify_workspace(robot, orientation=orientation,
-                                    orientation_range=orientation_range, **step,
+                                    orientation_range=orientation_range,
+                                    orientation_step=args.orientation_step,
                                     min_width=min_width, until=args.until,
                                     half_widths=half_widths, prop=args.property)
     check = (sampled_check(certificate, samples, np.random.default_rng(args.seed))
