@@ -22,6 +22,8 @@ from cdpr_sym.certify.workspace import (
     CramerVerdicts,
     bisect,
     check_min_width,
+    grid_boxes,
+    grid_edges,
 )
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
@@ -46,18 +48,7 @@ MAX_PAIRS = 2_000_000
 def grid(lower, upper, width: float) -> tuple[np.ndarray, np.ndarray]:
     """Boxes of side ``width`` (m) tiling [lower, upper] (the last row of each axis cut at
     ``upper``): (box lowers, box uppers), each (boxes, d)."""
-    lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
-    axes = []
-    for lo, hi in zip(lower, upper, strict=True):
-        count = max(1, int(np.ceil((hi - lo) / width - 1e-9)))
-        edges = np.minimum(lo + width * np.arange(count + 1), hi)
-        edges[-1] = hi
-        axes.append(edges)
-    index = np.stack(np.meshgrid(*(np.arange(len(e) - 1) for e in axes), indexing="ij"),
-                     axis=-1).reshape(-1, len(axes))
-    box_lower = np.column_stack([axes[j][index[:, j]] for j in range(len(axes))])
-    box_upper = np.column_stack([axes[j][index[:, j] + 1] for j in range(len(axes))])
-    return box_lower, box_upper
+    return grid_boxes(grid_edges(lower, upper, width))
 
 
 @dataclasses.dataclass(frozen=True)

@@ -78,6 +78,7 @@ import numpy as np
 
 from cdpr_sym.certify.interval_c import CompiledIntervalFunction
 from cdpr_sym.certify.smooth_pairs import PairVerdicts, check_pair_case
+from cdpr_sym.certify.workspace import grid_boxes, grid_edges
 from cdpr_sym.control.planned import VirtualReferenceIdaPbc
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
@@ -280,6 +281,8 @@ class StoragePairProof:
         self.cell = float(cell)
         self.frame_lower = np.asarray(robot.frame_lower[:self.n], dtype=float)
         self.frame_upper = np.asarray(robot.frame_upper[:self.n], dtype=float)
+        #: the capacity cells' edges over the frame (adjacent cells share them exactly)
+        self.edges = grid_edges(self.frame_lower, self.frame_upper, self.cell)
         self.start = CompiledIntervalFunction(
             capacity_function(model, robot.t_min + self.mu, robot.t_max - self.mu),
             centred=True)
@@ -302,30 +305,13 @@ class StoragePairProof:
                 raise InvalidCase("width", f"{int(np.prod(counts.astype(float))):,} capacity "
                                   f"cells of {self.cell:g} m; choose a larger box width or "
                                   f"smaller regions")
-            index = np.stack(np.meshgrid(*(np.arange(a, b) for a, b in zip(low, high,
-                                                                             strict=True)),
-                                         indexing="ij"), axis=-1).reshape(-1, self.n)
-            edges = self._edges()
-            lower = np.column_stack([edges[j][index[:, j]] for j in range(self.n)])
-            upper = np.column_stack([edges[j][index[:, j] + 1] for j in range(self.n)])
+            lower, upper = grid_boxes(self.edges, list(zip(low, high, strict=True)))
             cap = np.empty(len(lower))
             for begin in range(0, len(lower), 200_000):
                 part = slice(begin, begin + 200_000)
                 cap[part] = capacities(self.start((lower[part].T, upper[part].T)), self.n)
             self._map = (low.copy(), cap.reshape(tuple(counts)))
         return self._map
-
-    def _edges(self) -> list[np.ndarray]:
-        """The cell edges along each axis: the frame's lower corner plus multiples of the
-        cell, the last one cut at the upper corner (adjacent cells share their edges
-        exactly, so the cells cover the frame without gaps)."""
-        edges = []
-        for lo, hi in zip(self.frame_lower, self.frame_upper, strict=True):
-            count = max(1, int(np.ceil((hi - lo) / self.cell - 1e-9)))
-            axis = np.minimum(lo + self.cell * np.arange(count + 1), hi)
-            axis[-1] = hi
-            edges.append(axis)
-        return edges
 
     def __call__(self, start_lower: np.ndarray, start_upper: np.ndarray,
                  goal_lower: np.ndarray, goal_upper: np.ndarray, *,
@@ -344,7 +330,7 @@ class StoragePairProof:
                                        - self.mu) * math.sqrt(self.n)
         inside = (possible & np.all(reach_lower >= self.frame_lower, axis=1)
                   & np.all(reach_upper <= self.frame_upper, axis=1))
-        counts = np.array([len(axis) - 1 for axis in self._edges()])
+        counts = np.array([len(axis) - 1 for axis in self.edges])
         # one cell more on each side than the division says: rounding cannot leave a gap
         low = np.clip(np.floor((reach_lower - self.frame_lower) / self.cell).astype(int) - 1,
                       0, counts)

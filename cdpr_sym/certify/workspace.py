@@ -672,6 +672,30 @@ def decide(regular: np.ndarray, margin_lower: np.ndarray, margin_upper: np.ndarr
     return np.where(feasible, 0, np.where(infeasible, 1, 2))
 
 
+def grid_edges(lower, upper, width: float) -> list[np.ndarray]:
+    """Per axis, the edges of cells of side ``width`` (m) tiling [lower, upper]: the lower
+    corner plus multiples of ``width``, the last one cut at the upper corner (adjacent cells
+    share their edges exactly)."""
+    edges = []
+    for lo, hi in zip(np.asarray(lower, dtype=float), np.asarray(upper, dtype=float),
+                      strict=True):
+        count = max(1, int(np.ceil((hi - lo) / width - 1e-9)))
+        axis = np.minimum(lo + width * np.arange(count + 1), hi)
+        axis[-1] = hi
+        edges.append(axis)
+    return edges
+
+
+def grid_boxes(edges: list[np.ndarray], ranges=None) -> tuple[np.ndarray, np.ndarray]:
+    """(lowers, uppers), each (cells, axes), of the cells between ``edges`` whose indices lie
+    in ``ranges`` ((first, past-last) per axis; default every cell), the last axis fastest."""
+    ranges = ranges if ranges is not None else [(0, len(axis) - 1) for axis in edges]
+    index = np.stack(np.meshgrid(*(np.arange(a, b) for a, b in ranges), indexing="ij"),
+                     axis=-1).reshape(-1, len(edges))
+    return (np.column_stack([edges[j][index[:, j]] for j in range(len(edges))]),
+            np.column_stack([edges[j][index[:, j] + 1] for j in range(len(edges))]))
+
+
 def bisect(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each box halved along its widest side."""
     if not len(lower):
