@@ -134,13 +134,12 @@ def loop_check(certificate: PairCertificate, starts: np.ndarray, goals: np.ndarr
     leaves [T_min + mu, T_max - mu], or whose H_d rises, or which leaves what the storage
     bounds of its box (H_0, the coupling bound C and the reach rho about the goal)."""
     from cdpr_sym.certify.loop_check import simulate
-    from cdpr_sym.certify.storage_pairs import largest_distance, storage_bounds
+    from cdpr_sym.certify.storage_pairs import pair_box_bounds
 
     robot, mu = certificate.robot, certificate.tracking_margin
-    bounds = storage_bounds(largest_distance(
-        certificate.start_lower[boxes], certificate.start_upper[boxes],
-        certificate.goal_lower[boxes], certificate.goal_upper[boxes]),
-        mass=robot.mass, k=robot.k, r_d=robot.r_d, design=design)
+    bounds = pair_box_bounds(robot, design, certificate.start_lower[boxes],
+                             certificate.start_upper[boxes], certificate.goal_lower[boxes],
+                             certificate.goal_upper[boxes])
     chosen_T, _ = chosen_plans(certificate, starts, goals, design.plan)
     shortest = min(design.plan.durations)
     wrong = np.zeros(len(starts), bool)

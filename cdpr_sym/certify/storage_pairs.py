@@ -209,6 +209,13 @@ def storage_bounds(distance: np.ndarray, *, mass: float, k, r_d,
                          by_impulse)
 
 
+def pair_box_bounds(robot, design: VirtualReferenceIdaPbc, start_lower, start_upper,
+                    goal_lower, goal_upper) -> StorageBounds:
+    """H_0, C and rho of each pair box (rows of corners, m) for ``robot``'s mass and gains."""
+    return storage_bounds(largest_distance(start_lower, start_upper, goal_lower, goal_upper),
+                          mass=robot.mass, k=robot.k, r_d=robot.r_d, design=design)
+
+
 def capacity_function(model: SymbolicModel, low: float, high: float) -> ca.Function:
     """positions (n) -> [det W, N_i - low det W (n), high det W - N_i (n), |B_i| (n)]
     (module docstring)."""
@@ -290,10 +297,8 @@ class StoragePairProof:
 
     def bounds(self, start_lower, start_upper, goal_lower, goal_upper) -> StorageBounds:
         """H_0, C and rho of each pair box."""
-        return storage_bounds(largest_distance(start_lower, start_upper, goal_lower,
-                                               goal_upper),
-                              mass=self.robot.mass, k=self.robot.k, r_d=self.robot.r_d,
-                              design=self.design)
+        return pair_box_bounds(self.robot, self.design, start_lower, start_upper, goal_lower,
+                               goal_upper)
 
     def capacity_map(self, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(offset, capacities): the coupling capacity (N) of the cells of the frame's grid
