@@ -42,15 +42,24 @@ def steps_per_sample(design: Nmpc, dt: float) -> int:
     return ratio
 
 
+def sampled_problem(model: SymbolicModel, controller: object) -> NmpcProblem | None:
+    """The problem of a design that optimises at its own rate on ``model``, or None for any
+    other controller. Building it checks its size (:class:`NmpcProblem` refuses one too
+    large to build as ``horizon``), so a loop builds it before compiling anything."""
+    return NmpcProblem(model, controller) if isinstance(controller, Nmpc) else None
+
+
 class SampledSolver:
     """The solver of one NMPC design on one model: the real-time iteration compiled to C
     (or in CasADi's virtual machine for ``backend="casadi"``), or ``nlpsol`` to convergence.
     """
 
     def __init__(self, model: SymbolicModel, design: Nmpc, *, backend: str,
-                 build_options: BuildOptions, library_name: str) -> None:
+                 build_options: BuildOptions, library_name: str,
+                 problem: NmpcProblem | None = None) -> None:
         self.design = design
-        self.problem = NmpcProblem(model, design)
+        #: The design's problem (``problem``, if given, is the same one built earlier).
+        self.problem = NmpcProblem(model, design) if problem is None else problem
         self._lower, self._upper = self.problem.bounds()
         fallback = self.problem.fallback_function()
         self._goal_tension = model.functions["static_tension"]

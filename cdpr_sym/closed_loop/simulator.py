@@ -150,6 +150,11 @@ class Simulator:
         self.robot = robot
         self.controller = controller
         self.model = SymbolicModel(robot)
+        problem = None
+        if capabilities(controller).sampled:  # its size is checked before compiling anything
+            from cdpr_sym.closed_loop.sampled import sampled_problem
+
+            problem = sampled_problem(self.model, controller)
         self.as_built = as_built
         self.chunk = chunk
         self.rate_limited = rate_limited
@@ -183,7 +188,7 @@ class Simulator:
             # by its content's key (aras3's was compiled five times by the quick suite)
             self.sampled = SampledSolver(self.model, controller, backend=self.backend,
                                          build_options=build_options,
-                                         library_name=robot_name)
+                                         library_name=robot_name, problem=problem)
 
     @functools.cached_property
     def step(self) -> ca.Function:

@@ -20,13 +20,15 @@ d_hat; each solve then predicts with that force (:class:`~cdpr_sym.control.nmpc.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any, ClassVar
 
 import casadi as ca
 
+from cdpr_sym.checks import positive_number
 from cdpr_sym.control.flags import FLAG_SATURATED
 from cdpr_sym.control.interface import Capabilities, ControlLaw
-from cdpr_sym.control.parts import check_positive, clip_to_box, flag_if
+from cdpr_sym.control.parts import clip_to_box, flag_if
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 
@@ -34,6 +36,18 @@ from cdpr_sym.model import SymbolicModel
 #: iteration, generated to C with CasADi's ``qrqp``), ``sqp`` CasADi's ``sqpmethod`` to
 #: convergence, ``ipopt`` the interior-point reference.
 SOLVERS = ("rti", "sqp", "ipopt")
+
+#: Most sample intervals in a horizon (horizon x rate, rounded). The real-time iteration's
+#: solve time grows as about the square of the intervals (CasADi's virtual machine, aras3:
+#: 21 ms at 25 intervals, 0.14 s at 100, 0.8 s at 200, 2.7 s at 400; spatial6 0.9 s at
+#: 200), and a sweep solves 50 times a simulated second: 200 intervals (4 s at 50 Hz, eight
+#: times the default) is the longest horizon a 10 s run finishes within minutes.
+MAX_INTERVALS = 200
+
+#: Most RK4 steps per sample interval in the prediction: the transition's expression graph
+#: grows with them (spatial6's, with its sensitivities, 102,000 instructions at 2), and at
+#: 20 a 50 Hz design already predicts in 1 ms steps, as fine as the control step.
+MAX_SUBSTEPS = 20
 
 
 @dataclasses.dataclass(frozen=True)
@@ -71,7 +85,8 @@ class Nmpc:
     rate : float
         Hz, the solves per second; the simulator's period must divide 1 / rate.
     horizon : float
-        s, the prediction horizon (rounded to whole sample intervals, at least one).
+        s, the prediction horizon (rounded to whole sample intervals, at least one, at most
+        :data:`MAX_INTERVALS`).
     solver : str
         One of :data:`SOLVERS`; ``rti`` is the real-time variant, warm-started from the
         shifted previous solution.
@@ -91,7 +106,7 @@ class Nmpc:
     max_rate : float
         N/s, the largest rate of change of a commanded tension.
     substeps : int
-        RK4 steps per sample interval in the prediction.
+        RK4 steps per sample interval in the prediction (1 to :data:`MAX_SUBSTEPS`).
 
     Notes
     -----
@@ -120,20 +135,30 @@ class Nmpc:
     name: ClassVar[str] = "nmpc"
 
     def __post_init__(self) -> None:
-        for field in ("rate", "horizon", "position_weight", "velocity_weight", "rate_weight",
-                      "terminal_factor", "max_rate"):
-            check_positive(field, getattr(self, field), "a positive number")
-        if not (isinstance(self.tension_weight, (int, float)) and self.tension_weight >= 0):
-            raise InvalidCase("tension_weight", f"expected a weight >= 0, got "
-                              f"{self.tension_weight!r}")
-        check_positive("observer_rate", self.observer_rate, "a rate in 1/s")
+        for field, unit in (("rate", "Hz"), ("horizon", "s"), ("position_weight", "1/m^2"),
+                            ("velocity_weight", "s^2/m^2"),
+                            ("rate_weight", "s^2 per (T_max - T_min)^2"),
+                            ("terminal_factor", "times Q and R"), ("max_rate", "N/s")):
+            positive_number(field, getattr(self, field), unit)
+        positive_number("tension_weight", self.tension_weight, "per (T_max - T_min)^2",
+                        zero=True)
+        if self.observer_rate is not None:
+            positive_number("observer_rate", self.observer_rate, "1/s")
+        if not math.isfinite(1.0 / self.rate):  # a subnormal rate: an endless period
+            raise InvalidCase("rate", f"expected a rate whose period 1/rate is finite, got "
+                              f"{self.rate!r}")
         if self.solver not in SOLVERS:
             raise InvalidCase("solver", f"expected one of {', '.join(SOLVERS)}, got "
                               f"{self.solver!r}")
         if isinstance(self.substeps, bool) or not isinstance(self.substeps, int) \
-                or self.substeps < 1:
-            raise InvalidCase("substeps", f"expected a whole number >= 1, got "
-                              f"{self.substeps!r}")
+                or not 1 <= self.substeps <= MAX_SUBSTEPS:
+            raise InvalidCase("substeps", f"expected a whole number from 1 to {MAX_SUBSTEPS}, "
+                              f"got {self.substeps!r}")
+        samples = self.horizon * self.rate  # inf for a horizon near the largest float
+        if not (math.isfinite(samples) and round(samples) <= MAX_INTERVALS):
+            raise InvalidCase("horizon", f"expected at most {MAX_INTERVALS} sample intervals "
+                              f"(horizon x rate; shorten the horizon or lower the rate), got "
+                              f"{self.horizon!r} s at {self.rate:g} Hz = {samples:.3g}")
 
     @property
     def intervals(self) -> int:

@@ -23,10 +23,21 @@ import numpy as np
 
 from cdpr_sym.control.nmpc.design import Nmpc
 from cdpr_sym.control.parts import clip_to_box
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel, rk4
 
 #: |A v - c| and bound violations up to this (m, m/s, N) still count as solved.
 RESIDUAL_TOLERANCE = 1e-6
+
+#: Bytes the expanded nonlinear problem of ``sqp`` and ``ipopt`` takes per interval, per
+#: instruction of one interval's prediction and per state entry (its derivatives carry one
+#: sensitivity per state): measured 460 B on aras3 (1.1 GB at 400 intervals) and 650 B on
+#: spatial6 (1.05 GB at 25 intervals, 4.2 GB at 100), rounded up.
+EXPANDED_BYTES = 700
+
+#: Most bytes the expanded problem may be estimated to take (spatial6's default 25
+#: intervals, 1.1 GB, fit; its 100, 4.5 GB estimated and 4.2 GB measured, do not).
+EXPANDED_BUDGET_BYTES = 2 << 30
 
 
 class NmpcProblem:
@@ -49,6 +60,30 @@ class NmpcProblem:
         #: design's, per the robot's tension box squared.
         self.rate_weight = design.rate_weight / box**2
         self.tension_weight = design.tension_weight / box**2
+        if design.solver != "rti":
+            self._check_expanded_size()
+
+    def expanded_bytes(self) -> int:
+        """The estimated memory of the expanded nonlinear problem, bytes: intervals x
+        instructions of one interval's prediction x states (nz) x :data:`EXPANDED_BYTES`.
+        (The real-time iteration's QP stays small, 87 MB for spatial6 at the 200 intervals
+        :data:`~cdpr_sym.control.nmpc.design.MAX_INTERVALS` allows; its time is what the
+        interval cap bounds.)"""
+        return (self.intervals * self.prediction.n_instructions() * self.nz
+                * EXPANDED_BYTES)
+
+    def _check_expanded_size(self) -> None:
+        """Refuse (``horizon``) an ``sqp`` or ``ipopt`` problem estimated over
+        :data:`EXPANDED_BUDGET_BYTES`, before CasADi expands it."""
+        estimate = self.expanded_bytes()
+        if estimate > EXPANDED_BUDGET_BYTES:
+            per_interval = estimate / self.intervals
+            most = int(EXPANDED_BUDGET_BYTES // per_interval)
+            raise InvalidCase("horizon", f"the {self.design.solver} problem of "
+                              f"{self.intervals} intervals on {self.model.robot.name} would "
+                              f"take about {estimate / 2**30:.1f} GiB to build; the limit is "
+                              f"{EXPANDED_BUDGET_BYTES / 2**30:g} GiB ({most} intervals): "
+                              f"shorten the horizon, lower the rate or use solver='rti'")
 
     # -- dynamics -----------------------------------------------------------------------
     def _rhs(self, z: ca.SX, u: ca.SX, offset: ca.SX) -> ca.SX:
