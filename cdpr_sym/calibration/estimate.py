@@ -4,7 +4,9 @@ in variables, its covariance, and the Cramér-Rao bound.
 The estimate minimises the sum of squared weighted residuals of
 :mod:`cdpr_sym.calibration.information` over theta and every pose's own unknowns at once
 (Levenberg-Marquardt with Marquardt's diagonal scaling, the residuals and Jacobian evaluated
-from the CasADi graph, each step a Cholesky solve of the damped normal equations), with the
+from the CasADi graph, each step a solve of the damped normal equations reduced to the
+global unknowns by the Schur complement of the pose blocks,
+:mod:`cdpr_sym.calibration.schur`: linear in the number of poses), with the
 gauge fixed by the inner constraints of :mod:`cdpr_sym.calibration.gauge`, held exactly:
 theta = theta_nominal + C^T z, with C an orthonormal basis of the directions the
 constraints leave free. Where no tension is given (m = n), each cable's stretch uses the
@@ -38,6 +40,7 @@ from cdpr_sym.calibration.information import (
     statics_tension,
 )
 from cdpr_sym.calibration.measurement import MeasurementModel, Unknowns, static_tension_function
+from cdpr_sym.calibration.schur import ReducedNormal
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
 
@@ -144,18 +147,11 @@ class _Problem:
         theta, own = self.split(x)
         return pose_blocks(self.model, self.campaign, theta, own, given)
 
-    def stacked(self, x: np.ndarray, given: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """All residuals and the Jacobian in x (pose blocks on the diagonal); ``given``
-        the tensions that are data (:func:`~cdpr_sym.calibration.information.pose_blocks`)."""
-        blocks = self.blocks(x, given)
-        count, rows, _ = blocks.theta.shape
-        free = len(self.basis)
-        J = np.zeros((count * rows, free + count * self.own))
-        J[:, :free] = blocks.theta.reshape(count * rows, -1) @ self.basis.T
-        for k in range(count):
-            J[k * rows:(k + 1) * rows, free + k * self.own:free + (k + 1) * self.own] = \
-                blocks.own[k]
-        return blocks.residuals.ravel(), J
+    def normal(self, blocks: PoseBlocks) -> ReducedNormal:
+        """The reduced normal equations of ``blocks`` (:mod:`cdpr_sym.calibration.schur`),
+        theta's columns taken to z (A_k = dr_k/dtheta C^T)."""
+        A = np.einsum("krp,fp->krf", blocks.theta, self.basis, optimize=True)
+        return ReducedNormal.of(blocks.residuals, A, blocks.own)
 
     def covariance(self, blocks: PoseBlocks) -> np.ndarray:
         """theta's covariance (m^2): C^T (J_z^T J_z)^+ C with J_z the reduced Jacobian in z."""
@@ -168,30 +164,32 @@ def _levenberg_marquardt(problem: _Problem, x: np.ndarray, given: np.ndarray
                          ) -> tuple[np.ndarray, int, bool]:
     """Minimise the stacked cost from x; returns (x, iterations, converged).
 
-    Each iteration solves (J^T J + mu D) dx = -J^T r by Cholesky, D the diagonal of J^T J
-    (Marquardt's scaling: the step does not depend on the units), raising mu fourfold
-    while the trial does not lower the cost (at most :data:`MAX_TRIALS` times: then no step
-    can lower it and x is a minimum to round-off) and lowering it tenfold after a success
-    (from 1e-6: the nominal geometry is a good start, so the steps are nearly Gauss-Newton
-    ones from the first). It stops when a step moves no unknown by more than :data:`STEP_TOLERANCE`
+    Each iteration solves (J^T J + mu D) dx = -J^T r, D the diagonal of J^T J (Marquardt's
+    scaling: the step does not depend on the units), through the reduced normal equations
+    (:mod:`cdpr_sym.calibration.schur`: each pose's block eliminated, the global unknowns
+    solved by Cholesky from their Schur complement), raising mu fourfold while the trial
+    does not lower the cost (at most :data:`MAX_TRIALS` times: then no step can lower it and
+    x is a minimum to round-off) and lowering it tenfold after a success (from 1e-6: the
+    nominal geometry is a good start, so the steps are nearly Gauss-Newton ones from the
+    first). It stops when a step moves no unknown by more than :data:`STEP_TOLERANCE`
     relative to the largest, or the cost falls by less than a part in 1e14."""
-    r, J = problem.stacked(x, given)
-    cost, damping = float(r @ r), 1e-6
+    blocks = problem.blocks(x, given)
+    cost, damping = _cost(blocks), 1e-6
     for iteration in range(1, MAX_ITERATIONS + 1):
-        gradient, normal = J.T @ r, J.T @ J
-        scale = np.maximum(np.diag(normal), 1e-300)
+        normal = problem.normal(blocks)
         for _ in range(MAX_TRIALS):
-            step = _damped_step(normal, scale, damping, gradient)
+            dz, dy = normal.step(damping)
+            step = np.concatenate([dz, dy.ravel()])
             trial = x + step
-            r_new, J_new = problem.stacked(trial, given)
-            cost_new = float(r_new @ r_new)
+            blocks_new = problem.blocks(trial, given)
+            cost_new = _cost(blocks_new)
             if np.isfinite(cost_new) and cost_new <= cost:
                 break
             damping *= 4
         else:
             return x, iteration, np.isfinite(cost)
         fall = cost - cost_new
-        x, r, J, cost = trial, r_new, J_new, cost_new
+        x, blocks, cost = trial, blocks_new, cost_new
         damping = max(damping / 10, 1e-12)
         if (np.abs(step).max() <= STEP_TOLERANCE * (1 + np.abs(x).max())
                 or fall <= 1e-14 * (cost + fall)):
@@ -199,15 +197,9 @@ def _levenberg_marquardt(problem: _Problem, x: np.ndarray, given: np.ndarray
     return x, MAX_ITERATIONS, False
 
 
-def _damped_step(normal: np.ndarray, scale: np.ndarray, damping: float,
-                 gradient: np.ndarray) -> np.ndarray:
-    """-(N + mu diag(s))^{-1} g by Cholesky (least squares where it fails)."""
-    matrix = normal + damping * np.diag(scale)
-    try:
-        factor = np.linalg.cholesky(matrix)
-    except np.linalg.LinAlgError:
-        return -np.linalg.lstsq(matrix, gradient, rcond=None)[0]
-    return -np.linalg.solve(factor.T, np.linalg.solve(factor, gradient))
+def _cost(blocks: PoseBlocks) -> float:
+    """The weighted cost r^T r."""
+    return float(np.einsum("kr,kr->", blocks.residuals, blocks.residuals))
 
 
 def initial_poses(model: MeasurementModel, campaign: Campaign, theta: np.ndarray

@@ -185,7 +185,7 @@ def identifiability(model: MeasurementModel, kind: str, blocks: PoseBlocks,
     of ``theta`` (the estimate; default the nominal geometry), where the Jacobian is. The
     weight error (dimensionless, where estimated) is eliminated like the poses: the report
     is about the geometry, in metres."""
-    reduced = _without_weight(model, blocks.reduced())
+    reduced = _compact(_without_weight(model, blocks.reduced()))
     gauge = [(v / np.linalg.norm(v), name)
              for v, name in gauge_directions(model, kind, theta)]
     complement = _geometric(model, gauge_complement(model, kind))
@@ -209,6 +209,15 @@ def identifiability(model: MeasurementModel, kind: str, blocks: PoseBlocks,
     faint = (stds > weak) & ~lost
     weak_directions = _name_subspace(directions[faint], named, covariance, stds[faint])
     return Identifiability(model.size, rank, condition, values, unidentified, weak_directions)
+
+
+def _compact(reduced: np.ndarray) -> np.ndarray:
+    """The triangular factor R of reduced = Q R when it has more rows than columns: R^T R is
+    the same Gram matrix, so every |J_r v|, singular value and right singular vector is R's,
+    at the cost of a p x p matrix however many poses there are."""
+    if reduced.shape[0] <= reduced.shape[1]:
+        return reduced
+    return np.linalg.qr(reduced, mode="r")
 
 
 def _without_weight(model: MeasurementModel, reduced: np.ndarray) -> np.ndarray:

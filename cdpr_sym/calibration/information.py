@@ -14,8 +14,9 @@ noise, and the Jacobian's Gram matrix is the Fisher information:
 
 A pose's unknowns (its q_k, and T_k with load cells) enter only that pose's residuals, so
 the Jacobian is theta's columns beside a block diagonal; :func:`pose_blocks` returns the
-blocks, which the estimator assembles and the identifiability report and the pose planner
-reduce pose by pose (eliminating a pose's own unknowns).
+blocks, from which the estimator builds the reduced (Schur-complement) normal equations
+(:mod:`cdpr_sym.calibration.schur`) and which the identifiability report and the pose
+planner reduce pose by pose (eliminating a pose's own unknowns).
 """
 
 from __future__ import annotations
@@ -44,13 +45,14 @@ class PoseBlocks:
 
     def reduced(self) -> np.ndarray:
         """dr/dtheta with each pose's own unknowns eliminated (projected out of its block),
-        stacked: (N k, p). Its Gram matrix is theta's Fisher information."""
-        blocks = []
-        for A, B in zip(self.theta, self.own, strict=True):
-            basis, singular, _ = np.linalg.svd(B, full_matrices=False)
-            basis = basis[:, singular > singular[0] * 1e-12]
-            blocks.append(A - basis @ (basis.T @ A))
-        return np.concatenate(blocks)
+        stacked: (N k, p). Its Gram matrix is theta's Fisher information. All poses at once
+        (stacked SVDs); a pose's singular values below 1e-12 of its largest count as zero."""
+        if not len(self.theta):
+            return np.zeros((0, self.theta.shape[-1]))
+        basis, singular, _ = np.linalg.svd(self.own, full_matrices=False)
+        basis = basis * (singular > singular[:, :1] * 1e-12)[:, None, :]
+        projected = self.theta - basis @ (np.swapaxes(basis, 1, 2) @ self.theta)
+        return projected.reshape(-1, self.theta.shape[-1])
 
 
 def own_size(model: MeasurementModel, kind: str) -> int:
@@ -94,6 +96,14 @@ def _pose_function(model: MeasurementModel, kind: str, from_statics: bool) -> ca
                        [r, ca.jacobian(r, theta), ca.jacobian(r, own)], {"cse": True})
 
 
+@functools.lru_cache(maxsize=16)
+def _mapped_pose_function(model: MeasurementModel, kind: str, from_statics: bool,
+                          count: int) -> ca.Function:
+    """:func:`_pose_function` mapped over ``count`` poses (kept: each iteration of the
+    estimate evaluates the same campaign)."""
+    return _pose_function(model, kind, from_statics).map(count)
+
+
 def pose_blocks(model: MeasurementModel, campaign: Campaign, theta: np.ndarray,
                 own: np.ndarray, given: np.ndarray) -> PoseBlocks:
     """The weighted residuals and Jacobian blocks of every pose of ``campaign``.
@@ -108,7 +118,7 @@ def pose_blocks(model: MeasurementModel, campaign: Campaign, theta: np.ndarray,
         (load cells) nor the statics' (:func:`statics_tension`); ignored otherwise.
     """
     kind, count = campaign.kind, campaign.size
-    function = _pose_function(model, kind, statics_tension(model, campaign)).map(count)
+    function = _mapped_pose_function(model, kind, statics_tension(model, campaign), count)
     noise = campaign.noise
     sigmas = np.array([noise.reading, noise.position, noise.angle, noise.tension])
     poses = campaign.poses if campaign.poses is not None else np.zeros((count, model.n))
