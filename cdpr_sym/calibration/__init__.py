@@ -6,7 +6,9 @@ measurements at static poses, with their covariance and an identifiability repor
 * :mod:`~cdpr_sym.calibration.campaign`: what a campaign measured (tracker, self, load cells);
 * :mod:`~cdpr_sym.calibration.information`: weighted residuals and their Jacobian, pose by pose;
 * :mod:`~cdpr_sym.calibration.gauge`: what no measurement fixes, and how the frame is fixed;
+* :mod:`~cdpr_sym.calibration.schur`: the reduced (Schur-complement) normal equations;
 * :mod:`~cdpr_sym.calibration.estimate`: the estimate, its covariance, the Cramér-Rao bound;
+* :mod:`~cdpr_sym.calibration.adequacy`: the chi-square test of whether the model fits;
 * :mod:`~cdpr_sym.calibration.identifiability`: what is identified, named in words;
 * :mod:`~cdpr_sym.calibration.simulated`: the campaign a known truth would give;
 * :mod:`~cdpr_sym.calibration.plan`: D-optimal calibration poses;

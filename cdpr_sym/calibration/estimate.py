@@ -19,7 +19,10 @@ covariance in the stated frame); evaluated at the true geometry and poses instea
 estimate, the same formula is the Cramér-Rao bound of the campaign
 (:func:`cramer_rao_bound`), the smallest covariance any unbiased estimator can reach.
 ``sigma0`` is the a posteriori factor sqrt(cost / (rows - unknowns)): near 1 when the noise
-is what the campaign says.
+is what the campaign says; a fit whose cost fails the chi-square test of
+:mod:`cdpr_sym.calibration.adequacy` (upper tail below 1e-3) is refused, naming the likely
+causes (the cable model first: ``Unknowns(compliance=True)`` estimates the cables' 1 / EA
+with the geometry, equation (1') of :mod:`cdpr_sym.calibration.measurement`).
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from cdpr_sym.calibration.adequacy import SIGNIFICANCE, Adequacy
 from cdpr_sym.calibration.campaign import Campaign
 from cdpr_sym.calibration.gauge import gauge_complement
 from cdpr_sym.calibration.identifiability import Identifiability, identifiability
@@ -78,6 +82,10 @@ class Calibration:
     identifiability : Identifiability
     unknowns : Unknowns
         What theta holds (with the weight error where the statics give the tension).
+    adequacy : Adequacy
+        The chi-square test of the fit (:mod:`cdpr_sym.calibration.adequacy`).
+    weighted_residuals : ndarray, shape (N, k)
+        Each pose's residuals over their standard deviations (the readings first).
     """
 
     robot: Robot
@@ -92,6 +100,8 @@ class Calibration:
     iterations: int
     identifiability: Identifiability
     unknowns: Unknowns = dataclasses.field(default_factory=Unknowns)
+    adequacy: Adequacy | None = None
+    weighted_residuals: np.ndarray | None = dataclasses.field(default=None, repr=False)
 
     @property
     def std(self) -> np.ndarray:
@@ -107,6 +117,7 @@ class Calibration:
                                                           strict=True)},
                 "residual_rms": self.residual_rms, "sigma0": self.sigma0,
                 "iterations": self.iterations,
+                "adequacy": None if self.adequacy is None else self.adequacy.as_dict(),
                 "identifiability": self.identifiability.as_dict()}
 
 
@@ -311,15 +322,17 @@ def _gauss_newton_poses(fit, theta: np.ndarray, lengths: np.ndarray, guess: np.n
     return q, np.abs(r).max(axis=1)
 
 
-def default_unknowns(robot: Robot, campaign: Campaign, attachments: bool = False
-                     ) -> Unknowns:
-    """The anchors and offsets (and ``attachments``), with the weight error wherever the
-    stretch's tension comes from the statics (m = n, elastic cables, no tensions given):
-    the platform's true weight is as uncertain as the geometry (a 10 % heavier one biased
-    aras3's anchors by 0.34 mm, twice their standard deviation, when it was assumed)."""
-    weight = (robot.m == robot.n and np.isfinite(campaign.stiffness)
+def default_unknowns(robot: Robot, campaign: Campaign, attachments: bool = False,
+                     compliance: bool = False) -> Unknowns:
+    """The anchors and offsets (and ``attachments``, and the cable ``compliance``), with the
+    weight error wherever the stretch's tension comes from the statics (m = n, elastic
+    cables, no tensions given) and the compliance is not estimated (only their product
+    shows there, :mod:`cdpr_sym.calibration.measurement`): the platform's true weight is as
+    uncertain as the geometry (a 10 % heavier one biased aras3's anchors by 0.34 mm, twice
+    their standard deviation, when it was assumed)."""
+    weight = (not compliance and robot.m == robot.n and np.isfinite(campaign.stiffness)
               and campaign.tensions is None and campaign.kind != "load cells")
-    return Unknowns(attachments=attachments, weight=weight)
+    return Unknowns(attachments=attachments, weight=weight, compliance=compliance)
 
 
 def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns | None = None
@@ -334,7 +347,8 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns | None = N
         with a gauge (:mod:`cdpr_sym.calibration.gauge`).
     campaign : Campaign
     unknowns : Unknowns, optional
-        Default :func:`default_unknowns`.
+        Default :func:`default_unknowns`. ``Unknowns(compliance=True)`` estimates the
+        cables' compliance 1 / EA (the campaign's stiffness only its start).
 
     Returns
     -------
@@ -345,11 +359,13 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns | None = N
     InvalidCase
         The campaign does not fit the robot, has fewer measurements than unknowns, leaves
         some direction unidentified, or (``readings``) a reading fits no pose of the nominal
-        robot, or the solve does not converge.
+        robot, the solve does not converge, or the fit fails the chi-square test of
+        :mod:`cdpr_sym.calibration.adequacy` (the model or the stated noise is wrong).
     """
     campaign.check_robot(robot.n, robot.m)
     unknowns = unknowns or default_unknowns(robot, campaign)
     model = MeasurementModel(robot, unknowns, campaign.stiffness)
+    _check_compliance(model, campaign)
     check_size(model, campaign)
     theta = model.nominal(robot.encoder_offsets)
     problem = _Problem(model, campaign, theta)
@@ -368,19 +384,44 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns | None = N
                           "measure them)")
     result = _result(problem, x, given, iterations)
     _refuse_problems(result.identifiability, "the estimate")
-    if not result.sigma0 <= MISFIT_SIGMA:
-        raise InvalidCase("readings", f"the fit leaves residuals {result.sigma0:.3g} times the "
-                          f"stated noise (sigma0 above {MISFIT_SIGMA:g}): a wrong local minimum "
-                          "(without a tracker, poses read from the nominal geometry can start "
-                          "it there: measure more poses, or the poses), outliers, or noise "
-                          "larger than stated (give it)")
+    _check_adequate(problem.model, result)
     return result
 
 
-#: The largest a posteriori noise factor an estimate may end with: residuals this many
-#: times the stated noise are no fit (chi-square: sigma0 above 1.5 is already improbable
-#: for a hundred residuals).
-MISFIT_SIGMA = 5.0
+def _check_adequate(model: MeasurementModel, result: Calibration) -> None:
+    """Refuse a fit the chi-square test finds inadequate (:mod:`cdpr_sym.calibration.
+    adequacy`), naming the likely causes and the row that misfits most."""
+    test = result.adequacy
+    if test is None or test.adequate:
+        return
+    if model.unknowns.compliance:
+        cable = "the cable model (the stretch of each cable taken proportional to its tension)"
+    else:
+        stiffness = ("rigid" if not np.isfinite(model.stiffness)
+                     else f"EA {model.stiffness:.3g} N")
+        cable = (f"the cable stiffness ({stiffness}: estimate it, --estimate-compliance "
+                 "or Unknowns(compliance=True))")
+    row = int(np.argmax(np.sum(result.weighted_residuals ** 2, axis=1)))
+    worst = float(np.sqrt(np.mean(result.weighted_residuals[row] ** 2)))
+    raise InvalidCase("readings", f"the fit leaves residuals {test.sigma0:.3g} times the "
+                      f"stated noise (chi-square {test.chi_square:.4g} on {test.dof} degrees "
+                      f"of freedom, p = {test.p_value:.2g} < {SIGNIFICANCE:g}): the model "
+                      f"does not fit. Likely causes: {cable}; noise larger than stated "
+                      "(give it); an anchor or encoder that moved during the campaign, or "
+                      f"outliers (row {row + 1} misfits most, {worst:.3g} times the noise); "
+                      "a wrong local minimum (without a tracker: measure more poses, or the "
+                      "poses)")
+
+
+def _check_compliance(model: MeasurementModel, campaign: Campaign) -> None:
+    """Refuse to estimate the compliance without the tensions it multiplies (given, or
+    the statics' for m = n)."""
+    if (model.unknowns.compliance and campaign.tensions is None
+            and model.m > model.n):
+        raise InvalidCase("compliance", f"the cable compliance shows only through the "
+                          f"stretch under known tensions; a robot with more cables than "
+                          f"degrees of freedom ({model.m} > {model.n}) needs the tensions "
+                          "commanded (or measured) at each pose")
 
 
 def _check_plausible(model: MeasurementModel, campaign: Campaign, blocks: PoseBlocks
@@ -461,7 +502,8 @@ def _result(problem: _Problem, x: np.ndarray, given: np.ndarray, iterations: int
         sigma0=float(np.sqrt((residuals ** 2).sum() / dof)), iterations=iterations,
         identifiability=identifiability(model, campaign.kind, blocks, own[:, :model.n],
                                         theta=theta),
-        unknowns=model.unknowns)
+        unknowns=model.unknowns, adequacy=Adequacy.of(float((residuals ** 2).sum()), dof),
+        weighted_residuals=residuals)
 
 
 def _rms(model: MeasurementModel, campaign: Campaign, residuals: np.ndarray

@@ -183,9 +183,9 @@ def identifiability(model: MeasurementModel, kind: str, blocks: PoseBlocks,
     Each tier is named as a subspace (:func:`_name_subspace`), every named direction with
     its own standard deviation sqrt(c^T C c), C the covariance. The gauge motions are those
     of ``theta`` (the estimate; default the nominal geometry), where the Jacobian is. The
-    weight error (dimensionless, where estimated) is eliminated like the poses: the report
-    is about the geometry, in metres."""
-    reduced = _compact(_without_weight(model, blocks.reduced()))
+    weight error (dimensionless) and the compliance (1/N), where estimated, are eliminated
+    like the poses: the report is about the geometry, in metres."""
+    reduced = _without_nuisance(model, _compact(blocks.reduced()))
     gauge = [(v / np.linalg.norm(v), name)
              for v, name in gauge_directions(model, kind, theta)]
     complement = _geometric(model, gauge_complement(model, kind))
@@ -220,25 +220,26 @@ def _compact(reduced: np.ndarray) -> np.ndarray:
     return np.linalg.qr(reduced, mode="r")
 
 
-def _without_weight(model: MeasurementModel, reduced: np.ndarray) -> np.ndarray:
-    """The reduced Jacobian with the weight error eliminated (its column projected out of
-    the others, then zero)."""
-    if not model.unknowns.weight:
+def _without_nuisance(model: MeasurementModel, reduced: np.ndarray) -> np.ndarray:
+    """The reduced Jacobian with the unknowns that are not lengths (the weight error, the
+    compliance) eliminated: their columns projected out of the others, then zero."""
+    other = ~model.geometric()
+    if not other.any():
         return reduced
-    index = model.slices()["weight"].start
-    column = reduced[:, index].copy()
-    size = float(column @ column)
-    if size > 0:
-        reduced = reduced - np.outer(column, column @ reduced) / size
-    reduced[:, index] = 0.0
+    columns = reduced[:, other]
+    basis, singular, _ = np.linalg.svd(columns, full_matrices=False)
+    basis = basis[:, singular > (singular[0] if len(singular) else 0.0) * 1e-12]
+    reduced = reduced - basis @ (basis.T @ reduced)
+    reduced[:, other] = 0.0
     return reduced
 
 
 def _geometric(model: MeasurementModel, complement: np.ndarray) -> np.ndarray:
-    """``complement`` (orthonormal rows) without the weight error's axis."""
-    if not model.unknowns.weight:
-        return complement
+    """``complement`` (orthonormal rows) without the axes of the unknowns that are not
+    lengths."""
     keep = model.geometric()
+    if keep.all():
+        return complement
     rows = complement.copy()
     rows[:, ~keep] = 0.0
     _, singular, right = np.linalg.svd(rows, full_matrices=False)

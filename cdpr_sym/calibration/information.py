@@ -62,9 +62,10 @@ def own_size(model: MeasurementModel, kind: str) -> int:
 
 def statics_tension(model: MeasurementModel, campaign: Campaign) -> bool:
     """Whether the stretch's tension is the statics' W(q; theta)^{-1} grad V(q), part of the
-    measurement model (differentiated with it): m = n, elastic cables, none given."""
+    measurement model (differentiated with it): m = n, elastic cables (a finite EA or the
+    compliance estimated), none given."""
     return (campaign.tensions is None and campaign.kind != "load cells"
-            and np.isfinite(model.stiffness) and model.m == model.n)
+            and model.elastic and model.m == model.n)
 
 
 @functools.lru_cache(maxsize=16)

@@ -8,14 +8,28 @@ stretches to l_i = l0_i (1 + T_i / EA), so the encoder reads
 
     reading_i = l_i(q; a_i, b_i) / (1 + T_i / EA) + o_i                         (1)
 
-(EA = inf: rigid cables, reading_i = l_i + o_i). With load cells, a pose held at rest also
+(EA = inf: rigid cables, reading_i = l_i + o_i). Where the cables' EA is not known, their
+compliance c = 1 / EA (1/N, the same for every cable) can be an unknown of the estimate:
+
+    reading_i = l_i(q; a_i, b_i) / (1 + c T_i) + o_i,                            (1')
+
+which is (1) for c = 1 / EA and the rigid model for c = 0, so one estimate tells rigid from
+elastic cables. c shows through the stretch, about c T_i l_i, so it needs the tensions:
+given (commanded or load cells) or the statics' (m = n); the geometry is told from it by
+how the tensions vary over the campaign (one tension everywhere would scale every length
+alike, as a larger frame does). Under the statics' tension T = (1 + w) W^{-1} grad V the
+stretch holds only the product (1 + w) c, so the weight error w and c are never estimated
+together: c then stands for the stretch per newton of the modelled weight's tension.
+
+With load cells, a pose held at rest also
 satisfies the statics of the model (conventions: W = -(dl/dq)^T, grad V the weight)
 
     W(q; a, b) T - grad V(q) = 0.                                               (2)
 
-The unknowns theta are, in this order and all in metres: the anchors a (m d, row-major),
-the encoder offsets o (m), and optionally the body attachment points b (m d, row-major;
-rigid bodies only). :class:`MeasurementModel` builds (1) and (2) on a view of the robot
+The unknowns theta are, in this order: the anchors a (m d, row-major), the encoder
+offsets o (m), and optionally the body attachment points b (m d, row-major; rigid bodies
+only), all in metres, the weight error w (dimensionless) or the compliance c (1/N).
+:class:`MeasurementModel` builds (1) and (2) on a view of the robot
 whose geometry is theta, reusing :mod:`cdpr_sym.model.kinematics`, so the calibrated
 geometry and the controller's are one formula.
 """
@@ -48,10 +62,16 @@ class Unknowns:
         cables hold (1 + w) W^{-1} grad V, so a platform heavier than its model does not
         bias the geometry. Its only trace is the stretch, so it is estimated coarsely
         (a few per cent); the calibrated robot keeps its mass.
+    compliance : bool
+        Also estimate the cables' compliance c = 1 / EA (1/N; the last entry of theta),
+        the same for every cable, in place of a given EA: equation (1'). It starts from
+        the given stiffness's 1 / EA (0 for rigid cables). Not with ``weight`` (only their
+        product shows, see the module notes).
     """
 
     attachments: bool = False
     weight: bool = False
+    compliance: bool = False
 
 
 class _SymbolicGeometry:
@@ -92,6 +112,10 @@ class MeasurementModel:
         if unknowns.attachments and robot.kind == "point":
             raise InvalidCase("attachments", "a point mass has no attachment points to "
                               "estimate; every cable meets at the point")
+        if unknowns.weight and unknowns.compliance:
+            raise InvalidCase("compliance", "the weight error and the cable compliance show "
+                              "only as their product (the stretch under the statics' "
+                              "tension); estimate one of them")
         if unknowns.weight and not (robot.m == robot.n and np.isfinite(stiffness)):
             raise InvalidCase("weight", "the weight error shows only through the stretch "
                               "of elastic cables under the statics' tension (as many cables "
@@ -107,11 +131,17 @@ class MeasurementModel:
     def size(self) -> int:
         """Number of unknowns p = len(theta)."""
         return (self.m * self.d + self.m + (self.m * self.d if self.unknowns.attachments else 0)
-                + (1 if self.unknowns.weight else 0))
+                + (1 if self.unknowns.weight else 0) + (1 if self.unknowns.compliance else 0))
+
+    @property
+    def elastic(self) -> bool:
+        """Whether the readings carry the stretch: a finite EA, or the compliance
+        estimated."""
+        return bool(np.isfinite(self.stiffness) or self.unknowns.compliance)
 
     def slices(self) -> dict[str, slice]:
         """Where each part lies in theta: ``anchors``, ``offsets`` (and ``attachments``,
-        ``weight``)."""
+        ``weight``, ``compliance``)."""
         md = self.m * self.d
         out = {"anchors": slice(0, md), "offsets": slice(md, md + self.m)}
         end = md + self.m
@@ -120,10 +150,14 @@ class MeasurementModel:
             end += md
         if self.unknowns.weight:
             out["weight"] = slice(end, end + 1)
+            end += 1
+        if self.unknowns.compliance:
+            out["compliance"] = slice(end, end + 1)
         return out
 
     def nominal(self, encoder_offsets: np.ndarray | None = None) -> np.ndarray:
-        """theta of the nominal robot (its encoder offsets, else zeros), m."""
+        """theta of the nominal robot (its encoder offsets, else zeros; the weight error 0,
+        the compliance 1 / EA of the given stiffness)."""
         robot = self.robot
         offsets = (np.zeros(self.m) if encoder_offsets is None
                    else np.asarray(encoder_offsets, dtype=float))
@@ -132,6 +166,8 @@ class MeasurementModel:
             parts.append(robot.attachments.ravel())
         if self.unknowns.weight:
             parts.append(np.zeros(1))
+        if self.unknowns.compliance:
+            parts.append(np.array([1.0 / self.stiffness]))  # 0 for rigid cables
         return np.concatenate(parts)
 
     def names(self) -> list[str]:
@@ -144,19 +180,23 @@ class MeasurementModel:
                       for k in range(self.d)]
         if self.unknowns.weight:
             names.append("weight error")
+        if self.unknowns.compliance:
+            names.append("cable compliance")
         return names
 
     def geometric(self) -> np.ndarray:
-        """Which entries of theta are lengths (m): all but the weight error."""
+        """Which entries of theta are lengths (m): all but the weight error and the
+        compliance."""
         keep = np.ones(self.size, dtype=bool)
-        if self.unknowns.weight:
-            keep[self.slices()["weight"]] = False
+        for name in ("weight", "compliance"):
+            if name in self.slices():
+                keep[self.slices()[name]] = False
         return keep
 
     def robot_with(self, theta: np.ndarray) -> Robot:
         """The robot with theta's geometry and encoder offsets (a file loads it)."""
         part = {name: np.asarray(theta[where]) for name, where in self.slices().items()
-                if name != "weight"}
+                if name not in ("weight", "compliance")}
         changes = {"anchors": part["anchors"].reshape(self.m, self.d),
                    "encoder_offsets": part["offsets"]}
         if "attachments" in part:
@@ -182,11 +222,14 @@ class MeasurementModel:
 
     @functools.cached_property
     def reading(self) -> ca.Function:
-        """(q (n), theta (p), T (m)) -> reading (m): equation (1), m."""
+        """(q (n), theta (p), T (m)) -> reading (m): equation (1) (or (1') with the
+        compliance estimated), m."""
         q, theta = ca.SX.sym("q", self.n), ca.SX.sym("theta", self.size)
         tension = ca.SX.sym("T", self.m)
         lengths = _lengths(self._geometry(theta), q)
-        if np.isfinite(self.stiffness):
+        if self.unknowns.compliance:
+            lengths = lengths / (1 + tension * theta[self.slices()["compliance"]])
+        elif np.isfinite(self.stiffness):
             lengths = lengths / (1 + tension / self.stiffness)
         reading = lengths + theta[self.slices()["offsets"]]
         return ca.Function("encoder_reading", [q, theta, tension], [reading],
