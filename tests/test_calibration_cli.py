@@ -29,12 +29,13 @@ def _run(capsys, *argv: str) -> tuple[int, str, str]:
     return status, captured.out, captured.err
 
 
-def _table(path: Path, robot, *, poses: bool = True, rows: int = 20, edit=None) -> Truth:
-    """A tracker campaign's CSV (simulated on a drawn truth); ``edit(header, lines)``
-    spoils it. Returns the truth."""
+def _table(path: Path, robot, *, poses: bool = True, rows: int = 20, edit=None,
+           stiffness: float = 1e5) -> Truth:
+    """A tracker campaign's CSV (simulated on a drawn truth, cables of EA ``stiffness``);
+    ``edit(header, lines)`` spoils it. Returns the truth."""
     rng = np.random.default_rng(SEED)
     truth = Truth(anchor_offsets=rng.uniform(-5e-3, 5e-3, robot.anchors.shape),
-                  encoder_offsets=rng.uniform(-5e-3, 5e-3, robot.m), stiffness=1e5)
+                  encoder_offsets=rng.uniform(-5e-3, 5e-3, robot.m), stiffness=stiffness)
     at = sample_static_workspace(robot, rows, rng, margin=0.05)
     campaign = simulate_campaign(robot, truth, at, rng)
     header = [f"length_{i + 1}" for i in range(robot.m)]
@@ -97,8 +98,19 @@ def _spoil_repeat(header, lines):
     lines.append(list(lines[3]))  # a copied measurement
 
 
+def _spoil_reformatted_repeat(header, lines):
+    """A copied measurement whose numbers were written again by a spreadsheet: a trailing
+    zero (2.14855 -> 2.148550), an exponent, padding."""
+    copy = [cell + "0" if "e" not in cell else cell for cell in lines[3]]
+    copy[1] = f"{float(lines[3][1]):.12e}"
+    copy[2] = f" {copy[2]} "
+    lines.insert(9, copy)
+
+
 @pytest.mark.parametrize("spoil, words", [
-    (_spoil_repeat, "repeats line 5"),
+    (_spoil_repeat, "row 21 (line 22) of"), (_spoil_repeat, "repeats row 4 (line 5)"),
+    (_spoil_reformatted_repeat, "row 10 (line 11) of"),
+    (_spoil_reformatted_repeat, "repeats row 4 (line 5) value for value"),
     (_spoil_nan, "row 5, column length_2"), (_spoil_text, "row 3, column length_1"),
     (_spoil_missing, "column 'y' missing"), (_spoil_unknown, "unknown column 'lenght_1'"),
     (_spoil_outside, "row 7"),
@@ -137,6 +149,63 @@ def test_bad_options_are_refused_naming_them(capsys, tmp_path, monkeypatch, argv
     args = ["calibrate", "--robot", "aras3", "--measurements", "m.csv", "--out", "c.toml"]
     status, _, err = _run(capsys, *args, *argv)
     assert status == 2 and f"error: {field}:" in err
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["--kind", "self"], "kind"), (["--poses", "12"], "poses"), (["--seed", "3"], "seed"),
+    (["--seed", "0"], "seed"), (["--kind", "tracker"], "kind"),
+])
+def test_plan_options_without_plan_are_refused_naming_them(capsys, tmp_path, monkeypatch, argv,
+                                                          option):
+    """--kind, --poses and --seed only choose poses; given to a calibration they were
+    ignored without a word (even at their default values)."""
+    monkeypatch.chdir(tmp_path)
+    _table(tmp_path / "m.csv", preset("aras3"))
+    status, _, err = _run(capsys, "calibrate", "--robot", "aras3", "--measurements", "m.csv",
+                          "--out", "c.toml", *argv)
+    assert status == 2 and f"error: {option}: --{option} is for --plan" in err
+    assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "c.toml").exists()
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["--measurements", "m.csv"], "measurements"), (["--attachments"], "attachments"),
+    (["--estimate-compliance"], "estimate_compliance"), (["--load-cells"], "load_cells"),
+])
+def test_calibration_options_with_plan_are_refused_naming_them(capsys, argv, option):
+    status, _, err = _run(capsys, "calibrate", "--plan", "--robot", "aras3", "--poses", "8",
+                          *argv)
+    assert status == 2 and f"error: {option}: " in err and "--plan only chooses" in err
+
+
+def test_rigid_cables_read_with_the_default_stiffness_are_refused_then_estimated(capsys,
+                                                                                tmp_path):
+    """The issue's case: a table from rigid cables calibrated with the default EA (1e5 N)
+    left aras3's anchors 5 mm off with sigma0 4.2 and was written. Now refused in one line
+    naming the cable stiffness, exit 2, nothing written; --estimate-compliance fits it (a
+    compliance near zero) and puts the anchors back within their noise."""
+    robot = preset("aras3")
+    truth = _table(tmp_path / "m.csv", robot, stiffness=np.inf)
+    out = tmp_path / "c.toml"
+    args = ["calibrate", "--robot", "aras3", "--measurements", str(tmp_path / "m.csv"),
+            "--out", str(out)]
+    status, _, err = _run(capsys, *args)
+    assert status == 2 and len(err.strip().splitlines()) == 1
+    assert "error: readings:" in err and "cable stiffness (EA 1e+05 N" in err
+    assert "--estimate-compliance" in err and not out.exists()
+    status, text, err = _run(capsys, *args, "--json", "--estimate-compliance")
+    assert status == 0, err
+    result = json.loads(text)
+    compliance = result["estimates"]["cable compliance"]
+    assert abs(compliance["value"]) < 3 * compliance["std"] < 3e-6
+    assert result["adequacy"]["adequate"] and result["adequacy"]["p_value"] > 1e-3
+    errors = load_robot(out).anchors - (robot.anchors + truth.anchor_offsets)
+    stds = np.array([result["estimates"][f"anchor {i + 1} {axis}"]["std"]
+                     for i in range(3) for axis in "xyz"]).reshape(3, 3)
+    assert np.all(np.abs(errors) < 3 * stds)
+    status, text, _ = _run(capsys, *args, "--estimate-compliance")
+    assert "cable compliance" in text and "rigid within twice its standard deviation" in text
+    assert "chi-square" in text
 
 
 def test_plan_writes_poses_that_beat_random_ones(capsys, tmp_path):

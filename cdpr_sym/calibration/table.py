@@ -4,8 +4,9 @@ One row per static pose. Columns ``length_1 ... length_m`` (the encoder readings
 required; the pose in the world frame under the robot's coordinate names (``x, y, z`` /
 ``x, z, theta`` / ``x, y, z, roll, pitch, yaw``; m and rad) is optional, all or none; so are
 ``tension_1 ... tension_m`` (N). Any other column, a missing one, an empty or non-numeric
-cell, NaN or infinity, and a pose outside the robot's frame are refused with one line naming
-the column (and the row), before any solve.
+cell, NaN or infinity, a pose outside the robot's frame, and a row that repeats another value
+for value (a copied measurement, however its numbers are written) are refused with one line
+naming the column (and the row), before any solve.
 """
 
 from __future__ import annotations
@@ -80,18 +81,32 @@ def _rows(path: Path) -> tuple[list[list[str]], list[str]]:
     duplicates = sorted({name for name in header if header.count(name) > 1})
     if duplicates:
         raise InvalidCase("measurements", f"column {duplicates[0]!r} appears twice in {path}")
-    first: dict[tuple[str, ...], int] = {}
-    for number, row in numbered[1:]:
+    first: dict[tuple[float | str, ...], tuple[int, int]] = {}
+    for row_number, (number, row) in enumerate(numbered[1:], start=1):
         if len(row) != len(header):
             raise InvalidCase("measurements", f"line {number} of {path} has {len(row)} "
                               f"cells, the header {len(header)}")
-        key = tuple(cell.strip() for cell in row)
+        # by value: a copy re-formatted (2.14855 and 2.148550, 1e-3 and 0.001) is a copy
+        key = tuple(_value(cell) for cell in row)
         if key in first:  # real readings differ by their noise: this is a copy
-            raise InvalidCase("measurements", f"line {number} of {path} repeats line "
-                              f"{first[key]}: a copied measurement would count as a second, "
-                              "independent one (and shrink the reported uncertainty)")
-        first[key] = number
+            line, earlier = first[key]
+            raise InvalidCase("measurements", f"row {row_number} (line {number}) of {path} "
+                              f"repeats row {earlier} (line {line}) value for value: a "
+                              "copied measurement would count as a second, independent one "
+                              "(and shrink the reported uncertainty)")
+        first[key] = (number, row_number)
     return [row for _, row in numbered[1:]], header
+
+
+def _value(cell: str) -> float | str:
+    """A cell's number (as :func:`_columns` reads it), else its text: what makes two rows
+    the same measurement."""
+    text = cell.strip()
+    try:
+        value = math.nan if "_" in text else float(text)
+    except ValueError:
+        return text
+    return text if math.isnan(value) else value
 
 
 def _columns(path: Path, rows: list[list[str]], header: list[str], names: list[str], *,

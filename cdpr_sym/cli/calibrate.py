@@ -48,12 +48,35 @@ def add_parser(command) -> None:
                         "the commanded tensions)")
     parser.add_argument("--attachments", action="store_true",
                         help="also estimate the body's attachment points (rigid bodies)")
+    parser.add_argument("--estimate-compliance", action="store_true",
+                        help="also estimate the cables' compliance 1/EA (--cable-stiffness "
+                        "is then only its start): rigid or elastic, told by the data")
     parser.add_argument("--plan", action="store_true",
                         help="choose D-optimal calibration poses instead of calibrating")
+    # --plan's own options default to None, so that one given without --plan is refused
     parser.add_argument("--poses", type=int, help="--plan: how many poses")
-    parser.add_argument("--kind", default="tracker", choices=["tracker", "self", "load-cells"],
-                        help="--plan: the campaign the poses are for")
-    parser.add_argument("--seed", type=int, default=0, help="--plan: seed of the candidates")
+    parser.add_argument("--kind", choices=["tracker", "self", "load-cells"],
+                        help="--plan: the campaign the poses are for (default tracker)")
+    parser.add_argument("--seed", type=int, help="--plan: seed of the candidates (default 0)")
+
+
+#: Options that only --plan reads, and the ones only a calibration reads.
+PLAN_OPTIONS = ("poses", "kind", "seed")
+CALIBRATION_OPTIONS = ("measurements", "load_cells", "attachments", "estimate_compliance")
+
+
+def _check_mode(args: argparse.Namespace) -> None:
+    """Refuse an option the chosen mode would ignore, naming it."""
+    if args.plan:
+        given = [name for name in CALIBRATION_OPTIONS if getattr(args, name) not in (None, False)]
+        if given:
+            raise InvalidCase(given[0], f"--{given[0].replace('_', '-')} is for a calibration "
+                              "from measurements; --plan only chooses the poses")
+        return
+    given = [name for name in PLAN_OPTIONS if getattr(args, name) is not None]
+    if given:
+        raise InvalidCase(given[0], f"--{given[0]} is for --plan (choosing the poses); a "
+                          "calibration takes its poses and kind from the measurement table")
 
 
 def _noise(args: argparse.Namespace):
@@ -82,9 +105,11 @@ def _robot(name: str) -> Robot:
 
 
 def calibrate_command(args: argparse.Namespace, out: Output) -> int:
+    _check_mode(args)
     if args.plan:
         return _plan(args, out)
     from cdpr_sym.calibration import Unknowns, calibrate
+    from cdpr_sym.calibration.adequacy import SIGNIFICANCE
     from cdpr_sym.calibration.table import campaign_from_table
     from cdpr_sym.robot.files import robot_file_text
 
@@ -102,24 +127,39 @@ def calibrate_command(args: argparse.Namespace, out: Output) -> int:
     campaign = campaign_from_table(args.measurements, robot, noise=_noise(args),
                                   stiffness=_stiffness(args.cable_stiffness),
                                   load_cells=args.load_cells)
-    result = calibrate(robot, campaign, unknowns=Unknowns(attachments=args.attachments))
+    result = calibrate(robot, campaign, unknowns=Unknowns(
+        attachments=args.attachments, compliance=args.estimate_compliance))
+    test = result.adequacy
     comment = (f"{robot.name} calibrated by cdpr-sym from {args.measurements.name}: "
                f"{campaign.size} poses, {campaign.kind} campaign, sigma0 "
-               f"{result.sigma0:.3g}\nreading residual RMS "
+               f"{result.sigma0:.3g} (chi-square {test.chi_square:.4g} on {test.dof} "
+               f"degrees of freedom, p = {test.p_value:.2g})\nreading residual RMS "
                f"{1e3 * result.residual_rms['reading']:.4g} mm")
     args.out.write_text(robot_file_text(result.robot, comment=comment), encoding="utf-8")
     lines = [f"{robot.name}: {campaign.kind} campaign, {campaign.size} poses, "
              f"{result.iterations} iterations, sigma0 {result.sigma0:.3g}",
+             f"  chi-square {test.chi_square:.4g} on {test.dof} degrees of freedom, p = "
+             f"{test.p_value:.2g} (refused below {SIGNIFICANCE:g})",
              *(f"  residual RMS {key:<9} {value:.4g}" for key, value in
                result.residual_rms.items()),
              *result.identifiability.lines()]
+    width = max(14, *(len(name) for name in result.names))
     for name, value, std in zip(result.names, result.theta, result.std, strict=True):
-        lines.append(f"  {name:<14} {100 * value:+.2f} %  +- {100 * std:.2f} %"
-                     if name == "weight error" else
-                     f"  {name:<14} {value:+.6f} m  +- {1e3 * std:.3f} mm")
+        lines.append(_estimate_line(name, value, std, width))
     lines.append(f"robot file: {args.out}")
     out.result({**result.as_dict(), "robot_file": str(args.out)}, lines)
     return 0
+
+
+def _estimate_line(name: str, value: float, std: float, width: int) -> str:
+    """One estimate in its units: % (weight error), 1/N with its EA (compliance), m."""
+    if name == "weight error":
+        return f"  {name:<{width}} {100 * value:+.2f} %  +- {100 * std:.2f} %"
+    if name == "cable compliance":
+        stiffness = (f"EA {1 / value:.3g} N" if value > 2 * std
+                     else "rigid within twice its standard deviation")
+        return f"  {name:<{width}} {value:+.4g} 1/N  +- {std:.2g} 1/N  ({stiffness})"
+    return f"  {name:<{width}} {value:+.6f} m  +- {1e3 * std:.3f} mm"
 
 
 def _plan(args: argparse.Namespace, out: Output) -> int:
@@ -133,11 +173,12 @@ def _plan(args: argparse.Namespace, out: Output) -> int:
     if args.poses is None or not 0 < args.poses <= MAX_PLAN_POSES:
         raise InvalidCase("poses", f"expected a number of poses in 1..{MAX_PLAN_POSES}, got "
                           f"{args.poses}")
-    if args.seed < 0:
-        raise InvalidCase("seed", f"expected a seed >= 0, got {args.seed}")
+    seed = 0 if args.seed is None else args.seed
+    if seed < 0:
+        raise InvalidCase("seed", f"expected a seed >= 0, got {seed}")
     if args.out is not None:
         check_file("out", args.out)
-    kind = args.kind.replace("-", " ")
+    kind = (args.kind or "tracker").replace("-", " ")
     if kind == "self" and robot.m <= robot.n:
         raise InvalidCase("kind", "self-calibration needs more cables than degrees of freedom")
     noise, stiffness = _noise(args), _stiffness(args.cable_stiffness)
@@ -146,14 +187,14 @@ def _plan(args: argparse.Namespace, out: Output) -> int:
         raise InvalidCase("poses", f"a {kind} campaign of {robot.name} needs at least "
                           f"{needed} poses, got {args.poses}")
     poses = plan_poses(robot, args.poses, kind=kind, stiffness=stiffness, noise=noise,
-                       seed=args.seed)
+                       seed=seed)
     chosen = anchor_accuracy(robot, poses, kind=kind, stiffness=stiffness, noise=noise)
     if not np.isfinite(chosen):
         raise InvalidCase("poses", f"no {args.poses} poses of a {kind} campaign identify "
                           f"{robot.name}'s anchors and offsets (the identifiability report "
                           "of 'calibrate' names what stays unknown)")
     text = write_poses(poses, robot)
-    drawn = sample_static_workspace(robot, args.poses, np.random.default_rng(args.seed + 1),
+    drawn = sample_static_workspace(robot, args.poses, np.random.default_rng(seed + 1),
                                     margin=MARGIN)
     random = anchor_accuracy(robot, drawn, kind=kind, stiffness=stiffness, noise=noise)
     summary = {"poses": poses.tolist(), "anchor_rms_bound": chosen,
