@@ -45,7 +45,7 @@ from cdpr_sym.robot.files import robot_file_text
 GUARD_TESTS = {"deadline", "time_nan", "time_stale", "time_late", "time_early", "reading_nan",
                "reading_inf", "range_garbage", "range_negative", "jump", "tension", "rate",
                "pose", "frame", "design", "ramp", "clear_running", "clear_after_init",
-               "time_window", "arguments"}
+               "time_window", "arguments", "goal", "reset_at_rest"}
 
 
 def _build(source: Path, build: Path) -> Path:
@@ -102,7 +102,7 @@ def test_the_package_runs_its_loop_bit_for_bit_trips_every_guard_and_times_itsel
     assert all(results.values()), [name for name, passed in results.items() if not passed]
     # ctest runs the three; the timing program's JSON and the header's static count
     log = _run([_tool("ctest"), "--test-dir", build, "--output-on-failure"])
-    assert "100% tests passed, 0 tests failed out of 3" in log
+    assert "100% tests passed, 0 tests failed out of 4" in log
     timing = json.loads(_run([build / "timing", "2000"]))
     assert {"median_us", "p9999_us", "max_us", "first_sample_max_us"} <= timing.keys()
     assert 0 < timing["median_us"] <= timing["p9999_us"] <= timing["max_us"]
@@ -127,7 +127,7 @@ def test_controller_sources_build_strict(winch_package, tmp_path):
     # plan (the warnings are the same; -O2 would take the compiler most of a minute)
     for name, extra in ((f"{result.prefix}.c", ()), (f"{result.prefix}_plan.c", ("-O0",)),
                         (f"{result.prefix}_plant.c", ("-O0",)), ("sil.c", ()),
-                        ("guard_test.c", ()), ("timing.c", ())):
+                        ("guard_test.c", ()), ("timing.c", ()), ("fault_sequence.c", ())):
         _run([gcc, *STRICT, *extra, "-ffp-contract=off", "-I", result.out_dir, "-c",
               result.out_dir / name, "-o", tmp_path / f"{name}.o"])
 
@@ -292,7 +292,7 @@ def test_each_guard_test_fails_when_its_check_is_removed(winch_package, tmp_path
                 "reading": {"reading_nan", "reading_inf"},
                 "range": {"range_garbage", "range_negative"}, "pose": {"pose"},
                 "jump": {"jump"}, "frame": {"frame"}, "tension": {"tension"},
-                "rate": {"rate"}, "design": {"design"}}
+                "rate": {"rate"}, "design": {"design"}, "goal": {"goal"}}
     assert set(tests_of) == set(FAULTS)
     source = result.out_dir / f"{result.prefix}.c"
     original = source.read_text()
@@ -344,11 +344,16 @@ static int sample_with(int which) {{
   if (which == 4) c.limits.max_speed = NAN;
   if (which == 5) c.limits.late_periods = 0.5;
   if (which == 6) c.limits.t_max = 1e300;
+  if (which == 7) c.limits.rest_speed = -1.0;
+  if (which == 8) c.limits.goal_tolerance = 0.0;
+  if (which == 9) c.limits.settle_time = NAN;
+  if (which == 10) c.limits.hold_stiffness = -1.0;
+  if (which == 11) c.limits.hold_damping = INFINITY;
   return {prefix}_sample(&c, counts, 0.0, 0, &out);
 }}
 int main(void) {{
   int which;
-  for (which = 1; which <= 6; ++which) {{
+  for (which = 1; which <= 11; ++which) {{
     printf("%d\\n", sample_with(which) == {upper}_INVALID_ARGUMENT);
   }}
   printf("%d\\n", sample_with(0) != {upper}_INVALID_ARGUMENT);
@@ -358,4 +363,4 @@ int main(void) {{
     library = next(build.glob(f"lib{prefix}.a"))
     _run([_tool("gcc"), "-std=c99", "-Wall", "-Werror", "-I", result.out_dir,
           tmp_path / "limits.c", library, "-lm", "-o", tmp_path / "limits"])
-    assert _run([tmp_path / "limits"]).split() == ["1"] * 7
+    assert _run([tmp_path / "limits"]).split() == ["1"] * 12

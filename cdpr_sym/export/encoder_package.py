@@ -30,6 +30,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -49,7 +50,18 @@ from cdpr_sym.export.encoder_loop import (
     locate_seeds,
     operation_count,
 )
-from cdpr_sym.export.guard import FAULTS, INVALID_ARGUMENT, NOT_ARMED, GuardLimits
+from cdpr_sym.export.guard import (
+    FAULTS,
+    HOLD_STAGES,
+    INVALID_ARGUMENT,
+    NOT_ARMED,
+    NOT_AT_REST,
+    NOT_LOCATED,
+    GuardLimits,
+    drum_cable_mode,
+    first_trip,
+    hold_cutoff,
+)
 from cdpr_sym.export.guard_cases import guard_cases
 from cdpr_sym.export.package import _GENERATOR, _make_folder, prefix_problem
 from cdpr_sym.export.software_in_loop import (
@@ -70,9 +82,16 @@ MAX_SIL_STEPS = 30_000
 #: Margin of the range check of a length read beyond the frame's geometric bounds, m: the
 #: encoders' zero errors and a calibration's residual offsets.
 RANGE_MARGIN = 0.05
+#: Torque limit of a package whose winches state none: this share of r T_max (the as-built
+#: draw's own rule, :attr:`cdpr_sym.as_built.draw.Draw.torque_margin`'s default).
+TORQUE_MARGIN = 1.5
 #: Floating-point operations and comparisons of the guard per sample, counted in
-#: ``templates/encoders/source.c.j2`` (per cable, per coordinate, fixed).
-GUARD_OPERATIONS = (24, 8, 16)
+#: ``templates/encoders/source.c.j2`` (per cable, per coordinate, fixed): 24, 8, 16 for the
+#: checks, the clip and the safe command's ramp and torque, plus per cable 5 for the read
+#: length's rates, 2 for the rest test, 8 for the hold's spring, damper and clip and 6 for
+#: reset's take-over; per coordinate 4 and fixed 5 for the watchdog and the take-over's
+#: share. The design's path and the safe command's are both counted: an upper bound.
+GUARD_OPERATIONS = (24 + 21, 8 + 4, 16 + 5)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -180,6 +199,7 @@ def export_encoder_c(robot: Robot | str | Path, controller: Controller | str,
         raise InvalidCase("as_built", f"the Python run of {checked.controller.name} on this "
                           f"robot as built stops at t = 0 ({reference.stop_reason}); the "
                           f"software in the loop would have nothing to compare")
+    _check_guard_passes(checked, functions, reference, limits, dt)
     plant = loop_plant(model, checked.plant, case.start, case.goal, case.k, case.r_d, dt)
     context = _context(checked, loop, functions, plant, reference, limits)
     texts = _texts(checked.prefix, functions, plant, reference, context)
@@ -258,6 +278,22 @@ def _check(robot, controller, out_dir, *, calibration, as_built, seed, duration,
     return _Checked(robot, model_robot, controller, label, plant, drawn.record, prefix, out)
 
 
+def _check_guard_passes(checked: _Checked, functions: dict[str, ca.Function], reference,
+                        limits: GuardLimits, dt: float) -> None:
+    """Refuse a design whose Python run on this robot as built would trip the package's
+    tension or rate check (:func:`~cdpr_sym.export.guard.first_trip`): its package would
+    fault on that sample every time it runs the case."""
+    robot = checked.model_robot
+    start_tension = np.array(functions["holding"](checked.robot.start)).ravel()
+    trip = first_trip(reference.command, start_tension, t_min=robot.t_min, t_max=robot.t_max,
+                      rate_limit=limits.rate(robot.t_min, robot.t_max), dt=dt)
+    if trip is not None:
+        raise InvalidCase("controller", f"{checked.label}'s run on {robot.name} as "
+                          f"built trips the package's guard ({trip}): the package would "
+                          f"fault there every time; export a design whose as-built run "
+                          f"keeps the guard's limits (cdpr-sym simulate --as-built shows it)")
+
+
 def _check_margin(robot: Robot, limits: GuardLimits) -> None:
     """The case's start and goal must lie inside the frame shrunk by the guard's margin."""
     margin = np.array([limits.frame_margin if j < robot.dimension else 0.0
@@ -296,6 +332,18 @@ def length_bounds(robot: Robot, cable_stiffness: float) -> tuple[np.ndarray, np.
     return np.maximum(low, 0.0), farthest + reach + RANGE_MARGIN
 
 
+def torque_limit_of(actuation, t_max: float) -> float:
+    """The package's torque limit, N m: the winches' own, else TORQUE_MARGIN r T_max; never
+    infinite (a clip at infinity clips nothing)."""
+    limit = actuation.torque_limit
+    if limit is None or not math.isfinite(limit):
+        limit = TORQUE_MARGIN * actuation.drum_radius * t_max
+    if not (math.isfinite(limit) and limit > 0):
+        raise InvalidCase("torque_limit", f"expected a finite positive torque limit, got "
+                          f"{limit!r}")
+    return float(limit)
+
+
 def _renamed(function: ca.Function, name: str) -> ca.Function:
     inputs = function.sx_in()
     return ca.Function(name, inputs, function.call(inputs), function.name_in(),
@@ -330,6 +378,7 @@ def _texts(prefix: str, functions: dict[str, ca.Function], plant: LoopPlant, ref
                  f"{prefix}_plan.c": "plan.c.j2", f"{prefix}_plant.c": "plant.c.j2",
                  f"{prefix}_plant.h": "plant.h.j2",
                  "sil.c": "sil.c.j2", "timing.c": "timing.c.j2",
+                 "fault_sequence.c": "fault_sequence.c.j2",
                  "guard_test.c": "guard_test.c.j2", "CMakeLists.txt": "CMakeLists.txt.j2",
                  "README.md": "README.md.j2"}
     texts.update({name: render("cdpr_sym.export", f"encoders/{template}", **context)
@@ -409,6 +458,18 @@ def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Funct
     design_flags = FLAG_SINGULAR | (FLAG_INFEASIBLE if planned else 0)
     offsets = np.zeros(m) if robot.encoder_offsets is None else robot.encoder_offsets
     positions = robot.dimension
+    actuation, sensing = spec.actuation, spec.sensing
+    torque_limit = torque_limit_of(actuation, robot.t_max)
+    stiffness, damping = limits.hold(mass=robot.mass, t_min=robot.t_min, t_max=robot.t_max,
+                                     drum_inertia=actuation.inertia,
+                                     drum_radius=actuation.drum_radius, dt=loop.dt)
+    rate_cutoff = sensing.velocity_cutoff
+    rate_gain = -math.expm1(-2 * math.pi * rate_cutoff * loop.dt)
+    rest_samples = max(math.ceil(3 / (2 * math.pi * rate_cutoff * loop.dt)), 2)
+    mode = drum_cable_mode(cable_stiffness=actuation.cable_stiffness,
+                           longest_cable=float(np.max(high)), drum_inertia=actuation.inertia,
+                           drum_radius=actuation.drum_radius)
+    hold_corner = hold_cutoff(mode, loop.dt)
     margin = np.array([limits.frame_margin if j < positions else 0.0 for j in range(n)])
     return {
         "prefix": checked.prefix, "upper": checked.prefix.upper(), "version": __version__,
@@ -425,7 +486,12 @@ def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Funct
         "encoder_offsets": _c_array(offsets), "calibrated": robot.encoder_offsets is not None,
         "drum_radius": c_double(spec.actuation.drum_radius),
         "cable_stiffness": c_double(spec.actuation.cable_stiffness),
-        "torque_limit": c_double(spec.actuation.parameters()[6]),
+        "torque_limit": c_double(torque_limit),
+        "rate_cutoff": c_double(rate_cutoff), "rate_gain": c_double(rate_gain),
+        "rest_samples": rest_samples, "hold_stages": HOLD_STAGES,
+        "drum_cable_mode": c_double(round(mode, 1)), "hold_cutoff": c_double(round(hold_corner, 3)),
+        "hold_gain": c_double(-math.expm1(-2 * math.pi * hold_corner * loop.dt)),
+        "not_at_rest": NOT_AT_REST, "not_located": NOT_LOCATED,
         "length_low": _c_array(low), "length_high": _c_array(high),
         "frame_low": _c_array(np.asarray(robot.frame_lower) + margin),
         "frame_high": _c_array(np.asarray(robot.frame_upper) - margin),
@@ -437,7 +503,12 @@ def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Funct
         "limits": {"max_speed": c_double(limits.max_speed),
                    "rate_limit": c_double(limits.rate(robot.t_min, robot.t_max)),
                    "late_periods": c_double(limits.late_periods),
-                   "ramp_time": c_double(limits.ramp_time)},
+                   "ramp_time": c_double(limits.ramp_time),
+                   "rest_speed": c_double(limits.rest(sensing.resolution, loop.dt)),
+                   "rest_time": c_double(limits.rest_time),
+                   "goal_tolerance": c_double(limits.goal_tolerance),
+                   "settle_time": c_double(limits.settle_time),
+                   "hold_stiffness": c_double(stiffness), "hold_damping": c_double(damping)},
         "faults": {name: {"bit": bit, "doc": doc} for name, (bit, doc) in FAULTS.items()},
         "not_armed": NOT_ARMED, "invalid_argument": INVALID_ARGUMENT,
         "design_flags": design_flags,
@@ -454,4 +525,34 @@ def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Funct
         "exact": reads_drives, "tolerance": c_double(STATE_DESIGN_TOLERANCE),
         "sil_duration": reference.t[-1], "stop_reason": reference.stop_reason,
         "as_built": checked.draw_record,
+        **_fault_sequence(reference, plant, limits, loop.dt),
     }
+
+
+#: The fault sequence's timing (s): clear_fault this long after the fault, the first reset
+#: this long after it; the run goes on this long after the watchdog's settle time.
+FAULT_CLEAR_DELAY = 0.05
+FAULT_RESET_DELAY = 0.4
+FAULT_SETTLE_EXTRA = 5.0
+#: The platform's speed (m/s, rad/s) below which the sequence's end counts as at rest.
+FAULT_REST_SPEED = 0.01
+
+
+def _fault_sequence(reference, plant: LoopPlant, limits: GuardLimits, dt: float
+                    ) -> dict[str, Any]:
+    """The numbers of ``fault_sequence.c``: the fault at the reference run's fastest sample
+    (the speed of its pose's differences), then the delays above."""
+    q = np.asarray(reference.q)
+    speed = np.linalg.norm(np.diff(q, axis=0), axis=1) / dt
+    fault_step = int(np.argmax(speed)) if speed.size else 0
+    settle_steps = round((limits.settle_time + FAULT_SETTLE_EXTRA) / dt)
+    reset_steps = round(FAULT_RESET_DELAY / dt)
+    return {"fault_step": fault_step, "fault_time": c_double(fault_step * dt),
+            "clear_steps": round(FAULT_CLEAR_DELAY / dt),
+            "clear_delay": c_double(FAULT_CLEAR_DELAY),
+            "reset_steps": reset_steps, "reset_delay": c_double(FAULT_RESET_DELAY),
+            "settle_steps": settle_steps,
+            "settle_after": c_double(limits.settle_time + FAULT_SETTLE_EXTRA),
+            "max_steps": fault_step + reset_steps + 2 * settle_steps,
+            "rest_check": c_double(FAULT_REST_SPEED),
+            "pose_offset": plant.pose_slice.start, "velocity_offset": plant.velocity_slice.start}

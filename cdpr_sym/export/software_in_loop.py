@@ -89,6 +89,8 @@ class LoopPlant:
         The stop status in x.
     tension_slice : slice
         The cables' true tension in the log.
+    pose_slice, velocity_slice : slice
+        The platform's true pose and velocity in x.
     """
 
     step: ca.Function
@@ -98,6 +100,8 @@ class LoopPlant:
     command_slice: slice
     status_index: int
     tension_slice: slice
+    pose_slice: slice
+    velocity_slice: slice
 
 
 def loop_plant(model: SymbolicModel, plant: Plant, start, goal, k, r_d, dt: float
@@ -115,7 +119,7 @@ def loop_plant(model: SymbolicModel, plant: Plant, start, goal, k, r_d, dt: floa
     p = simulator.parameters(goal, k, r_d, dt, plant)
     return LoopPlant(step, _counts_function(model, layout, effects), x0, p,
                      layout.x.slice("memory"), layout.status_index,
-                     layout.log.slice("tension"))
+                     layout.log.slice("tension"), layout.x.slice("q"), layout.x.slice("dq"))
 
 
 def _counts_function(model: SymbolicModel, layout, effects) -> ca.Function:
