@@ -103,7 +103,8 @@ def test_first_trip_finds_the_first_command_over_the_box_or_the_rate():
     steady = np.array([[10.0, 20.0], [10.5, 20.5], [11.0, 21.0]])
     assert first_trip(steady, start, t_min=2, t_max=60, rate_limit=600, dt=1e-3) is None
     # a first command that jumps from the holding tension
-    jump = first_trip(steady + np.array([3.0, 0.0]), start, t_min=2, t_max=60, rate_limit=600, dt=1e-3)
+    jump = first_trip(steady + np.array([3.0, 0.0]), start, t_min=2, t_max=60,
+                      rate_limit=600, dt=1e-3)
     assert jump.startswith("at t = 0 s cable 0's command changes by 3 N from the holding")
     # a later step in one period
     later = steady.copy()
