@@ -66,3 +66,11 @@ def test_a_changed_preset_object_is_refused():
 def test_a_preset_name_resolves_to_its_robot():
     robot, reference = robot_reference("aras3")
     assert reference == "aras3" and robot.as_dict() == preset("aras3").as_dict()
+
+
+def test_a_controller_whose_gains_the_period_cannot_hold_is_refused():
+    # ida-winch's default k_p = 500 N/m on aras3 (4.1 kg) needs dt < 0.18 s
+    _refused("stiffness", "expected k_p below", SweepConfig, robot="aras3",
+             controllers=("l2", "ida-winch"), pairs=2, duration=10.0, dt=0.2)
+    SweepConfig(robot="aras3", controllers=("l2", "ida-winch"), pairs=2, duration=10.0,
+                dt=0.1)

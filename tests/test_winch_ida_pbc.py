@@ -167,3 +167,59 @@ def test_at_rest_it_holds_the_pull_and_the_plant_stays(aras3, build_options):
 def test_bad_options_name_their_field(field, value):
     with pytest.raises(InvalidCase, match=field):
         WinchIdaPbc(**{field: value})
+
+
+@pytest.mark.parametrize(("field", "value", "said"), [
+    ("drive", {"bandwith": 500.0}, "got unknown bandwith"),
+    ("drive", {"bandwidth": float("inf")}, "bandwidth: expected a positive number in Hz"),
+    ("drive", {"cable_stiffness": "1e5"}, "cable_stiffness: expected a positive number"),
+    ("plan", {"durations": (1.0,), "speed": 2.0}, "got unknown speed")])
+def test_options_as_a_dictionary_are_refused_in_one_line_naming_the_field(field, value,
+                                                                          said):
+    with pytest.raises(InvalidCase) as raised:
+        WinchIdaPbc(**{field: value})
+    assert raised.value.field == field
+    assert said in str(raised.value) and "\n" not in str(raised.value)
+    dictionary = WinchIdaPbc().options()[field]  # what options() writes reads back
+    assert WinchIdaPbc(**{field: dictionary}) == WinchIdaPbc()
+
+
+def _sampled_radius(stiffness, damping, mass, dt):
+    """Spectral radius of a mass under a spring and damper applied through a command held
+    over dt (exact velocity): the transition of x'' = u / mass over one period, numpy."""
+    transition = np.array([[1.0, dt], [0.0, 1.0]])
+    held = np.array([[dt**2 / (2 * mass)], [dt / mass]])
+    closed = transition - held @ np.array([[stiffness, damping]])
+    return np.abs(np.linalg.eigvals(closed)).max()
+
+
+@pytest.mark.parametrize("dt", [1e-3, 2e-4])
+def test_the_sampled_gain_limit_is_where_no_damping_stabilises_the_loop(aras3, dt):
+    drive = Actuation()
+    mass = drive.inertia / drive.drum_radius**2 + aras3.mass
+    limit = 4 * mass / dt**2
+    dampings = np.r_[0.0, np.geomspace(1e-3, 1e3, 400)] * mass / dt
+    assert min(_sampled_radius(limit, c, mass, dt) for c in dampings) >= 1 - 1e-12
+    assert min(_sampled_radius(0.95 * limit, c, mass, dt) for c in dampings) < 1
+    soft = 1e-3 * limit  # a spring so soft it does not change the damping's limit
+    assert _sampled_radius(soft, 2 * mass / dt, mass, dt) >= 1 - 1e-12
+    assert _sampled_radius(soft, 1.9 * mass / dt, mass, dt) < 1
+    WinchIdaPbc(stiffness=0.99 * limit, damping=0.99 * 2 * mass / dt).check_period(
+        aras3.mass, dt)
+    for field, value in (("stiffness", limit), ("damping", 2 * mass / dt)):
+        with pytest.raises(InvalidCase) as raised:
+            WinchIdaPbc(**{field: value}).check_period(aras3.mass, dt)
+        assert raised.value.field == field and f"{dt:g} s" in str(raised.value)
+
+
+def test_a_gain_no_sampled_loop_holds_is_refused_before_building(monkeypatch):
+    from cdpr_sym.closed_loop import simulator as simulator_module
+
+    def building(*args, **kwargs):
+        raise AssertionError("built before the gain check")
+
+    monkeypatch.setattr(simulator_module, "get_simulator", building)
+    with pytest.raises(InvalidCase) as raised:  # gave 3,330 N tensions on aras3
+        simulator_module.simulate("aras3", WinchIdaPbc(stiffness=1e12), duration=1.0)
+    assert raised.value.field == "stiffness" and "1e+12" in str(raised.value)
+    assert WinchIdaPbc().check_period(4.0, 1e-3) is None  # the defaults at 1 kHz

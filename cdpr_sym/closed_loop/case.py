@@ -101,6 +101,15 @@ def minimal_values_per_step(robot: Robot) -> int:
     return (2 * robot.n + 1) + (robot.m + 3 + robot.n_j)
 
 
+def check_controller_period(controller: object, robot: Robot, dt: float) -> None:
+    """Raise :class:`InvalidCase` naming the gain when ``controller`` has gains no loop
+    sampled every ``dt`` s can hold on ``robot`` (a controller that states such a limit
+    has a ``check_period(robot_mass, dt)`` method, as ``ida-winch`` does)."""
+    check = getattr(controller, "check_period", None)
+    if check is not None:
+        check(robot.mass, dt)
+
+
 def check_timing(duration: float, dt: float, *, values_per_step: int = 1) -> int:
     """Validate a run's length and control period (s); the number of steps.
 

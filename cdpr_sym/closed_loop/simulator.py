@@ -24,7 +24,12 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.as_built.stability import check_integrable
-from cdpr_sym.closed_loop.case import Case, check_timing, minimal_values_per_step
+from cdpr_sym.closed_loop.case import (
+    Case,
+    check_controller_period,
+    check_timing,
+    minimal_values_per_step,
+)
 from cdpr_sym.closed_loop.effects import AsBuiltReadout, StartContext, plant_effects
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
@@ -414,6 +419,7 @@ class Simulator:
                    plant: Plant) -> np.ndarray:
         """The step's parameter vector p for a move to ``goal`` (m) with gains ``k`` (N/m),
         ``r_d`` (N s/m), period ``dt`` (s) and ``plant``."""
+        check_controller_period(self.controller, self.robot, dt)
         if plant.as_built is not None:
             plant.as_built.check_period(dt)
         values: dict[str, object] = {}
@@ -678,6 +684,7 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=N
     """
     robot, controller = resolve_robot(robot), controller_by_name(controller)
     check_timing(duration, dt, values_per_step=minimal_values_per_step(robot))
+    check_controller_period(controller, robot, dt)  # before building: gains dt can hold
     if capabilities(controller).sampled:
         from cdpr_sym.closed_loop.sampled import steps_per_sample
 

@@ -77,6 +77,38 @@ def _positive(field: str, value: object, unit: str, *, zero: bool = False) -> fl
     return positive_number(field, value, unit, zero=zero)
 
 
+def _from_options(field: str, kind: type, value: object) -> object:
+    """``value`` itself, or ``kind(**value)`` for a dictionary (as :meth:`options` writes
+    it); a key ``kind`` does not take or a value it refuses is :class:`InvalidCase` naming
+    ``field``, the key and what is wrong."""
+    if not isinstance(value, dict):
+        return value
+    known = [item.name for item in dataclasses.fields(kind)]
+    unknown = sorted(str(key) for key in value if key not in known)
+    if unknown:
+        raise InvalidCase(field, f"expected the fields of {kind.__name__} "
+                          f"({', '.join(known)}), got unknown {', '.join(unknown)}")
+    try:
+        return kind(**value)
+    except InvalidCase as error:
+        raise InvalidCase(field, f"{error.field}: {error.message}") from None
+
+
+#: The largest k_p dt^2 / (J / r^2 + M) and k_d dt / (J / r^2 + M) any sampled loop can hold
+#: (dt the control period, J / r^2 the drum's inertia on its cable, M the robot's mass): a
+#: spring k and a damper c applied through a command held over dt to one mass m (drum and
+#: platform moving together, the most inertia one motor can move) give the loop
+#: z^2 - (2 - a/2 - b) z + 1 - b + a/2 with a = k dt^2 / m, b = c dt / m (exact velocity,
+#: the most favourable reading); Jury's conditions hold only for a/2 < b < 2, so only for
+#: a < 4, and with k = 0 only for b < 2. The law reads worse than exact velocity (the
+#: encoders' difference quotient, its filters) through the cable between drum and platform:
+#: on a drum-cable-platform model (1-25 kg, 0.5-4 m of the default cable, dt 0.2-1 ms, the
+#: law's filters as shipped and others) the stiffest k_p any k_d made stable was at least
+#: 5 times below this limit, so a gain at or over it cannot be stable.
+SAMPLED_STIFFNESS_LIMIT = 4.0
+SAMPLED_DAMPING_LIMIT = 2.0
+
+
 @dataclasses.dataclass(frozen=True)
 class WinchIdaPbc:
     """IDA-PBC of the robot as built at its motors (``ida-winch``; see the module docstring).
@@ -86,10 +118,11 @@ class WinchIdaPbc:
     stiffness : float
         k_p, N/m of cable: the motor spring shaping the energy in l0. Default 500 N/m, fifty
         times softer than a 4 m default cable (EA / l0 = 25,000 N/m), so the platform rides
-        on the motor springs in series with the stiff cables.
+        on the motor springs in series with the stiff cables. A run refuses one no loop
+        sampled at its period can hold (:meth:`check_period`).
     damping : float
         k_d, N s/m of cable, >= 0: the damping injected on the drum velocities (0 leaves the
-        storage constant on a lossless plant). Default 40 N s/m.
+        storage constant on a lossless plant). Default 40 N s/m; bounded as k_p is.
     drive : Actuation
         The controller's model of the winches (EA, drum radius and inertia, friction); the
         plant's may differ.
@@ -122,10 +155,9 @@ class WinchIdaPbc:
     name: ClassVar[str] = "ida-winch"
 
     def __post_init__(self) -> None:
-        if isinstance(self.plan, dict):  # as options() writes it
-            object.__setattr__(self, "plan", SmoothReference(**self.plan))
-        if isinstance(self.drive, dict):
-            object.__setattr__(self, "drive", Actuation(**self.drive))
+        # either may be a dictionary, as options() writes it
+        object.__setattr__(self, "plan", _from_options("plan", SmoothReference, self.plan))
+        object.__setattr__(self, "drive", _from_options("drive", Actuation, self.drive))
         if not isinstance(self.plan, SmoothReference):
             raise InvalidCase("plan", f"expected a SmoothReference, got {self.plan!r}")
         if not isinstance(self.drive, Actuation):
@@ -144,6 +176,26 @@ class WinchIdaPbc:
         if isinstance(stages, bool) or not isinstance(stages, int) or not 1 <= stages <= 8:
             raise InvalidCase("feedback_stages", f"expected a whole number in 1..8, "
                               f"got {stages!r}")
+
+    def check_period(self, robot_mass: float, dt: float) -> None:
+        """Raise :class:`InvalidCase` (``stiffness``, ``damping``) for gains no loop sampled
+        every ``dt`` s can hold stable on a robot of ``robot_mass`` kg:
+        k_p dt^2 / m >= :data:`SAMPLED_STIFFNESS_LIMIT` or k_d dt / m >=
+        :data:`SAMPLED_DAMPING_LIMIT`, m = J / r^2 + M (see those constants). At 1 kHz on
+        aras3 (4 kg) the limits are 1.6e7 N/m and 8,200 N s/m; the defaults are 500 N/m and
+        40 N s/m."""
+        drive = self.drive
+        inertia = drive.inertia / drive.drum_radius**2 + robot_mass  # kg, on one cable
+        stiffness = SAMPLED_STIFFNESS_LIMIT * inertia / dt**2
+        if self.stiffness >= stiffness:
+            raise InvalidCase("stiffness", f"expected k_p below 4 (J/r^2 + M) / dt^2 = "
+                              f"{stiffness:.3g} N/m, the stiffest spring a loop sampled every "
+                              f"{dt:g} s can hold on {inertia:.3g} kg; got {self.stiffness:g}")
+        damping = SAMPLED_DAMPING_LIMIT * inertia / dt
+        if self.damping >= damping:
+            raise InvalidCase("damping", f"expected k_d below 2 (J/r^2 + M) / dt = "
+                              f"{damping:.3g} N s/m, the most damping a loop sampled every "
+                              f"{dt:g} s can hold on {inertia:.3g} kg; got {self.damping:g}")
 
     def options(self) -> dict[str, Any]:
         return {"stiffness": self.stiffness, "damping": self.damping,

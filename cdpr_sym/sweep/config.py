@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cdpr_sym.closed_loop import Plant
-from cdpr_sym.closed_loop.case import check_timing
+from cdpr_sym.closed_loop.case import check_controller_period, check_timing
 from cdpr_sym.closed_loop.effects.readout import check_draw_runs
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
@@ -103,6 +103,9 @@ class SweepConfig:
             raise InvalidCase("controllers", f"{', '.join(repeated)} listed more than once; "
                               "each controller gives one row per pair")
         check_timing(self.duration, self.dt)  # each run's size, before any is started
+        robot = resolve_robot(self.robot)
+        for name in self.controllers:  # gains no loop at dt can hold, before any run
+            check_controller_period(controller_by_name(name), robot, self.dt)
         Plant(mass_scale=self.mass_scale)
         if self.as_built is None and self.calibration != "none":
             raise InvalidCase("calibration", "a calibration needs a robot as built "
@@ -115,7 +118,6 @@ class SweepConfig:
                               f"{self.calibration!r}")
         draw = self.draw()  # a missing or malformed file is refused here, before any run
         if draw is not None:
-            robot = resolve_robot(self.robot)
             check_draw_runs(robot, draw, self.seed, self.dt, robot.start,
                             [controller_by_name(name) for name in self.controllers],
                             calibration=self.calibration)
