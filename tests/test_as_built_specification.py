@@ -68,3 +68,46 @@ def test_anchor_offsets_of_another_frame_are_refused():
     with pytest.raises(InvalidCase) as refused:
         AsBuilt(anchor_offsets=np.full((3, 3), 1e3))
     assert refused.value.field == "anchor_offsets"
+
+
+def test_a_torque_loop_no_substep_count_can_follow_is_refused_naming_bandwidth():
+    # 2.5 x 64 / (2 pi dt): the fastest loop 64 RK4 substeps follow at dt
+    dt = 1e-3
+    fastest = 2.5 * 64 / (2 * np.pi * dt)
+    AsBuilt(actuation=Actuation(bandwidth=0.999 * fastest), substeps=64).check_period(dt)
+    for bandwidth in (1.001 * fastest, 1e308):  # 1e308 gave an OverflowError traceback
+        with pytest.raises(InvalidCase) as refused:
+            AsBuilt(actuation=Actuation(bandwidth=bandwidth), substeps=64).check_period(dt)
+        assert refused.value.field == "bandwidth"
+        assert "25.5 times the control rate" in str(refused.value)
+    with pytest.raises(InvalidCase) as refused:  # within reach of more substeps: substeps
+        AsBuilt(actuation=Actuation(bandwidth=0.999 * fastest), substeps=2).check_period(dt)
+    assert refused.value.field == "substeps"
+
+
+def test_encoders_coarser_than_a_hundredth_of_the_frame_are_refused(aras3):
+    side = min(np.subtract(aras3.frame_upper, aras3.frame_lower))  # aras3: 3.56 m
+    assert aras3.frame_side == side
+    AsBuilt(sensing=Sensing(resolution=0.01 * side)).check_robot(aras3.m, 3, side)
+    AsBuilt(sensing=Sensing(resolution=0.5)).check_robot(aras3.m, 3)  # no frame: unchecked
+    with pytest.raises(InvalidCase) as refused:
+        AsBuilt(sensing=Sensing(resolution=0.5)).check_robot(aras3.m, 3, side)
+    assert refused.value.field == "resolution" and "got 0.5 m" in str(refused.value)
+
+
+@pytest.mark.parametrize(("table", "field"), [
+    ("[actuation]\nbandwidth = 1e308\n", "bandwidth"),
+    ("[sensing]\nresolution = 0.5\n", "resolution")])
+def test_an_as_built_file_out_of_range_is_one_line_before_any_run(capsys, tmp_path,
+                                                                  monkeypatch, table, field):
+    from cdpr_sym.cli import main
+
+    def building(*args, **kwargs):
+        raise AssertionError("built before the as-built check")
+
+    monkeypatch.setattr("cdpr_sym.closed_loop.simulator.get_simulator", building)
+    (tmp_path / "as_built.toml").write_text(table)
+    assert main(["simulate", "--as-built", str(tmp_path / "as_built.toml"),
+                 "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"cdpr-sym: error: {field}: "), err

@@ -12,6 +12,7 @@ import reference as ref
 
 from cdpr_sym import InvalidRobot, Robot, UnknownName, load_robot, preset, resolve_robot
 from cdpr_sym.robot import robot_from_dict
+from cdpr_sym.robot.description import MASS_RANGE, MAX_TENSION
 
 
 def _preset_text(name: str) -> str:
@@ -322,3 +323,27 @@ def test_an_angle_range_of_more_than_a_turn_is_refused(robot_name, index, field,
     with pytest.raises(InvalidRobot, match=r"inside \[-pi, pi\]") as raised:
         robot.with_case(**{field: bounds.tolist()})
     assert raised.value.field == field
+
+
+@pytest.mark.parametrize(("change", "field", "said"), [
+    ({"mass": 1e-308}, "mass", "expected a mass from 0.001 to 1e+06 kg, got 1e-308"),
+    ({"mass": 9.9e-4}, "mass", "got 0.00099"), ({"mass": 1.01e6}, "mass", "got 1.01e+06"),
+    ({"t_max": 1e300}, "t_max", "at most 1e+07 N, got 1e+300")])
+def test_a_mass_or_box_whose_accelerations_overflow_is_refused(aras3, change, field, said):
+    with pytest.raises(InvalidRobot) as raised:
+        aras3.with_case(**change)
+    assert raised.value.field == field and said in str(raised.value)
+
+
+def test_the_mass_and_box_limits_are_accepted_and_keep_accelerations_finite(aras3):
+    for mass in MASS_RANGE:
+        robot = aras3.with_case(mass=mass, t_max=MAX_TENSION)
+        # the box's largest acceleration, every cable at T_max along one axis, in numpy
+        assert np.isfinite(robot.m * robot.t_max / robot.mass + robot.gravity)
+
+
+def test_a_mass_in_a_robot_file_is_range_checked(tmp_path):
+    text = _preset_text("aras3").replace("mass = 4.0", "mass = 1e-308")
+    with pytest.raises(InvalidRobot) as raised:
+        load_robot(_write(tmp_path, text))
+    assert raised.value.field == "mass"

@@ -93,7 +93,9 @@ class Actuation:
         Largest motor torque, N m; None (default) leaves the torque unlimited.
     bandwidth : float
         Torque (current) loop bandwidth, Hz; default 500 Hz (servo drives close their current
-        loop at 1-4 kHz; 500 Hz is a conservative figure for the torque at the drum).
+        loop at 1-4 kHz; 500 Hz is a conservative figure for the torque at the drum). A run
+        refuses one over 2.5 x 64 / (2 pi), about 25 times its control rate, the fastest
+        loop the most RK4 substeps can follow (:meth:`AsBuilt.check_period`).
     """
 
     cable_stiffness: float = 1e5
@@ -145,7 +147,8 @@ class Sensing:
     resolution : float
         Encoder resolution in cable length, m; 0 reads exact lengths. Default 1e-5 m: a
         12-bit motor encoder behind a 5:1 gear on a 0.03 m drum reads
-        2 pi 0.03 / (4096 * 5) = 9.2e-6 m per count.
+        2 pi 0.03 / (4096 * 5) = 9.2e-6 m per count. A run refuses one over
+        :data:`MAX_RESOLUTION_SHARE` of the robot's frame.
     velocity_cutoff : float
         Cut-off of the velocity filter, Hz; default 50 Hz.
     consistency : float
@@ -165,10 +168,26 @@ class Sensing:
         _positive("velocity_cutoff", self.velocity_cutoff, "Hz")
         _positive("consistency", self.consistency, "m", zero=True)
 
+    def check_frame(self, side: float) -> None:
+        """Raise :class:`InvalidCase` (``resolution``) for encoders coarser than
+        :data:`MAX_RESOLUTION_SHARE` of ``side``, the frame box's smallest side (m)."""
+        most = MAX_RESOLUTION_SHARE * side
+        if self.resolution > most:
+            raise InvalidCase("resolution", f"expected an encoder resolution of at most "
+                              f"{MAX_RESOLUTION_SHARE:.0%} of the frame's smallest side "
+                              f"({side:g} m), {most:g} m; got {self.resolution:g} m")
+
     def parameters(self) -> list[float]:
         """The numbers the generated step reads: resolution (m), cut-off (Hz), consistency
         (m); see :data:`SENSING_PARAMETERS`."""
         return [self.resolution, self.velocity_cutoff, self.consistency]
+
+
+#: Coarsest encoder resolution, as a share of the frame box's smallest side: the pose read
+#: from encoders is uncertain by about one count, and at 1 % a move across the frame still
+#: spans a hundred counts (the default 1e-5 m is 3e-6 of aras3's 3.56 m side; a 1 mm
+#: encoder on the smallest preset frame, ipanema8's 1.4 m, is 0.07 %).
+MAX_RESOLUTION_SHARE = 0.01
 
 
 #: The order of :meth:`Sensing.parameters` in the step's parameter vector.
@@ -278,7 +297,8 @@ class AsBuilt:
     def check_period(self, dt: float) -> None:
         """Raise :class:`InvalidCase` (``substeps``) when, at the control period ``dt``
         (s), one RK4 substep of the torque loop (a pole at -2 pi bandwidth) would leave
-        :data:`TORQUE_LOOP_STEP_LIMIT`: the run would diverge, not just lose accuracy; and
+        :data:`TORQUE_LOOP_STEP_LIMIT`: the run would diverge, not just lose accuracy
+        (``bandwidth`` when even the most substeps, :data:`SUBSTEP_RANGE`, could not); and
         (``velocity_cutoff``) for a velocity filter at or above the Nyquist frequency
         1 / (2 dt). The cables and drums, which need the robot, are checked by
         :func:`~cdpr_sym.as_built.stability.check_integrable`."""
@@ -292,7 +312,14 @@ class AsBuilt:
     def _check_torque_loop(self, dt: float) -> None:
         if self.actuation is None:
             return
-        rate = 2 * math.pi * self.actuation.bandwidth  # 1/s
+        rate = 2 * math.pi * self.actuation.bandwidth  # 1/s; inf for a bandwidth near 1e308
+        fastest = TORQUE_LOOP_STEP_LIMIT * SUBSTEP_RANGE[1] / (2 * math.pi * dt)
+        if not rate * dt / SUBSTEP_RANGE[1] <= TORQUE_LOOP_STEP_LIMIT:
+            raise InvalidCase("bandwidth", f"expected a torque loop of at most "
+                              f"{TORQUE_LOOP_STEP_LIMIT:g} x {SUBSTEP_RANGE[1]} / (2 pi) = "
+                              f"{fastest * dt:.3g} times the control rate, {fastest:.4g} Hz at "
+                              f"dt = {dt:g} s (the most {SUBSTEP_RANGE[1]} RK4 substeps can "
+                              f"follow), got {self.actuation.bandwidth:g} Hz")
         if rate * dt / self.substeps > TORQUE_LOOP_STEP_LIMIT:
             needed = math.ceil(rate * dt / TORQUE_LOOP_STEP_LIMIT)
             raise InvalidCase("substeps", f"expected at least {needed} RK4 substeps for a "
@@ -306,9 +333,14 @@ class AsBuilt:
         return AsBuiltStructure(self.actuation is not None, self.sensing is not None,
                                 self.delay, self.anchor_offsets is not None, self.substeps)
 
-    def check_robot(self, cables: int, dimension: int) -> None:
+    def check_robot(self, cables: int, dimension: int, frame_side: float | None = None
+                    ) -> None:
         """Raise :class:`InvalidCase` (``anchor_offsets``) unless the offsets fit a robot
-        with ``cables`` anchors in ``dimension`` world coordinates."""
+        with ``cables`` anchors in ``dimension`` world coordinates, and (``resolution``)
+        unless the encoders resolve its frame, whose box's smallest side is ``frame_side``
+        m (:meth:`Sensing.check_frame`; not checked without it)."""
+        if self.sensing is not None and frame_side is not None:
+            self.sensing.check_frame(frame_side)
         if self.anchor_offsets is not None and self.anchor_offsets.shape != (cables, dimension):
             raise InvalidCase("anchor_offsets", f"expected shape ({cables}, {dimension}), got "
                               f"{self.anchor_offsets.shape}")

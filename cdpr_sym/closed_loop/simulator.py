@@ -413,7 +413,8 @@ class Simulator:
                               f"effects {self.as_built}, the plant has {structure} "
                               f"(simulate() chooses the step)")
         if plant.as_built is not None:
-            plant.as_built.check_robot(self.robot.m, self.robot.dimension)
+            plant.as_built.check_robot(self.robot.m, self.robot.dimension,
+                                       self.robot.frame_side)
 
     def parameters(self, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, dt: float,
                    plant: Plant) -> np.ndarray:
@@ -691,6 +692,7 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=N
         steps_per_sample(controller, dt)  # before building: dt must divide its period
     if plant.as_built is not None:
         plant.as_built.check_period(dt)  # before building: enough substeps for dt
+        plant.as_built.check_robot(robot.m, robot.dimension, robot.frame_side)
         # at the robot's own case (the run checks its start and goal again)
         check_integrable(SymbolicModel(robot), plant.as_built.actuation, dt,
                          plant.as_built.substeps, (robot.start, robot.goal))

@@ -53,6 +53,16 @@ MAX_CABLES = 64
 #: Roll-pitch-yaw is singular at pitch = +-pi/2; frames must keep this far from it, rad.
 PITCH_LIMIT = 1.5
 
+#: Lightest and heaviest end-effector, kg: a gram-scale platform to a thousand tonnes
+#: (FAST's feed cabin, the heaviest cable-suspended one built, is about 30 t). Within it and
+#: under :data:`MAX_TENSION` the accelerations the box can give (at most
+#: MAX_CABLES x MAX_TENSION / 1e-3 kg = 6.4e11 m/s^2), the weights and the energies all
+#: stay far inside float64; a mass of 1e-308 kg made every acceleration overflow.
+MASS_RANGE = (1e-3, 1e6)
+
+#: Largest upper tension bound, N (10 MN: beyond any cable a robot has used).
+MAX_TENSION = 1e7
+
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Robot:
@@ -68,11 +78,11 @@ class Robot:
         make the robot fully actuated; m > n redundantly actuated (W has a null space of
         internal tension, see :mod:`cdpr_sym.distribution`).
     mass : float
-        End-effector mass, kg.
+        End-effector mass, kg, within :data:`MASS_RANGE`.
     gravity : float
         Gravitational acceleration along minus the last world axis, m/s^2.
     t_min, t_max : float
-        Tension bounds T_m < T_M, N.
+        Tension bounds 0 <= T_m < T_M <= :data:`MAX_TENSION`, N.
     frame_lower, frame_upper : ndarray, shape (n,)
         Axis-aligned box the end-effector must stay inside, m.
     start, goal : ndarray, shape (n,)
@@ -231,6 +241,12 @@ class Robot:
         return np.concatenate([force, moment])
 
     @property
+    def frame_side(self) -> float:
+        """The smallest side of the frame box over the position coordinates, m."""
+        sides = (self.frame_upper - self.frame_lower)[: self.dimension]
+        return float(sides.min())
+
+    @property
     def n_j(self) -> int:
         """Number of free entries of the skew matrix J_d, n(n-1)/2."""
         return self.n * (self.n - 1) // 2
@@ -313,8 +329,13 @@ class Robot:
                 f"[{self.frame_lower[4]}, {self.frame_upper[4]}]")
 
     def _check_physics(self) -> None:
-        if self.mass <= 0:
-            raise InvalidRobot("mass", f"expected a positive mass in kg, got {self.mass}")
+        low, high = MASS_RANGE
+        if not low <= self.mass <= high:
+            raise InvalidRobot("mass", f"expected a mass from {low:g} to {high:g} kg, got "
+                               f"{self.mass:g}")
+        if self.t_max > MAX_TENSION:
+            raise InvalidRobot("t_max", f"expected a tension bound of at most "
+                               f"{MAX_TENSION:g} N, got {self.t_max:g}")
         if self.gravity < 0:
             raise InvalidRobot("gravity", f"expected g >= 0 in m/s^2, got {self.gravity}")
         if self.t_min < 0:

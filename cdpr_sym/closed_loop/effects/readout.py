@@ -153,7 +153,8 @@ def check_draw_runs(robot: Robot, draw: AsBuiltDraw, seed: int, dt: float, start
                     controllers: Iterable[Controller], *, calibration: str = "none") -> None:
     """Before any build or run: raise :class:`InvalidCase` when pair 0's robot as built
     (seed ``seed``) cannot be run at the control period ``dt``: too few substeps for its
-    torque loop or a velocity filter at Nyquist (:meth:`AsBuilt.check_period`), cables and
+    torque loop or a velocity filter at Nyquist (:meth:`AsBuilt.check_period`), encoders too
+    coarse for the frame (:meth:`AsBuilt.check_robot`), cables and
     drums no fixed-step run can follow (:func:`~cdpr_sym.as_built.stability.check_integrable`,
     at the robot's case), or, uncalibrated, encoders that a controller of ``controllers``
     reading the pose could not read held at ``start`` (:meth:`AsBuiltReadout.check_readable`,
@@ -165,6 +166,7 @@ def check_draw_runs(robot: Robot, draw: AsBuiltDraw, seed: int, dt: float, start
 
     mass_scale, spec = draw.draw_pair(robot, seed, 0)
     spec.check_period(dt)
+    spec.check_robot(robot.m, robot.dimension, robot.frame_side)
     model = SymbolicModel(robot)
     check_integrable(model, spec.actuation, dt, spec.substeps, (robot.start, robot.goal))
     if calibration != "none" or spec.sensing is None or all(
