@@ -243,3 +243,36 @@ def test_a_distribution_function_refuses_sizes_that_are_not_counts(n, m, field):
     with pytest.raises(InvalidCase) as refused:
         distribution_function("min_norm", n, m, 2.0, 60.0)
     assert refused.value.field == field
+
+
+@pytest.mark.parametrize(("arguments", "field", "said"), [
+    ((np.ones((3, 2)), np.ones(2)), "W", "expected shape (2, 3) for n = 2, m = 3, got (3, 2)"),
+    ((np.ones((2, 4)), np.ones(2)), "W", "got (2, 4)"),
+    ((np.ones(6), np.ones(2)), "W", "got (6,)"),
+    ((np.ones((2, 3)), np.ones(3)), "w", "expected shape (2,) for n = 2, m = 3, got (3,)"),
+    ((np.ones((2, 3)), np.ones((2, 2))), "w", "got (2, 2)"),
+    ((np.ones((2, 3)), [[1.0, 2.0], [3.0]]), "w", "expected numbers of shape (2,)"),
+    ((ca.DM.ones(3, 2), ca.DM.ones(2)), "W", "got (3, 2)"),
+    ((np.ones((2, 3)),), "w", "expected two arguments, W and w, got 1")],
+    ids=["transposed W", "wide W", "flat W", "long w", "square w", "ragged w", "DM W",
+         "no w"])
+def test_a_distribution_function_refuses_wrong_shapes_in_one_line(arguments, field, said):
+    function = distribution_function("min_norm", 2, 3, LO, HI)
+    with pytest.raises(InvalidCase) as refused:
+        function(*arguments)
+    assert refused.value.field == field
+    assert said in str(refused.value) and "\n" not in str(refused.value)
+
+
+def test_a_distribution_function_takes_w_as_a_row_column_or_by_name_and_symbols(rng):
+    function = distribution_function("min_norm", 2, 3, LO, HI)
+    W, w = rng.normal(size=(2, 3)), np.array([30.0, 40.0])
+    expected = np.array(function(W, w)[0]).ravel()
+    for shaped in (w.reshape(2, 1), w.reshape(1, 2), w.tolist()):
+        np.testing.assert_array_equal(np.array(function(W, shaped)[0]).ravel(), expected)
+    np.testing.assert_array_equal(np.array(function(W=W, w=w)["tau"]).ravel(), expected)
+    tau, _ = function(ca.SX.sym("W", 2, 3), ca.SX.sym("w", 2))
+    assert tau.shape == (3, 1)
+    with pytest.raises(InvalidCase) as refused:
+        function(W=W)
+    assert refused.value.field == "W"

@@ -82,19 +82,66 @@ def distribute(name: str, W: ca.SX, w: ca.SX, t_min: float, t_max: float
     return METHODS[check_method(name, *W.shape)][0](W, w, t_min, t_max)
 
 
+class DistributionFunction(ca.Function):
+    """A generated ``tension_<name>`` function whose Python calls check the shapes of W
+    (n x m) and w (n; a row or column of n too), so a wrong one is :class:`InvalidCase`
+    naming the argument and the shape it needs, not CasADi's multi-line error. It is a
+    :class:`casadi.Function` for everything else (code generation, ``map``, symbols)."""
+
+    def __init__(self, function: ca.Function, n: int, m: int) -> None:
+        super().__init__(function)
+        #: The shapes the call takes: W (n, m) and w (n,).
+        self.shapes = {"W": (n, m), "w": (n,)}
+
+    def __call__(self, *args: object, **kwargs: object) -> object:
+        if kwargs:  # by name: (W=..., w=...) -> a dictionary of the outputs
+            if args or set(kwargs) != set(self.shapes):
+                raise InvalidCase("W", f"expected the arguments W and w by name, got "
+                                  f"{', '.join(sorted(kwargs))}")
+            return super().__call__(**{field: self._checked(field, value)
+                                       for field, value in kwargs.items()})
+        if len(args) != 2:
+            raise InvalidCase("W" if not args else "w", f"expected two arguments, W and w, "
+                              f"got {len(args)}")
+        return super().__call__(*(self._checked(field, value)
+                                  for field, value in zip(self.shapes, args, strict=True)))
+
+    def _checked(self, field: str, value: object) -> object:
+        """``value`` (a CasADi matrix as it is, numbers as a float array) once its shape
+        is the one ``field`` takes, else :class:`InvalidCase` naming ``field``."""
+        expected = self.shapes[field]
+        rows, *columns = expected
+        wanted = f"({rows}, {columns[0]})" if columns else f"({rows},)"
+        if not isinstance(value, (ca.SX, ca.MX, ca.DM)):
+            try:  # ragged nested lists and text are not arrays of numbers
+                value = np.asarray(value, dtype=float)
+            except (TypeError, ValueError):
+                raise InvalidCase(field, f"expected numbers of shape {wanted}, got "
+                                  f"{value!r}") from None
+        shape = tuple(value.shape)
+        fits = (shape in (expected, (rows, 1), (1, rows)) if field == "w"
+                else shape == expected)
+        if not fits:
+            raise InvalidCase(field, f"expected shape {wanted} for n = {rows}, "
+                              f"m = {self.shapes['W'][1]}, got {shape}")
+        return value
+
+
 def distribution_function(name: str, n: int, m: int, t_min: float, t_max: float
-                          ) -> ca.Function:
+                          ) -> DistributionFunction:
     """``tension_<name>``: (W (n x m), w (n)) -> (tau (m) N, feasible), for generation.
 
     Raises
     ------
     InvalidCase
         An unknown or unfitting method (``distribution``); a tension bound that is not a
-        finite number, negative, or a box with t_min >= t_max (``t_min``, ``t_max``).
+        finite number, negative, or a box with t_min >= t_max (``t_min``, ``t_max``). The
+        returned function raises it too, naming ``W`` or ``w``, when called with an
+        argument of another shape.
     """
     check_bounds(t_min, t_max)
     name = check_method(name, n, m)
     W, w = ca.SX.sym("W", n, m), ca.SX.sym("w", n)
     tau, feasible = distribute(name, W, w, t_min, t_max)
-    return ca.Function(f"tension_{name}", [W, w], [tau, feasible], ["W", "w"],
-                       ["tau", "feasible"])
+    return DistributionFunction(ca.Function(f"tension_{name}", [W, w], [tau, feasible],
+                                            ["W", "w"], ["tau", "feasible"]), n, m)
