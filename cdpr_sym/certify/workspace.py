@@ -178,17 +178,27 @@ class WorkspaceCertificate:
         header = [f"lower_{name}" for name in self.names] + [
             f"upper_{name}" for name in self.names] + ["verdict"] + [
             f"witness_{side}_{angle}" for side in ("lower", "upper") for angle in angles]
-        rows = [",".join(header)]
-        for index, (lo, hi, verdict) in enumerate(zip(self.lower, self.upper, self.verdicts,
-                                                      strict=True)):
-            witness = []
-            if angles:
-                piece = self.witness[index]
-                witness = ([repr(float(v)) for corner in self.pieces
-                            for v in corner[piece]] if piece >= 0 else [""] * 2 * len(angles))
-            rows.append(",".join([*(repr(float(v)) for v in lo), *(repr(float(v)) for v in hi),
-                                  verdict, *witness]))
+        columns = [_texts(column) for column in (*self.lower.T, *self.upper.T)]
+        columns.append(self.verdicts.astype(object))
+        if angles:
+            missing = np.array([""], dtype=object)
+            for corner in self.pieces:
+                for column in corner.T:
+                    texts = np.concatenate([_texts(column), missing])
+                    columns.append(texts[np.where(self.witness >= 0, self.witness, -1)])
+        rows = columns[0]
+        for column in columns[1:]:
+            rows = rows + "," + column
+        rows = [",".join(header), *rows.tolist()]
         path.write_text("\n".join(rows) + "\n")
+
+
+def _texts(values: np.ndarray) -> np.ndarray:
+    """Each float as ``repr`` writes it (the shortest text that reads back the same double),
+    an object array; each distinct value formatted once (the boxes' corners are few values
+    repeated)."""
+    distinct, index = np.unique(values, return_inverse=True)
+    return np.array([repr(float(v)) for v in distinct], dtype=object)[index.ravel()]
 
 
 def margin_function(model: SymbolicModel, orientation: np.ndarray,
