@@ -21,12 +21,14 @@ count is zero.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.certify.budget import STOPS
 from cdpr_sym.certify.workspace import METHODS, WorkspaceCertificate, proof_method
 from cdpr_sym.model import SymbolicModel
 
@@ -152,7 +154,11 @@ def summary(certificate: WorkspaceCertificate, check: dict[str, Any] | None) -> 
             "orientation_pieces_per_angle": (
                 None if certificate.pieces is None
                 else [len(np.unique(column)) for column in certificate.pieces[0].T]),
-            "min_width_m": certificate.min_width, "boxes": len(certificate.verdicts),
+            "min_width_m": certificate.min_width, "until": certificate.until,
+            "time_limit_s": (None if math.isinf(certificate.time_limit)
+                             else certificate.time_limit),
+            "stopped": certificate.stopped, "stopped_because": STOPS[certificate.stopped],
+            "boxes": len(certificate.verdicts),
             "boxes_evaluated": certificate.evaluated, "seconds": certificate.seconds,
             "feasible_share": shares["feasible"], "infeasible_share": shares["infeasible"],
             "undecided_share": shares["undecided"],

@@ -50,8 +50,8 @@ feasible at each position of a box): :mod:`cdpr_sym.certify.poses`.
 from __future__ import annotations
 
 import dataclasses
+import math
 import numbers
-import time
 from pathlib import Path
 
 import casadi as ca
@@ -62,6 +62,15 @@ from cdpr_sym.certify.anchored import (
     normals_function,
     slopes_function,
     terms_function,
+)
+from cdpr_sym.certify.budget import (
+    DEFAULT_TIME_LIMIT,
+    Clock,
+    Progress,
+    check_time_limit,
+    first_level_over,
+    halvings,
+    surface_levels,
 )
 from cdpr_sym.certify.evaluate import IntervalFunction, centred
 from cdpr_sym.certify.poses import OverOrientations, orientation_pieces, pose_inputs
@@ -90,6 +99,10 @@ MIN_BOX_WIDTH = 1e-5
 #: whole angle range at the default step would be thousands of pieces, days of work).
 ORIENTATION_STEP = 0.05
 MAX_PIECES = 512
+#: The share of the frame's volume decided by default before refining stops: aras3 at 5 mm
+#: reaches it in about 25 s (its last 1 % is a thin shell round the boundary, which would
+#: need a level of about ten million boxes).
+DEFAULT_UNTIL = 0.99
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,6 +140,12 @@ class WorkspaceCertificate:
     witness : ndarray, optional
         Per box, the piece over which an infeasible box was proven infeasible (-1 for the
         other boxes).
+    stopped : str
+        Why the refinement stopped, a key of :data:`~cdpr_sym.certify.budget.STOPS`.
+    until : float
+        The share of the volume asked for.
+    time_limit : float
+        s of branch-and-bound allowed (``inf``: none).
     """
 
     robot: Robot
@@ -143,6 +162,9 @@ class WorkspaceCertificate:
     orientation_range: tuple[np.ndarray, np.ndarray] | None = None
     pieces: tuple[np.ndarray, np.ndarray] | None = None
     witness: np.ndarray | None = None
+    stopped: str = "complete"
+    until: float = 1.0
+    time_limit: float = math.inf
 
     def volumes(self) -> np.ndarray:
         return np.prod(self.upper - self.lower, axis=1)
@@ -246,11 +268,18 @@ def check_min_width(min_width: float, largest: float, field: str = "min_width") 
 
 
 def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.005,
-                      until: float = 1.0, compiled: bool = True, half_widths=None,
+                      until: float = DEFAULT_UNTIL, compiled: bool = True, half_widths=None,
                       prop: str = "static", orientation_range=None,
                       orientation_step: float | None = None,
+                      time_limit: float = DEFAULT_TIME_LIMIT,
                       progress=None) -> WorkspaceCertificate:
     """The certified static workspace of ``robot`` over its frame (module docstring).
+
+    The refinement stops at the first of ``until``, ``min_width`` and ``time_limit`` (or a
+    level too large for memory) and keeps every verdict found; what it has not decided is
+    reported undecided (:mod:`cdpr_sym.certify.budget`). Options whose work is estimated
+    to need a level too large for memory before any of these stops it are refused after
+    the first second of work.
 
     Parameters
     ----------
@@ -261,8 +290,9 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
     min_width : float
         Boxes narrower than this (m, widest side) are not bisected further.
     until : float
-        Stop refining once this share of the frame's volume is decided (1.0: refine every
-        undecided box down to ``min_width``); the boxes left are reported undecided.
+        Stop refining once this share of the frame's volume is decided (checked after each
+        level; default :data:`DEFAULT_UNTIL`; 1.0: refine every undecided box down to
+        ``min_width``); the boxes left are reported undecided.
     compiled : bool
         Evaluate the margins in generated C (:mod:`cdpr_sym.certify.interval_c`); False:
         numpy (:mod:`cdpr_sym.certify.evaluate`), about eight times slower, the same
@@ -282,8 +312,13 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
     orientation_step : float, optional
         The range is decided in pieces at most this wide on every angle, rad (default
         :data:`ORIENTATION_STEP`; only with a range).
+    time_limit : float
+        Stop refining after this many seconds of branch-and-bound (checked between chunks
+        of about half a second; default
+        :data:`~cdpr_sym.certify.budget.DEFAULT_TIME_LIMIT`, ``math.inf`` for none); the
+        boxes not decided by then, evaluated or not, are reported undecided.
     progress : callable, optional
-        Called with (level, boxes at that level, decided volume share so far).
+        Called after every chunk with a :class:`~cdpr_sym.certify.budget.Progress`.
 
     Raises
     ------
@@ -292,9 +327,13 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
         given with it, of the wrong size, empty or outside the frame
         (``orientation_range``), a step not positive or cutting the range into more than
         :data:`MAX_PIECES` pieces (``orientation_step``), a minimum width not positive
-        (``min_width``), a wrench box of the wrong size or negative (``half_widths``).
+        (``min_width``), a wrench box of the wrong size or negative (``half_widths``), a
+        time limit not positive (``time_limit``); work estimated to need a level of more
+        than twice :data:`MAX_LEVEL_BOXES` boxes before ``until`` (``until``) or the
+        minimum width (``min_width``) or the time limit stops it.
     """
     d = robot.dimension
+    time_limit = check_time_limit(time_limit)
     check_min_width(min_width, float(np.max(np.subtract(robot.frame_upper[:d],
                                                           robot.frame_lower[:d]))))
     pieces = span = None
@@ -320,46 +359,93 @@ def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.00
     decide = _verdicts_by(method, model, None if pieces else orientation, compiled, wrench)
     if pieces:
         decide = OverOrientations(decide, *pieces)
-    started = time.perf_counter()
-    lower = np.asarray(robot.frame_lower[:d], dtype=float)[None, :]
-    upper = np.asarray(robot.frame_upper[:d], dtype=float)[None, :]
-    decided_lower, decided_upper, decided, witnesses = [], [], [], []
-    evaluated, level, total = 0, 0, float(np.prod(upper - lower))
-    done_volume = 0.0
-    while len(lower):
-        if len(lower) > MAX_LEVEL_BOXES:
-            raise InvalidCase("min_width", f"{len(lower):,} boxes at one level; choose a "
-                              f"larger minimum width than {min_width} m")
-        evaluated += len(lower)
-        parts, found = [], []
-        for start in range(0, len(lower), CHUNK):
-            parts.append(decide(lower[start:start + CHUNK], upper[start:start + CHUNK]))
-            found.append(decide.witnesses if pieces else np.full(len(parts[-1]), -1))
-        verdict, witness = np.concatenate(parts), np.concatenate(found)
-        widths = upper - lower
-        final = (verdict != 2) | (widths.max(axis=1) <= min_width)
-        undecided_volume = float(np.prod(widths[verdict == 2], axis=1).sum())
-        if done_volume + float(np.prod(widths[verdict != 2], axis=1).sum()) >= until * total \
-                or not undecided_volume:
-            final[:] = True
-        decided_lower.append(lower[final])
-        decided_upper.append(upper[final])
-        decided.append(verdict[final])
-        witnesses.append(witness[final])
-        done_volume += float(np.prod(widths[final & (verdict != 2)], axis=1).sum())
-        if progress is not None:
-            progress(level, len(lower), done_volume / total)
-        lower, upper = bisect(lower[~final], upper[~final])
-        level += 1
-    seconds = time.perf_counter() - started
+    run = _BranchAndBound(robot, decide, min_width=float(min_width), until=float(until),
+                          time_limit=time_limit, progress=progress, witnesses=bool(pieces))
     names = tuple(robot.coordinate_names[:d])
-    codes = np.concatenate(decided)
-    return WorkspaceCertificate(robot, names, orientation, np.vstack(decided_lower),
-                                np.vstack(decided_upper),
-                                np.array(VERDICTS, dtype=object)[codes], float(min_width),
-                                seconds, evaluated,
+    return WorkspaceCertificate(robot, names, orientation, run.lower, run.upper,
+                                np.array(VERDICTS, dtype=object)[run.codes], float(min_width),
+                                run.seconds, run.evaluated,
                                 np.zeros(0) if wrench is None else wrench, prop, span,
-                                pieces, np.concatenate(witnesses))
+                                pieces, run.witness, run.stopped, float(until), time_limit)
+
+
+class _BranchAndBound:
+    """The frame's boxes decided level by level, with the stop rules and the refusal of
+    :mod:`cdpr_sym.certify.budget`; the results are its attributes (lower, upper, codes,
+    witness, evaluated, seconds, stopped)."""
+
+    def __init__(self, robot: Robot, decide, *, min_width: float, until: float,
+                 time_limit: float, progress, witnesses: bool) -> None:
+        d = robot.dimension
+        clock = Clock(time_limit, CHUNK)
+        lower = np.asarray(robot.frame_lower[:d], dtype=float)[None, :]
+        upper = np.asarray(robot.frame_upper[:d], dtype=float)[None, :]
+        total = float(np.prod(upper - lower))
+        found_lower, found_upper, found, witness = [], [], [], []
+        volumes = np.zeros(2)  # proven, disproven
+        level, stopped = 0, None
+        while len(lower):
+            verdict = np.full(len(lower), 2)
+            seen = np.full(len(lower), -1)
+            done = 0
+            for part in clock.chunks(len(lower)):
+                verdict[part], done = decide(lower[part], upper[part]), part.stop
+                if witnesses:
+                    seen[part] = decide.witnesses
+                volumes += [float(np.prod(upper[part][verdict[part] == k]
+                                          - lower[part][verdict[part] == k], axis=1).sum())
+                            for k in (0, 1)]
+                if progress is not None:
+                    progress(Progress(level, len(lower), clock.evaluated,
+                                      volumes[0] / total, volumes[1] / total,
+                                      clock.elapsed(), time_limit))
+            widths = upper - lower
+            final = (verdict != 2) | (widths.max(axis=1) <= min_width)
+            if done < len(lower):  # out of time: the rest of the level stays undecided
+                final[:], stopped = True, "time_limit"
+            elif np.all(final):
+                stopped = "complete"
+            elif volumes.sum() >= until * total:
+                final[:], stopped = True, "until"
+            elif clock.out():
+                final[:], stopped = True, "time_limit"
+            elif 2 * np.sum(~final) > MAX_LEVEL_BOXES:  # the estimate let it through
+                final[:], stopped = True, "memory"
+            found_lower.append(lower[final])
+            found_upper.append(upper[final])
+            found.append(verdict[final])
+            witness.append(seen[final])
+            if stopped is None and clock.probing():
+                _refuse_what_cannot_finish(widths[~final], total, min_width, until, clock)
+            lower, upper = bisect(lower[~final], upper[~final])
+            level += 1
+        self.seconds, self.evaluated = clock.elapsed(), clock.evaluated
+        self.stopped = stopped or "complete"
+        self.lower, self.upper = np.vstack(found_lower), np.vstack(found_upper)
+        self.codes, self.witness = np.concatenate(found), np.concatenate(witness)
+
+
+def _refuse_what_cannot_finish(widths: np.ndarray, total: float, min_width: float,
+                               until: float, clock: Clock) -> None:
+    """InvalidCase when the boxes left undecided (sides ``widths``, m) are estimated to
+    need a level more than OVER times :data:`MAX_LEVEL_BOXES` before a stop rule
+    (:func:`~cdpr_sym.certify.budget.surface_levels`), naming ``until`` when it is what
+    ends the refinement, else ``min_width``."""
+    if not len(widths):
+        return
+    share = float(np.prod(widths, axis=1).sum()) / total
+    levels = surface_levels(len(widths), share, widths[0], min_width, until)
+    over = first_level_over(levels, MAX_LEVEL_BOXES, clock)
+    if over is None:
+        return
+    by_width = len(levels) == halvings(widths[0], min_width)
+    field = "min_width" if by_width else "until"
+    goal = f"{100 * until:g} % of the frame" + (f" down to boxes of {min_width:g} m"
+                                               if by_width else "")
+    raise InvalidCase(field, f"deciding {goal} is estimated to need a level of about "
+                      f"{levels[over - 1]:,.0f} boxes, more than the {MAX_LEVEL_BOXES:,} that "
+                      f"fit; choose a smaller --until, a larger --min-width, or a "
+                      f"--time-limit that stops it first")
 
 
 def _verdicts_by(method: str, model: SymbolicModel, orientation: np.ndarray | None,

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -18,14 +20,23 @@ MAX_SAMPLES = 10_000_000
 MAX_PAIR_SAMPLES = 100_000
 #: m: half the side of the default start and goal regions (around the case's start and goal).
 DEFAULT_HALF_WIDTH = 0.15
+#: Poses of the workspace's sampled check by default; with more cables than degrees of
+#: freedom each pose is classified by hyperplane shifting (about 20 us a pose on ipanema8,
+#: 20 s for a million), so a tenth of them.
+DEFAULT_SAMPLES, DEFAULT_SAMPLES_REDUNDANT = 1_000_000, 100_000
+#: At most one progress line a second on stderr.
+PROGRESS_SECONDS = 1.0
 
 
 def add_parser(command) -> None:
     """The ``certify`` command's options."""
+    from cdpr_sym.certify.budget import DEFAULT_TIME_LIMIT
+    from cdpr_sym.certify.workspace import DEFAULT_UNTIL
+
     parser = command("certify", "prove over regions instead of sampling: the static (or "
                      "wrench-feasible) workspace over boxes of the frame, or a design's "
                      "tension box over pairs of start and goal boxes (smooth or ida-ref, point "
-                     "masses, m = n <= 3)")
+                     "masses, m = n <= 3)", progress=True)
     parser.add_argument("what", choices=["workspace", "pairs"], help="what to certify")
     parser.add_argument("--robot", default="aras3", help="a preset or a robot file")
     parser.add_argument("--orientation", nargs="+", type=float, metavar="RAD",
@@ -43,11 +54,16 @@ def add_parser(command) -> None:
     parser.add_argument("--min-width", type=float, default=None,
                         help="boxes narrower than this (m) are not bisected further (default: "
                              "0.005 for the workspace, the box side for pairs)")
-    parser.add_argument("--until", type=float, default=1.0,
-                        help="stop refining once this share of the frame's volume is decided")
+    parser.add_argument("--until", type=float, default=DEFAULT_UNTIL,
+                        help="workspace: stop refining once this share of the frame's volume "
+                             "is decided (1: refine every undecided box to --min-width)")
+    parser.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT, metavar="S",
+                        help="stop refining after this many seconds, keeping what is decided "
+                             "and reporting the rest undecided (inf: no limit)")
     parser.add_argument("--samples", type=int, default=None,
-                        help="poses (workspace, default 1,000,000) or pairs (pairs, default "
-                             "300) of the sampled check (0: none)")
+                        help="poses (workspace, default 1,000,000; 100,000 with more cables "
+                             "than degrees of freedom) or pairs (pairs, default 300) of the "
+                             "sampled check (0: none)")
     pairs = parser.add_argument_group("pairs")
     pairs.add_argument("--controller", default="smooth",
                        help="the design whose pairs are certified (smooth or ida-ref)")
@@ -98,16 +114,19 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     robot = with_wrench_box(robot, args.force, args.moment)
     half_widths = robot.wrench_half_widths if np.any(robot.wrench_half_widths) else None
 
-    samples = 1_000_000 if args.samples is None else args.samples
+    samples = ((DEFAULT_SAMPLES if robot.m == robot.n else DEFAULT_SAMPLES_REDUNDANT)
+               if args.samples is None else args.samples)
     if isinstance(samples, bool) or not 0 <= samples <= MAX_SAMPLES:
         raise InvalidCase("samples", f"expected 0 to {MAX_SAMPLES:,} poses, got {samples}")
     min_width = 0.005 if args.min_width is None else args.min_width
     orientation, orientation_range = _orientation(robot, args.orientation)
-    certificate = certify_workspace(robot, orientation=orientation,
-                                    orientation_range=orientation_range,
-                                    orientation_step=args.orientation_step,
-                                    min_width=min_width, until=args.until,
-                                    half_widths=half_widths, prop=args.property)
+    with ProgressLine(enabled=_progress(args)) as progress:
+        certificate = certify_workspace(robot, orientation=orientation,
+                                        orientation_range=orientation_range,
+                                        orientation_step=args.orientation_step,
+                                        min_width=min_width, until=args.until,
+                                        half_widths=half_widths, prop=args.property,
+                                        time_limit=args.time_limit, progress=progress)
     check = (sampled_check(certificate, samples, np.random.default_rng(args.seed))
              if samples else None)
     content = write_certificate(certificate, args.out, check)
@@ -121,13 +140,68 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     lines = [f"{robot.name}{what}: {100 * content['decided_share']:.2f} % of the frame decided "
              f"({100 * content['feasible_share']:.2f} % {held}, "
              f"{100 * content['infeasible_share']:.2f} % {failed}) in "
-             f"{content['seconds']:.1f} s, {content['boxes']:,} boxes"]
+             f"{content['seconds']:.1f} s, {content['boxes']:,} boxes"
+             f"{_stopped(certificate.stopped, args)}"]
     if check is not None:
         wrong = check["disagreements_feasible"] + check["disagreements_infeasible"]
         lines.append(f"sampled check: {check['samples']:,} poses, {wrong} disagreements")
     lines.append(f"written: {args.out}")
     out.result(content, lines)
     return 0
+
+
+def _progress(args: argparse.Namespace) -> bool:
+    return not (getattr(args, "quiet", False) or getattr(args, "no_progress", False))
+
+
+def _stopped(stopped: str, args: argparse.Namespace) -> str:
+    """The end of the summary line: why the refinement stopped, and what decides more."""
+    if stopped == "until":
+        return f"; stopped at --until {args.until:g}"
+    if stopped == "time_limit":
+        return (f"; stopped at the time limit ({args.time_limit:g} s): the rest is undecided, "
+                f"a longer --time-limit decides more")
+    if stopped == "memory":
+        return ("; stopped: the next level would not fit in memory (a smaller --until or a "
+                "larger --min-width)")
+    return ""
+
+
+class ProgressLine:
+    """The branch-and-bound's :class:`~cdpr_sym.certify.budget.Progress` on stderr, at most
+    once every :data:`PROGRESS_SECONDS`: redrawn in place by tqdm on a terminal, one plain
+    line each time otherwise (a log). A context manager; as a callable it takes the
+    progress, and it is None when disabled."""
+
+    def __init__(self, *, enabled: bool, stream=None) -> None:
+        self.enabled, self.stream = enabled, stream if stream is not None else sys.stderr
+        self.bar, self.shown = None, time.perf_counter()
+
+    def __enter__(self):
+        if not self.enabled:
+            return None
+        if self.stream.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=100, desc="certify", file=self.stream, dynamic_ncols=True,
+                            bar_format="{desc}: {bar:20} {postfix}")
+        return self
+
+    def __exit__(self, *exception: object) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+    def __call__(self, progress) -> None:
+        now = time.perf_counter()
+        if now - self.shown < PROGRESS_SECONDS:
+            return
+        self.shown = now
+        if self.bar is None:
+            print(f"certify: {progress.line()}", file=self.stream, flush=True)
+            return
+        self.bar.n = round(100 * (progress.proven + progress.disproven), 2)
+        self.bar.set_postfix_str(progress.line(), refresh=False)
+        self.bar.refresh()
 
 
 def _orientation(robot, values) -> tuple[list | None, tuple | None]:
