@@ -100,3 +100,63 @@ def test_a_study_record_of_the_wrong_shape_is_refused_in_one_line(name, record, 
     assert main(["report", name, str(folder)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and err.startswith("cdpr-sym: error: results:")
+
+
+@pytest.mark.parametrize(("file", "change", "said"), [
+    ("tensions.json", lambda d: {k: v for k, v in d.items() if k != "designs"},
+     "designs is missing"),
+    ("tensions.json", lambda d: {**d, "designs": [1, 2]},
+     "designs: expected a non-empty object, got [1, 2]"),
+    ("tensions.json", lambda d: {**d, "designs": {}}, "designs: expected a non-empty object"),
+    ("tensions.json", lambda d: [1, 2], "expected a non-empty object, got [1, 2]"),
+    ("tensions.json", lambda d: None, "expected a non-empty object, got None"),
+    ("tensions.json", lambda d: {**d, "pair": "first"}, "pair: expected a whole number"),
+    ("tensions.json", lambda d: {**d, "t_max": d["t_min"]}, "t_max: expected a bound above"),
+    ("tensions.json", lambda d: {**d, "designs": {"l2": {"meets_target": "yes",
+                                                         "tension": [[1.0]]}}},
+     "designs.l2.meets_target: expected true or false"),
+    ("tensions.json", lambda d: {**d, "designs": {"l2": {"meets_target": True,
+                                                         "tension": [[1.0, 2.0], [1.0]]}}},
+     "designs.l2.tension[1]: expected a row of 2 numbers"),
+    ("tensions.json", lambda d: {**d, "designs": {"l2": {"meets_target": True,
+                                                         "tension": [[1.0, "x"]]}}},
+     "designs.l2.tension[0][1]: expected a finite number"),
+    ("summary.json", lambda d: {**d, "ideal": []}, "ideal: expected a non-empty object"),
+    ("summary.json", lambda d: {e: {k: {**v, "meets_target": 1.5} for k, v in row.items()}
+                                for e, row in d.items()},
+     "meets_target: expected a finite number in [0, 1] or null, got 1.5"),
+    ("summary.json", lambda d: {e: {k: {**v, "held": v["pairs"] + 1} for k, v in row.items()}
+                                for e, row in d.items()}, ".held: expected a whole number"),
+    ("summary.json", lambda d: {**d, "extra": {"l2": next(iter(d.values()))["l2"]}},
+     "extra: expected the designs"),
+    ("study.json", lambda d: {**d, "designs": "l2"}, "designs: expected a non-empty list"),
+    ("study.json", lambda d: {**d, "robot": {**d["robot"], "mass": "heavy"}},
+     "its robot is not one"),
+    ("study.json", lambda d: {**d, "effects": {"ideal": 3}}, "effects.ideal: expected"),
+], ids=["no designs", "designs a list", "no design", "a list", "null", "pair text",
+        "empty box", "verdict text", "ragged tensions", "text tension", "effect a list",
+        "share over 1", "more held than pairs", "designs differ", "designs text",
+        "robot mass text", "effect a number"])
+def test_a_damaged_robustness_file_is_one_line_naming_it(file, change, said, tmp_path,
+                                                         capsys):
+    folder = _as_cloned("robustness", tmp_path)
+    path = folder / file
+    path.write_text(json.dumps(change(json.loads(path.read_text()))))
+    assert main(["report", "robustness", str(folder)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith(f"cdpr-sym: error: results: {path} is damaged: "), err[0]
+    assert said in err[0], err[0]
+    assert not (folder / "report.md").exists()
+
+
+def test_a_template_value_missing_from_any_study_is_one_line_naming_the_files(
+        tmp_path, capsys, monkeypatch):
+    # a study whose files pass their own checks but lack what its template reads
+    from cdpr_sym.studies import robustness
+
+    folder = _as_cloned("robustness", tmp_path)
+    monkeypatch.setattr(robustness, "read_traces", lambda path: {"designs": {}})
+    assert main(["report", "robustness", str(folder)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "study.json, summary.json" in err[0], err

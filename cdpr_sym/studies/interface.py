@@ -18,7 +18,7 @@ import dataclasses
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from cdpr_sym.errors import InvalidCase
+from cdpr_sym.errors import CdprError, InvalidCase
 
 if TYPE_CHECKING:
     from cdpr_sym.robot import Robot
@@ -147,12 +147,30 @@ class Study(abc.ABC):
                                   f"({self.runs_note}); run 'cdpr-sym study {self.name}' to "
                                   "compute them")
             return self.render(folder)
-        except (KeyError, TypeError, AttributeError, IndexError) as failure:
+        except CdprError:
+            raise  # already one line naming what is wrong
+        except (LookupError, TypeError, AttributeError, ValueError, ArithmeticError
+                ) as failure:
             # the stored files are input here: a field missing or of the wrong kind is a
-            # damaged or foreign file, refused in one line
-            raise InvalidCase("results", f"the stored files of {folder} are not a computed "
+            # damaged or foreign file, refused in one line naming the files read (a study
+            # that checks its files names the very file and entry before this)
+            raise InvalidCase("results", f"the stored files of {folder} "
+                              f"({', '.join(self._read_files(folder))}) are not a computed "
                               f"{self.name} study's ({type(failure).__name__}: {failure}); "
                               f"run 'cdpr-sym study {self.name}' to compute them") from None
+        except Exception as failure:
+            from jinja2 import TemplateError
+
+            if isinstance(failure, TemplateError):  # a value the template reads is missing
+                raise InvalidCase("results", f"the stored files of {folder} "
+                                  f"({', '.join(self._read_files(folder))}) lack what the "
+                                  f"{self.name} report reads ({failure}); run 'cdpr-sym "
+                                  f"study {self.name}' to compute them") from None
+            raise
+
+    def _read_files(self, folder: Path) -> list[str]:
+        """The names of the stored files a report of ``folder`` reads."""
+        return [STUDY_FILE, *(path.name for path in self.aggregate_files(folder))]
 
     def run(self, folder: Path, request: StudyRequest) -> Any:
         """Compute into ``folder``, then report from the files; returns the result."""

@@ -18,7 +18,7 @@ from typing import Any
 
 from cdpr_sym.closed_loop import simulate
 from cdpr_sym.control import controller_by_name
-from cdpr_sym.errors import InvalidCase
+from cdpr_sym.errors import InvalidCase, InvalidRobot
 from cdpr_sym.results import Trajectory
 from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
@@ -76,5 +76,9 @@ def read_study(folder: Path) -> dict[str, Any]:
     if data.get("robot") is not None:
         if not isinstance(data["robot"], dict):
             raise InvalidCase("results", f"{folder / STUDY_FILE} names no robot description")
-        data["robot"] = Robot(**data["robot"])
+        try:
+            data["robot"] = Robot(**data["robot"])
+        except (TypeError, InvalidRobot) as wrong:  # a field missing, unknown or refused
+            raise InvalidCase("results", f"{folder / STUDY_FILE} is damaged: its robot is "
+                              f"not one ({wrong})") from None
     return data

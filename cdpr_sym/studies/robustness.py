@@ -42,8 +42,15 @@ from cdpr_sym.results import SETTLE_TOLERANCE
 from cdpr_sym.results.judging import SETTLE_WITHIN, STEP_LIMIT, meets_target
 from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
-from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyOptions, StudyRequest
+from cdpr_sym.studies.interface import (
+    REPORT_FILE,
+    STUDY_FILE,
+    Study,
+    StudyOptions,
+    StudyRequest,
+)
 from cdpr_sym.studies.outline import SUMMARY_FILE, read_study, write_study
+from cdpr_sym.studies.stored import StoredFile
 from cdpr_sym.workspace import sample_static_workspace
 
 #: The designs compared: the paper's l2, its clipped PD baseline, the two smooth ones and
@@ -392,6 +399,77 @@ def _share(rows: list[dict[str, Any]]) -> float | None:
     return sum(r["meets_target"] for r in rows) / len(rows) if rows else None
 
 
+def read_traces(path: Path) -> dict[str, Any]:
+    """``tensions.json`` (:func:`tension_traces`), every value the report and its figure
+    read checked: a damaged file is one :class:`InvalidCase` naming it and the entry."""
+    stored = StoredFile(path, STUDY.name)
+    traces = stored.mapping(read_json(path))
+    stored.number(stored.entry(traces, "pair"), "pair", low=0, whole=True)
+    stored.number(stored.entry(traces, "stride"), "stride", low=1, whole=True)
+    if not stored.number(stored.entry(traces, "dt"), "dt", low=0) > 0:
+        stored.wrong("dt", "a period > 0 s", traces["dt"])
+    t_min = stored.number(stored.entry(traces, "t_min"), "t_min")
+    if not stored.number(stored.entry(traces, "t_max"), "t_max") > t_min:
+        stored.wrong("t_max", f"a bound above t_min = {t_min:g}", traces["t_max"])
+    designs = stored.mapping(stored.entry(traces, "designs"), "designs")
+    for design, trace in designs.items():
+        where = f"designs.{design}"
+        trace = stored.mapping(trace, where)
+        stored.flag(stored.entry(trace, "meets_target", where), f"{where}.meets_target")
+        stored.rows(stored.entry(trace, "tension", where), f"{where}.tension")
+    return traces
+
+
+def read_summary(path: Path) -> dict[str, Any]:
+    """``summary.json`` (:func:`summary`): per effect, the same designs, each with its
+    counts and shares checked; a damaged file is one :class:`InvalidCase` naming it."""
+    stored = StoredFile(path, STUDY.name)
+    table = stored.mapping(read_json(path))
+    designs = None
+    for effect, row in table.items():
+        row = stored.mapping(row, effect)
+        if designs is None:
+            designs = list(row)
+        elif list(row) != designs:
+            stored.wrong(effect, f"the designs {', '.join(designs)}", list(row))
+        for design, value in row.items():
+            where = f"{effect}.{design}"
+            value = stored.mapping(value, where)
+            pairs = stored.number(stored.entry(value, "pairs", where), f"{where}.pairs",
+                                  low=0, whole=True)
+            held = stored.number(stored.entry(value, "held", where), f"{where}.held",
+                                 low=0, high=pairs, whole=True)
+            stored.number(value.get("readable", held), f"{where}.readable", low=0,
+                          high=held, whole=True)
+            for key in ("meets_target", "meets_target_readable"):
+                if key in value or key == "meets_target":
+                    stored.number(stored.entry(value, key, where), f"{where}.{key}", low=0,
+                                  high=1, none=True)
+            misses = value.get("misses", {})
+            if not isinstance(misses, dict):
+                stored.wrong(f"{where}.misses", "an object of counts", misses)
+            for reason, count in misses.items():
+                stored.number(count, f"{where}.misses.{reason}", low=0, whole=True)
+    return table
+
+
+def _checked_study(folder: Path) -> dict[str, Any]:
+    """``study.json`` with the values :meth:`RobustnessStudy.render` reads checked."""
+    path = folder / STUDY_FILE
+    study, stored = read_study(folder), StoredFile(path, STUDY.name)
+    for key in ("pairs", "seed"):
+        stored.number(stored.entry(study, key), key, low=0, whole=True)
+    for key in ("duration", "dt"):
+        stored.number(stored.entry(study, key), key, low=0)
+    stored.text_list(stored.entry(study, "designs"), "designs")
+    for effect, spec in stored.mapping(stored.entry(study, "effects"), "effects").items():
+        stored.mapping(spec, f"effects.{effect}")
+    scan = study.get("damping_scan")
+    if scan is not None:
+        stored.mapping(scan, "damping_scan")
+    return study
+
+
 def write_robustness_report(out_dir: Path) -> dict[str, Any]:
     """``report.md`` from the stored files alone (with the stored runs: ``summary.json``
     and ``shares.png`` from them first). Returns the summary table."""
@@ -512,11 +590,11 @@ class RobustnessStudy(Study):
         write_json(folder / SUMMARY_FILE, table)
         _figure(table, folder / "shares.png")
         if (folder / TRACES_FILE).exists():
-            _traces_figure(read_json(folder / TRACES_FILE), folder / TRACES_FIGURE)
+            _traces_figure(read_traces(folder / TRACES_FILE), folder / TRACES_FIGURE)
 
     def render(self, folder: Path) -> dict[str, Any]:
-        study = read_study(folder)
-        table = read_json(folder / SUMMARY_FILE)
+        study = _checked_study(folder)
+        table = read_summary(folder / SUMMARY_FILE)
         designs = study["designs"]
         (folder / REPORT_FILE).write_text(render_report(
             "robustness.md.j2", robot=study["robot"], pairs=study["pairs"],
@@ -525,7 +603,7 @@ class RobustnessStudy(Study):
             misread=misread_effects(table, designs), best=best_by_effect(table),
             best_readable=best_readable_by_effect(table), scan=study.get("damping_scan"),
             counted=counting(table), calibration=calibration_summary(study),
-            traces=(read_json(folder / TRACES_FILE) if (folder / TRACES_FILE).exists()
+            traces=(read_traces(folder / TRACES_FILE) if (folder / TRACES_FILE).exists()
                     else None),
             default_damping=Actuation().cable_damping, tolerance=SETTLE_TOLERANCE),
             encoding="utf-8")
