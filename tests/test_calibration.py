@@ -160,7 +160,10 @@ def _tracker_errors(robot: Robot, poses: np.ndarray | None, draws: int
         poses = (sample_static_workspace(robot, 20, rng, margin=0.05) if chosen is None
                  else chosen)
         campaign = simulate_campaign(robot, truth, poses, rng)
-        result = calibrate(robot, campaign)
+        # the chi-square test refuses about one right campaign in a thousand (box4's
+        # seventh chosen one here: its tracker noise alone is a 1e-4 draw); the statistic
+        # is over every draw
+        result = calibrate(robot, campaign, significance=0.0)
         theta = truth.theta(robot, result.unknowns)
         error = (result.theta - theta)[:robot.m * robot.dimension]
         squares.append(np.mean(error ** 2))

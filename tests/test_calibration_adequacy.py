@@ -95,6 +95,19 @@ def test_rigid_cables_fitted_as_elastic_ones_are_refused_naming_the_stiffness():
     assert "chi-square" in message and "times the stated noise" in message
 
 
+def test_the_significance_is_an_option_and_zero_turns_the_refusal_off():
+    robot, _, campaign = _rigid_tracker_campaign()
+    elastic = dataclasses.replace(campaign, stiffness=1e5)
+    result = calibrate(robot, elastic, unknowns=Unknowns(), significance=0.0)
+    assert result.adequacy.p_value < 1e-100 and not result.adequacy.adequate
+    with pytest.raises(InvalidCase, match=r"p = 0.69 < 0.9"):
+        calibrate(robot, campaign, significance=0.9)
+    for bad in (-0.1, 1.0, float("nan")):
+        with pytest.raises(InvalidCase) as refused:
+            calibrate(robot, campaign, significance=bad)
+        assert refused.value.field == "significance"
+
+
 def test_noise_larger_than_stated_is_refused():
     """A tracker three times noisier than stated: sigma0 near 3, once taken (under 5)."""
     robot = preset("aras3")

@@ -90,7 +90,7 @@ class Adequacy:
 
     @property
     def adequate(self) -> bool:
-        """Whether the test passes at :data:`SIGNIFICANCE`."""
+        """Whether the test passes at the default :data:`SIGNIFICANCE`."""
         return self.p_value >= SIGNIFICANCE
 
     def as_dict(self) -> dict[str, Any]:

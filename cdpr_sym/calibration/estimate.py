@@ -335,8 +335,8 @@ def default_unknowns(robot: Robot, campaign: Campaign, attachments: bool = False
     return Unknowns(attachments=attachments, weight=weight, compliance=compliance)
 
 
-def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns | None = None
-              ) -> Calibration:
+def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns | None = None,
+              significance: float = SIGNIFICANCE) -> Calibration:
     """Estimate the anchors and encoder offsets (and attachments) of ``robot`` from
     ``campaign``.
 
@@ -349,6 +349,11 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns | None = N
     unknowns : Unknowns, optional
         Default :func:`default_unknowns`. ``Unknowns(compliance=True)`` estimates the
         cables' compliance 1 / EA (the campaign's stiffness only its start).
+    significance : float
+        The chi-square test's level (:mod:`cdpr_sym.calibration.adequacy`): a fit whose
+        upper-tail probability is below it is refused. Default 1e-3; 0 turns the refusal
+        off (statistics over many simulated campaigns, which refusing the unlucky draws
+        would bias; the result still carries the test).
 
     Returns
     -------
@@ -363,6 +368,9 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns | None = N
         :mod:`cdpr_sym.calibration.adequacy` (the model or the stated noise is wrong).
     """
     campaign.check_robot(robot.n, robot.m)
+    if not 0 <= significance < 1:  # NaN too
+        raise InvalidCase("significance", f"expected a probability in [0, 1), got "
+                          f"{significance!r}")
     unknowns = unknowns or default_unknowns(robot, campaign)
     model = MeasurementModel(robot, unknowns, campaign.stiffness)
     _check_compliance(model, campaign)
@@ -384,15 +392,17 @@ def calibrate(robot: Robot, campaign: Campaign, *, unknowns: Unknowns | None = N
                           "measure them)")
     result = _result(problem, x, given, iterations)
     _refuse_problems(result.identifiability, "the estimate")
-    _check_adequate(problem.model, result)
+    _check_adequate(problem.model, result, significance)
     return result
 
 
-def _check_adequate(model: MeasurementModel, result: Calibration) -> None:
-    """Refuse a fit the chi-square test finds inadequate (:mod:`cdpr_sym.calibration.
-    adequacy`), naming the likely causes and the row that misfits most."""
+def _check_adequate(model: MeasurementModel, result: Calibration, significance: float
+                    ) -> None:
+    """Refuse a fit the chi-square test finds inadequate at ``significance``
+    (:mod:`cdpr_sym.calibration.adequacy`), naming the likely causes and the row that
+    misfits most."""
     test = result.adequacy
-    if test is None or test.adequate:
+    if test is None or test.p_value >= significance:
         return
     if model.unknowns.compliance:
         cable = "the cable model (the stretch of each cable taken proportional to its tension)"
@@ -405,7 +415,7 @@ def _check_adequate(model: MeasurementModel, result: Calibration) -> None:
     worst = float(np.sqrt(np.mean(result.weighted_residuals[row] ** 2)))
     raise InvalidCase("readings", f"the fit leaves residuals {test.sigma0:.3g} times the "
                       f"stated noise (chi-square {test.chi_square:.4g} on {test.dof} degrees "
-                      f"of freedom, p = {test.p_value:.2g} < {SIGNIFICANCE:g}): the model "
+                      f"of freedom, p = {test.p_value:.2g} < {significance:g}): the model "
                       f"does not fit. Likely causes: {cable}; noise larger than stated "
                       "(give it); an anchor or encoder that moved during the campaign, or "
                       f"outliers (row {row + 1} misfits most, {worst:.3g} times the noise); "
