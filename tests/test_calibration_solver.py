@@ -132,3 +132,21 @@ def test_memory_grows_with_the_poses_not_their_square():
         tracemalloc.stop()
     assert peak < 30e6, peak / 1e6
     assert result.identifiability.rank == 12
+
+
+@pytest.mark.slow  # 10,000 poses: about 5 s of estimate and as much of simulation and checks
+def test_ten_thousand_tracker_poses_are_estimated_within_their_covariance():
+    """The issue's size (the dense solve ran out of memory with 22 GB free): the estimate's
+    error, weighed by its own covariance, is a chi-square draw of 12 degrees of freedom,
+    and the chi-square test passes."""
+    from scipy.stats import chi2
+
+    robot = preset("aras3")
+    rng = np.random.default_rng(SEED)
+    truth = Truth(anchor_offsets=rng.uniform(-5e-3, 5e-3, robot.anchors.shape),
+                  encoder_offsets=rng.uniform(-5e-3, 5e-3, robot.m), stiffness=np.inf)
+    poses = sample_static_workspace(robot, 10_000, rng, margin=0.05)
+    result = calibrate(robot, simulate_campaign(robot, truth, poses, rng))
+    error = result.theta - truth.theta(robot)
+    assert float(error @ np.linalg.solve(result.covariance, error)) < chi2.ppf(0.9999, 12)
+    assert result.adequacy.dof == 10_000 * 3 - 12 and result.adequacy.adequate
