@@ -101,3 +101,75 @@ def test_squared_errors_add_coordinates_in_index_order(rng):
         assert total == expected
     assert squared_errors(offsets[0]) == squared_errors(offsets[:1])[0]
     assert errors(offsets[0]) == math.sqrt(squared_errors(offsets[0]))
+
+
+# -- rows read back: metrics that agree with one another --------------------------------
+@pytest.fixture(scope="module")
+def small_sweep(tmp_path_factory):
+    """A short planar2 sweep (4 pairs of pd-sat and pd), as a sweep writes it."""
+    from cdpr_sym.sweep import SweepConfig, run_sweep
+
+    config = SweepConfig(robot="planar2", controllers=("pd-sat", "pd"), pairs=4, seed=3,
+                         duration=0.3)
+    return run_sweep(config, tmp_path_factory.mktemp("sweep") / "rows.csv", workers=1,
+                     progress=False)
+
+
+def _edited(table, to, pair, controller, **cells):
+    """A copy of ``table`` at ``to`` (with its sidecar) with ``cells`` of one row replaced."""
+    import csv
+    import shutil
+
+    from cdpr_sym.results.store import sidecar_path
+
+    shutil.copy(sidecar_path(table), sidecar_path(to))
+    with open(table, newline="") as handle:
+        header, *rows = list(csv.reader(handle))
+    for row in rows:
+        if row[0] == str(pair) and row[1] == controller:
+            for name, text in cells.items():
+                row[header.index(name)] = text
+    with open(to, "w", newline="") as handle:
+        csv.writer(handle, lineterminator="\n").writerows([header, *rows])
+    return to
+
+
+@pytest.mark.parametrize(("cells", "column", "said"), [
+    ({"min_tension": "-500", "tension_feasible": "True"}, "tension_feasible",
+     "True disagrees with the recorded tensions -500.0"),
+    ({"final_error": "nan"}, "final_error", "expected a finite number"),
+    ({"converged": "True"}, "converged", "True disagrees with no settle time"),
+    ({"settle_time": "0.1", "converged": "True"}, "final_error",
+     "outside the 0.01 m band of a run that settled"),
+    ({"settle_time": "9.0", "converged": "True", "final_error": "0.001"}, "settle_time",
+     "is after the run's end"),
+    ({"max_tension": "0.5"}, "min_tension", "is above max_tension"),
+    ({"share_fallback": "1.5"}, "share_fallback", "within [0, 1]"),
+    ({"fallback_steps": "2.5"}, "fallback_steps", "whole number"),
+    ({"tension_total_variation": "0.001"}, "max_tension_step", "exceeds the total variation"),
+], ids=["feasible below the box", "nan error", "converged unsettled", "settled far",
+        "settled after the end", "min above max", "share over 1", "half a step",
+        "step over the variation"])
+def test_report_refuses_a_hand_edited_row_naming_file_row_and_column(
+        small_sweep, tmp_path, capsys, cells, column, said):
+    from cdpr_sym.cli import main
+
+    table = _edited(small_sweep, tmp_path / "rows.csv", 0, "pd-sat", **cells)
+    assert main(["report", "sweep", str(table), "--out", str(tmp_path / "report")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith(f"cdpr-sym: error: results: the row of pair 0 of pd-sat in "
+                             f"{table}, column {column}: "), err[0]
+    assert said in err[0], err[0]
+    assert not (tmp_path / "report" / "report.md").exists()
+
+
+def test_every_row_a_sweep_writes_is_consistent_and_counted(small_sweep, tmp_path):
+    from cdpr_sym.reporting.sweep_report import write_sweep_report
+    from cdpr_sym.results.consistency import inconsistency
+    from cdpr_sym.results.store import load_table
+
+    rows, _ = load_table(small_sweep)
+    assert {row["status"] for row in rows} == {"ok"}
+    assert all(inconsistency(row, 1.0, 30.0) is None for row in rows)  # planar2's box
+    assert write_sweep_report(small_sweep, tmp_path / "report").exists()

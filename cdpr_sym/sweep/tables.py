@@ -7,8 +7,11 @@ anything: the sidecar is there and names a configuration and a robot; the table 
 no (pair, design) is held twice and none is of a pair or design the configuration lacks
 (:func:`~cdpr_sym.results.store.check_keys`); and every row's start and goal are exactly
 the poses the configuration's seed draws for its pair. A row copied from a sweep of
-another seed, or a sidecar copied from another sweep, fails the last check. A study that
-reads its own tables also says which pairs, seed and designs they must be of.
+another seed, or a sidecar copied from another sweep, fails that check. Every finished
+run's metrics must then agree with one another and with the robot's tension box
+(:mod:`cdpr_sym.results.consistency`): a hand-edited row is refused, naming its pair,
+design and column. A study that reads its own tables also says which pairs, seed and
+designs they must be of.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from cdpr_sym.errors import CdprError, InvalidCase
+from cdpr_sym.results.consistency import inconsistency
 from cdpr_sym.results.store import load_table, sidecar_path
 from cdpr_sym.robot import Robot
 from cdpr_sym.sweep.config import draw_pairs
@@ -51,6 +55,7 @@ def load_sweep_table(table: Path, **expected: Any) -> tuple[list[dict[str, Any]]
                               f"{value!r} of the study that reads it: a table of another "
                               "sweep; compute the study again")
     _check_drawn(rows, config, robot, table)
+    _check_consistent(rows, robot, table)
     return rows, meta
 
 
@@ -90,3 +95,17 @@ def _check_drawn(rows: list[dict[str, Any]], config: dict[str, Any], robot: Robo
                                   f"not draw for pair {pair}: a row of another sweep (or a "
                                   "sidecar of another); remove it, or resume the sweep to "
                                   "set it aside")
+
+
+def _check_consistent(rows: list[dict[str, Any]], robot: Robot, table: Path) -> None:
+    """Every finished run's metrics agree with one another and with the robot's tension box
+    (:func:`~cdpr_sym.results.consistency.inconsistency`): a hand-edited row is refused,
+    naming it and its column, before anything is counted."""
+    for row in rows:
+        wrong = inconsistency(row, robot.t_min, robot.t_max)
+        if wrong is not None:
+            column, what = wrong
+            raise InvalidCase("results", f"the row of pair {int(row['pair'])} of "
+                              f"{row['controller']} in {table}, column {column}: {what}; "
+                              "not a row a sweep writes (edited by hand?): remove it and "
+                              "resume the sweep to run it again")
