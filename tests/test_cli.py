@@ -374,7 +374,7 @@ def test_sweep_and_report_print_what_each_design_achieved(capsys, tmp_path):
     expected = summarise(load_table(out)[0])
     for name, row in expected.items():
         assert (f"{name:<12} meets the target on {100 * row['meets_target']:5.1f} % of "
-                f"{row['runs']} runs") in text
+                f"all {row['runs']} pairs (tension-feasible") in text
     status, text, _ = _run(capsys, "report", "sweep", str(out), "--out",
                            str(tmp_path / "report"), "--json")
     assert status == 0 and json.loads(text)["summary"] == json.loads(json.dumps(expected))

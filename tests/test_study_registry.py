@@ -120,6 +120,6 @@ def test_the_study_result_goes_out_as_one_json_object(monkeypatch, tmp_path, cap
                      "result": table}
     assert main(["study", "robustness", "--out", str(tmp_path)]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    assert lines[0].startswith("pd-sat   meets target: ideal ")
+    assert lines[0].startswith("pd-sat   meets target (of held pairs): ideal ")
     assert lines[-1] == f"report: {tmp_path / 'report.md'}"
     assert len(lines) == len(next(iter(table.values()))) + 1

@@ -103,7 +103,7 @@ def test_squared_errors_add_coordinates_in_index_order(rng):
     assert errors(offsets[0]) == math.sqrt(squared_errors(offsets[0]))
 
 
-# -- rows read back: metrics that agree with one another --------------------------------
+# -- rows read back: consistent metrics, and shares that say what they are of -------------
 @pytest.fixture(scope="module")
 def small_sweep(tmp_path_factory):
     """A short planar2 sweep (4 pairs of pd-sat and pd), as a sweep writes it."""
@@ -172,4 +172,34 @@ def test_every_row_a_sweep_writes_is_consistent_and_counted(small_sweep, tmp_pat
     rows, _ = load_table(small_sweep)
     assert {row["status"] for row in rows} == {"ok"}
     assert all(inconsistency(row, 1.0, 30.0) is None for row in rows)  # planar2's box
-    assert write_sweep_report(small_sweep, tmp_path / "report").exists()
+    text = write_sweep_report(small_sweep, tmp_path / "report").read_text()
+    assert "| meets target*, of all pairs |" in text and "of held pairs" not in text
+    assert "Shares are of all pairs" in text
+
+
+def _row(controller, held, meets):
+    """A finished run's row: meeting the target or missing it by its settle time."""
+    return {"controller": controller, "status": "ok", "held": held, "tension_feasible": True,
+            "converged": meets, "settle_time": 1.0 if meets else None, "final_error": 0.0,
+            "max_tension_step": 0.1, "tension_total_variation": 1.0, "min_alpha": 1.0}
+
+
+def test_as_built_shares_say_whether_they_are_of_all_or_of_held_pairs():
+    from cdpr_sym.cli.commands import _summary_lines
+    from cdpr_sym.reporting.sweep_report import summary_table
+    from cdpr_sym.results.judging import summarise
+
+    # 4 pairs, 2 held: both held pairs meet the target, one unheld pair does too
+    rows = [_row("l2", True, True), _row("l2", True, True), _row("l2", False, True),
+            _row("l2", False, False)]
+    summary = summarise(rows)["l2"]
+    assert (summary["meets_target"], summary["held"], summary["meets_target_held"]) == (
+        0.75, 2, 1.0)
+    line = _summary_lines({"l2": summary})[0]
+    assert "meets the target on  75.0 % of all 4 pairs, 100.0 % of the 2 held pairs" in line
+    table = summary_table({"l2": summary})
+    assert "| meets target*, of all pairs | meets target*, of held pairs |" in table
+    assert "| 75.0 % | 100.0 % of 2 |" in table
+    nothing_held = summarise([_row("l2", False, True)])["l2"]
+    assert nothing_held["meets_target_held"] is None
+    assert "–" in _summary_lines({"l2": nothing_held})[0]

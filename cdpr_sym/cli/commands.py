@@ -286,13 +286,19 @@ def _sweep_summary(table: Path) -> dict[str, dict[str, object]]:
 
 
 def _summary_lines(summary: dict[str, dict[str, object]]) -> list[str]:
-    """One line per design: the share meeting the target and what it is made of."""
+    """One line per design: the share meeting the target of all pairs (and, as built, of
+    the held pairs, the share a robustness report gives) and what it is made of."""
     lines = []
     for name, row in summary.items():
+        held = ""
+        if "held" in row:
+            share = row["meets_target_held"]
+            held = (f", {'–' if share is None else f'{100 * share:.1f} %'} of the "
+                    f"{row['held']} held pairs")
         lines.append(f"{name:<12} meets the target on {100 * row['meets_target']:5.1f} % of "
-                     f"{row['runs']} runs (tension-feasible {100 * row['feasible']:.1f} %, "
-                     f"converged {100 * row['converged']:.1f} %, stopped or failed "
-                     f"{row['stopped_or_failed']})")
+                     f"all {row['runs']} pairs{held} (tension-feasible "
+                     f"{100 * row['feasible']:.1f} %, converged {100 * row['converged']:.1f} "
+                     f"%, stopped or failed {row['stopped_or_failed']})")
     return lines
 
 

@@ -37,7 +37,10 @@ def meets_target(row: dict[str, Any], *, settle_within: float = SETTLE_WITHIN,
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
-    """Per-controller shares and medians."""
+    """Per-controller shares and medians, each share over all of the controller's runs
+    (all pairs). Rows of the robot as built (with ``held``) add ``held``, the pairs whose
+    start and goal the true plant holds, and ``meets_target_held``, the share of those
+    meeting the target (None when none is held)."""
     out: dict[str, dict[str, Any]] = {}
     for name in dict.fromkeys(row["controller"] for row in rows):
         mine = [row for row in rows if row["controller"] == name]
@@ -56,6 +59,10 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             "runs_with_infeasible_steps": sum(1 for r in ok if (r.get("infeasible_steps") or 0)),
             "stopped_or_failed": sum(1 for r in mine if r["status"] != "ok"),
         }
+        if any("held" in row for row in mine):  # a sweep of the robot as built
+            held = [row for row in mine if row.get("held")]
+            out[name]["held"] = len(held)
+            out[name]["meets_target_held"] = (_share(held, meets_target) if held else None)
     return out
 
 

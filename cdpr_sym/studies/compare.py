@@ -147,7 +147,8 @@ class CompareStudy(Study):
 
     def summary_lines(self, result: dict[str, Any]) -> list[str]:
         return [f"{name:<10} feasible {100 * row['feasible']:5.1f} %  converged "
-                f"{100 * row['converged']:5.1f} %" for name, row in result["sweep"].items()]
+                f"{100 * row['converged']:5.1f} % of all pairs"
+                for name, row in result["sweep"].items()]
 
 
 STUDY = CompareStudy()

@@ -131,7 +131,8 @@ class DesignsStudy(Study):
 
     def summary_lines(self, result: dict[str, Any]) -> list[str]:
         table = result["meets_target"]
-        return [f"{name:<10} meets target: nominal {100 * table['1.0'][name]:5.1f} %, "
+        return [f"{name:<10} meets target (of all pairs): nominal "
+                f"{100 * table['1.0'][name]:5.1f} %, "
                 f"mass +10 % {100 * table['1.1'][name]:5.1f} %, "
                 f"mass -10 % {100 * table['0.9'][name]:5.1f} %" for name in table["1.0"]]
 

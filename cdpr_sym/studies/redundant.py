@@ -247,7 +247,7 @@ class RedundantStudy(Study):
 
     def summary_lines(self, result: dict[str, Any]) -> list[str]:
         return [f"{name:<9} {design:<7} meets target {100 * row['meets_target']:5.1f} % "
-                f"(same pairs)" for name in ("aras3", "spatial4")
+                f"of all pairs (the same on both)" for name in ("aras3", "spatial4")
                 for design, row in result["same_pairs"][name].items()]
 
 

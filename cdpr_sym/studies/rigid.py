@@ -167,7 +167,8 @@ class RigidStudy(Study):
         for name, summary in result.items():
             best = best_design(summary["sweep"])
             lines.append(f"{name:<10} best {best}: meets target on "
-                         f"{100 * summary['sweep'][best]['meets_target']:5.1f} % of pairs")
+                         f"{100 * summary['sweep'][best]['meets_target']:5.1f} % of all "
+                         "pairs")
         return lines
 
 

@@ -610,7 +610,7 @@ class RobustnessStudy(Study):
         return table
 
     def summary_lines(self, result: dict[str, Any]) -> list[str]:
-        return [f"{design:<8} meets target: " + ", ".join(
+        return [f"{design:<8} meets target (of held pairs): " + ", ".join(
             f"{effect} {_percent(row[design]['meets_target'])}"
             for effect, row in result.items()) for design in next(iter(result.values()))]
 
