@@ -30,7 +30,7 @@ from cdpr_sym.as_built import Actuation
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export import export_encoder_c
 from cdpr_sym.export.encoder_package import TORQUE_MARGIN, torque_limit_of
-from cdpr_sym.export.guard import FAULTS, GuardLimits, first_trip, hold_gains
+from cdpr_sym.export.guard import FAULTS, GuardLimits, first_trip, hold_gains, move_speed
 
 
 def _build(source: Path, build: Path) -> Path:
@@ -78,10 +78,18 @@ def test_hold_gains_are_critically_damped_and_capped_as_stated(mass, t_min, t_ma
 
 
 def test_rest_speed_is_a_share_of_max_speed_or_four_counts_per_period():
-    limits = GuardLimits()
+    limits = GuardLimits().resolved(move_speed=1.0)  # max_speed: twice the move's speed
+    assert limits.max_speed == 2.0
     assert limits.rest(1e-5, 1e-3) == pytest.approx(max(0.02, 0.04))
     assert limits.rest(1e-7, 1e-3) == pytest.approx(0.02)
     assert GuardLimits(rest_speed=0.5).rest(1e-5, 1e-3) == 0.5
+    assert GuardLimits(max_speed=3.0).resolved(move_speed=1.0).max_speed == 3.0
+
+
+def test_the_move_speed_is_the_fastest_coordinate_or_a_tenth_of_the_frame_per_second():
+    q = np.array([[0.0, 0.0], [0.001, -0.003], [0.002, -0.004]])
+    assert move_speed(q, 1e-3, 4.0) == pytest.approx(3.0)
+    assert move_speed(q[:1], 1e-3, 4.0) == pytest.approx(0.4)  # a robot at its goal
 
 
 @pytest.mark.parametrize(("field", "value"), [

@@ -61,6 +61,7 @@ from cdpr_sym.export.guard import (
     drum_cable_mode,
     first_trip,
     hold_cutoff,
+    move_speed,
 )
 from cdpr_sym.export.guard_cases import guard_cases
 from cdpr_sym.export.package import _GENERATOR, _make_folder, prefix_problem
@@ -199,6 +200,9 @@ def export_encoder_c(robot: Robot | str | Path, controller: Controller | str,
         raise InvalidCase("as_built", f"the Python run of {checked.controller.name} on this "
                           f"robot as built stops at t = 0 ({reference.stop_reason}); the "
                           f"software in the loop would have nothing to compare")
+    d = case.dimension
+    frame_side = float(np.min(np.asarray(case.frame_upper)[:d] - np.asarray(case.frame_lower)[:d]))
+    limits = limits.resolved(move_speed=move_speed(reference.q, dt, frame_side))
     _check_guard_passes(checked, functions, reference, limits, dt)
     plant = loop_plant(model, checked.plant, case.start, case.goal, case.k, case.r_d, dt)
     context = _context(checked, loop, functions, plant, reference, limits)

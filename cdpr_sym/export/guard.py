@@ -72,8 +72,13 @@ FAULTS: dict[str, tuple[int, str]] = {
 NOT_AT_REST = -2
 #: Return value of ``reset`` when no pose explains the last counts.
 NOT_LOCATED = -3
-#: Share of the tension box the hold's damper adds at the guard's ``max_speed``.
+#: Share of the tension box the hold's damper adds at the move's speed.
 HOLD_BOX_SHARE = 0.5
+#: The guard's default max_speed as a multiple of the move's fastest coordinate speed.
+SPEED_MARGIN = 2.0
+#: The move's speed is taken as at least this share of the frame's smallest side per second
+#: (a case whose start is its goal still gets a guard that lets the robot be held).
+MIN_SPEED_SHARE = 0.1
 #: Largest share of an inertia's speed the hold's damper may take in one control period
 #: (d dt / mass, for the drum's inertia at the cable, J / r^2, and the platform's mass).
 HOLD_STEP_SHARE = 0.2
@@ -102,9 +107,10 @@ class GuardLimits:
 
     Parameters
     ----------
-    max_speed : float
+    max_speed : float or None
         Largest speed of any coordinate the pose may show between two samples, m/s (rad/s
-        for angles): a larger jump of the pose read is a fault. Default 2.
+        for angles): a larger jump of the pose read is a fault. None (default):
+        :data:`SPEED_MARGIN` times the move's speed (:meth:`resolved`).
     frame_margin : float
         m: the position coordinates read must stay this far inside the robot's frame box.
         Default 0.01 m.
@@ -134,7 +140,7 @@ class GuardLimits:
         (default): :func:`hold_gains`.
     """
 
-    max_speed: float = 2.0
+    max_speed: float | None = None
     frame_margin: float = 0.01
     rate_limit: float | None = None
     late_periods: float = 1.5
@@ -147,7 +153,9 @@ class GuardLimits:
     hold_damping: float | None = None
 
     def __post_init__(self) -> None:
-        for field, unit, zero in (("max_speed", "m/s", False), ("frame_margin", "m", True),
+        if self.max_speed is not None:
+            _check("max_speed", self.max_speed, "m/s", False)
+        for field, unit, zero in (("frame_margin", "m", True),
                                   ("late_periods", "control periods", False),
                                   ("ramp_time", "s", True), ("goal_tolerance", "m", False),
                                   ("settle_time", "s", True), ("rest_time", "s", True)):
@@ -166,20 +174,40 @@ class GuardLimits:
         """The tension rate limit, N/s."""
         return (t_max - t_min) / 0.02 if self.rate_limit is None else float(self.rate_limit)
 
+    def resolved(self, *, move_speed: float) -> GuardLimits:
+        """These limits with ``max_speed`` set: the caller's, else SPEED_MARGIN times
+        ``move_speed``, the fastest coordinate speed of the move the package is exported for
+        (m/s or rad/s; :func:`move_speed`)."""
+        if self.max_speed is not None:
+            return self
+        return dataclasses.replace(self, max_speed=SPEED_MARGIN * float(move_speed))
+
     def rest(self, resolution: float, dt: float) -> float:
-        """The rest speed, m/s (see the class)."""
+        """The rest speed, m/s (see the class); the limits must be :meth:`resolved`."""
         if self.rest_speed is not None:
             return float(self.rest_speed)
         return max(REST_SHARE * self.max_speed, REST_COUNTS * resolution / dt)
 
     def hold(self, *, mass: float, t_min: float, t_max: float, drum_inertia: float,
              drum_radius: float, dt: float) -> tuple[float, float]:
-        """The hold's (stiffness N/m, damping N s/m): the caller's, else :func:`hold_gains`."""
+        """The hold's (stiffness N/m, damping N s/m): the caller's, else :func:`hold_gains`
+        for a move at max_speed / SPEED_MARGIN; the limits must be :meth:`resolved`."""
         stiffness, damping = hold_gains(mass=mass, t_min=t_min, t_max=t_max,
-                                        max_speed=self.max_speed, drum_inertia=drum_inertia,
+                                        max_speed=self.max_speed / SPEED_MARGIN,
+                                        drum_inertia=drum_inertia,
                                         drum_radius=drum_radius, dt=dt)
         return (stiffness if self.hold_stiffness is None else float(self.hold_stiffness),
                 damping if self.hold_damping is None else float(self.hold_damping))
+
+
+def move_speed(q, dt: float, frame_side: float) -> float:
+    """The fastest coordinate speed of a run's poses ``q`` (steps x n; m/s or rad/s), by
+    differences over ``dt``, at least MIN_SPEED_SHARE ``frame_side`` (m) per second."""
+    import numpy as np
+
+    q = np.asarray(q, dtype=float)
+    peak = float(np.max(np.abs(np.diff(q, axis=0)))) / dt if len(q) > 1 else 0.0
+    return max(peak if np.isfinite(peak) else 0.0, MIN_SPEED_SHARE * frame_side)
 
 
 def drum_cable_mode(*, cable_stiffness: float, longest_cable: float, drum_inertia: float,
@@ -203,8 +231,8 @@ def hold_gains(*, mass: float, t_min: float, t_max: float, max_speed: float,
     """The safe command's spring k_h (N/m) and damper d_h (N s/m) on each cable's drum.
 
     * Damper: d_box = HOLD_BOX_SHARE (T_max - T_min) / max_speed, the damping whose force at
-      the fastest cable speed the guard lets through is half the tension box (the rest of
-      the box is the feed-forward's room); capped at HOLD_STEP_SHARE m_x / dt for both the
+      ``max_speed``, the speed of the move the package runs, is half the tension box (the
+      rest of the box is the feed-forward's room); capped at HOLD_STEP_SHARE m_x / dt for both the
       drum's inertia at the cable, m_x = J / r^2, and the platform's mass, m_x = M, so that
       one period's damping force changes neither speed by more than a fifth (an explicit,
       sampled damper is stable for d dt / m_x < 2 and does not overshoot below 1).

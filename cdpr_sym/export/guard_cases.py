@@ -6,8 +6,8 @@ inverts). Each case is checked here with the package's own functions in CasADi's
 machine before it is written, so that a test that trips the wrong fault is refused at
 export rather than failing in C:
 
-* ``jump``: the start moved 2 cm along the first position coordinate (more than
-  max_speed dt, inside the frame);
+* ``jump``: the start moved along the first position coordinate by the larger of 2 cm
+  and 4 max_speed dt (well over max_speed dt; inside the frame);
 * ``frame``: a pose inside the frame but within the margin, which the global start finds;
 * ``lost``: a pose 3 cm outside the frame, whose lengths pass the range check but which no
   seed reads as a pose of the frame;
@@ -54,8 +54,9 @@ def guard_cases(loop: EncoderLoop, functions: dict[str, ca.Function], limits: Gu
         return bool(np.all((length >= bounds[0]) & (length <= bounds[1])))
 
     jump = robot.start.copy()
-    jump[0] += 0.02 if jump[0] + 0.02 < upper[0] - limits.frame_margin else -0.02
-    cases: dict[str, object] = {"jump": counts(jump), "jump_note": f"the start, {_moved(0)}"}
+    step = max(0.02, 4 * limits.max_speed * loop.dt)  # well over max_speed dt
+    jump[0] += step if jump[0] + step < upper[0] - limits.frame_margin else -step
+    cases: dict[str, object] = {"jump": counts(jump), "jump_note": f"the start, {_moved(0, step)}"}
     cases["frame"], cases["frame_note"] = _frame_case(robot, limits, counts, located)
     cases["lost"], cases["lost_note"] = _lost_case(robot, counts, located, in_range)
     cases["outside"] = upper + 1.0
@@ -64,8 +65,8 @@ def guard_cases(loop: EncoderLoop, functions: dict[str, ca.Function], limits: Gu
     return cases
 
 
-def _moved(axis: int) -> str:
-    return f"moved 2 cm along coordinate {axis}"
+def _moved(axis: int, step: float) -> str:
+    return f"moved {100 * step:.3g} cm along coordinate {axis}"
 
 
 def _frame_case(robot, limits, counts, located):
