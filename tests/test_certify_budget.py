@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from cdpr_sym.certify import budget
+from cdpr_sym.certify import budget, pairs
 from cdpr_sym.certify import workspace as certified
 from cdpr_sym.cli import certify as certify_cli
 from cdpr_sym.cli import main
@@ -205,3 +205,109 @@ def test_the_command_refuses_in_one_line_before_writing(capsys, tmp_path, argv, 
     err = capsys.readouterr().err.strip()
     assert status == 2 and err.count("\n") == 0 and f"{field}:" in err
     assert not (tmp_path / "c").exists()
+
+
+# --- pair certificates --------------------------------------------------------------------
+
+ARAS3 = preset("aras3")
+SHORT = (np.array([0.32, -2.3, 2.65]), np.array([0.52, -2.1, 2.85]))  # ida-ref proves 25 %
+
+
+def _slow_pairs(monkeypatch, seconds_per_box: float, first: float | None = None
+                ) -> _FakeTime:
+    """Every pair box decided takes ``seconds_per_box`` of a fake clock (``first`` in the
+    first call, whose cost estimates the rest)."""
+    clock = _FakeTime()
+    calls = []
+    monkeypatch.setattr(budget.Clock, "timer", staticmethod(clock))
+    original = pairs.pair_proof
+
+    def timed(*args, **kwargs):
+        proof = original(*args, **kwargs)
+
+        class Timed:
+            prepare = getattr(proof, "prepare", None)
+
+            def __call__(self, start_lower, *rest, **options):
+                cost = first if first is not None and not calls else seconds_per_box
+                calls.append(len(start_lower))
+                clock.now += cost * len(start_lower)
+                return proof(start_lower, *rest, **options)
+
+        return Timed()
+
+    monkeypatch.setattr(pairs, "pair_proof", timed)
+    return clock
+
+
+def _pair_rows(certificate) -> dict:
+    rows = np.hstack([certificate.start_lower, certificate.start_upper,
+                      certificate.goal_lower, certificate.goal_upper])
+    return {row.tobytes(): verdict for row, verdict in zip(rows, certificate.verdicts,
+                                                            strict=True)}
+
+
+def test_pairs_out_of_time_keep_their_verdicts_and_leave_the_rest_undecided(monkeypatch):
+    whole = pairs.certify_pairs(ARAS3, "ida-ref", starts=SHORT, goals=SHORT, width=0.2 / 3)
+    assert whole.stopped == "complete" and whole.shares()["proven"] > 0.1
+    # the first chunk's cost underestimates the rest ten times (729 pair boxes: 0.7 s
+    # estimated, 7.3 s taken), so the grid is not refused and the time limit stops it
+    _slow_pairs(monkeypatch, 1e-2, first=1e-3)
+    seen = []
+    stopped = pairs.certify_pairs(ARAS3, "ida-ref", starts=SHORT, goals=SHORT, width=0.2 / 3,
+                                  time_limit=2.0, progress=seen.append)
+    assert stopped.stopped == "time_limit"
+    assert pairs.FIRST_PAIR_CHUNK < seen[-1].evaluated < 729 and seen[-1].level == 0
+    expected, found = _pair_rows(whole), _pair_rows(stopped)
+    assert found.keys() == expected.keys()  # the same pair boxes, none lost
+    changed = [key for key in found if found[key] != expected[key]]
+    assert changed and all(found[key] == "undecided" for key in changed)
+    assert 0 < stopped.shares()["proven"] < whole.shares()["proven"]
+    assert seen[-1].proven == pytest.approx(stopped.shares()["proven"], abs=1e-12)
+
+
+def test_a_grid_too_slow_for_the_time_limit_is_refused_after_its_first_chunk(monkeypatch):
+    _slow_pairs(monkeypatch, 1.0)
+    seen = []
+    with pytest.raises(InvalidCase) as refused:
+        pairs.certify_pairs(ARAS3, "ida-ref", starts=SHORT, goals=SHORT, width=0.05,
+                            progress=seen.append)
+    assert refused.value.field == "width" and "4,096 pair boxes" in str(refused.value)
+    assert seen[-1].evaluated == pairs.FIRST_PAIR_CHUNK
+
+
+def test_a_pair_refinement_too_large_for_memory_is_refused_or_stopped():
+    start, goal = np.asarray(ARAS3.start[:3]), np.asarray(ARAS3.goal[:3])
+    regions = {"starts": (start - 0.15, start + 0.15), "goals": (goal - 0.15, goal + 0.15)}
+    seen = []
+    with pytest.raises(InvalidCase) as refused:
+        pairs.certify_pairs(ARAS3, "ida-ref", **regions, min_width=0.01,
+                            time_limit=math.inf, progress=seen.append)
+    assert refused.value.field == "min_width"
+    assert seen[-1].evaluated == 729  # the grid, not the millions of its refinement
+
+
+def test_a_pair_level_too_large_for_memory_stops_with_the_work_kept(monkeypatch):
+    monkeypatch.setattr(pairs, "MAX_LEVEL_BOXES", 1_000)
+    monkeypatch.setattr(budget, "OVER", 1e9)
+    certificate = pairs.certify_pairs(ARAS3, "ida-ref", starts=SHORT, goals=SHORT,
+                                      width=0.2 / 3, min_width=0.05)
+    assert certificate.stopped == "memory"
+    assert certificate.shares()["proven"] > 0.1 and len(certificate.verdicts) == 729
+
+
+def test_the_pairs_command_says_why_it_stopped_and_refuses_in_one_line(capsys, tmp_path):
+    status = main(["certify", "pairs", "--robot", "aras3", "--controller", "ida-ref",
+                   "--samples", "0", "--json", "--out", str(tmp_path / "p")])
+    content = json.loads(capsys.readouterr().out)
+    assert status == 0 and content["stopped"] == "complete"
+    assert content["time_limit_s"] == budget.DEFAULT_TIME_LIMIT
+    region = [str(v) for v in (*SHORT[0], *SHORT[1])]
+    for argv, field in ((["--time-limit", "-1"], "time_limit"),
+                        (["--box", "0.05", "--starts", *region, "--goals", *region,
+                          "--time-limit", "0.01"], "width")):
+        status = main(["certify", "pairs", "--robot", "aras3", "--controller", "ida-ref",
+                       *argv, "--out", str(tmp_path / "q")])
+        err = capsys.readouterr().err.strip()
+        assert status == 2 and err.count("\n") == 0 and f"{field}:" in err
+        assert not (tmp_path / "q").exists()

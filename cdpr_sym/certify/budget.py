@@ -116,10 +116,10 @@ class Clock:
     #: The clock read, s (a test may replace it).
     timer = staticmethod(time.perf_counter)
 
-    def __init__(self, time_limit: float, most: int) -> None:
-        self.time_limit, self.most = time_limit, most
+    def __init__(self, time_limit: float, most: int, *, first: int = FIRST_CHUNK) -> None:
+        self.time_limit, self.most, self.first = time_limit, most, first
         self.started = self.timer()
-        self.evaluated, self.busy = 0, 0.0
+        self.evaluated, self.busy, self.began = 0, 0.0, None
 
     def elapsed(self) -> float:
         return self.timer() - self.started
@@ -129,8 +129,9 @@ class Clock:
         return self.elapsed() >= self.time_limit
 
     def cost(self) -> float:
-        """s per box measured so far (0 before any)."""
-        return self.busy / self.evaluated if self.evaluated else 0.0
+        """s per box measured so far, the chunk being evaluated included (0 before any)."""
+        busy = self.busy + (self.timer() - self.began if self.began is not None else 0.0)
+        return busy / self.evaluated if self.evaluated else 0.0
 
     def chunks(self, boxes: int):
         """Slices of range(boxes), one at a time, each evaluated by the caller before the
@@ -138,13 +139,14 @@ class Clock:
         start = 0
         while start < boxes and not self.out():
             cost = self.cost()
-            size = FIRST_CHUNK if not cost else int(CHUNK_SECONDS / cost)
+            size = self.first if not cost else int(CHUNK_SECONDS / cost)
             size = max(1, min(size, self.most))
             stop = min(start + size, boxes)
             self.evaluated += stop - start  # counted before the caller's progress
-            began = self.timer()
+            self.began = self.timer()
             yield slice(start, stop)
-            self.busy += self.timer() - began
+            self.busy += self.timer() - self.began
+            self.began = None
             start = stop
 
     def probing(self) -> bool:

@@ -28,11 +28,13 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from cdpr_sym.certify.budget import STOPS
 from cdpr_sym.certify.pairs import PROPERTIES, PairCertificate
 from cdpr_sym.control.planned import SmoothReference
 
@@ -235,6 +237,9 @@ def summary(certificate: PairCertificate, checks: dict[str, Any]) -> dict[str, A
             "goals": [certificate.goal_lower.min(axis=0).tolist(),
                       certificate.goal_upper.max(axis=0).tolist()],
             "pair_boxes": counts, "seconds": certificate.seconds,
+            "time_limit_s": (None if math.isinf(certificate.time_limit)
+                             else certificate.time_limit),
+            "stopped": certificate.stopped, "stopped_because": STOPS[certificate.stopped],
             "proven_share": shares["proven"], "disproven_share": shares["disproven"],
             "undecided_share": shares["undecided"],
             "domain": "pairs whose start box and goal box are both proven statically "

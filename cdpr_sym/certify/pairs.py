@@ -12,11 +12,20 @@ design's (:data:`PROPERTIES`); ``smooth``'s argument is :mod:`.smooth_pairs`, ``
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from collections.abc import Callable
 
 import numpy as np
 
+from cdpr_sym.certify.budget import (
+    DEFAULT_TIME_LIMIT,
+    Clock,
+    Progress,
+    check_time_limit,
+    doubling_levels,
+    first_level_over,
+)
 from cdpr_sym.certify.workspace import (
     MAX_LEVEL_BOXES,
     CramerVerdicts,
@@ -43,6 +52,9 @@ PROPERTIES = {
 }
 #: Most pair boxes one certificate may hold.
 MAX_PAIRS = 2_000_000
+#: Most pair boxes decided in one call, and the first call's boxes (the cost per box it
+#: measures sizes the next ones: smooth's proof takes about 30 ms a pair box on aras3).
+PAIR_CHUNK, FIRST_PAIR_CHUNK = 20_000, 16
 
 
 def grid(lower, upper, width: float) -> tuple[np.ndarray, np.ndarray]:
@@ -74,6 +86,10 @@ class PairCertificate:
     tracking_margin : float
         N.
     seconds : float
+    stopped : str
+        Why the refinement stopped, a key of :data:`~cdpr_sym.certify.budget.STOPS`.
+    time_limit : float
+        s of refinement allowed (``inf``: none).
     """
 
     robot: Robot
@@ -89,6 +105,8 @@ class PairCertificate:
     min_width: float
     tracking_margin: float
     seconds: float
+    stopped: str = "complete"
+    time_limit: float = math.inf
 
     def volumes(self) -> np.ndarray:
         """Each pair box's volume in (start, goal) space, m^(2n)."""
@@ -134,17 +152,19 @@ class PairCertificate:
 
 def certify_pairs(robot: Robot, controller: str, *, starts, goals, width: float = 0.1,
                   min_width: float | None = None, tracking_margin: float = 0.5, design=None,
-                  progress: Callable[[int, int], None] | None = None) -> PairCertificate:
+                  time_limit: float = DEFAULT_TIME_LIMIT,
+                  progress: Callable[[Progress], None] | None = None) -> PairCertificate:
     """Verdicts for every (start box, goal box) of the grids of width ``width`` over the
     regions ``starts`` and ``goals`` ((lower, upper), m each), undecided ones bisected down
-    to ``min_width`` (:func:`certify_pair_boxes`).
+    to ``min_width``, for at most ``time_limit`` s (:func:`certify_pair_boxes`).
 
     Raises
     ------
     InvalidCase
         A design without a pair certificate (``controller``), a robot it does not cover
         (``robot``), regions outside the frame (``starts``, ``goals``), a width not positive
-        or a grid too large (``width``), a margin out of range (``tracking_margin``).
+        or a grid too large (``width``), a margin out of range (``tracking_margin``), and
+        what :func:`certify_pair_boxes` refuses.
     """
     _check_controller(controller)
     _check_width(width)
@@ -165,7 +185,7 @@ def certify_pairs(robot: Robot, controller: str, *, starts, goals, width: float 
                                                   start_boxes[1][s_index]),
                               (goal_boxes[0][g_index], goal_boxes[1][g_index]), width=width,
                               min_width=min_width, tracking_margin=tracking_margin,
-                              design=design,
+                              design=design, time_limit=time_limit,
                               progress=progress)
 
 
@@ -187,16 +207,33 @@ def boxes_holding(robot: Robot, points: np.ndarray, width: float
 def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, np.ndarray],
                        goals: tuple[np.ndarray, np.ndarray], *, width: float,
                        min_width: float | None = None, tracking_margin: float = 0.5,
-                       design=None, progress: Callable[[int, int], None] | None = None
+                       design=None, time_limit: float = DEFAULT_TIME_LIMIT,
+                       progress: Callable[[Progress], None] | None = None
                        ) -> PairCertificate:
     """Verdicts for the pair boxes (starts[0][k], starts[1][k]) x (goals[0][k], goals[1][k])
     (rows of lower and upper corners, m; repeated pair boxes are taken once): the core of
     :func:`certify_pairs`. An undecided pair box is bisected along its widest side (in the
     2n coordinates of start and goal) until narrower than ``min_width`` (default: no
-    bisection), and its parts get their own verdicts."""
-    from cdpr_sym.certify.smooth_pairs import Learnt
+    bisection), and its parts get their own verdicts.
 
+    The refinement stops at the minimum width or after ``time_limit`` s (default
+    :data:`~cdpr_sym.certify.budget.DEFAULT_TIME_LIMIT`, ``math.inf`` for none; checked
+    between chunks of about half a second) or before a level too large for memory,
+    whichever first; pair boxes not decided by then, evaluated or not, are reported
+    undecided (:mod:`cdpr_sym.certify.budget`). ``progress`` is called after every chunk
+    with a :class:`~cdpr_sym.certify.budget.Progress` (shares of the domain's volume).
+
+    Raises
+    ------
+    InvalidCase
+        A time limit not positive (``time_limit``); pair boxes whose first chunk's cost
+        says they would not all be decided within the time limit (``width``: a grid too
+        fine for it), after that chunk; a refinement estimated to need a level of more
+        than twice :data:`~cdpr_sym.certify.workspace.MAX_LEVEL_BOXES` pair boxes before
+        the time limit stops it (``min_width``), within its first second or so.
+    """
     _check_controller(controller)
+    time_limit = check_time_limit(time_limit)
     min_width = width if min_width is None else min_width
     _check_width(min_width, "min_width")
     check_min_width(min_width, float(width))
@@ -213,33 +250,109 @@ def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, 
         [lower[~inside]], [upper[~inside]], [np.full(int(np.sum(~inside)), 3)],
         [np.full(int(np.sum(~inside)), np.nan)])
     lower, upper = lower[inside], upper[inside]
-    total, done, inherited = len(lower), 0, None
-    while len(lower):
-        if len(lower) > MAX_LEVEL_BOXES:
-            raise InvalidCase("min_width", f"{len(lower):,} pair boxes at one level; choose "
-                              f"a larger minimum width than {min_width} m")
-        verdict = proof(lower[:, :n], upper[:, :n], lower[:, n:], upper[:, n:],
-                        inherited=inherited)
-        # a side within rounding of min_width counts as narrow enough
-        final = (verdict.codes != 2) | ((upper - lower).max(axis=1)
-                                        <= min_width * (1 + 1e-9))
-        found_lower.append(lower[final])
-        found_upper.append(upper[final])
-        found_codes.append(verdict.codes[final])
-        found_shortest.append(verdict.shortest[final])
-        done += int(np.sum(final))
-        if progress is not None:
-            progress(done, total)
-        lower, upper = bisect(lower[~final], upper[~final])  # halves: all left, all right
-        inherited = Learnt(np.tile(verdict.statuses[~final], (2, 1)),
-                           np.tile(verdict.sign[~final], 2))
-        total += len(lower) // 2
-    lower, upper = np.vstack(found_lower), np.vstack(found_upper)
+    run = _Refinement(proof, lower, upper, n, min_width=min_width, time_limit=time_limit,
+                      progress=progress)
+    lower = np.vstack([*found_lower, run.lower])
+    upper = np.vstack([*found_upper, run.upper])
+    codes = np.concatenate([*found_codes, run.codes])
     return PairCertificate(robot, controller, tuple(robot.coordinate_names[:n]),
                            lower[:, :n], upper[:, :n], lower[:, n:], upper[:, n:],
-                           np.array(VERDICTS, dtype=object)[np.concatenate(found_codes)],
-                           np.concatenate(found_shortest), float(width), float(min_width),
-                           float(tracking_margin), time.perf_counter() - started)
+                           np.array(VERDICTS, dtype=object)[codes],
+                           np.concatenate([*found_shortest, run.shortest]), float(width),
+                           float(min_width), float(tracking_margin),
+                           time.perf_counter() - started, run.stopped, time_limit)
+
+
+class _Refinement:
+    """The pair boxes (rows of 2n lower and upper corners) decided level by level, with the
+    stop rules and the refusals of :mod:`cdpr_sym.certify.budget`: the first level (the
+    grid asked for) is refused when its first chunk's cost says it would not be decided
+    within the time limit (``width``), a refinement estimated to need a level too large
+    for memory before the time limit stops it (``min_width``). Results: its attributes
+    (lower, upper, codes, shortest, seconds, stopped)."""
+
+    def __init__(self, proof, lower: np.ndarray, upper: np.ndarray, n: int, *,
+                 min_width: float, time_limit: float, progress) -> None:
+        from cdpr_sym.certify.smooth_pairs import Learnt
+
+        prepare = getattr(proof, "prepare", None)  # one-time work for the whole first level
+        if prepare is not None and len(lower):
+            prepare(lower[:, :n], upper[:, :n], lower[:, n:], upper[:, n:])
+        clock = Clock(time_limit, PAIR_CHUNK, first=FIRST_PAIR_CHUNK)
+        total = float(np.prod(upper - lower, axis=1).sum())
+        found_lower, found_upper, found_codes, found_shortest = [], [], [], []
+        volumes = np.zeros(2)  # proven, disproven
+        level, stopped, inherited = 0, None, None
+        while len(lower):
+            codes = np.full(len(lower), 2)
+            shortest = np.full(len(lower), np.nan)
+            statuses, sign, done = None, np.zeros(len(lower)), 0
+            # chunks taken across the level, so the first one's cost is the level's
+            spread = np.argsort(np.arange(len(lower)) % -(-len(lower) // clock.first),
+                                kind="stable")
+            for part in clock.chunks(len(lower)):
+                rows = spread[part]
+                verdict = proof(lower[rows, :n], upper[rows, :n], lower[rows, n:],
+                                upper[rows, n:], inherited=None if inherited is None else
+                                Learnt(inherited.statuses[rows], inherited.sign[rows]))
+                codes[rows], shortest[rows], done = verdict.codes, verdict.shortest, part.stop
+                if statuses is None:
+                    statuses = np.zeros((len(lower), *verdict.statuses.shape[1:]),
+                                        verdict.statuses.dtype)
+                statuses[rows], sign[rows] = verdict.statuses, verdict.sign
+                volumes += [float(np.prod(upper[rows][codes[rows] == k]
+                                          - lower[rows][codes[rows] == k], axis=1).sum())
+                            for k in (0, 1)]
+                if progress is not None:
+                    progress(Progress(level, len(lower), clock.evaluated, volumes[0] / total,
+                                      volumes[1] / total, clock.elapsed(), time_limit))
+                if level == 0 and part.start == 0 and part.stop < len(lower):
+                    _refuse_a_grid_too_slow(len(lower), clock)
+            # a side within rounding of min_width counts as narrow enough
+            final = (codes != 2) | ((upper - lower).max(axis=1) <= min_width * (1 + 1e-9))
+            if done < len(lower):  # out of time: the rest of the level stays undecided
+                final[:], stopped = True, "time_limit"
+            elif np.all(final):
+                stopped = "complete"
+            elif clock.out():
+                final[:], stopped = True, "time_limit"
+            elif 2 * np.sum(~final) > MAX_LEVEL_BOXES:
+                final[:], stopped = True, "memory"
+            found_lower.append(lower[final])
+            found_upper.append(upper[final])
+            found_codes.append(codes[final])
+            found_shortest.append(shortest[final])
+            if stopped is not None:
+                break
+            if clock.probing():
+                levels = doubling_levels(int(np.sum(~final)), len(lower),
+                                         (upper - lower)[~final][0], min_width * (1 + 1e-9))
+                if first_level_over(levels, MAX_LEVEL_BOXES, clock) is not None:
+                    raise InvalidCase("min_width", f"refining the undecided pair boxes down "
+                                      f"to {min_width:g} m is estimated to need a level of "
+                                      f"about {max(levels):,.0f} pair boxes, more than the "
+                                      f"{MAX_LEVEL_BOXES:,} that fit; choose a larger "
+                                      f"--min-width (or a --time-limit that stops it first)")
+            lower, upper = bisect(lower[~final], upper[~final])  # halves: all left, all right
+            inherited = Learnt(np.tile(statuses[~final], (2, 1)), np.tile(sign[~final], 2))
+            level += 1
+        self.seconds, self.stopped = clock.elapsed(), stopped or "complete"
+        self.lower = np.vstack(found_lower) if found_lower else np.zeros((0, 2 * n))
+        self.upper = np.vstack(found_upper) if found_upper else np.zeros((0, 2 * n))
+        self.codes = np.concatenate(found_codes) if found_codes else np.zeros(0, int)
+        self.shortest = (np.concatenate(found_shortest) if found_shortest
+                         else np.zeros(0))
+
+
+def _refuse_a_grid_too_slow(boxes: int, clock: Clock) -> None:
+    """InvalidCase (``width``) when the grid's ``boxes`` pair boxes, at the cost per box of
+    the first chunk, would not all be decided within the time limit."""
+    needed = boxes * clock.cost()
+    if needed > clock.time_limit:
+        raise InvalidCase("width", f"the grid's {boxes:,} pair boxes would take about "
+                          f"{needed:,.0f} s at {1e3 * clock.cost():.3g} ms each, more than the "
+                          f"time limit ({clock.time_limit:g} s); choose a larger --box, "
+                          f"smaller --starts and --goals, or a longer --time-limit")
 
 
 def default_design(controller: str):

@@ -318,12 +318,19 @@ class StoragePairProof:
             self._map = (low.copy(), cap.reshape(tuple(counts)))
         return self._map
 
-    def __call__(self, start_lower: np.ndarray, start_upper: np.ndarray,
-                 goal_lower: np.ndarray, goal_upper: np.ndarray, *,
-                 inherited=None) -> PairVerdicts:
-        """Verdicts of pair boxes (rows: boxes; columns: coordinates, m); ``inherited`` is
-        accepted for the interface and not needed."""
-        boxes = len(start_lower)
+    def prepare(self, start_lower: np.ndarray, start_upper: np.ndarray,
+                goal_lower: np.ndarray, goal_upper: np.ndarray) -> None:
+        """Build the capacity map for these pair boxes (the first level's, all of them)
+        before they are decided in chunks: the map is computed once, for the first call's
+        range, and parts of boxes outside it stay undecided."""
+        _, inside, low, high = self._cells(start_lower, start_upper, goal_lower, goal_upper)
+        if inside.any():
+            self.capacity_map(low[inside].min(axis=0), high[inside].max(axis=0))
+
+    def _cells(self, start_lower, start_upper, goal_lower, goal_upper):
+        """(bounds, inside, low, high): each pair box's storage bounds, whether its reach
+        lies in the frame with a coupling some cell could hold, and the index range of the
+        capacity cells its reach covers."""
         bounds = self.bounds(start_lower, start_upper, goal_lower, goal_upper)
         reach_lower = goal_lower - bounds.reach[:, None]
         reach_upper = goal_upper + bounds.reach[:, None]
@@ -341,6 +348,16 @@ class StoragePairProof:
                       0, counts)
         high = np.clip(np.ceil((reach_upper - self.frame_lower) / self.cell).astype(int) + 1,
                        0, counts)
+        return bounds, inside, low, high
+
+    def __call__(self, start_lower: np.ndarray, start_upper: np.ndarray,
+                 goal_lower: np.ndarray, goal_upper: np.ndarray, *,
+                 inherited=None) -> PairVerdicts:
+        """Verdicts of pair boxes (rows: boxes; columns: coordinates, m); ``inherited`` is
+        accepted for the interface and not needed."""
+        boxes = len(start_lower)
+        bounds, inside, low, high = self._cells(start_lower, start_upper, goal_lower,
+                                                goal_upper)
         proven = np.zeros(boxes, bool)
         if inside.any():
             offset, capacity = self.capacity_map(low[inside].min(axis=0),

@@ -169,13 +169,14 @@ def _stopped(stopped: str, args: argparse.Namespace) -> str:
 
 class ProgressLine:
     """The branch-and-bound's :class:`~cdpr_sym.certify.budget.Progress` on stderr, at most
-    once every :data:`PROGRESS_SECONDS`: redrawn in place by tqdm on a terminal, one plain
+    once every :data:`PROGRESS_SECONDS` from its first chunk on (so a refusal after the
+    first chunk stays the only line): redrawn in place by tqdm on a terminal, one plain
     line each time otherwise (a log). A context manager; as a callable it takes the
     progress, and it is None when disabled."""
 
     def __init__(self, *, enabled: bool, stream=None) -> None:
         self.enabled, self.stream = enabled, stream if stream is not None else sys.stderr
-        self.bar, self.shown = None, time.perf_counter()
+        self.bar, self.shown = None, None
 
     def __enter__(self):
         if not self.enabled:
@@ -193,6 +194,8 @@ class ProgressLine:
 
     def __call__(self, progress) -> None:
         now = time.perf_counter()
+        if self.shown is None:  # the first line a second after the first chunk
+            self.shown = now
         if now - self.shown < PROGRESS_SECONDS:
             return
         self.shown = now
@@ -270,9 +273,11 @@ def _pairs(args: argparse.Namespace, robot, out: Output) -> int:
     if args.sweep is None:
         starts = _corners("starts", args.starts, robot.start[:n])
         goals = _corners("goals", args.goals, robot.goal[:n])
-        certificate = certify_pairs(robot, args.controller, starts=starts, goals=goals,
-                                    width=args.box, min_width=args.min_width,
-                                    tracking_margin=args.tracking_margin, design=design)
+        with ProgressLine(enabled=_progress(args)) as progress:
+            certificate = certify_pairs(robot, args.controller, starts=starts, goals=goals,
+                                        width=args.box, min_width=args.min_width,
+                                        tracking_margin=args.tracking_margin, design=design,
+                                        time_limit=args.time_limit, progress=progress)
     else:
         if args.starts is not None or args.goals is not None:
             raise InvalidCase("sweep", "--sweep certifies the sweep's own pairs; leave out "
@@ -280,9 +285,12 @@ def _pairs(args: argparse.Namespace, robot, out: Output) -> int:
         runs = _sweep_runs(args.sweep, args.controller, n)
         starts = boxes_holding(robot, np.array([run["start"] for run in runs]), args.box)
         goals = boxes_holding(robot, np.array([run["goal"] for run in runs]), args.box)
-        certificate = certify_pair_boxes(robot, args.controller, starts, goals,
-                                         width=args.box, min_width=args.min_width,
-                                         tracking_margin=args.tracking_margin, design=design)
+        with ProgressLine(enabled=_progress(args)) as progress:
+            certificate = certify_pair_boxes(robot, args.controller, starts, goals,
+                                             width=args.box, min_width=args.min_width,
+                                             tracking_margin=args.tracking_margin,
+                                             design=design, time_limit=args.time_limit,
+                                             progress=progress)
     checks: dict = {}
     proven = int(np.sum(certificate.verdicts == "proven"))
     if samples and proven:
@@ -300,7 +308,8 @@ def _pairs(args: argparse.Namespace, robot, out: Output) -> int:
              f"(start, goal) volume proven, {100 * content['disproven_share']:.2f} % "
              f"disproven, {100 * content['undecided_share']:.2f} % undecided "
              f"({content['pair_boxes']['outside']:,} of {len(certificate.verdicts):,} pair "
-             f"boxes outside the static workspace) in {content['seconds']:.1f} s"]
+             f"boxes outside the static workspace) in {content['seconds']:.1f} s"
+             f"{_stopped(certificate.stopped, args)}"]
     for name, check in checks.items():
         count = check.get("pairs", check.get("pairs_in_proven_boxes"))
         lines.append(f"{name} check: {count} pairs, {check['disagreements']} disagreements")
