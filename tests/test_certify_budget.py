@@ -311,3 +311,19 @@ def test_the_pairs_command_says_why_it_stopped_and_refuses_in_one_line(capsys, t
         err = capsys.readouterr().err.strip()
         assert status == 2 and err.count("\n") == 0 and f"{field}:" in err
         assert not (tmp_path / "q").exists()
+
+
+@pytest.mark.slow  # about 20 s: builds ipanema8's anchored certificates and runs 5 s of them
+def test_an_eight_cable_robot_answers_within_its_time_limit(capsys, tmp_path):
+    """ipanema8 at a fixed orientation used to run for more than half an hour without a
+    line; with a time limit it answers with what it decided, checked by its own sampled
+    check (hyperplane shifting at each pose: 100,000 poses by default)."""
+    status = main(["certify", "workspace", "--robot", "ipanema8", "--time-limit", "5",
+                   "--json", "--out", str(tmp_path / "c")])
+    content = json.loads(capsys.readouterr().out)
+    assert status == 0 and content["stopped"] == "time_limit"
+    assert content["seconds"] >= 5 and content["time_limit_s"] == 5  # the stop, not a speed
+    assert content["feasible_share"] > 0 and content["undecided_share"] > 0
+    check = content["sampled_check"]
+    assert check["samples"] == certify_cli.DEFAULT_SAMPLES_REDUNDANT
+    assert check["disagreements_feasible"] == check["disagreements_infeasible"] == 0
