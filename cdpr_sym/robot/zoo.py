@@ -21,8 +21,8 @@ Sizes
     log-uniform so every decade is equally present), and its other sides 0.6 to 1 times
     that (:data:`ASPECT`), so no frame is a sliver. The mass is log-uniform in
     :data:`MASS_RANGE`, 0.1 to 500 kg. Gravity is 9.81 m/s^2 along minus the last axis.
-    Lengths are rounded to 1e-4 of the frame's size, other numbers to 4 significant
-    digits, before anything is checked, so the file holds what was checked.
+    Lengths are rounded to a step of 1e-5 to 1e-4 of the frame's size, other numbers to 4
+    significant digits, before anything is checked, so the file holds what was checked.
 Layouts (as the presets, scaled to the frame)
     Point masses: m = n hang from the top corners (planar2's two, or three of aras3's four,
     which one left out drawn); 3-D m = 4 from the four top corners (spatial4, suspended);
@@ -110,8 +110,6 @@ from cdpr_sym.robot.files import robot_from_dict
 ZOO_KINDS = ("point2", "point3", "planar", "spatial")
 #: Cable counts each kind may have (its first is m = n).
 CABLES = {"point2": (2, 3, 4), "point3": (3, 4, 5), "planar": (3, 4, 5), "spatial": (6, 8)}
-#: Degrees of freedom of each kind.
-DOF = {"point2": 2, "point3": 3, "planar": 3, "spatial": 6}
 #: Mass range, kg (drawn log-uniformly).
 MASS_RANGE = (0.1, 500.0)
 #: Range of the frame's largest side, m (drawn log-uniformly).
@@ -132,7 +130,8 @@ WORKSPACE_SAMPLES = 200
 COND_MAX = 10.0
 #: T_min as a share of each cable's share of the weight, m g / m_cables.
 TMIN_SHARE = 0.1
-#: T_max as a multiple of the largest static tension over the sampled workspace.
+#: T_max as a multiple of the TMAX_QUANTILE quantile of the largest static tension over
+#: the sampled workspace.
 TMAX_FACTOR = 2.0
 #: The share of the held sampled poses whose largest static tension sets T_max.
 TMAX_QUANTILE = 0.9
@@ -147,8 +146,8 @@ GRAVITY = 9.81
 
 
 def zoo_gains(mass: float, frame_size: float, *, dimension: int,
-               rotary_inertia: np.ndarray | tuple[float, ...] = (),
-               gravity: float = GRAVITY) -> tuple[np.ndarray, np.ndarray]:
+              rotary_inertia: np.ndarray | tuple[float, ...] = (),
+              gravity: float = GRAVITY) -> tuple[np.ndarray, np.ndarray]:
     """Gain diagonals (k, r_d) of the robot's case: a mass-spring-damper per coordinate.
 
     The one place of the zoo's gain rule, so a derived rule can replace it.
@@ -303,7 +302,8 @@ def _significant(value: Any, digits: int = 4) -> Any:
 
 
 def _on_grid(value: Any, size: float) -> np.ndarray:
-    """Lengths rounded to 1e-4 of the frame's size (0.05 mm to 2 mm)."""
+    """Lengths rounded to the fourth decimal below the frame size's leading digit: a
+    step of 1e-5 to 1e-4 of the size (0.01 mm for a 0.5 m frame, 1 mm for 20 m)."""
     return np.round(np.asarray(value, dtype=float), 4 - math.floor(math.log10(size)))
 
 
