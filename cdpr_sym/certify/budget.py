@@ -22,7 +22,10 @@ time limit stops the run, the run cannot finish: it is refused (``InvalidCase``)
 about a second of work instead of failing after minutes of it. The estimate is an
 estimate, not a bound; the margin :data:`OVER` keeps it from refusing runs that fit, and a
 run it lets through that meets the memory bound after all stops there (``memory``) with
-its work kept.
+its work kept. The workspace's boxes are estimated by :func:`surface_levels`, pair boxes
+by :func:`doubling_levels`. A pair certificate's first level is the grid asked for: it is
+refused after its first chunk when that chunk's cost per box says the grid would not be
+decided within the time limit (:mod:`cdpr_sym.certify.pairs`).
 """
 
 from __future__ import annotations
