@@ -194,6 +194,19 @@ def test_the_progress_line_is_shown_at_most_once_a_second(monkeypatch):
     with certify_cli.ProgressLine(enabled=False) as show:
         assert show is None
 
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    terminal = Terminal()
+    with certify_cli.ProgressLine(enabled=True, stream=terminal) as show:
+        for step in range(30):
+            now[0] = 10 + 0.25 * step
+            show(budget.Progress(3, 10, 100 + step, 0.2, 0.3, now[0], 45.0))
+    drawn = terminal.getvalue()  # one line redrawn in place (tqdm), ended once
+    assert drawn.count("\n") == 1 and drawn.count("% decided") >= 6
+    assert "certify: " in drawn and "128 boxes" in drawn.rsplit("\r", 1)[-1]
+
 
 @pytest.mark.parametrize(("argv", "field"), [
     (["--time-limit", "0"], "time_limit"),

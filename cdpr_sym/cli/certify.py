@@ -184,8 +184,8 @@ class ProgressLine:
         if self.stream.isatty():
             from tqdm import tqdm
 
-            self.bar = tqdm(total=100, desc="certify", file=self.stream, dynamic_ncols=True,
-                            bar_format="{desc}: {bar:20} {postfix}")
+            self.bar = tqdm(total=100, file=self.stream, dynamic_ncols=True,
+                            bar_format="certify: {bar:20} {desc}")
         return self
 
     def __exit__(self, *exception: object) -> None:
@@ -203,7 +203,7 @@ class ProgressLine:
             print(f"certify: {progress.line()}", file=self.stream, flush=True)
             return
         self.bar.n = round(100 * (progress.proven + progress.disproven), 2)
-        self.bar.set_postfix_str(progress.line(), refresh=False)
+        self.bar.set_description_str(progress.line(), refresh=False)
         self.bar.refresh()
 
 
