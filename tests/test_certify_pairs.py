@@ -99,6 +99,7 @@ def test_robots_without_a_pair_certificate_are_refused():
     ["--controller", "l2"],
     ["--sweep", "no-such-table.csv"],
     ["--samples", "-1"],
+    ["--until", "0.9"],  # a workspace option, not silently ignored
 ])
 def test_the_command_refuses_bad_options_in_one_line(capsys, tmp_path, argv):
     status = main(["certify", "pairs", "--robot", "aras3", *argv, "--out",

@@ -54,9 +54,10 @@ def add_parser(command) -> None:
     parser.add_argument("--min-width", type=float, default=None,
                         help="boxes narrower than this (m) are not bisected further (default: "
                              "0.005 for the workspace, the box side for pairs)")
-    parser.add_argument("--until", type=float, default=DEFAULT_UNTIL,
-                        help="workspace: stop refining once this share of the frame's volume "
-                             "is decided (1: refine every undecided box to --min-width)")
+    parser.add_argument("--until", type=float, default=None,
+                        help=f"workspace: stop refining once this share of the frame's volume "
+                             f"is decided (default: {DEFAULT_UNTIL}; 1: refine every "
+                             f"undecided box to --min-width)")
     parser.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT, metavar="S",
                         help="stop refining after this many seconds, keeping what is decided "
                              "and reporting the rest undecided (inf: no limit)")
@@ -99,6 +100,9 @@ def certify_command(args: argparse.Namespace, out: Output) -> int:
             raise InvalidCase("force", "--force and --moment apply to certify workspace")
         if args.property != "static":
             raise InvalidCase("property", "--property applies to certify workspace")
+        if args.until is not None:
+            raise InvalidCase("until", "--until applies to certify workspace (pairs refine "
+                              "to --min-width or --time-limit)")
         if args.orientation is not None or args.orientation_step is not None:
             raise InvalidCase("orientation", "--orientation and --orientation-step apply to "
                               "certify workspace")
@@ -108,7 +112,7 @@ def certify_command(args: argparse.Namespace, out: Output) -> int:
 
 def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     from cdpr_sym.certify.report import sampled_check, write_certificate
-    from cdpr_sym.certify.workspace import certify_workspace
+    from cdpr_sym.certify.workspace import DEFAULT_UNTIL, certify_workspace
     from cdpr_sym.cli.robots import with_wrench_box
 
     robot = with_wrench_box(robot, args.force, args.moment)
@@ -119,12 +123,13 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     if isinstance(samples, bool) or not 0 <= samples <= MAX_SAMPLES:
         raise InvalidCase("samples", f"expected 0 to {MAX_SAMPLES:,} poses, got {samples}")
     min_width = 0.005 if args.min_width is None else args.min_width
+    until = DEFAULT_UNTIL if args.until is None else args.until
     orientation, orientation_range = _orientation(robot, args.orientation)
     with ProgressLine(enabled=_progress(args)) as progress:
         certificate = certify_workspace(robot, orientation=orientation,
                                         orientation_range=orientation_range,
                                         orientation_step=args.orientation_step,
-                                        min_width=min_width, until=args.until,
+                                        min_width=min_width, until=until,
                                         half_widths=half_widths, prop=args.property,
                                         time_limit=args.time_limit, progress=progress)
     check = (sampled_check(certificate, samples, np.random.default_rng(args.seed))
@@ -156,8 +161,10 @@ def _progress(args: argparse.Namespace) -> bool:
 
 def _stopped(stopped: str, args: argparse.Namespace) -> str:
     """The end of the summary line: why the refinement stopped, and what decides more."""
+    from cdpr_sym.certify.workspace import DEFAULT_UNTIL
+
     if stopped == "until":
-        return f"; stopped at --until {args.until:g}"
+        return f"; stopped at --until {args.until or DEFAULT_UNTIL:g}"
     if stopped == "time_limit":
         return (f"; stopped at the time limit ({args.time_limit:g} s): the rest is undecided, "
                 f"a longer --time-limit decides more")
