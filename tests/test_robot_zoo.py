@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cdpr_sym.closed_loop import Case
+from cdpr_sym.closed_loop import Case, simulate
 from cdpr_sym.distribution import OPTIMAL, min_norm_reference
 from cdpr_sym.errors import InvalidRobot, UnknownName
 from cdpr_sym.model import SymbolicModel
@@ -220,3 +220,24 @@ def test_options_outside_the_zoo_are_refused_naming_them(options, error, field):
         random_robot(np.random.default_rng(0), **options)
     if field is not None:
         assert raised.value.field == field
+
+
+# -- a smoke run ---------------------------------------------------------------------------
+@pytest.mark.slow
+def test_smooth_runs_on_a_zoo_of_every_kind_inside_the_box(record_property, capsys):
+    """Eight robots (each kind, m = n and m > n), 5 s of the ideal plant under ``smooth``:
+    each run ends without a stop and keeps its tensions in the box. How many settle
+    (1 cm for the rest of the run) is recorded, not required: the zoo's gains are a simple
+    rule, not a design."""
+    settled = []
+    for robot in zoo(SEED, 8):
+        metrics = simulate(robot, "smooth", duration=5.0).metrics()
+        assert metrics["stop_reason"] is None, (robot.name, metrics["stop_reason"])
+        assert metrics["tension_feasible"], (robot.name, metrics["min_tension"],
+                                             metrics["max_tension"], robot.t_min, robot.t_max)
+        settled.append((robot.name, metrics["settle_time"], metrics["final_error"]))
+    record_property("settled", sum(time is not None for _, time, _ in settled))
+    with capsys.disabled():
+        print("\nsmooth on the zoo:", *(
+            f"{name}: {'never settles' if time is None else f'settles at {time:.3g} s'}, "
+            f"final error {error:.2g}" for name, time, error in settled), sep="\n  ")
