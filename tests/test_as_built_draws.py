@@ -4,6 +4,7 @@ sweeps and single runs on them (calibrated first or not)."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import zlib
 
@@ -11,7 +12,15 @@ import numpy as np
 import pytest
 
 from cdpr_sym import preset
-from cdpr_sym.as_built import DEFAULT_DRAW, Actuation, AsBuiltDraw, Sensing, load_as_built_draw
+from cdpr_sym.as_built import (
+    DEFAULT_DRAW,
+    Actuation,
+    AsBuiltDraw,
+    FromRobot,
+    Sensing,
+    load_as_built_draw,
+    scaled_actuation,
+)
 from cdpr_sym.calibration.drawn import drawn_robot
 from cdpr_sym.cli import main
 from cdpr_sym.closed_loop import get_simulator
@@ -36,9 +45,19 @@ def test_an_as_built_file_states_another_specification(tmp_path):
                     "[actuation]\ncable_stiffness = 2e5\ntorque_limit = 5.0\n"
                     "[sensing]\nresolution = 2e-5\n")
     draw = load_as_built_draw(path)
-    assert draw == AsBuiltDraw(mass_error=0.02, anchor_error=0.001, delay=0,
-                               actuation=Actuation(cable_stiffness=2e5, torque_limit=5.0),
-                               sensing=Sensing(resolution=2e-5))
+    assert draw == AsBuiltDraw(
+        mass_error=0.02, anchor_error=0.001, delay=0,
+        actuation=FromRobot((("cable_stiffness", 2e5), ("torque_limit", 5.0))),
+        sensing=FromRobot((("resolution", 2e-5),)))
+    # the fields stated, the rest the robot's default build: aras3's is the reference's ...
+    aras3 = preset("aras3")
+    assert draw.drive(aras3) == Actuation(cable_stiffness=2e5, torque_limit=5.0)
+    assert draw.encoders(aras3) == Sensing(resolution=2e-5)
+    # ... a heavier robot's has a larger winch, with the cable and the limit stated
+    heavy = scaled_actuation(preset("ipanema8"))
+    assert draw.drive(preset("ipanema8")) == dataclasses.replace(
+        heavy, cable_stiffness=2e5, torque_limit=5.0)
+    assert heavy.drum_radius > 0.03 and heavy.inertia > Actuation().inertia
     assert load_as_built_draw("default") is DEFAULT_DRAW
     path.write_text("mass_error = 0.02\n")  # no tables: rigid cables, exact state
     assert load_as_built_draw(path).actuation is None

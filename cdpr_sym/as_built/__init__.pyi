@@ -1,7 +1,8 @@
 # The names this package exports, read by type checkers and by lazy_loader at import
 # time: each is imported from its module on first use (see __init__.py).
 
-from .draw import DEFAULT_DRAW, AsBuiltDraw, load_as_built_draw
+from .draw import DEFAULT_DRAW, AsBuiltDraw, FromRobot, load_as_built_draw
+from .hardware import scaled_actuation, scaled_sensing
 from .port_hamiltonian import AsBuiltHamiltonian
 from .spec import (
     ACTUATION_PARAMETERS,
@@ -28,9 +29,12 @@ __all__ = [
     "AsBuiltDraw",
     "AsBuiltHamiltonian",
     "AsBuiltStructure",
+    "FromRobot",
     "Sensing",
     "check_integrable",
     "fastest_mode",
     "load_as_built_draw",
+    "scaled_actuation",
+    "scaled_sensing",
     "true_static_function",
 ]

@@ -14,10 +14,16 @@ specification; a TOML file (:func:`load_as_built_draw`) states another:
     torque_margin = 1.5    # winch torque limit r T_max x 1.5 (when [actuation] gives none)
 
     [actuation]            # the fields of Actuation; leave the table out for rigid cables
-    cable_damping = 4.0
+    cable_damping = 4.0    # a field left out is scaled from the robot (as_built.hardware)
 
     [sensing]              # the fields of Sensing; leave it out for exact state feedback
-    resolution = 1e-5
+    resolution = 1e-5      # likewise
+
+The hardware a draw does not state is a plausible build of the robot it draws for
+(:mod:`cdpr_sym.as_built.hardware`: the cable, drum, winch inertia, friction and encoder
+scaled from the tension box): :class:`FromRobot` holds the fields stated, and
+:meth:`AsBuiltDraw.drive` and :meth:`AsBuiltDraw.encoders` give the winches and encoders of a
+given robot. :data:`DEFAULT_DRAW` states none.
 
 A draw is (mass scale, :class:`AsBuilt`); pair p of a sweep or study with seed s draws from
 ``numpy.random.default_rng([s, p, crc32("as built")])``, mass first, then the offsets (m, d)
@@ -46,6 +52,35 @@ MAX_FILE_BYTES = 1 << 16
 
 
 @dataclasses.dataclass(frozen=True)
+class FromRobot:
+    """Hardware scaled from the robot (:mod:`cdpr_sym.as_built.hardware`) but the fields
+    stated: ``fields`` is a sorted tuple of (name, value) pairs of :class:`Actuation` or
+    :class:`Sensing`."""
+
+    fields: tuple[tuple[str, Any], ...] = ()
+
+    def actuation(self, robot: Robot) -> Actuation:
+        from cdpr_sym.as_built.hardware import scaled_actuation
+
+        return _replaced("actuation", scaled_actuation(robot), self.fields)
+
+    def sensing(self, robot: Robot, actuation: Actuation | None) -> Sensing:
+        from cdpr_sym.as_built.hardware import scaled_sensing
+
+        return _replaced("sensing", scaled_sensing(robot, actuation), self.fields)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"from_robot": True, **dict(self.fields)}
+
+
+def _replaced(table: str, base: Any, fields: tuple[tuple[str, Any], ...]) -> Any:
+    try:
+        return dataclasses.replace(base, **dict(fields))
+    except InvalidCase as wrong:
+        raise InvalidCase(f"{table}.{wrong.field}", wrong.message) from None
+
+
+@dataclasses.dataclass(frozen=True)
 class AsBuiltDraw:
     """How a robot as built differs from its model, per pair.
 
@@ -56,11 +91,12 @@ class AsBuiltDraw:
         [1 - e, 1 + e]. Default 0.10.
     anchor_error : float
         Largest anchor error per coordinate, m, uniform. Default 0.005 m.
-    actuation : Actuation or None
-        Winches (None: rigid cables). Default :class:`Actuation` with the torque limit set
-        from ``torque_margin``.
-    sensing : Sensing or None
-        Encoders (None: exact state). Default :class:`Sensing`.
+    actuation : Actuation, FromRobot or None
+        Winches (None: rigid cables). Default :class:`FromRobot`: scaled from each robot
+        (:mod:`cdpr_sym.as_built.hardware`), with the torque limit set from
+        ``torque_margin``.
+    sensing : Sensing, FromRobot or None
+        Encoders (None: exact state). Default :class:`FromRobot`.
     delay : int
         Command delay, control periods. Default 1.
     substeps : int
@@ -71,8 +107,8 @@ class AsBuiltDraw:
 
     mass_error: float = 0.10
     anchor_error: float = 0.005
-    actuation: Actuation | None = dataclasses.field(default_factory=Actuation)
-    sensing: Sensing | None = dataclasses.field(default_factory=Sensing)
+    actuation: Actuation | FromRobot | None = dataclasses.field(default_factory=FromRobot)
+    sensing: Sensing | FromRobot | None = dataclasses.field(default_factory=FromRobot)
     delay: int = 1
     substeps: int = 2
     torque_margin: float = 1.5
@@ -90,17 +126,28 @@ class AsBuiltDraw:
         AsBuilt(delay=self.delay, substeps=self.substeps)  # checks both
 
     def drive(self, robot: Robot) -> Actuation | None:
-        """The winches of ``robot``'s draws: a torque limit of r T_max x margin unless set."""
-        if self.actuation is None or self.actuation.torque_limit is not None:
-            return self.actuation
-        limit = self.torque_margin * robot.t_max * self.actuation.drum_radius
-        return dataclasses.replace(self.actuation, torque_limit=limit)
+        """The winches of ``robot``'s draws (scaled from it where the draw states none): a
+        torque limit of r T_max x margin unless set."""
+        actuation = self.actuation
+        if isinstance(actuation, FromRobot):
+            actuation = actuation.actuation(robot)
+        if actuation is None or actuation.torque_limit is not None:
+            return actuation
+        limit = self.torque_margin * robot.t_max * actuation.drum_radius
+        return dataclasses.replace(actuation, torque_limit=limit)
+
+    def encoders(self, robot: Robot) -> Sensing | None:
+        """The encoders of ``robot``'s draws (scaled from its winches where the draw states
+        none)."""
+        if isinstance(self.sensing, FromRobot):
+            return self.sensing.sensing(robot, self.drive(robot))
+        return self.sensing
 
     def draw(self, rng: np.random.Generator, robot: Robot) -> tuple[float, AsBuilt]:
         """One robot as built: (mass scale, :class:`AsBuilt`)."""
         mass_scale = float(rng.uniform(1 - self.mass_error, 1 + self.mass_error))
         offsets = rng.uniform(-self.anchor_error, self.anchor_error, (robot.m, robot.dimension))
-        return mass_scale, AsBuilt(actuation=self.drive(robot), sensing=self.sensing,
+        return mass_scale, AsBuilt(actuation=self.drive(robot), sensing=self.encoders(robot),
                                    delay=self.delay, anchor_offsets=offsets,
                                    substeps=self.substeps)
 
@@ -111,10 +158,15 @@ class AsBuiltDraw:
     def as_dict(self) -> dict[str, Any]:
         """Plain numbers (an unlimited torque as None), for a record."""
         return {"mass_error": self.mass_error, "anchor_error": self.anchor_error,
-                "actuation": dataclasses.asdict(self.actuation) if self.actuation else None,
-                "sensing": dataclasses.asdict(self.sensing) if self.sensing else None,
+                "actuation": _record(self.actuation), "sensing": _record(self.sensing),
                 "delay": self.delay, "substeps": self.substeps,
                 "torque_margin": self.torque_margin}
+
+
+def _record(part: Any) -> dict[str, Any] | None:
+    if part is None:
+        return None
+    return part.as_dict() if isinstance(part, FromRobot) else dataclasses.asdict(part)
 
 
 #: The robustness study's combined "as built" specification.
@@ -146,11 +198,12 @@ def as_built_draw_from_dict(data: dict[str, Any], source: str = "<dict>") -> AsB
             raise InvalidCase(f"{table}.{bad[0]}", f"unknown field in {source}; expected one "
                               f"of {', '.join(sorted(known))}")
         try:
-            parts[table] = kind(**fields)
+            kind(**fields)  # each stated value checked now, the rest scaled per robot
         except InvalidCase as wrong:
             raise InvalidCase(f"{table}.{wrong.field}", wrong.message) from None
         except TypeError as wrong:
             raise InvalidCase(table, f"{wrong} in {source}") from None
+        parts[table] = FromRobot(tuple(sorted(fields.items())))
     if not isinstance(parts.get("delay", 1), int) or parts.get("delay", 1) > MAX_DELAY:
         raise InvalidCase("delay", f"expected a whole number of periods in 0..{MAX_DELAY}")
     return AsBuiltDraw(**parts)

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
+from cdpr_sym.as_built import Actuation, AsBuilt
 from cdpr_sym.as_built.draw import DEFAULT_DRAW
 from cdpr_sym.calibration.drawn import SELF_POSES, TRACKER_NOISE, TRACKER_POSES, drawn_robot
 from cdpr_sym.closed_loop import Plant, get_simulator
@@ -135,9 +135,11 @@ EFFECTS = (
            lambda rng, robot: Plant(as_built=AsBuilt(anchor_offsets=_offsets(rng, robot)))),
     Effect("delay", "command 1 period (1 ms) late",
            lambda rng, robot: Plant(as_built=AsBuilt(delay=DELAY))),
-    Effect("sensing", "pose from 1e-5 m encoders by forward kinematics, 50 Hz velocity filter",
-           lambda rng, robot: Plant(as_built=AsBuilt(sensing=Sensing()))),
-    Effect("winches", "elastic cables on winches: EA 1e5 N, 500 Hz torque loop, torque limit",
+    Effect("sensing", "pose by forward kinematics from the encoders of the robot's default "
+           "build (1e-5 m on a 0.03 m drum), 50 Hz velocity filter",
+           lambda rng, robot: Plant(as_built=AsBuilt(sensing=DEFAULT_DRAW.encoders(robot)))),
+    Effect("winches", "elastic cables on winches of the robot's default build (EA 1e5 N up to "
+           "T_max = 340 N), 500 Hz torque loop, torque limit",
            lambda rng, robot: Plant(as_built=AsBuilt(actuation=winch_drive(robot)))),
     Effect("as built", "all of the above, mass uniform in +-10 %, anchors drawn per pair",
            _as_built),
