@@ -134,6 +134,12 @@ def test_a_pose_that_cannot_be_read_is_refused_and_stops_the_run(aras3, build_op
     # lengths rounded to whole metres: the pose they give is 0.6 m from the last one, too
     # far for the solver's four steps from there
     plant = Plant(as_built=AsBuilt(sensing=Sensing(resolution=1.0)))
+    # encoders that coarse are refused first, as over 1 % of the frame's smallest side ...
+    with pytest.raises(InvalidCase) as refused:
+        simulate(aras3, "smooth", duration=0.5, build_options=build_options, plant=plant)
+    assert refused.value.field == "resolution"
+    # ... and, past that check, by the readability check, naming the counts' step
+    monkeypatch.setattr(Sensing, "check_frame", lambda *arguments: None)
     with pytest.raises(InvalidCase, match="count in steps of 1000 mm") as refused:
         simulate(aras3, "smooth", duration=0.5, build_options=build_options, plant=plant)
     assert refused.value.field == "sensing"

@@ -62,7 +62,7 @@ def _storage(robot, controller, simulator, states):
     goal_payout = payout_r + memory[n + 3: n + 3 + m]
     system = AsBuiltHamiltonian(model).functions
     numbers = (LOSSLESS.parameters(), 1.0, np.zeros(m * robot.dimension))
-    pull = controller.pull(tension_r)
+    pull = controller.pull(tension_r, controller.drive_of(robot))
     storage, spring = [], []
     lengths = model.functions["cable_lengths"]
     for q, dq, payout, speed in zip(x["q"], x["dq"], x["payout"], x["drum_speed"],
@@ -70,7 +70,7 @@ def _storage(robot, controller, simulator, states):
         canonical = system["canonical"](q, dq, payout, speed, *numbers)
         error = payout - goal_payout
         storage.append(float(system["energy"](canonical, *numbers)) + pull @ error
-                       + 0.5 * controller.stiffness * error @ error)
+                       + 0.5 * controller.gains(robot, DT)[0] * error @ error)
         stretch = np.array(lengths(q)).ravel() - payout
         spring.append(LOSSLESS.cable_stiffness * np.maximum(stretch, 0) / payout)
     at_rest = system["canonical"](robot.start, np.zeros(n), goal_payout, np.zeros(m), *numbers)
@@ -126,7 +126,7 @@ def test_reads_the_winches_not_the_pose(aras3, build_options):
         aras3.start, aras3.goal, aras3.k, aras3.r_d, duration=0.2, dt=1e-3, plant=plant)
     assert run.stop_reason is None
     static = run.static_tension
-    np.testing.assert_allclose(run.tau[0], design.pull(static), atol=0.5)
+    np.testing.assert_allclose(run.tau[0], design.pull(static, design.drive_of(aras3)), atol=0.5)
     effects = plant_effects(as_built=spec.structure())
     for name, reads_pose in (("ida-winch", False), ("smooth", True)):
         controller = controller_by_name(name)

@@ -19,6 +19,7 @@ from cdpr_sym.cli.output import Output, quantity, yes_no
 from cdpr_sym.cli.parser import MAX_WORKERS
 from cdpr_sym.cli.paths import check_file, check_folder
 from cdpr_sym.cli.robots import checked_robot, with_wrench_box
+from cdpr_sym.cli.tune import tune_command
 from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
 from cdpr_sym.closed_loop.effects.readout import check_draw_runs
@@ -367,4 +368,4 @@ def _export_encoders(args: argparse.Namespace, robot, out: Output) -> int:
 HANDLERS = {"simulate": simulate_command, "study": study_command, "bench": bench_command,
             "workspace": workspace_command, "sweep": sweep_command, "report": report_command,
             "export-c": export_command, "calibrate": calibrate_command,
-            "certify": certify_command}
+            "certify": certify_command, "tune": tune_command}

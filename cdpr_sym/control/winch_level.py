@@ -62,13 +62,19 @@ import casadi as ca
 
 from cdpr_sym.as_built import Actuation
 from cdpr_sym.as_built.actuation import friction_torque
+from cdpr_sym.as_built.hardware import scaled_actuation
 from cdpr_sym.checks import positive_number
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
 from cdpr_sym.control.interface import Capabilities, ControlLaw, DriveReading
 from cdpr_sym.control.parts import beta_margin, flag_if
 from cdpr_sym.control.planned import SmoothReference, minimum_jerk
+from cdpr_sym.control.tuning import winch_gains
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
+from cdpr_sym.robot import Robot
+
+#: ``feedback_cutoff``'s default: the corner the robot's rule gives.
+FROM_ROBOT = "robot"
 
 
 def _positive(field: str, value: object, unit: str, *, zero: bool = False) -> float:
@@ -115,42 +121,50 @@ class WinchIdaPbc:
 
     Parameters
     ----------
-    stiffness : float
-        k_p, N/m of cable: the motor spring shaping the energy in l0. Default 500 N/m, fifty
-        times softer than a 4 m default cable (EA / l0 = 25,000 N/m), so the platform rides
-        on the motor springs in series with the stiff cables. A run refuses one no loop
-        sampled at its period can hold (:meth:`check_period`).
-    damping : float
+    stiffness : float or None
+        k_p, N/m of cable: the motor spring shaping the energy in l0. None (default): from
+        the robot (:func:`cdpr_sym.control.tuning.winch_gains`: the platform's mass on it
+        a mode at a fourteenth of the command path's corner; 503.5 N/m on the paper's
+        robot, fifty times softer than a 4 m default cable, so the platform rides on the
+        motor springs in series with the stiff cables). A run refuses one no loop sampled
+        at its period can hold (:meth:`check_period`).
+    damping : float or None
         k_d, N s/m of cable, >= 0: the damping injected on the drum velocities (0 leaves the
-        storage constant on a lossless plant). Default 40 N s/m; bounded as k_p is.
-    drive : Actuation
+        storage constant on a lossless plant). None (default): a damping ratio of 0.45 on
+        that mode (40.4 N s/m on the paper's robot); bounded as k_p is.
+    drive : Actuation or None
         The controller's model of the winches (EA, drum radius and inertia, friction); the
-        plant's may differ.
-    integral : float
+        plant's may differ. None (default): the robot's default build
+        (:func:`cdpr_sym.as_built.hardware.scaled_actuation`).
+    integral : float or None
         k_i, N/(m s), >= 0: integral action on the length error, which removes the offset a
         weight error leaves on the soft motor spring (held while the command is clipped).
+        None (default): a corner a twentieth of the mode's (282 N/(m s) on the paper's
+        robot).
     rate_cutoff : float
         Hz: the drum speeds are the encoders' difference quotient through a first-order
         low-pass filter of this corner. Default 500 Hz: well above the drum-cable modes,
         whose damping a slower filter's lag would undo.
-    feedback_cutoff : float or None
+    feedback_cutoff : float, "robot" or None
         Hz: the feedback k_p e + k_d de/dt + k_i int e passes ``feedback_stages`` first-order
         low-pass stages of this corner (None: unfiltered, the law of the argument), so that
         with the sampled loop's delay it never feeds the drum-cable modes (50-250 Hz) with
-        negative damping (docs/winch_ida_pbc.md, assumption 3).
+        negative damping (docs/winch_ida_pbc.md, assumption 3). "robot" (default): half the
+        lowest drum-cable mode, at most a fortieth of the sample rate (25 Hz on the paper's
+        robot at 1 kHz).
     feedback_stages : int
         Stages of that filter, 1 to 8.
     plan : SmoothReference
         The planner of the reference (duration, margin).
     """
 
-    stiffness: float = 500.0
-    damping: float = 40.0
-    integral: float = 300.0
+    stiffness: float | None = None
+    damping: float | None = None
+    integral: float | None = None
     rate_cutoff: float = 500.0
-    feedback_cutoff: float | None = 25.0
+    feedback_cutoff: float | str | None = FROM_ROBOT
     feedback_stages: int = 4
-    drive: Actuation = Actuation()  # noqa: RUF009 - frozen, so one shared default is safe
+    drive: Actuation | None = None
     plan: SmoothReference = SmoothReference()  # noqa: RUF009 - frozen, as above
     name: ClassVar[str] = "ida-winch"
 
@@ -160,16 +174,16 @@ class WinchIdaPbc:
         object.__setattr__(self, "drive", _from_options("drive", Actuation, self.drive))
         if not isinstance(self.plan, SmoothReference):
             raise InvalidCase("plan", f"expected a SmoothReference, got {self.plan!r}")
-        if not isinstance(self.drive, Actuation):
-            raise InvalidCase("drive", f"expected an Actuation, got {self.drive!r}")
-        object.__setattr__(self, "stiffness", _positive("stiffness", self.stiffness, "N/m"))
-        object.__setattr__(self, "damping", _positive("damping", self.damping, "N s/m",
-                                                      zero=True))
-        object.__setattr__(self, "integral", _positive("integral", self.integral, "N/(m s)",
-                                                       zero=True))
+        if self.drive is not None and not isinstance(self.drive, Actuation):
+            raise InvalidCase("drive", f"expected an Actuation or None, got {self.drive!r}")
+        for field, unit, zero in (("stiffness", "N/m", False), ("damping", "N s/m", True),
+                                  ("integral", "N/(m s)", True)):
+            if getattr(self, field) is not None:
+                object.__setattr__(self, field, _positive(field, getattr(self, field), unit,
+                                                          zero=zero))
         object.__setattr__(self, "rate_cutoff", _positive("rate_cutoff", self.rate_cutoff,
                                                           "Hz"))
-        if self.feedback_cutoff is not None:
+        if self.feedback_cutoff is not None and self.feedback_cutoff != FROM_ROBOT:
             object.__setattr__(self, "feedback_cutoff", _positive(
                 "feedback_cutoff", self.feedback_cutoff, "Hz"))
         stages = self.feedback_stages
@@ -182,17 +196,20 @@ class WinchIdaPbc:
         every ``dt`` s can hold stable on a robot of ``robot_mass`` kg:
         k_p dt^2 / m >= :data:`SAMPLED_STIFFNESS_LIMIT` or k_d dt / m >=
         :data:`SAMPLED_DAMPING_LIMIT`, m = J / r^2 + M (see those constants). At 1 kHz on
-        aras3 (4 kg) the limits are 1.6e7 N/m and 8,200 N s/m; the defaults are 500 N/m and
-        40 N s/m."""
-        drive = self.drive
+        aras3 (4 kg) the limits are 1.6e7 N/m and 8,200 N s/m. Gains from the robot keep
+        k_p dt^2 / M <= (2 pi / 560)^2 and k_d dt / M <= 0.9 (2 pi / 560) by their rule (a
+        mode at most f_s / 560): they are not checked. The drive is the caller's, or the
+        reference build's (the robot's scaled one is heavier still, so the limits only grow).
+        """
+        drive = self.drive or Actuation()
         inertia = drive.inertia / drive.drum_radius**2 + robot_mass  # kg, on one cable
         stiffness = SAMPLED_STIFFNESS_LIMIT * inertia / dt**2
-        if self.stiffness >= stiffness:
+        if self.stiffness is not None and self.stiffness >= stiffness:
             raise InvalidCase("stiffness", f"expected k_p below 4 (J/r^2 + M) / dt^2 = "
                               f"{stiffness:.3g} N/m, the stiffest spring a loop sampled every "
                               f"{dt:g} s can hold on {inertia:.3g} kg; got {self.stiffness:g}")
         damping = SAMPLED_DAMPING_LIMIT * inertia / dt
-        if self.damping >= damping:
+        if self.damping is not None and self.damping >= damping:
             raise InvalidCase("damping", f"expected k_d below 2 (J/r^2 + M) / dt = "
                               f"{damping:.3g} N s/m, the most damping a loop sampled every "
                               f"{dt:g} s can hold on {inertia:.3g} kg; got {self.damping:g}")
@@ -202,7 +219,26 @@ class WinchIdaPbc:
                 "integral": self.integral,
                 "rate_cutoff": self.rate_cutoff, "feedback_cutoff": self.feedback_cutoff,
                 "feedback_stages": self.feedback_stages,
-                "drive": dataclasses.asdict(self.drive), "plan": self.plan.options()}
+                "drive": None if self.drive is None else dataclasses.asdict(self.drive),
+                "plan": self.plan.options()}
+
+    def drive_of(self, robot: Robot) -> Actuation:
+        """The winches as the controller models them: ``drive``, or ``robot``'s default
+        build."""
+        return self.drive if self.drive is not None else scaled_actuation(robot)
+
+    def gains(self, robot: Robot, dt: Any) -> tuple[Any, Any, Any, Any]:
+        """(k_p, k_d, k_i, feedback corner) on ``robot`` at the period ``dt`` (s; a number
+        or a CasADi symbol): the options given, the rest from the robot
+        (:func:`cdpr_sym.control.tuning.winch_gains`)."""
+        derived = winch_gains(robot, self.drive_of(robot), dt)
+        cutoff = (derived.feedback_cutoff if self.feedback_cutoff == FROM_ROBOT
+                  else self.feedback_cutoff)
+        stiffness, damping, integral = (
+            derived_value if value is None else value for value, derived_value in (
+                (self.stiffness, derived.stiffness), (self.damping, derived.damping),
+                (self.integral, derived.integral)))
+        return stiffness, damping, integral, cutoff
 
     def capabilities(self) -> Capabilities:
         """m = n (the feed-forward inverts W); reads the winches."""
@@ -240,14 +276,16 @@ class WinchIdaPbc:
         force = (model.mass_matrix(q_r) @ ddq_r + model.coriolis_force(q_r, dq_r)
                  + model.grad_potential(q_r))
         tension = ca.solve(W, force)
-        payout = model.cable_lengths(q_r) / (1 + tension / self.drive.cable_stiffness)
+        payout = model.cable_lengths(q_r) / (1 + tension
+                                             / self.drive_of(model.robot).cable_stiffness)
         jacobian = model.jacobian_ja(q_r)
         return (payout, jacobian @ dq_r, jacobian @ ddq_r, tension,
                 model.singularity_measure(W))
 
-    def pull(self, tension):
-        """The pull P = T + T^2 / (2 EA) that holds a cable of tension T on its drum, N."""
-        return tension + tension * tension / (2 * self.drive.cable_stiffness)
+    def pull(self, tension, drive: Actuation):
+        """The pull P = T + T^2 / (2 EA) that holds a cable of tension T on ``drive``'s drum,
+        N."""
+        return tension + tension * tension / (2 * drive.cable_stiffness)
 
     def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
              r_d: ca.SX, memory: ca.SX, dt: ca.SX, *, drives: DriveReading
@@ -268,13 +306,14 @@ class WinchIdaPbc:
                           keep * rate_kept + (1 - keep) * (reading - last) / dt)
         error = reading - payout_r - misfit
         error_rate = rate - rate_r
-        drive = self.drive
+        drive = self.drive_of(robot)
+        stiffness, damping, integral, cutoff = self.gains(robot, dt)
         reflected = drive.inertia / drive.drum_radius**2
         friction = friction_torque(rate_r / drive.drum_radius,
                                    ca.DM(drive.parameters())) / drive.drum_radius
-        feedback, stages = self.filtered(self.stiffness * error + self.damping * error_rate
-                                         + self.integral * integrated_kept, stages_kept, dt)
-        command = self.pull(tension_r) - reflected * accel_r - friction + feedback
+        feedback, stages = self.filtered(stiffness * error + damping * error_rate
+                                         + integral * integrated_kept, stages_kept, dt, cutoff)
+        command = self.pull(tension_r, drive) - reflected * accel_r - friction + feedback
         # the command (the pull the motor torque stands for) kept in the box; on rigid
         # cables the command is the tension itself
         low, high = robot.t_min, robot.t_max
@@ -290,14 +329,15 @@ class WinchIdaPbc:
         return law, ca.vertcat(t + dt, q_start, duration, margin, misfit, reading, rate,
                                integrated, stages)
 
-    def filtered(self, feedback: ca.SX, stages: ca.SX, dt: ca.SX) -> tuple[ca.SX, ca.SX]:
-        """``feedback`` (N) through the filter's first-order stages of corner
-        ``feedback_cutoff``, each discretised exactly for a held input; returns the output
-        and the stages' next values (unchanged without the filter)."""
-        if self.feedback_cutoff is None:
+    def filtered(self, feedback: ca.SX, stages: ca.SX, dt: ca.SX, cutoff: Any
+                 ) -> tuple[ca.SX, ca.SX]:
+        """``feedback`` (N) through the filter's first-order stages of corner ``cutoff``
+        (Hz), each discretised exactly for a held input; returns the output and the stages'
+        next values (unchanged without the filter)."""
+        if cutoff is None:
             return feedback, stages
         m = feedback.shape[0]
-        gain = 1 - ca.exp(-2 * math.pi * self.feedback_cutoff * dt)
+        gain = 1 - ca.exp(-2 * math.pi * cutoff * dt)
         signal, updated = feedback, []
         for index in range(self.feedback_stages):
             past = stages[index * m: (index + 1) * m]

@@ -42,6 +42,7 @@ from cdpr_sym.codegen.names import c_double
 from cdpr_sym.control import FLAG_NAMES, Controller, capabilities, check_cables, controller_by_name
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SINGULAR
 from cdpr_sym.control.planned import SmoothReference
+from cdpr_sym.control.tuning import drum_cable_mode
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export.encoder_loop import (
     LOCATE_ITERATIONS,
@@ -58,7 +59,6 @@ from cdpr_sym.export.guard import (
     NOT_AT_REST,
     NOT_LOCATED,
     GuardLimits,
-    drum_cable_mode,
     first_trip,
     hold_cutoff,
     move_speed,
@@ -265,7 +265,8 @@ def _check(robot, controller, out_dir, *, calibration, as_built, seed, duration,
                               f"(m = {model_robot.m}, {model_robot.dimension}-D), not "
                               f"{robot.name} (m = {robot.m}, {robot.dimension}-D)")
     draw = load_as_built_draw(as_built)
-    if draw.actuation is None or draw.sensing is None or not draw.sensing.resolution > 0:
+    encoders = draw.encoders(robot)
+    if draw.drive(robot) is None or encoders is None or not encoders.resolution > 0:
         raise InvalidCase("as_built", "the encoder-level package reads encoder counts and "
                           "writes motor torques: the as-built specification needs winches "
                           "([actuation]) and encoders ([sensing]) with a resolution > 0")
@@ -470,9 +471,7 @@ def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Funct
     rate_cutoff = sensing.velocity_cutoff
     rate_gain = -math.expm1(-2 * math.pi * rate_cutoff * loop.dt)
     rest_samples = max(math.ceil(3 / (2 * math.pi * rate_cutoff * loop.dt)), 2)
-    mode = drum_cable_mode(cable_stiffness=actuation.cable_stiffness,
-                           longest_cable=float(np.max(high)), drum_inertia=actuation.inertia,
-                           drum_radius=actuation.drum_radius)
+    mode = drum_cable_mode(robot, actuation)
     hold_corner = hold_cutoff(mode, loop.dt)
     margin = np.array([limits.frame_margin if j < positions else 0.0 for j in range(n)])
     return {

@@ -210,15 +210,6 @@ def move_speed(q, dt: float, frame_side: float) -> float:
     return max(peak if np.isfinite(peak) else 0.0, MIN_SPEED_SHARE * frame_side)
 
 
-def drum_cable_mode(*, cable_stiffness: float, longest_cable: float, drum_inertia: float,
-                    drum_radius: float) -> float:
-    """The lowest drum-cable mode, Hz: the drum's inertia at the cable, J / r^2, on the
-    stiffness of the longest cable, EA / l_max, with the platform held still (its mass is
-    far larger): f = sqrt(EA / (l_max J / r^2)) / (2 pi)."""
-    return math.sqrt(cable_stiffness / longest_cable / (drum_inertia / drum_radius ** 2)) \
-        / (2 * math.pi)
-
-
 def hold_cutoff(mode: float, dt: float) -> float:
     """The hold filter's corner, Hz: HOLD_MODE_SHARE of the drum-cable ``mode`` (Hz), at most
     a tenth of the sample rate. Through HOLD_STAGES stages the feedback is then 1/676 of

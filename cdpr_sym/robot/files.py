@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 import stat
@@ -10,8 +11,11 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from cdpr_sym.errors import InvalidRobot, UnknownName
 from cdpr_sym.robot.description import Robot
+from cdpr_sym.robot.gains import case_gains
 
 PRESET_NAMES = ("aras3", "planar2", "planar3", "spatial6", "planar4", "spatial4", "ipanema8")
 
@@ -44,17 +48,30 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
             node = node[key]
         return node
 
-    return Robot(
+    case = data.get("case", {})
+    stated = {gain: get(f"case.{gain}") for gain in ("k", "r_d")
+              if isinstance(case, dict) and gain in case}
+    start = get("case.start")
+    # until the gains a file leaves out are derived: ones of the start's size
+    placeholder = [1.0] * len(start) if isinstance(start, list) else 1.0
+    robot = Robot(
         name=data.get("name", Path(source).stem),
         anchors=get("anchors"), mass=get("mass"), gravity=get("gravity", 9.81),
         t_min=get("tension.min"), t_max=get("tension.max"),
         frame_lower=get("frame.lower"), frame_upper=get("frame.upper"),
-        start=get("case.start"), goal=get("case.goal"), k=get("case.k"), r_d=get("case.r_d"),
+        start=start, goal=get("case.goal"),
+        k=stated.get("k", placeholder), r_d=stated.get("r_d", placeholder),
         attachments=body.get("attachments"), inertia=body.get("inertia"),
         center_of_mass=body.get("center_of_mass"),
         external_force=wrench.get("force"), external_moment=wrench.get("moment"),
         encoder_offsets=encoders.get("offsets"),
     )
+    if len(stated) == 2:
+        return robot
+    # the gains the file leaves out, from the robot (cdpr_sym.robot.gains)
+    k, r_d = case_gains(robot.mass, robot.inertia, robot.n, robot.dimension)
+    return dataclasses.replace(robot, k=np.asarray(stated.get("k", k), dtype=float),
+                               r_d=np.asarray(stated.get("r_d", r_d), dtype=float))
 
 
 #: The robot-file layout: top-level fields, and the fields of each table.
