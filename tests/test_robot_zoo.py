@@ -20,8 +20,6 @@ from cdpr_sym.robot import load_robot, robot_from_dict, robot_key
 from cdpr_sym.robot.files import robot_file_text
 from cdpr_sym.robot.zoo import (
     COND_MAX,
-    DAMPING_RATIO,
-    FREQUENCY_SCALE,
     MIN_MOVE,
     TMIN_SHARE,
     ZOO_KINDS,
@@ -161,16 +159,14 @@ def test_the_tension_floor_and_the_gains_follow_their_stated_rules(robots):
     for robot in robots:
         weight = robot.mass * robot.gravity
         assert robot.t_min == pytest.approx(TMIN_SHARE * weight / robot.m, rel=1e-3)
-        lower, upper = frame_box(robot.anchors)
-        w = FREQUENCY_SCALE * math.sqrt(robot.gravity / (upper - lower).max())
+        # the gains a robot file without them gets: omega = 2 pi (1 kHz / 40) / 9, zeta 0.7
+        w, zeta = 2 * math.pi * 25 / 9, 0.7
         d = robot.dimension
-        np.testing.assert_allclose(robot.k[:d], robot.mass * w ** 2, rtol=1e-3)
-        np.testing.assert_allclose(robot.r_d[:d], 2 * DAMPING_RATIO * robot.mass * w,
-                                   rtol=1e-3)
+        np.testing.assert_allclose(robot.k[:d], robot.mass * w ** 2, rtol=1e-12)
+        np.testing.assert_allclose(robot.r_d[:d], 2 * zeta * robot.mass * w, rtol=1e-12)
         if robot.kind != "point":  # angles: the same w and zeta on a moment of inertia
-            np.testing.assert_allclose(robot.k[d:], rotary_inertia(robot) * w ** 2, rtol=2e-3)
-            np.testing.assert_allclose(robot.r_d[d:], 2 * DAMPING_RATIO * robot.k[d:] / w,
-                                       rtol=2e-3)
+            np.testing.assert_allclose(robot.k[d:], rotary_inertia(robot) * w ** 2, rtol=1e-9)
+            np.testing.assert_allclose(robot.r_d[d:], 2 * zeta * robot.k[d:] / w, rtol=1e-9)
 
 
 def rotary_inertia(robot):

@@ -57,7 +57,8 @@ def tune_report(robot, drive, dt: float) -> dict[str, Any]:
     mode = tuning.drum_cable_mode(robot, drive)
     corner = tuning.command_corner(robot, drive, dt)
     winch = tuning.winch_gains(robot, drive, dt)
-    derived_k, derived_r_d = case_gains(robot.mass, robot.inertia, robot.n, robot.dimension)
+    derived_k, derived_r_d = case_gains(robot.mass, robot.inertia, robot.n, robot.dimension,
+                                        robot.center_of_mass)
     stated = not (np.allclose(robot.k, derived_k) and np.allclose(robot.r_d, derived_r_d))
     return {
         "robot": robot.name, "dt": dt,

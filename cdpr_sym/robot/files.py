@@ -69,7 +69,8 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
     if len(stated) == 2:
         return robot
     # the gains the file leaves out, from the robot (cdpr_sym.robot.gains)
-    k, r_d = case_gains(robot.mass, robot.inertia, robot.n, robot.dimension)
+    k, r_d = case_gains(robot.mass, robot.inertia, robot.n, robot.dimension,
+                        robot.center_of_mass)
     return dataclasses.replace(robot, k=np.asarray(stated.get("k", k), dtype=float),
                                r_d=np.asarray(stated.get("r_d", r_d), dtype=float))
 

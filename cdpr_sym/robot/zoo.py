@@ -79,13 +79,8 @@ Start and goal
     (a fifth) of the frame's smallest side from the start, so every case is a real move.
     A geometry without such a pair is drawn again, at most :data:`ATTEMPTS` times.
 Gains
-    :func:`zoo_gains`, one small function (the gains are to be derived later): each
-    coordinate a mass-spring-damper of natural frequency w = :data:`FREQUENCY_SCALE` x
-    sqrt(g / L) (L the frame's largest side: Froude scaling, the same dimensionless motion
-    at every size; 10 gives w = 11.8 rad/s at aras3's 7.05 m against its gains' 17.3) and
-    damping ratio :data:`DAMPING_RATIO` = 0.8 (aras3's is 0.72): k = mu w^2,
-    r_d = 2 zeta mu w, mu the mass (positions) or the moment of inertia about the
-    body-frame origin (angles).
+    None in the file: every zoo robot gets the gains a robot file without them gets
+    (:mod:`cdpr_sym.robot.gains`), so the zoo tests that rule on every kind and size.
 
 The zoo is the one module of :mod:`cdpr_sym.robot` that uses the model: it checks its
 robots' statics with :class:`~cdpr_sym.model.SymbolicModel` and the tension distribution,
@@ -139,43 +134,7 @@ TMAX_QUANTILE = 0.9
 MIN_MOVE = 0.2
 #: Geometries drawn before giving up on a robot.
 ATTEMPTS = 20
-#: Gains: natural frequency w = FREQUENCY_SCALE sqrt(g / L), and the damping ratio.
-FREQUENCY_SCALE = 10.0
-DAMPING_RATIO = 0.8
 GRAVITY = 9.81
-
-
-def zoo_gains(mass: float, frame_size: float, *, dimension: int,
-              rotary_inertia: np.ndarray | tuple[float, ...] = (),
-              gravity: float = GRAVITY) -> tuple[np.ndarray, np.ndarray]:
-    """Gain diagonals (k, r_d) of the robot's case: a mass-spring-damper per coordinate.
-
-    The one place of the zoo's gain rule, so a derived rule can replace it.
-
-    Parameters
-    ----------
-    mass : float
-        End-effector mass, kg.
-    frame_size : float
-        The frame's largest side L, m.
-    dimension : int
-        Position coordinates d (2 or 3).
-    rotary_inertia : array_like, shape (rotations,)
-        Rigid bodies: moment of inertia about the body-frame origin for each angle, kg m^2.
-    gravity : float
-        m/s^2.
-
-    Returns
-    -------
-    k, r_d : ndarray, shape (d + rotations,)
-        k = mu w^2 (N/m, N m/rad) and r_d = 2 zeta mu w (N s/m, N m s/rad), with
-        w = FREQUENCY_SCALE sqrt(g / L), zeta = DAMPING_RATIO and mu the mass (positions)
-        or the moment of inertia (angles).
-    """
-    w = FREQUENCY_SCALE * math.sqrt(gravity / frame_size)
-    mu = np.concatenate([np.full(dimension, float(mass)),
-                         np.asarray(rotary_inertia, dtype=float).ravel()])
-    return mu * w ** 2, 2 * DAMPING_RATIO * mu * w
 
 
 def random_robot(rng: np.random.Generator, *, kind: str | None = None,
@@ -355,18 +314,15 @@ def _geometry(rng: np.random.Generator, kind: str, cables: int, mass: float,
     if kind == "planar":  # a plate of half-sides rho and 0.6 rho
         inertia = _significant(mass * (rho ** 2 + (0.6 * rho) ** 2) / 3)
         com = [0.0, -drop]
-        rotary = np.array([inertia + mass * drop ** 2])
     else:  # a box of half-sides rho, rho, rho / 2
         inertia = _significant(mass / 3 * np.array([1.25, 1.25, 2.0]) * rho ** 2).tolist()
         com = [0.0, 0.0, -drop]
-        rotary = np.array(inertia) + mass * np.array([drop ** 2, drop ** 2, 0.0])
-    angles = np.full(len(rotary), ANGLE_RANGE[kind])
+    angles = np.full(1 if kind == "planar" else 3, ANGLE_RANGE[kind])
     layout.update(
         body={"attachments": _on_grid(unit_attachments * rho, frame_size).tolist(),
               "inertia": inertia, "center_of_mass": com},
         frame={"lower": [*_on_grid(lower + 2 * rho, frame_size), *(-angles)],
-               "upper": [*_on_grid(upper - 2 * rho, frame_size), *angles]},
-        rotary=rotary)
+               "upper": [*_on_grid(upper - 2 * rho, frame_size), *angles]})
     return layout
 
 
@@ -442,17 +398,14 @@ def _attempt(rng: np.random.Generator, kind: str, cables: int, mass: float,
     goal hold (the caller draws again)."""
     layout = _geometry(rng, kind, cables, mass, frame_size)
     dimension = layout.pop("dimension")
-    rotary = layout.pop("rotary", np.zeros(0))
     lower, upper = (np.array(layout["frame"][key]) for key in ("lower", "upper"))
     samples = _workspace_samples(rng, lower, upper, dimension, frame_size)
     weight = mass * GRAVITY
     t_min = _significant(TMIN_SHARE * weight / cables)
-    k, r_d = zoo_gains(mass, frame_size, dimension=dimension, rotary_inertia=rotary)
     middle = _on_grid((lower + upper) / 2, frame_size).tolist()
     data = {"name": name, "mass": mass, "gravity": GRAVITY, **layout,
             "tension": {"min": t_min, "max": 2 * t_min},
-            "case": {"start": middle, "goal": middle, "k": _significant(k).tolist(),
-                     "r_d": _significant(r_d).tolist()}}
+            "case": {"start": middle, "goal": middle}}
     geometry = robot_from_dict(data, source="zoo")  # the case is placed below
     W, grad_v = _statics(geometry, samples)
     well = condition_number(geometry, W) <= COND_MAX
