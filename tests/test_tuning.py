@@ -206,3 +206,17 @@ def test_the_desktop_robot_settles_with_the_derived_gains(desk):
         assert run.stop_reason is None
         error = np.linalg.norm(np.asarray(run.q[-1]) - desk.goal)
         assert error < 1e-3, (design, error)  # the paper's gains: 3 cm and 3.5 cm off
+
+
+def test_smooth_lp_takes_its_filter_and_guard_from_the_robot(desk):
+    """0.6 f_c and a sixtieth of the box: 15 Hz and 0.97 N on the paper's robot (its
+    hand-tuned 15 Hz and 1 N), 15 Hz and 0.128 N on the desktop robot, whose box is 7.7 N
+    wide (the paper's 1 N guard took a quarter of it)."""
+    from cdpr_sym.control import controller_by_name
+
+    design = controller_by_name("smooth-lp")
+    aras3 = preset("aras3")
+    assert design.cutoff_for(aras3, 1e-3) == pytest.approx(15.0)
+    assert design.guard_for(aras3) == pytest.approx(58 / 60)
+    assert design.guard_for(desk) == pytest.approx(7.7 / 60)
+    assert design.cutoff_for(desk, 2e-3) == pytest.approx(0.6 * 1 / (40 * 2e-3))

@@ -168,8 +168,9 @@ class SmoothPairProof:
         if design.command_cutoff is not None:
             raise InvalidCase("design", "a filtered command (command_cutoff) is not the "
                               "feed-forward; pair certificates cover the unfiltered design")
-        if design.guard > tracking_margin:
-            raise InvalidCase("tracking_margin", f"the design's guard band ({design.guard} N) "
+        guard = design.guard_for(robot)
+        if guard > tracking_margin:
+            raise InvalidCase("tracking_margin", f"the design's guard band ({guard:g} N) "
                               f"clips commands within it of the bounds: give a tracking "
                               f"margin of at least that")
         self.n, self.t_min, self.t_max = model.n, robot.t_min, robot.t_max

@@ -19,6 +19,7 @@ from typing import Any, ClassVar
 import casadi as ca
 import numpy as np
 
+import cdpr_sym.control.tuning as tuning
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
 from cdpr_sym.control.interface import SQUARE_STEPWISE, Capabilities, ControlLaw
 from cdpr_sym.control.parts import (
@@ -33,6 +34,7 @@ from cdpr_sym.control.parts import (
     guarded_box,
     tension_parts,
 )
+from cdpr_sym.control.tuning import FROM_ROBOT
 from cdpr_sym.distribution.interval import BIG, feasible_interval
 from cdpr_sym.distribution.one_dimensional import null_vector
 from cdpr_sym.errors import InvalidCase
@@ -62,12 +64,14 @@ class SmoothReference:
         per 1 ms step, leaving room for the feedback under the 1 N per step target).
     samples : int
         Points along the path where the plan is checked.
-    command_cutoff : float or None
+    command_cutoff : float, "robot" or None
         Hz; set, the command passes first-order low-pass stages of this corner (see
         :func:`~cdpr_sym.control.parts.filter_command`), which keep the loop's gain low at
         the drive's cable–drum mode on elastic cables (``smooth-lp``; reports/robustness).
-    guard : float
-        N, >= 0: the command is kept in [T_min + guard, T_max - guard], room for a drive
+        "robot": :func:`cdpr_sym.control.tuning.command_cutoff`, from the robot.
+    guard : float or "robot"
+        N, >= 0 ("robot": :func:`cdpr_sym.control.tuning.guard_band`, a sixtieth of the
+        box width): the command is kept in [T_min + guard, T_max - guard], room for a drive
         whose true tension lags or overshoots its command (elastic cables on winches), but
         never clipped past the static tension at the current pose, so every pose the box
         holds stays holdable and a start at rest starts at its static tension (m = n; with
@@ -101,8 +105,8 @@ class SmoothReference:
     margins: tuple[float, ...] = (5.0, 3.0, 2.0, 1.0, 0.5, 0.0)
     max_rate: float = 600.0
     samples: int = 33
-    command_cutoff: float | None = None
-    guard: float = 0.0
+    command_cutoff: float | str | None = None
+    guard: float | str = 0.0
     name: ClassVar[str] = "smooth"
 
     def __post_init__(self) -> None:
@@ -117,10 +121,23 @@ class SmoothReference:
         if isinstance(self.samples, bool) or not isinstance(self.samples, int) \
                 or self.samples < 3:
             raise InvalidCase("samples", f"expected at least 3 samples, got {self.samples}")
-        check_positive("command_cutoff", self.command_cutoff, "a frequency in Hz")
-        if isinstance(self.guard, bool) or not (isinstance(self.guard, (int, float))
-                                                and 0 <= self.guard < float("inf")):
-            raise InvalidCase("guard", f"expected a guard band >= 0 N, got {self.guard!r}")
+        if self.command_cutoff != FROM_ROBOT:
+            check_positive("command_cutoff", self.command_cutoff, "a frequency in Hz")
+        if self.guard != FROM_ROBOT and (
+                isinstance(self.guard, bool) or not (isinstance(self.guard, (int, float))
+                                                     and 0 <= self.guard < float("inf"))):
+            raise InvalidCase("guard", f"expected a guard band >= 0 N or 'robot', got "
+                              f"{self.guard!r}")
+
+    def cutoff_for(self, robot: Robot, dt: Any) -> Any:
+        """The command filter's corner on ``robot`` (Hz; None without the filter)."""
+        if self.command_cutoff == FROM_ROBOT:
+            return tuning.command_cutoff(robot, dt)
+        return self.command_cutoff
+
+    def guard_for(self, robot: Robot) -> float:
+        """The guard band on ``robot``, N."""
+        return tuning.guard_band(robot) if self.guard == FROM_ROBOT else self.guard
 
     def options(self) -> dict[str, Any]:
         return {"durations": list(self.durations), "margins": list(self.margins),
@@ -237,7 +254,8 @@ class SmoothReference:
         law, plan_next = self._tracking(model, q, dq, q_goal, k, r_d, memory, dt)
         if not self.command_cutoff:
             return law, plan_next
-        tau, stages = filter_command(law.tau, memory[model.n + 3:], self.command_cutoff, dt)
+        tau, stages = filter_command(law.tau, memory[model.n + 3:],
+                                     self.cutoff_for(model.robot, dt), dt)
         return law._replace(tau=tau), ca.vertcat(plan_next, stages)
 
     def _tracking(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
@@ -256,12 +274,13 @@ class SmoothReference:
                  + model.grad_potential(q) - k * (q - q_r) - r_d * (dq - dq_r))
         if model.m > model.n:
             command = distributed_command(model, model.structure_matrix(q), force,
-                                          guard=self.guard)
+                                          guard=self.guard_for(model.robot))
             tau, saturated, singular, beta = (command.tau, command.saturated,
                                               command.singular, command.margin)
         else:
             parts = tension_parts(model, q, dq, q_goal, k, r_d)
-            bounds = guarded_box(model, parts.tau_1, self.guard) if self.guard else None
+            guard = self.guard_for(model.robot)
+            bounds = guarded_box(model, parts.tau_1, guard) if guard else None
             tau, saturated = clip_to_box(model, parts.W_inv @ force, bounds)
             singular, beta = parts.singular, beta_margin(model, parts.tau_1)
         flags = (flag_if(saturated, FLAG_SATURATED) + flag_if(margin < 0, FLAG_INFEASIBLE)

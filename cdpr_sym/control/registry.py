@@ -10,6 +10,7 @@ from cdpr_sym.control.ida_pbc import PD, L2Design, SaturatedPD
 from cdpr_sym.control.interface import Controller, capabilities
 from cdpr_sym.control.nmpc import Nmpc
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
+from cdpr_sym.control.tuning import FROM_ROBOT
 from cdpr_sym.control.winch_level import WinchIdaPbc
 from cdpr_sym.errors import InvalidCase, UnknownName
 
@@ -19,12 +20,14 @@ OBSERVER_RATE = 50.0
 #: The ``nmpc-of`` observer's rate L, 1/s: a 50 ms time constant, slower than
 #: ``ida-ref-obs``'s since the NMPC reads the estimate only every 20 ms.
 NMPC_OBSERVER_RATE = 20.0
-#: The ``smooth-lp`` command filter's corner, Hz: 5 times above the loop's ~3 Hz and about
-#: 5 times below the cable-drum mode of the default winch (~75 Hz on 4 m cables).
-COMMAND_CUTOFF = 15.0
-#: The ``smooth-lp`` guard band, N: room for the true tension of elastic cables on winches
-#: to lag or overshoot a command at the box's edge (0.2-0.5 N measured with 0 N of guard).
-GUARD = 1.0
+#: The ``smooth-lp`` command filter's corner and guard band: from the robot
+#: (:func:`cdpr_sym.control.tuning.command_cutoff`, 0.6 f_c, 15 Hz on the paper's robot:
+#: 5 times above its loop's ~3 Hz and 5 times below its drum-cable mode; and
+#: :func:`~cdpr_sym.control.tuning.guard_band`, a sixtieth of the box, 0.97 N there: room for
+#: the true tension of elastic cables on winches to lag or overshoot a command at the box's
+#: edge, 0.2-0.5 N measured there with no guard).
+COMMAND_CUTOFF = FROM_ROBOT
+GUARD = FROM_ROBOT
 
 #: Every design under its command-line name, with its default options. ``l2`` is the
 #: paper's; ``smooth`` is the recommended one (see reports/designs).

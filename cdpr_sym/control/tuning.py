@@ -17,6 +17,11 @@ rules below size every such gain from the robot instead, in dimensionless form:
   one cable's spring), its damper k_d = 2 zeta sqrt(k_p M) with zeta = DAMPING_RATIO, its
   integral k_i = k_p (2 pi f_p) INTEGRAL_SHARE (a corner a twentieth of the mode's, so the
   integral removes a weight error's offset without eating the phase margin).
+* **``smooth-lp``'s filter and guard**: its command's low-pass corner COMMAND_SHARE f_c =
+  0.6 f_c (between the tracking loop's f_c / 9 and the drum-cable mode above 2 f_c), and a
+  guard band of GUARD_SHARE = a sixtieth of the box width kept free at both bounds for a
+  drive whose true tension lags its command (15 Hz and 0.97 N on the paper's robot, whose
+  hand-tuned 15 Hz and 1 N they replace).
 * **The case's tracking gains** (``[case] k`` and ``r_d`` when a robot file leaves them out,
   used by the designs of the pose; :mod:`cdpr_sym.robot.gains`, where robot files are read):
   a natural frequency omega = 2 pi f_c / 9 and a damping ratio 0.7 per coordinate, with
@@ -43,10 +48,16 @@ from cdpr_sym.as_built.spec import Actuation
 from cdpr_sym.robot import Robot
 from cdpr_sym.robot.gains import CASE_DAMPING, CASE_SHARE
 
+#: An option's value that asks for the robot's rule.
+FROM_ROBOT = "robot"
 #: f_c as a share of the lowest drum-cable mode.
 MODE_SHARE = 0.5
 #: f_c as a share of the sample rate.
 SAMPLE_SHARE = 1 / 40
+#: ``smooth-lp``'s command filter corner as a share of f_c (15 Hz on the paper's robot).
+COMMAND_SHARE = 0.6
+#: ``smooth-lp``'s guard band as a share of the box width (0.97 N on the paper's robot).
+GUARD_SHARE = 1 / 60
 #: The platform's mode on the motor springs as a share of f_c.
 PLATFORM_SHARE = 1 / 14
 #: Damping ratio of the platform's mode on the motor springs.
@@ -110,9 +121,25 @@ def winch_gains(robot: Robot, drive: Actuation, dt: float) -> WinchGains:
                       integral=stiffness * omega * INTEGRAL_SHARE, feedback_cutoff=corner)
 
 
+def command_cutoff(robot: Robot, dt: Any, drive: Actuation | None = None) -> Any:
+    """``smooth-lp``'s command filter corner, Hz: COMMAND_SHARE f_c, with ``drive`` the
+    robot's default build when not given (``dt`` may be a CasADi symbol)."""
+    if drive is None:
+        from cdpr_sym.as_built.hardware import scaled_actuation
+
+        drive = scaled_actuation(robot)
+    return COMMAND_SHARE * command_corner(robot, drive, dt)
+
+
+def guard_band(robot: Robot) -> float:
+    """``smooth-lp``'s guard band, N: GUARD_SHARE of the box width."""
+    return GUARD_SHARE * (robot.t_max - robot.t_min)
+
+
 def rules() -> dict[str, Any]:
     """The rules' constants, by name, for a report."""
     return {"mode_share": MODE_SHARE, "sample_share": SAMPLE_SHARE,
             "platform_share": PLATFORM_SHARE, "damping_ratio": DAMPING_RATIO,
             "integral_share": INTEGRAL_SHARE, "case_share": CASE_SHARE,
+            "command_share": COMMAND_SHARE, "guard_share": GUARD_SHARE,
             "case_damping": CASE_DAMPING}

@@ -68,13 +68,10 @@ from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULA
 from cdpr_sym.control.interface import Capabilities, ControlLaw, DriveReading
 from cdpr_sym.control.parts import beta_margin, flag_if
 from cdpr_sym.control.planned import SmoothReference, minimum_jerk
-from cdpr_sym.control.tuning import winch_gains
+from cdpr_sym.control.tuning import FROM_ROBOT, winch_gains
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
-
-#: ``feedback_cutoff``'s default: the corner the robot's rule gives.
-FROM_ROBOT = "robot"
 
 
 def _positive(field: str, value: object, unit: str, *, zero: bool = False) -> float:
