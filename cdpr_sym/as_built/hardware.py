@@ -42,6 +42,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
+
 from cdpr_sym.as_built.spec import Actuation, Sensing
 from cdpr_sym.robot import Robot
 
@@ -55,6 +57,20 @@ REFERENCE_SENSING = Sensing()
 #: The reference cable's diameter, m, and the drum-to-cable radius ratio beyond it.
 REFERENCE_DIAMETER = 0.002
 DRUM_PER_DIAMETER = 15.0
+
+
+def longest_cable(robot: Robot) -> float:
+    """The longest cable over the frame box, m: the anchor's farthest corner of the box of
+    positions plus the attachment's distance from the platform's origin."""
+    d = robot.dimension
+    lower = np.asarray(robot.frame_lower, dtype=float)[:d]
+    upper = np.asarray(robot.frame_upper, dtype=float)[:d]
+    anchors = np.asarray(robot.anchors, dtype=float)
+    reach = (np.zeros(robot.m) if robot.attachments is None
+             else np.linalg.norm(np.asarray(robot.attachments, dtype=float), axis=1))
+    farthest = np.linalg.norm(np.maximum(np.abs(anchors - lower), np.abs(anchors - upper)),
+                              axis=1)
+    return float(np.max(farthest + reach))
 
 
 def load_ratio(robot: Robot) -> float:

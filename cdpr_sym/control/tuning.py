@@ -42,8 +42,8 @@ import math
 from typing import Any
 
 import casadi as ca
-import numpy as np
 
+from cdpr_sym.as_built.hardware import longest_cable
 from cdpr_sym.as_built.spec import Actuation
 from cdpr_sym.robot import Robot
 from cdpr_sym.robot.gains import CASE_DAMPING, CASE_SHARE
@@ -64,20 +64,6 @@ PLATFORM_SHARE = 1 / 14
 DAMPING_RATIO = 0.45
 #: The integral's corner as a share of the platform's mode.
 INTEGRAL_SHARE = 1 / 20
-
-
-def longest_cable(robot: Robot) -> float:
-    """The longest cable over the frame box, m: the anchor's farthest corner of the box of
-    positions plus the attachment's distance from the platform's origin."""
-    d = robot.dimension
-    lower = np.asarray(robot.frame_lower, dtype=float)[:d]
-    upper = np.asarray(robot.frame_upper, dtype=float)[:d]
-    anchors = np.asarray(robot.anchors, dtype=float)
-    reach = (np.zeros(robot.m) if robot.attachments is None
-             else np.linalg.norm(np.asarray(robot.attachments, dtype=float), axis=1))
-    farthest = np.linalg.norm(np.maximum(np.abs(anchors - lower), np.abs(anchors - upper)),
-                              axis=1)
-    return float(np.max(farthest + reach))
 
 
 def drum_cable_mode(robot: Robot, drive: Actuation) -> float:

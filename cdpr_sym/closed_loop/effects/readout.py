@@ -120,12 +120,16 @@ class AsBuiltReadout:
             return
         causes = "; ".join(self._misreadings(start, tension, plant))
         bound = f"{1e3 * spec.sensing.consistency:g} mm"
+        robot = self.model.robot
+        # ida-winch reads the drives, but needs as many cables as degrees of freedom
+        drives = "" if robot.m > robot.n else " or a controller that reads the drives (ida-winch)"
+        bound_hint = " or a wider [sensing] consistency" if robot.m > robot.n else ""
         raise InvalidCase("sensing", f"the encoders cannot read the start pose of "
-                          f"{self.model.robot.name} ({causes}): forward kinematics finds no "
+                          f"{robot.name} ({causes}): forward kinematics finds no "
                           f"pose that fits the readings within the consistency bound ({bound}) "
                           "in its iterations; use stiffer cables, calibrated anchors "
-                          "(--calibration), finer encoders, exact state (no sensing) or a "
-                          "controller that reads the drives (ida-winch)")
+                          f"(--calibration), finer encoders{bound_hint}, exact state (no "
+                          f"sensing){drives}")
 
     def _misreadings(self, start: np.ndarray, tension: np.ndarray, plant: Plant) -> list[str]:
         """What makes the encoders disagree with the model's geometry at ``start``, in words
