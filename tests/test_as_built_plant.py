@@ -261,3 +261,15 @@ def test_too_few_substeps_are_refused_before_anything_is_built(aras3, monkeypatc
     with pytest.raises(InvalidCase, match=r"^substeps"):
         simulate(aras3, "smooth-lp", duration=0.1, dt=2e-3,
                  plant=Plant(as_built=AsBuilt(actuation=Actuation())))
+
+
+def test_an_unreadable_redundant_robot_is_not_told_to_use_a_design_that_refuses_it(capsys):
+    """ipanema8 as built (8 cables, 6 DOF): the refusal must not suggest ida-winch, which
+    needs as many cables as degrees of freedom, and suggests a wider consistency bound."""
+    from cdpr_sym.cli import main
+
+    assert main(["simulate", "--robot", "ipanema8", "--controller", "smooth-lp",
+                 "--as-built", "default", "--duration", "1"]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("cdpr-sym: error: sensing:") and len(error.splitlines()) == 1
+    assert "ida-winch" not in error and "consistency" in error
