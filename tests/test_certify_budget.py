@@ -131,6 +131,16 @@ def test_work_that_cannot_finish_is_refused_after_a_few_thousand_boxes():
     assert refused.value.field == "until"
 
 
+def test_work_that_meets_the_memory_bound_before_the_time_limit_is_refused(monkeypatch):
+    # 3.5 us a box: the ~8 million boxes before the first level over the bound take ~30 s,
+    # within the default 45 s (the levels over twice the bound come after ~50 s)
+    _slow(monkeypatch, seconds_per_box=3.5e-6)
+    seen = []
+    with pytest.raises(InvalidCase) as refused:
+        certified.certify_workspace(preset("aras3"), until=1.0, progress=seen.append)
+    assert refused.value.field == "min_width" and seen[-1].evaluated < 300_000
+
+
 def test_work_the_time_limit_stops_first_is_not_refused(monkeypatch):
     # 0.1 ms a box: the ten million boxes before a level too large would take 1,000 s
     _slow(monkeypatch, seconds_per_box=1e-4)

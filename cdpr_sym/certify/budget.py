@@ -17,9 +17,11 @@ proven):
 :data:`PROBE_SECONDS` (or its first :data:`PROBE_BOXES` boxes), after every level the boxes
 of the coming levels are estimated, up to the level where ``until`` or the minimum width
 stops the refinement, together with the time they take at the cost per box measured so far.
-When a level more than :data:`OVER` times the memory bound would be reached before the
-time limit stops the run, the run cannot finish: it is refused (``InvalidCase``) after
-about a second of work instead of failing after minutes of it. The estimate is an
+When some level is estimated at more than :data:`OVER` times the memory bound (the
+refinement surely cannot finish in memory) and the first level over the bound, where the
+run would stop, is reached before the time limit stops it (at the cost per box of large
+chunks measured so far), the run cannot finish: it is refused (``InvalidCase``) after
+about a second of work instead of stopping after minutes of it. The estimate is an
 estimate, not a bound; the margin :data:`OVER` keeps it from refusing runs that fit, and a
 run it lets through that meets the memory bound after all stops there (``memory``) with
 its work kept. The workspace's boxes are estimated by :func:`surface_levels`, pair boxes
@@ -123,6 +125,7 @@ class Clock:
         self.time_limit, self.most, self.first = time_limit, most, first
         self.started = self.timer()
         self.evaluated, self.busy, self.began = 0, 0.0, None
+        self.timed: list[tuple[int, float]] = []  # (boxes, s) per chunk
 
     def elapsed(self) -> float:
         return self.timer() - self.started
@@ -136,6 +139,20 @@ class Clock:
         busy = self.busy + (self.timer() - self.began if self.began is not None else 0.0)
         return busy / self.evaluated if self.evaluated else 0.0
 
+    def box_cost(self) -> float:
+        """s per box of a large chunk: the slope of the chunks' times against their boxes
+        (least squares with an intercept, the cost of a call), or :meth:`cost` while the
+        chunks measured are too alike to tell (the first levels' small chunks carry the
+        call's cost, which a level of millions does not)."""
+        if len(self.timed) < 3:
+            return self.cost()
+        boxes, seconds = np.array(self.timed, dtype=float).T
+        spread = boxes - boxes.mean()
+        if not np.any(spread):
+            return self.cost()
+        slope = float(spread @ (seconds - seconds.mean()) / (spread @ spread))
+        return slope if slope > 0 else self.cost()
+
     def chunks(self, boxes: int):
         """Slices of range(boxes), one at a time, each evaluated by the caller before the
         next is sized; none once the time limit has passed."""
@@ -148,7 +165,9 @@ class Clock:
             self.evaluated += stop - start  # counted before the caller's progress
             self.began = self.timer()
             yield slice(start, stop)
-            self.busy += self.timer() - self.began
+            spent = self.timer() - self.began
+            self.busy += spent
+            self.timed.append((stop - start, spent))
             self.began = None
             start = stop
 
@@ -200,13 +219,17 @@ def doubling_levels(undecided: int, boxes: int, widths: np.ndarray, min_width: f
 
 
 def first_level_over(levels: list[float], most: int, clock: Clock) -> int | None:
-    """The first coming level (1-based) estimated to hold more than :data:`OVER` ``most``
-    boxes and to be reached before the time limit at the cost per box measured by
-    ``clock``; None if none is."""
+    """The first coming level (1-based) estimated to hold more than ``most`` boxes, where
+    the run would stop for memory, when the refinement surely cannot finish in memory
+    (some level is estimated at more than :data:`OVER` ``most``) and that level is reached
+    before the time limit at the cost per box of large chunks measured by ``clock``
+    (:meth:`Clock.box_cost`); None otherwise."""
+    if not any(boxes > OVER * most for boxes in levels):
+        return None
     before = 0.0
     for j, boxes in enumerate(levels, start=1):
-        if boxes > OVER * most:
-            if before * clock.cost() < clock.time_limit - clock.elapsed():
+        if boxes > most:
+            if before * clock.box_cost() < clock.time_limit - clock.elapsed():
                 return j
             return None
         before += boxes

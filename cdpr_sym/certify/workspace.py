@@ -428,9 +428,9 @@ class _BranchAndBound:
 def _refuse_what_cannot_finish(widths: np.ndarray, total: float, min_width: float,
                                until: float, clock: Clock) -> None:
     """InvalidCase when the boxes left undecided (sides ``widths``, m) are estimated to
-    need a level more than OVER times :data:`MAX_LEVEL_BOXES` before a stop rule
-    (:func:`~cdpr_sym.certify.budget.surface_levels`), naming ``until`` when it is what
-    ends the refinement, else ``min_width``."""
+    need a level too large for memory before a stop rule (:func:`~cdpr_sym.certify.budget.
+    surface_levels`, :func:`~cdpr_sym.certify.budget.first_level_over`), naming ``until``
+    when it is what ends the refinement, else ``min_width``."""
     if not len(widths):
         return
     share = float(np.prod(widths, axis=1).sum()) / total
@@ -442,10 +442,11 @@ def _refuse_what_cannot_finish(widths: np.ndarray, total: float, min_width: floa
     field = "min_width" if by_width else "until"
     goal = f"{100 * until:g} % of the frame" + (f" down to boxes of {min_width:g} m"
                                                if by_width else "")
-    raise InvalidCase(field, f"deciding {goal} is estimated to need a level of about "
-                      f"{levels[over - 1]:,.0f} boxes, more than the {MAX_LEVEL_BOXES:,} that "
-                      f"fit; choose a smaller --until, a larger --min-width, or a "
-                      f"--time-limit that stops it first")
+    raise InvalidCase(field, f"deciding {goal} is estimated to need levels of up to "
+                      f"{max(levels):,.0f} boxes, more than the {MAX_LEVEL_BOXES:,} that "
+                      f"fit, from level {over} of the {len(levels)} to come; choose a "
+                      f"smaller --until, a larger --min-width, or a --time-limit that stops "
+                      f"it first")
 
 
 def _verdicts_by(method: str, model: SymbolicModel, orientation: np.ndarray | None,
