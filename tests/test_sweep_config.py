@@ -68,8 +68,17 @@ def test_a_preset_name_resolves_to_its_robot():
     assert reference == "aras3" and robot.as_dict() == preset("aras3").as_dict()
 
 
-def test_a_controller_whose_gains_the_period_cannot_hold_is_refused():
-    # ida-winch's default k_p = 500 N/m on aras3 (4.1 kg) needs dt < 0.18 s
+def test_a_controller_whose_gains_the_period_cannot_hold_is_refused(monkeypatch):
+    # ida-winch's gains come from the robot and the period (control.tuning), so its
+    # registered default holds at any period ...
+    SweepConfig(robot="aras3", controllers=("l2", "ida-winch"), pairs=2, duration=10.0,
+                dt=0.2)
+    # ... and a registered design with fixed gains is refused where the period cannot
+    # hold them: k_p = 500 N/m on aras3 (4.1 kg) needs dt < 0.18 s
+    from cdpr_sym.control import registry
+    from cdpr_sym.control.winch_level import WinchIdaPbc
+
+    monkeypatch.setitem(registry.CONTROLLERS, "ida-winch", WinchIdaPbc(stiffness=500.0))
     _refused("stiffness", "expected k_p below", SweepConfig, robot="aras3",
              controllers=("l2", "ida-winch"), pairs=2, duration=10.0, dt=0.2)
     SweepConfig(robot="aras3", controllers=("l2", "ida-winch"), pairs=2, duration=10.0,

@@ -17,6 +17,13 @@ rules below size every such gain from the robot instead, in dimensionless form:
   one cable's spring), its damper k_d = 2 zeta sqrt(k_p M) with zeta = DAMPING_RATIO, its
   integral k_i = k_p (2 pi f_p) INTEGRAL_SHARE (a corner a twentieth of the mode's, so the
   integral removes a weight error's offset without eating the phase margin).
+* **The fastest mode capped**: a body's rotation modes can be much faster than the mass
+  gives (spatial6: 4.95 Hz at f_c = 20.6 Hz, where its runs then ended at the box's bounds
+  on 7 of 8 pairs): k_p is at most (2 pi FAST_SHARE f_c)^2 / lambda_max, so the fastest
+  undamped mode sqrt(k_p lambda_max), lambda_max of M^-1 W W^T at the case's start and goal,
+  stays below f_c / 6, and k_d at most 2 FAST_DAMPING_RATIO sqrt(k_p / lambda_max), so it is
+  damped at most 0.65, not overdamped into a real pole near the corner. The paper's robot
+  (fastest mode f_c / 9.6) and point masses in general are not touched.
 * **``smooth-lp``'s filter and guard**: its command's low-pass corner COMMAND_SHARE f_c =
   0.6 f_c (between the tracking loop's f_c / 9 and the drum-cable mode above 2 f_c), and a
   guard band of GUARD_SHARE = a sixtieth of the box width kept free at both bounds for a
@@ -42,6 +49,7 @@ import math
 from typing import Any
 
 import casadi as ca
+import numpy as np
 
 from cdpr_sym.as_built.hardware import longest_cable
 from cdpr_sym.as_built.spec import Actuation
@@ -62,6 +70,10 @@ GUARD_SHARE = 1 / 60
 PLATFORM_SHARE = 1 / 14
 #: Damping ratio of the platform's mode on the motor springs.
 DAMPING_RATIO = 0.45
+#: The fastest platform mode (undamped, at the case's start or goal) at most this share of
+#: f_c, and its damping ratio at most FAST_DAMPING_RATIO: a body's rotation modes.
+FAST_SHARE = 1 / 6
+FAST_DAMPING_RATIO = 0.65
 #: The integral's corner as a share of the platform's mode.
 INTEGRAL_SHARE = 1 / 20
 
@@ -96,15 +108,44 @@ class WinchGains:
         return dataclasses.asdict(self)
 
 
-def winch_gains(robot: Robot, drive: Actuation, dt: float) -> WinchGains:
+def fastest_direction(robot: Robot, model: Any = None) -> float:
+    """lambda_max of M^-1 W W^T (1/kg, or per kg m^2) at the case's start and goal: a
+    spring k on every cable gives the platform its fastest mode sqrt(k lambda_max)."""
+    from cdpr_sym.model import SymbolicModel
+
+    model = model if model is not None else SymbolicModel(robot)
+    largest = 0.0
+    for q in (robot.start, robot.goal):
+        W = np.array(model.functions["structure_matrix"](q))
+        M = np.array(model.functions["mass_matrix"](q))
+        inverse = np.linalg.inv(np.linalg.cholesky(M))
+        largest = max(largest, float(np.linalg.eigvalsh(inverse @ W @ W.T @ inverse.T)[-1]))
+    return largest
+
+
+def winch_gains(robot: Robot, drive: Actuation, dt: Any, *, model: Any = None
+                ) -> WinchGains:
     """``ida-winch``'s gains by the module's rules, for ``robot`` driven by ``drive``
-    (its winches, as the controller models them) sampled every ``dt`` s."""
+    (its winches, as the controller models them) sampled every ``dt`` s (a number or a
+    CasADi symbol); ``model`` its SymbolicModel, built when not given."""
     corner = command_corner(robot, drive, dt)
+    lam = fastest_direction(robot, model)
     omega = 2 * math.pi * PLATFORM_SHARE * corner
-    stiffness = robot.mass * omega**2
-    damping = 2 * DAMPING_RATIO * robot.mass * omega  # 2 zeta sqrt(k_p M), k_p = M omega^2
+    fast = 2 * math.pi * FAST_SHARE * corner
+    stiffness = _smaller(robot.mass * omega**2, fast**2 / lam)
+    # 2 zeta sqrt(k_p M), at most 2 zeta_f sqrt(k_p / lambda_max): the slowest mode's
+    # damping ratio, the fastest one's capped
+    root = stiffness**0.5
+    damping = _smaller(2 * DAMPING_RATIO * math.sqrt(robot.mass) * root,
+                       2 * FAST_DAMPING_RATIO / math.sqrt(lam) * root)
     return WinchGains(stiffness=stiffness, damping=damping,
                       integral=stiffness * omega * INTEGRAL_SHARE, feedback_cutoff=corner)
+
+
+def _smaller(a: Any, b: Any) -> Any:
+    if isinstance(a, (ca.SX, ca.MX, ca.DM)) or isinstance(b, (ca.SX, ca.MX, ca.DM)):
+        return ca.fmin(a, b)
+    return min(a, b)
 
 
 def command_cutoff(robot: Robot, dt: Any, drive: Actuation | None = None) -> Any:
@@ -126,6 +167,7 @@ def rules() -> dict[str, Any]:
     """The rules' constants, by name, for a report."""
     return {"mode_share": MODE_SHARE, "sample_share": SAMPLE_SHARE,
             "platform_share": PLATFORM_SHARE, "damping_ratio": DAMPING_RATIO,
-            "integral_share": INTEGRAL_SHARE, "case_share": CASE_SHARE,
+            "integral_share": INTEGRAL_SHARE, "fast_share": FAST_SHARE,
+            "fast_damping_ratio": FAST_DAMPING_RATIO, "case_share": CASE_SHARE,
             "command_share": COMMAND_SHARE, "guard_share": GUARD_SHARE,
             "case_damping": CASE_DAMPING}

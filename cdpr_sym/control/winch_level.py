@@ -224,11 +224,13 @@ class WinchIdaPbc:
         build."""
         return self.drive if self.drive is not None else scaled_actuation(robot)
 
-    def gains(self, robot: Robot, dt: Any) -> tuple[Any, Any, Any, Any]:
+    def gains(self, robot: Robot, dt: Any, model: SymbolicModel | None = None
+              ) -> tuple[Any, Any, Any, Any]:
         """(k_p, k_d, k_i, feedback corner) on ``robot`` at the period ``dt`` (s; a number
         or a CasADi symbol): the options given, the rest from the robot
-        (:func:`cdpr_sym.control.tuning.winch_gains`)."""
-        derived = winch_gains(robot, self.drive_of(robot), dt)
+        (:func:`cdpr_sym.control.tuning.winch_gains`; ``model``, the robot's, saves
+        building it)."""
+        derived = winch_gains(robot, self.drive_of(robot), dt, model=model)
         cutoff = (derived.feedback_cutoff if self.feedback_cutoff == FROM_ROBOT
                   else self.feedback_cutoff)
         stiffness, damping, integral = (
@@ -304,7 +306,7 @@ class WinchIdaPbc:
         error = reading - payout_r - misfit
         error_rate = rate - rate_r
         drive = self.drive_of(robot)
-        stiffness, damping, integral, cutoff = self.gains(robot, dt)
+        stiffness, damping, integral, cutoff = self.gains(robot, dt, model)
         reflected = drive.inertia / drive.drum_radius**2
         friction = friction_torque(rate_r / drive.drum_radius,
                                    ca.DM(drive.parameters())) / drive.drum_radius

@@ -112,9 +112,9 @@ def _offsets(rng: np.random.Generator, robot: Robot) -> np.ndarray:
 def _as_built(rng: np.random.Generator, robot: Robot, damping: float | None = None) -> Plant:
     """The combined specification's draw (:data:`~cdpr_sym.as_built.DEFAULT_DRAW`)."""
     spec = DEFAULT_DRAW
-    if damping is not None:
+    if damping is not None:  # the robot's winches but for the cable damping
         spec = dataclasses.replace(spec, actuation=dataclasses.replace(
-            spec.actuation, cable_damping=damping))
+            spec.drive(robot), cable_damping=damping))
     mass_scale, as_built = spec.draw(rng, robot)
     return Plant(mass_scale=mass_scale, as_built=as_built)
 

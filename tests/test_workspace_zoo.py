@@ -18,7 +18,7 @@ from cdpr_sym.errors import InvalidRobot, UnknownName
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import load_robot, robot_from_dict, robot_key
 from cdpr_sym.robot.files import robot_file_text
-from cdpr_sym.robot.zoo import (
+from cdpr_sym.workspace.zoo import (
     COND_MAX,
     MIN_MOVE,
     TMIN_SHARE,

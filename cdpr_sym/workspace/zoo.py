@@ -82,9 +82,9 @@ Gains
     None in the file: every zoo robot gets the gains a robot file without them gets
     (:mod:`cdpr_sym.robot.gains`), so the zoo tests that rule on every kind and size.
 
-The zoo is the one module of :mod:`cdpr_sym.robot` that uses the model: it checks its
-robots' statics with :class:`~cdpr_sym.model.SymbolicModel` and the tension distribution,
-so it imports CasADi, and only when it is imported itself.
+It lives with the workspace because it checks its robots' statics with
+:class:`~cdpr_sym.model.SymbolicModel` and the tension distribution, above the robot
+description (which imports no CasADi).
 """
 
 from __future__ import annotations
