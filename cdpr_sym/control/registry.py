@@ -63,7 +63,8 @@ DESCRIPTIONS = {
     "ida-ref": "IDA-PBC with a virtual reference particle (H_d never increases)",
     "ida-ref-obs": "ida-ref with a momentum observer cancelling the matched force the model "
                "misses (mass error)",
-    "smooth-lp": "smooth, command low-passed at 15 Hz and kept 1 N inside the box: for winches",
+    "smooth-lp": "smooth, command low-passed at 0.6 f_c and kept a sixtieth of the box inside "
+                 "it (15 Hz and 0.97 N on aras3): for winches",
     "pd-td": "PD + gravity compensation + tension distribution; any m >= n cables",
     "ida-winch": "IDA-PBC at the motors of the robot as built: energy shaped in the drum "
                  "coordinates, damping on the drum speeds, from the winch encoders alone",
