@@ -65,12 +65,13 @@ def _storage(robot, controller, simulator, states):
     pull = controller.pull(tension_r, controller.drive_of(robot))
     storage, spring = [], []
     lengths = model.functions["cable_lengths"]
+    k_p = controller.gains(robot, DT, model)[0]  # the motor spring, from the robot
     for q, dq, payout, speed in zip(x["q"], x["dq"], x["payout"], x["drum_speed"],
                                     strict=True):
         canonical = system["canonical"](q, dq, payout, speed, *numbers)
         error = payout - goal_payout
         storage.append(float(system["energy"](canonical, *numbers)) + pull @ error
-                       + 0.5 * controller.gains(robot, DT)[0] * error @ error)
+                       + 0.5 * k_p * error @ error)
         stretch = np.array(lengths(q)).ravel() - payout
         spring.append(LOSSLESS.cable_stiffness * np.maximum(stretch, 0) / payout)
     at_rest = system["canonical"](robot.start, np.zeros(n), goal_payout, np.zeros(m), *numbers)
