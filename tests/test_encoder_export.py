@@ -45,7 +45,7 @@ from cdpr_sym.robot.files import robot_file_text
 GUARD_TESTS = {"deadline", "time_nan", "time_stale", "time_late", "time_early", "reading_nan",
                "reading_inf", "range_garbage", "range_negative", "jump", "tension", "rate",
                "pose", "frame", "design", "ramp", "clear_running", "clear_after_init",
-               "time_window", "arguments", "goal", "reset_at_rest"}
+               "time_window", "arguments", "goal", "reset_at_rest", "rest_after_time_faults"}
 
 
 def _build(source: Path, build: Path) -> Path:

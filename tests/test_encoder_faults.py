@@ -171,8 +171,10 @@ MUTATIONS = {
     "the pose read now": ("  plan(pose, c);\n", "  plan(c->pose, c);\n",
                           {"reset_at_rest"}, "goal"),
     "the hold": ("tension += feedback;", "", {"reset_at_rest", "ramp"}, "fails"),
-    "the take-over": ("if (c->blending) blend(c, tension, torque);", "",
-                      {"reset_at_rest"}, "rate"),
+    "the take-over": ("      blend(c, tension, torque);\n", "", {"reset_at_rest"}, "rate"),
+    "late samples kept out of the rates": ("  found |= track_lengths(c, counts, !found);",
+                                           "  found |= track_lengths(c, counts, 1);",
+                                           {"rest_after_time_faults"}, None),
 }
 
 
@@ -265,5 +267,8 @@ def test_every_design_the_export_accepts_passes_its_own_ctest(robot, tmp_path):
         build = _build(result.out_dir, tmp_path / f"build_{name}")
         log = _run([_tool("ctest"), "--test-dir", build, "--output-on-failure"])
         assert "100% tests passed, 0 tests failed out of 4" in log, (name, log)
+        # and the fault sequence ends at the goal with status 0, not merely with a fault
+        report = json.loads(_run([build / "fault_sequence"]))
+        assert report["status"] == 0 and report["goal_error_read"] <= 0.01, (name, report)
         built.append(name)
     assert "smooth-lp" in built  # the check is not vacuous: a design runs on each robot

@@ -87,12 +87,17 @@ RANGE_MARGIN = 0.05
 #: draw's own rule, :attr:`cdpr_sym.as_built.draw.Draw.torque_margin`'s default).
 TORQUE_MARGIN = 1.5
 #: Floating-point operations and comparisons of the guard per sample, counted in
-#: ``templates/encoders/source.c.j2`` (per cable, per coordinate, fixed): 24, 8, 16 for the
-#: checks, the clip and the safe command's ramp and torque, plus per cable 5 for the read
-#: length's rates, 2 for the rest test, 8 for the hold's spring, damper and clip and 6 for
-#: reset's take-over; per coordinate 4 and fixed 5 for the watchdog and the take-over's
-#: share. The design's path and the safe command's are both counted: an upper bound.
-GUARD_OPERATIONS = (24 + 21, 8 + 4, 16 + 5)
+#: ``templates/encoders/source.c.j2`` (per cable, per coordinate, fixed), plus one test per
+#: number of the design's state (its finiteness). Per cable: 24 for the checks, the clip and
+#: the safe command's ramp and torque; 9 for the read length's speed, clip and rate; 4 for
+#: two rest tests; 8 for the hold's spring, damper and clip and 12 for its four filter
+#: stages with their finiteness; 8 for the take-over's own box test and blend: 65, rounded
+#: up to 70. Per coordinate: 8 for the pose checks, 4 for the watchdog: 12. Fixed: 25 for
+#: the limits' validity, 16 for the time and ramp, 10 for the watchdog's and the
+#: take-over's shares: 51, rounded up to 60. The design's path and the safe command's are
+#: both counted: an upper bound (an independent review of the worst path counted 56 per
+#: cable, 8 per coordinate and 50 fixed).
+GUARD_OPERATIONS = (70, 12, 60)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -449,13 +454,15 @@ def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Funct
     spec = checked.plant.as_built
     low, high = length_bounds(robot, spec.actuation.cable_stiffness)
     per_cable, per_coordinate, fixed = GUARD_OPERATIONS
-    guard = per_cable * m + per_coordinate * n + fixed
+    guard = per_cable * m + per_coordinate * n + fixed + loop.n_state
     core, locate = operation_count(functions["core"]), operation_count(functions["locate"])
     seeds = locate_seeds(model)
     operations = {"sample": core + guard,
                   "first_sample": core + guard + (len(seeds) + 1) * locate,
                   "plan": operation_count(functions["start"]) + operation_count(
                       functions["holding"])}
+    # an accepted reset: the plan, and the pose from the last pose and every seed
+    operations["reset"] = operation_count(functions["start"]) + (len(seeds) + 1) * locate
     reads_drives = capabilities(checked.controller).reads_drives
     design = checked.controller
     planned = isinstance(design, SmoothReference) or isinstance(getattr(design, "plan", None),
