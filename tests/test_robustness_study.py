@@ -114,7 +114,7 @@ def test_a_small_study_stores_what_its_report_says(aras3, tmp_path, monkeypatch)
                   as_built=AsBuilt(delay=spec["delay"], substeps=spec["substeps"],
                                    anchor_offsets=np.array(spec["anchor_offsets"]),
                                    actuation=robustness.winch_drive(aras3),
-                                   sensing=robustness.Sensing()))
+                                   sensing=robustness.DEFAULT_DRAW.encoders(aras3)))
     simulator = get_simulator(aras3, controller_by_name("smooth"),
                               as_built=plant.as_built.structure())
     run = simulator.run(np.array(study["starts"][2]), np.array(study["goals"][2]), aras3.k,
