@@ -53,17 +53,19 @@ def _output(program: Path) -> str:
 
 # -- the stated rules, quick ----------------------------------------------------------------
 
-@pytest.mark.parametrize(("mass", "t_min", "t_max", "inertia", "radius"), [
-    (4.0, 2.0, 60.0, 1e-4, 0.03),      # the paper's robot, default winches
-    (0.25, 0.3, 8.0, 1e-6, 0.01),      # a desktop robot
-    (91.0, 10.0, 5000.0, 5e-3, 0.1),   # a heavy platform
-    (500.0, 50.0, 2e4, 1e-4, 0.03),    # heavy, on small drums: the drum's cap binds
+@pytest.mark.parametrize(("mass", "t_min", "t_max", "inertia", "radius", "fastest"), [
+    (4.0, 2.0, 60.0, 1e-4, 0.03, 0.54),     # the paper's robot, default winches
+    (0.25, 0.3, 8.0, 1e-6, 0.01, 5.2),      # a desktop robot
+    (91.0, 10.0, 5000.0, 5e-3, 0.1, 0.02),  # a heavy platform
+    (500.0, 50.0, 2e4, 1e-4, 0.03, 0.002),  # heavy, on small drums: the drum's cap binds
+    (5.0, 2.0, 80.0, 1.3e-4, 0.03, 2.4),    # a planar body: its rotation's pole binds
 ])
 def test_hold_gains_are_critically_damped_and_capped_as_stated(mass, t_min, t_max, inertia,
-                                                                radius):
-    dt, max_speed = 1e-3, 2.0
+                                                                radius, fastest):
+    dt, max_speed, corner = 1e-3, 2.0, 12.8
     stiffness, damping = hold_gains(mass=mass, t_min=t_min, t_max=t_max, max_speed=max_speed,
-                                    drum_inertia=inertia, drum_radius=radius, dt=dt)
+                                    drum_inertia=inertia, drum_radius=radius, dt=dt,
+                                    fastest=fastest, corner=corner)
     # critically damped with the platform's mass: zeta = d / (2 sqrt(k M)) = 1
     assert damping / (2 * math.sqrt(stiffness * mass)) == pytest.approx(1.0, rel=1e-12)
     # at the fastest cable speed the damper adds at most half the box ...
@@ -71,9 +73,11 @@ def test_hold_gains_are_critically_damped_and_capped_as_stated(mass, t_min, t_ma
     # ... and one period changes neither the drum's speed nor the platform's by a fifth
     assert damping * dt / (inertia / radius ** 2) <= 0.2 * (1 + 1e-12)
     assert damping * dt / mass <= 0.2 * (1 + 1e-12)
-    # and it is the largest such damper: one of the three bounds is met with equality
+    # ... and the fastest platform direction's damping pole is a third of the filter's corner
+    assert damping * fastest <= 2 * math.pi * corner / 3 * (1 + 1e-12)
+    # and it is the largest such damper: one of the four bounds is met with equality
     bounds = [0.5 * (t_max - t_min) / max_speed, 0.2 * inertia / radius ** 2 / dt,
-              0.2 * mass / dt]
+              0.2 * mass / dt, 2 * math.pi * corner / 3 / fastest]
     assert damping == pytest.approx(min(bounds), rel=1e-12)
 
 

@@ -42,7 +42,7 @@ from cdpr_sym.codegen.names import c_double
 from cdpr_sym.control import FLAG_NAMES, Controller, capabilities, check_cables, controller_by_name
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SINGULAR
 from cdpr_sym.control.planned import SmoothReference
-from cdpr_sym.control.tuning import drum_cable_mode
+from cdpr_sym.control.tuning import drum_cable_mode, fastest_direction
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export.encoder_loop import (
     LOCATE_ITERATIONS,
@@ -472,14 +472,16 @@ def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Funct
     positions = robot.dimension
     actuation, sensing = spec.actuation, spec.sensing
     torque_limit = torque_limit_of(actuation, robot.t_max)
+    mode = drum_cable_mode(robot, actuation)
+    hold_corner = hold_cutoff(mode, loop.dt)
     stiffness, damping = limits.hold(mass=robot.mass, t_min=robot.t_min, t_max=robot.t_max,
                                      drum_inertia=actuation.inertia,
-                                     drum_radius=actuation.drum_radius, dt=loop.dt)
+                                     drum_radius=actuation.drum_radius, dt=loop.dt,
+                                     fastest=fastest_direction(robot, model),
+                                     corner=hold_corner)
     rate_cutoff = sensing.velocity_cutoff
     rate_gain = -math.expm1(-2 * math.pi * rate_cutoff * loop.dt)
     rest_samples = max(math.ceil(3 / (2 * math.pi * rate_cutoff * loop.dt)), 2)
-    mode = drum_cable_mode(robot, actuation)
-    hold_corner = hold_cutoff(mode, loop.dt)
     margin = np.array([limits.frame_margin if j < positions else 0.0 for j in range(n)])
     return {
         "prefix": checked.prefix, "upper": checked.prefix.upper(), "version": __version__,

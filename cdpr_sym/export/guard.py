@@ -89,6 +89,8 @@ REST_COUNTS = 4.0
 REST_SHARE = 0.01
 #: First-order low-pass stages of the hold's feedback.
 HOLD_STAGES = 4
+#: The hold damper's fastest platform pole as a share of the hold filter's corner.
+HOLD_POLE_SHARE = 1 / 3
 #: The hold's filter corner as a share of the lowest drum-cable mode.
 HOLD_MODE_SHARE = 0.2
 #: Seconds every cable must stay slower than the rest speed before the robot counts as at
@@ -189,13 +191,15 @@ class GuardLimits:
         return max(REST_SHARE * self.max_speed, REST_COUNTS * resolution / dt)
 
     def hold(self, *, mass: float, t_min: float, t_max: float, drum_inertia: float,
-             drum_radius: float, dt: float) -> tuple[float, float]:
+             drum_radius: float, dt: float, fastest: float, corner: float
+             ) -> tuple[float, float]:
         """The hold's (stiffness N/m, damping N s/m): the caller's, else :func:`hold_gains`
         for a move at max_speed / SPEED_MARGIN; the limits must be :meth:`resolved`."""
         stiffness, damping = hold_gains(mass=mass, t_min=t_min, t_max=t_max,
                                         max_speed=self.max_speed / SPEED_MARGIN,
                                         drum_inertia=drum_inertia,
-                                        drum_radius=drum_radius, dt=dt)
+                                        drum_radius=drum_radius, dt=dt, fastest=fastest,
+                                        corner=corner)
         return (stiffness if self.hold_stiffness is None else float(self.hold_stiffness),
                 damping if self.hold_damping is None else float(self.hold_damping))
 
@@ -218,7 +222,8 @@ def hold_cutoff(mode: float, dt: float) -> float:
 
 
 def hold_gains(*, mass: float, t_min: float, t_max: float, max_speed: float,
-               drum_inertia: float, drum_radius: float, dt: float) -> tuple[float, float]:
+               drum_inertia: float, drum_radius: float, dt: float, fastest: float,
+               corner: float) -> tuple[float, float]:
     """The safe command's spring k_h (N/m) and damper d_h (N s/m) on each cable's drum.
 
     * Damper: d_box = HOLD_BOX_SHARE (T_max - T_min) / max_speed, the damping whose force at
@@ -226,7 +231,12 @@ def hold_gains(*, mass: float, t_min: float, t_max: float, max_speed: float,
       rest of the box is the feed-forward's room); capped at HOLD_STEP_SHARE m_x / dt for both the
       drum's inertia at the cable, m_x = J / r^2, and the platform's mass, m_x = M, so that
       one period's damping force changes neither speed by more than a fifth (an explicit,
-      sampled damper is stable for d dt / m_x < 2 and does not overshoot below 1).
+      sampled damper is stable for d dt / m_x < 2 and does not overshoot below 1); and
+      capped so that the damping pole of the platform's fastest direction, d ``fastest``
+      (``fastest`` = lambda_max of M^-1 W W^T at the case's start and goal, 1/kg), stays
+      HOLD_POLE_SHARE (a third) of the hold filter's ``corner`` (Hz), where its stages lag
+      74 degrees: a planar body's rotation (lambda_max 2.4 /kg) held with 26.9 N s/m, its
+      pole at 10.4 Hz against a 12.8 Hz corner, never came to rest.
     * Spring: k_h = d_h^2 / (4 M), the stiffness with which the platform's mass M on a
       cable of damping d_h is critically damped (zeta = 1: no oscillation while holding).
 
@@ -238,7 +248,8 @@ def hold_gains(*, mass: float, t_min: float, t_max: float, max_speed: float,
                           "max_speed, mass, drum inertia, drum radius and period")
     reflected = drum_inertia / drum_radius ** 2
     damping = min(HOLD_BOX_SHARE * (t_max - t_min) / max_speed,
-                  HOLD_STEP_SHARE * reflected / dt, HOLD_STEP_SHARE * mass / dt)
+                  HOLD_STEP_SHARE * reflected / dt, HOLD_STEP_SHARE * mass / dt,
+                  HOLD_POLE_SHARE * 2 * math.pi * corner / fastest)
     stiffness = damping * damping / (4.0 * mass)
     if not (math.isfinite(damping) and math.isfinite(stiffness)):
         raise InvalidCase("limits", f"the hold's gains are not finite (damping {damping!r})")
