@@ -59,18 +59,26 @@ REFERENCE_DIAMETER = 0.002
 DRUM_PER_DIAMETER = 15.0
 
 
-def longest_cable(robot: Robot) -> float:
-    """The longest cable over the frame box, m: the anchor's farthest corner of the box of
-    positions plus the attachment's distance from the platform's origin."""
+def cable_length_range(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+    """(shortest, longest) geometric length of each cable over every pose of the frame box,
+    any orientation, m: the anchor's distance to the box of positions (nearest point,
+    farthest corner) less and plus the attachment's distance from the platform's origin
+    (the shortest at least 0). Sound: no pose of the frame has a length outside them."""
     d = robot.dimension
     lower = np.asarray(robot.frame_lower, dtype=float)[:d]
     upper = np.asarray(robot.frame_upper, dtype=float)[:d]
     anchors = np.asarray(robot.anchors, dtype=float)
     reach = (np.zeros(robot.m) if robot.attachments is None
              else np.linalg.norm(np.asarray(robot.attachments, dtype=float), axis=1))
+    nearest = np.linalg.norm(anchors - np.clip(anchors, lower, upper), axis=1)
     farthest = np.linalg.norm(np.maximum(np.abs(anchors - lower), np.abs(anchors - upper)),
                               axis=1)
-    return float(np.max(farthest + reach))
+    return np.maximum(nearest - reach, 0), farthest + reach
+
+
+def longest_cable(robot: Robot) -> float:
+    """The longest cable over the frame box, m (:func:`cable_length_range`)."""
+    return float(np.max(cable_length_range(robot)[1]))
 
 
 def load_ratio(robot: Robot) -> float:

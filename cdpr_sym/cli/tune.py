@@ -27,13 +27,11 @@ def add_parser(command) -> None:
     parser.add_argument("--dt", type=float, default=1e-3, help="control period, s")
 
 
-def _linearised_modes(robot, stiffness: float, damping: float, q) -> list[dict[str, float]]:
+def _linearised_modes(robot, model, stiffness: float, damping: float, q
+                      ) -> list[dict[str, float]]:
     """The platform's modes on the motor springs at ``q`` (rigid cables, every cable taut):
     M ddq + k_d W W^T dq + k_p W W^T (q - q*) = 0, as (frequency Hz, damping ratio) pairs
-    from the eigenvalues of the first-order system."""
-    from cdpr_sym.model import SymbolicModel
-
-    model = SymbolicModel(robot)
+    from the eigenvalues of the first-order system; ``model`` the robot's SymbolicModel."""
     W = np.array(model.functions["structure_matrix"](q))
     M = np.array(model.functions["mass_matrix"](q))
     n = robot.n
@@ -52,11 +50,13 @@ def _linearised_modes(robot, stiffness: float, damping: float, q) -> list[dict[s
 def tune_report(robot, drive, dt: float) -> dict[str, Any]:
     """Everything ``tune`` prints, as plain numbers."""
     from cdpr_sym.control import tuning
+    from cdpr_sym.model import SymbolicModel
     from cdpr_sym.robot.gains import case_gains
 
+    model = SymbolicModel(robot)
     mode = tuning.drum_cable_mode(robot, drive)
     corner = tuning.command_corner(robot, drive, dt)
-    winch = tuning.winch_gains(robot, drive, dt)
+    winch = tuning.winch_gains(robot, drive, dt, model=model)
     derived_k, derived_r_d = case_gains(robot.mass, robot.inertia, robot.n, robot.dimension,
                                         robot.center_of_mass)
     stated = not (np.allclose(robot.k, derived_k) and np.allclose(robot.r_d, derived_r_d))
@@ -74,7 +74,7 @@ def tune_report(robot, drive, dt: float) -> dict[str, Any]:
         "case": {"k": robot.k.tolist(), "r_d": robot.r_d.tolist(),
                  "source": "the robot file" if stated else "derived",
                  "derived_k": derived_k.tolist(), "derived_r_d": derived_r_d.tolist()},
-        "modes": {name: _linearised_modes(robot, winch.stiffness, winch.damping, q)
+        "modes": {name: _linearised_modes(robot, model, winch.stiffness, winch.damping, q)
                   for name, q in (("start", robot.start), ("goal", robot.goal))},
         "rules": tuning.rules(),
     }

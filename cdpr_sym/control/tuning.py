@@ -54,14 +54,12 @@ import numpy as np
 from cdpr_sym.as_built.hardware import longest_cable
 from cdpr_sym.as_built.spec import Actuation
 from cdpr_sym.robot import Robot
-from cdpr_sym.robot.gains import CASE_DAMPING, CASE_SHARE
+from cdpr_sym.robot.gains import CASE_DAMPING, CASE_SHARE, SAMPLE_SHARE
 
 #: An option's value that asks for the robot's rule.
 FROM_ROBOT = "robot"
 #: f_c as a share of the lowest drum-cable mode.
 MODE_SHARE = 0.5
-#: f_c as a share of the sample rate.
-SAMPLE_SHARE = 1 / 40
 #: ``smooth-lp``'s command filter corner as a share of f_c (15 Hz on the paper's robot).
 COMMAND_SHARE = 0.6
 #: ``smooth-lp``'s guard band as a share of the box width (0.97 N on the paper's robot).

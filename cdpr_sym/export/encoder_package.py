@@ -37,6 +37,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.as_built.draw import DEFAULT_DRAW
+from cdpr_sym.as_built.hardware import cable_length_range
 from cdpr_sym.codegen import c_identifier, generate_c, render
 from cdpr_sym.codegen.names import c_double
 from cdpr_sym.control import FLAG_NAMES, Controller, capabilities, check_cables, controller_by_name
@@ -84,8 +86,8 @@ MAX_SIL_STEPS = 30_000
 #: encoders' zero errors and a calibration's residual offsets.
 RANGE_MARGIN = 0.05
 #: Torque limit of a package whose winches state none: this share of r T_max (the as-built
-#: draw's own rule, :attr:`cdpr_sym.as_built.draw.Draw.torque_margin`'s default).
-TORQUE_MARGIN = 1.5
+#: draw's own rule and default).
+TORQUE_MARGIN = DEFAULT_DRAW.torque_margin
 #: Floating-point operations and comparisons of the guard per sample, counted in
 #: ``templates/encoders/source.c.j2`` (per cable, per coordinate, fixed), plus one test per
 #: number of the design's state (its finiteness). Per cable: 24 for the checks, the clip and
@@ -329,17 +331,11 @@ def length_bounds(robot: Robot, cable_stiffness: float) -> tuple[np.ndarray, np.
     orientation: from the anchor's distance to the box of positions (nearest point,
     farthest corner) less and plus the attachment's distance from the platform's origin,
     the lower one shortened by the largest stretch, T_max / EA, both widened by
-    :data:`RANGE_MARGIN`. Sound: no pose of the frame has a length outside them."""
-    d = robot.dimension
-    lower, upper = np.asarray(robot.frame_lower)[:d], np.asarray(robot.frame_upper)[:d]
-    anchors = np.asarray(robot.anchors, dtype=float)
-    reach = (np.zeros(robot.m) if robot.attachments is None
-             else np.linalg.norm(np.asarray(robot.attachments, dtype=float), axis=1))
-    nearest = np.linalg.norm(anchors - np.clip(anchors, lower, upper), axis=1)
-    farthest = np.linalg.norm(np.maximum(np.abs(anchors - lower), np.abs(anchors - upper)),
-                              axis=1)
-    low = np.maximum(nearest - reach, 0) / (1 + robot.t_max / cable_stiffness) - RANGE_MARGIN
-    return np.maximum(low, 0.0), farthest + reach + RANGE_MARGIN
+    :data:`RANGE_MARGIN` (:func:`~cdpr_sym.as_built.hardware.cable_length_range`). Sound:
+    no pose of the frame has a length outside them."""
+    shortest, longest = cable_length_range(robot)
+    low = shortest / (1 + robot.t_max / cable_stiffness) - RANGE_MARGIN
+    return np.maximum(low, 0.0), longest + RANGE_MARGIN
 
 
 def torque_limit_of(actuation, t_max: float) -> float:
