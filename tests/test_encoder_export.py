@@ -14,12 +14,11 @@ import json
 import os
 import re
 import time
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import pytest
-from tools import STRICT
+from tools import STRICT, cmake_build, json_lines, output_of
 from tools import run as _run
 from tools import tool as _tool
 
@@ -48,18 +47,6 @@ GUARD_TESTS = {"deadline", "time_nan", "time_stale", "time_late", "time_early", 
                "time_window", "arguments", "goal", "reset_at_rest", "rest_after_time_faults"}
 
 
-def _build(source: Path, build: Path) -> Path:
-    cmake = _tool("cmake")
-    _run([cmake, "-S", source, "-B", build, "-DCMAKE_BUILD_TYPE=Release",
-          "-DCMAKE_C_COMPILER=gcc"])
-    _run([cmake, "--build", build, "-j", "2"])
-    return build
-
-
-def _json_lines(text: str) -> list[dict]:
-    return [json.loads(line) for line in text.splitlines() if line.startswith("{")]
-
-
 def _python_run(robot_name: str, controller: str, duration: float = 3.0, model_robot=None,
                 plant=None):
     """The as-built run made anew by the simulator, as ``simulate --as-built default``."""
@@ -78,7 +65,7 @@ def winch_package(tmp_path_factory):
     """aras3 / ida-winch, exported and built with CMake (Release)."""
     root = tmp_path_factory.mktemp("aras3_ida_winch")
     result = export_encoder_c("aras3", "ida-winch", root / "package")
-    return result, _build(result.out_dir, root / "build")
+    return result, cmake_build(result.out_dir, root / "build")
 
 
 @pytest.mark.slow  # over 5 s: the quick suite keeps to about 3 minutes
@@ -97,7 +84,7 @@ def test_the_package_runs_its_loop_bit_for_bit_trips_every_guard_and_times_itsel
     np.testing.assert_array_equal(np.array(report["final_pose"]), python.q[-1])
     np.testing.assert_array_equal(np.array(report["final_command"]), python.command[-1])
     # every guard path
-    results = {line["test"]: line["passed"] for line in _json_lines(_run([build / "guard_test"]))}
+    results = {line["test"]: line["passed"] for line in json_lines(_run([build / "guard_test"]))}
     assert set(results) == GUARD_TESTS
     assert all(results.values()), [name for name, passed in results.items() if not passed]
     # ctest runs the three; the timing program's JSON and the header's static count
@@ -216,13 +203,13 @@ def test_as_built_without_winches_and_a_calibration_of_another_robot_are_refused
 @pytest.mark.slow
 def test_a_design_of_the_pose_agrees_within_its_stated_tolerance(tmp_path):
     result = export_encoder_c("aras3", "smooth-lp", tmp_path / "package")
-    build = _build(result.out_dir, tmp_path / "build")
+    build = cmake_build(result.out_dir, tmp_path / "build")
     report = json.loads(_run([build / "sil"]))
     assert report["agrees"] and not report["exact"] and report["steps"] == 3000
     assert 0 < report["pose_error"] <= 1e-9
     python = _python_run("aras3", "smooth-lp")
     np.testing.assert_allclose(report["final_pose"], python.q[-1], rtol=0, atol=1e-9)
-    guard = {line["test"]: line["passed"] for line in _json_lines(_run([build / "guard_test"]))}
+    guard = {line["test"]: line["passed"] for line in json_lines(_run([build / "guard_test"]))}
     assert all(guard.values()) and set(guard) == GUARD_TESTS
 
 
@@ -238,7 +225,7 @@ def test_a_calibrated_robot_file_is_compiled_in_and_reproduces_its_run(tmp_path)
         f"{result.prefix}.c").read_text()).group(1)
     np.testing.assert_array_equal([float(v) for v in offsets.split(",")],
                                   calibrated.encoder_offsets)
-    build = _build(result.out_dir, tmp_path / "build")
+    build = cmake_build(result.out_dir, tmp_path / "build")
     report = json.loads(_run([build / "sil"]))
     assert report["agrees"] and report["pose_error"] == 0.0
     python = _python_run("aras3", "ida-winch", model_robot=calibrated, plant=relative)
@@ -302,7 +289,7 @@ def test_each_guard_test_fails_when_its_check_is_removed(winch_package, tmp_path
         if path.is_file():
             (copy / path.name).write_text(path.read_text())
     build = tmp_path / "build"
-    _build(copy, build)
+    cmake_build(copy, build)
     for index, (fault, names) in enumerate(tests_of.items()):
         flag = f"found |= {result.prefix.upper()}_FAULT_{fault.upper()}"
         assert flag in original
@@ -310,15 +297,9 @@ def test_each_guard_test_fails_when_its_check_is_removed(winch_package, tmp_path
         later = time.time() + index + 1  # newer than the last object, whatever the clock's grain
         os.utime(copy / source.name, (later, later))
         _run([_tool("cmake"), "--build", build, "--target", f"{result.prefix}_guard_test"])
-        failed = {line["test"] for line in _json_lines(_run_allowing_failure(
+        failed = {line["test"] for line in json_lines(output_of(
             build / "guard_test")) if not line["passed"]}
         assert names <= failed, (fault, failed)
-
-
-def _run_allowing_failure(program: Path) -> str:
-    import subprocess
-
-    return subprocess.run([str(program)], capture_output=True, text=True, check=False).stdout
 
 
 @pytest.mark.slow

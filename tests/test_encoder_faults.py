@@ -19,10 +19,10 @@ import json
 import math
 import os
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
+from tools import cmake_build, json_lines, output_of
 from tools import run as _run
 from tools import tool as _tool
 
@@ -31,25 +31,6 @@ from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export import export_encoder_c
 from cdpr_sym.export.encoder_package import TORQUE_MARGIN, torque_limit_of
 from cdpr_sym.export.guard import FAULTS, GuardLimits, first_trip, hold_gains, move_speed
-
-
-def _build(source: Path, build: Path) -> Path:
-    cmake = _tool("cmake")
-    _run([cmake, "-S", source, "-B", build, "-DCMAKE_BUILD_TYPE=Release",
-          "-DCMAKE_C_COMPILER=gcc"])
-    _run([cmake, "--build", build, "-j", "2"])
-    return build
-
-
-def _json_lines(text: str) -> list[dict]:
-    return [json.loads(line) for line in text.splitlines() if line.startswith("{")]
-
-
-def _output(program: Path) -> str:
-    import subprocess
-
-    return subprocess.run([str(program)], capture_output=True, text=True, check=False).stdout
-
 
 # -- the stated rules, quick ----------------------------------------------------------------
 
@@ -149,7 +130,7 @@ def test_a_design_whose_run_trips_the_guard_is_refused_before_anything_is_writte
 def winch_package(tmp_path_factory):
     root = tmp_path_factory.mktemp("aras3_ida_winch_faults")
     result = export_encoder_c("aras3", "ida-winch", root / "package")
-    return result, _build(result.out_dir, root / "build")
+    return result, cmake_build(result.out_dir, root / "build")
 
 
 @pytest.mark.slow  # a package build, ~15 s
@@ -193,7 +174,7 @@ def test_each_safety_mechanism_removed_fails_a_test(winch_package, tmp_path):
     for path in result.out_dir.iterdir():
         if path.is_file():
             (copy / path.name).write_text(path.read_text())
-    build = _build(copy, tmp_path / "build")
+    build = cmake_build(copy, tmp_path / "build")
     watchdog = f"found |= {upper}_FAULT_GOAL"
     cases = dict(MUTATIONS)
     # the old package: the stale pose and no watchdog end far from the goal with status 0
@@ -211,10 +192,10 @@ def test_each_safety_mechanism_removed_fails_a_test(winch_package, tmp_path):
         os.utime(copy / source.name, (later, later))
         _run([_tool("cmake"), "--build", build, "--target", f"{result.prefix}_guard_test",
               f"{result.prefix}_fault_sequence"])
-        failed = {line["test"] for line in _json_lines(_output(build / "guard_test"))
+        failed = {line["test"] for line in json_lines(output_of(build / "guard_test"))
                   if not line["passed"]}
         assert failing <= failed, (name, failed)
-        report = json.loads(_output(build / "fault_sequence"))
+        report = json.loads(output_of(build / "fault_sequence"))
         if sequence == "fails":
             assert not report["passed"], (name, report)
             if "watchdog" in name:  # the old package's end: far off, status 0
@@ -231,7 +212,7 @@ def test_an_undamped_plant_is_brought_to_rest_and_home(tmp_path):
     spec.write_text("[actuation]\ncable_damping = 0.0\nviscous = 0.0\ncoulomb = 0.0\n"
                     "[sensing]\n")
     result = export_encoder_c("aras3", "ida-winch", tmp_path / "package", as_built=spec)
-    build = _build(result.out_dir, tmp_path / "build")
+    build = cmake_build(result.out_dir, tmp_path / "build")
     report = json.loads(_run([build / "fault_sequence"]))
     assert report["passed"] and report["status"] == 0 and report["goal_error_true"] < 0.01
 
@@ -268,7 +249,7 @@ def test_every_design_the_export_accepts_passes_its_own_ctest(robot, tmp_path):
             assert str(refusal).startswith("controller: ") and "\n" not in str(refusal)
             assert not out.exists()
             continue
-        build = _build(result.out_dir, tmp_path / f"build_{name}")
+        build = cmake_build(result.out_dir, tmp_path / f"build_{name}")
         log = _run([_tool("ctest"), "--test-dir", build, "--output-on-failure"])
         assert "100% tests passed, 0 tests failed out of 4" in log, (name, log)
         # and the fault sequence ends at the goal with status 0, not merely with a fault

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 from pathlib import Path
@@ -31,3 +32,22 @@ def run(command: list[object], cwd: Path | None = None) -> str:
         pytest.fail(f"{' '.join(map(str, command))} failed ({failure.returncode}):\n"
                     f"{failure.stdout[-3000:]}\n{failure.stderr[-3000:]}")
     return done.stdout + done.stderr
+
+
+def cmake_build(source: Path, build: Path) -> Path:
+    """Configure (Release, gcc) and build the CMake project ``source`` into ``build``."""
+    cmake = tool("cmake")
+    run([cmake, "-S", source, "-B", build, "-DCMAKE_BUILD_TYPE=Release",
+         "-DCMAKE_C_COMPILER=gcc"])
+    run([cmake, "--build", build, "-j", "2"])
+    return build
+
+
+def json_lines(text: str) -> list[dict]:
+    """The JSON objects of ``text``'s lines that start with ``{``."""
+    return [json.loads(line) for line in text.splitlines() if line.startswith("{")]
+
+
+def output_of(program: Path) -> str:
+    """``program``'s standard output, whatever its exit status (a test that reads failures)."""
+    return subprocess.run([str(program)], capture_output=True, text=True, check=False).stdout
