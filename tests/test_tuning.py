@@ -219,4 +219,17 @@ def test_smooth_lp_takes_its_filter_and_guard_from_the_robot(desk):
     assert design.cutoff_for(aras3, 1e-3) == pytest.approx(15.0)
     assert design.guard_for(aras3) == pytest.approx(58 / 60)
     assert design.guard_for(desk) == pytest.approx(7.7 / 60)
-    assert design.cutoff_for(desk, 2e-3) == pytest.approx(0.6 * 1 / (40 * 2e-3))
+    # at 500 Hz 0.6 f_c = 7.5 Hz would sit under five times its 25/9 Hz tracking loop
+    assert design.cutoff_for(desk, 2e-3) == pytest.approx(5 * 25 / 9)
+
+
+def test_smooth_lp_never_filters_below_five_times_its_tracking_loop():
+    """A heavy box on the paper's robot (T_max 5 kN: a large, slow default winch, f_c 2.5 Hz)
+    would put 0.6 f_c under the 2.76 Hz loop of k = 1,200 on 4 kg; the corner is then five
+    times the loop, 5 sqrt(1200 / 4) / (2 pi) = 13.78 Hz."""
+    from cdpr_sym.control import controller_by_name
+
+    heavy = _with_box(preset("aras3"), 5000.0)
+    assert 0.6 * tuning.command_corner(heavy, scaled_actuation(heavy), 1e-3) < 13.0
+    cutoff = controller_by_name("smooth-lp").cutoff_for(heavy, 1e-3)
+    assert cutoff == pytest.approx(5 * math.sqrt(1200 / 4) / (2 * math.pi))
