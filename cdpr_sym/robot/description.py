@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from cdpr_sym.errors import InvalidRobot
+from cdpr_sym.robot.target import TARGET_FIELDS, Target
 
 #: Generalized coordinates by kind and dimension: names and units.
 COORDINATES = {
@@ -41,7 +42,7 @@ CALIBRATION_FIELDS = ("encoder_offsets",)
 
 #: Optional fields left out of :meth:`Robot.as_dict` when not given, so a robot without
 #: them keeps the description (and the sweep identities) it had before they existed.
-_OPTIONAL_FIELDS = (*_BODY_FIELDS, *WRENCH_FIELDS, *CALIBRATION_FIELDS)
+_OPTIONAL_FIELDS = (*_BODY_FIELDS, *WRENCH_FIELDS, *CALIBRATION_FIELDS, "target")
 
 #: Longest robot name, characters (it heads reports and names generated code).
 MAX_NAME_LENGTH = 100
@@ -110,6 +111,12 @@ class Robot:
         What each winch encoder reads beyond the cable's unstretched length, m: a reading
         minus this is the length the model's forward kinematics take. A calibration
         (:mod:`cdpr_sym.calibration`) estimates it; omitted, the encoders read true lengths.
+    target : Target or dict, optional
+        The design target the robot's runs are judged against (:mod:`cdpr_sym.robot.target`;
+        a dict of its fields, any missing ones derived from the box). Its ``step`` may not
+        exceed the box width T_M - T_m (a larger step limits nothing) and its ``error``
+        must be smaller than the frame's smallest side (a wider band holds every pose).
+        Omitted, :attr:`design_target` derives it from the tension box.
 
     Notes
     -----
@@ -135,6 +142,7 @@ class Robot:
     external_force: np.ndarray | None = None
     external_moment: np.ndarray | None = None
     encoder_offsets: np.ndarray | None = None
+    target: Target | None = None
 
     def __post_init__(self) -> None:
         _check_name(self.name)
@@ -159,6 +167,7 @@ class Robot:
         self._check_external_wrench()
         self._check_encoder_offsets()
         self._check_frame()
+        self._check_target()
         self._check_angle_ranges()
         for field in ("start", "goal"):
             self._check_inside_frame(field, getattr(self, field))
@@ -247,6 +256,14 @@ class Robot:
         return float(sides.min())
 
     @property
+    def design_target(self) -> Target:
+        """The target this robot's runs are judged against: :attr:`target` as given, else
+        :meth:`Target.derived <cdpr_sym.robot.target.Target.derived>` from the tension box
+        (steps of max(1 N, 1 % of T_M - T_m) per 1 ms, 1 cm by 5 s)."""
+        return self.target if self.target is not None else Target.derived(self.t_min,
+                                                                          self.t_max)
+
+    @property
     def n_j(self) -> int:
         """Number of free entries of the skew matrix J_d, n(n-1)/2."""
         return self.n * (self.n - 1) // 2
@@ -267,6 +284,8 @@ class Robot:
             value = getattr(self, field.name)
             if value is None and field.name in _OPTIONAL_FIELDS:
                 continue
+            if isinstance(value, Target):
+                value = value.as_dict()
             out[field.name] = value.tolist() if isinstance(value, np.ndarray) else value
         return out
 
@@ -373,6 +392,29 @@ class Robot:
             raise InvalidRobot("encoders.offsets", f"expected {self.m} values (one per cable, "
                                f"m), got {offsets.shape[0]}")
         _set(self, "encoder_offsets", offsets)
+
+    def _check_target(self) -> None:
+        """A stated target as a :class:`Target` (a dict completed by the box's rule), its
+        step within the box width and its band narrower than the frame."""
+        if self.target is None:
+            return
+        target = self.target
+        if isinstance(target, dict):
+            target = Target.derived(self.t_min, self.t_max, **target)
+        elif not isinstance(target, Target):
+            raise InvalidRobot("target", f"expected a table of {', '.join(TARGET_FIELDS)}, got "
+                               f"{_shown(target)}")
+        width = self.t_max - self.t_min
+        if target.step > width:
+            raise InvalidRobot("target.step", f"expected at most the box width "
+                               f"T_M - T_m = {width:g} N (a larger step limits nothing), got "
+                               f"{target.step:g}")
+        side = self.frame_side
+        if target.error >= side:
+            raise InvalidRobot("target.error", f"expected less than the frame's smallest side "
+                               f"{side:g} m (a wider band holds every pose), got "
+                               f"{target.error:g}")
+        _set(self, "target", target)
 
     def _check_frame(self) -> None:
         if np.any(self.frame_lower >= self.frame_upper):

@@ -16,6 +16,7 @@ import numpy as np
 from cdpr_sym.errors import InvalidRobot, UnknownName
 from cdpr_sym.robot.description import Robot
 from cdpr_sym.robot.gains import case_gains
+from cdpr_sym.robot.target import TARGET_FIELDS
 
 PRESET_NAMES = ("aras3", "planar2", "planar3", "spatial6", "planar4", "spatial4", "ipanema8")
 
@@ -65,6 +66,8 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
         center_of_mass=body.get("center_of_mass"),
         external_force=wrench.get("force"), external_moment=wrench.get("moment"),
         encoder_offsets=encoders.get("offsets"),
+        # the fields a [target] table states; the Robot derives the rest from the box
+        target=data.get("target") or None,
     )
     if len(stated) == 2:
         return robot
@@ -77,11 +80,12 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
 
 #: The robot-file layout: top-level fields, and the fields of each table.
 FILE_FIELDS = {"": {"name", "mass", "gravity", "anchors", "tension", "frame", "case", "body",
-                    "wrench", "encoders"},
+                    "wrench", "encoders", "target"},
                "tension": {"min", "max"}, "frame": {"lower", "upper"},
                "case": {"start", "goal", "k", "r_d"},
                "body": {"attachments", "inertia", "center_of_mass"},
-               "wrench": {"force", "moment"}, "encoders": {"offsets"}}
+               "wrench": {"force", "moment"}, "encoders": {"offsets"},
+               "target": set(TARGET_FIELDS)}
 
 
 def _check_known_fields(data: dict[str, Any], source: str) -> None:
@@ -298,4 +302,7 @@ def robot_file_text(robot: Robot, *, comment: str = "") -> str:
         lines += ["", "[wrench]", *(f"{key} = {_toml_value(value)}" for key, value in wrench)]
     if robot.encoder_offsets is not None:
         lines += ["", "[encoders]", f"offsets = {_toml_value(data['encoder_offsets'])}"]
+    if robot.target is not None:
+        lines += ["", "[target]", *(f"{key} = {_toml_value(value)}"
+                                    for key, value in data["target"].items())]
     return "\n".join(lines) + "\n"
