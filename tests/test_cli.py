@@ -375,9 +375,37 @@ def test_sweep_and_report_print_what_each_design_achieved(capsys, tmp_path):
     for name, row in expected.items():
         assert (f"{name:<12} meets the target on {100 * row['meets_target']:5.1f} % of "
                 f"all {row['runs']} pairs (tension-feasible") in text
+    assert "target: within 1 cm of the goal by 5 s, tension steps ≤ 1 N per ms" in text
     status, text, _ = _run(capsys, "report", "sweep", str(out), "--out",
                            str(tmp_path / "report"), "--json")
     assert status == 0 and json.loads(text)["summary"] == json.loads(json.dumps(expected))
+    assert json.loads(text)["target"] == {"settle_time": 5.0, "error": 0.01, "step": 1.0,
+                                          "step_per_control_step": 1.0, "text": (
+        "within 1 cm of the goal by 5 s, tension steps ≤ 1 N per ms")}
+
+
+def test_a_sweep_of_a_robot_with_its_own_target_is_judged_and_reported_against_it(
+        capsys, tmp_path):
+    """A robot file's [target] judges its sweep: the summary, the text and the report's
+    footnote name it, and the shares are those of summarise() against it."""
+    from cdpr_sym.results.judging import summarise
+    from cdpr_sym.results.store import load_table
+    from cdpr_sym.robot.target import Target
+
+    text = resources.files("cdpr_sym.robot.presets").joinpath("aras3.toml").read_text()
+    robot = tmp_path / "smooth_enough.toml"
+    robot.write_text(text + "\n[target]\nstep = 40.0\nerror = 0.05\n")
+    out = tmp_path / "rows.csv"
+    status, text, _ = _run(capsys, "sweep", "--robot", str(robot), "--controllers", "pd-sat",
+                           "--pairs", "2", "--duration", "0.5", "--workers", "1",
+                           "--no-progress", "--out", str(out))
+    line = "target: within 5 cm of the goal by 5 s, tension steps ≤ 40 N per ms"
+    assert status == 0 and line in text
+    expected = summarise(load_table(out)[0], Target(error=0.05, step=40.0))
+    assert (f"meets the target on {100 * expected['pd-sat']['meets_target']:5.1f} %") in text
+    status, _, _ = _run(capsys, "report", "sweep", str(out), "--out", str(tmp_path / "r"))
+    report = (tmp_path / "r" / "report.md").read_text()
+    assert status == 0 and line.removeprefix("target: ") + " (every change" in report
 
 
 def test_the_default_sweep_compares_the_paper_design_with_the_recommended_ones():

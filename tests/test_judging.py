@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from cdpr_sym.results.judging import OUTCOMES, meets_target, outcome, summarise
+from cdpr_sym.robot.target import Target
 
 
 def _row(**changes) -> dict:
@@ -53,12 +54,22 @@ def test_meets_target_needs_every_part(changes, meets):
     assert meets_target(row) is meets
 
 
-def test_meets_target_limits_are_arguments():
+def test_meets_target_limits_are_the_targets():
     row = _row(settle_time=6.0, max_tension_step=1.8, start_jump=1.9)
     assert not meets_target(row)
-    assert not meets_target(row, settle_within=6.0)
-    assert meets_target(row, settle_within=6.0, step_limit=2.0)
-    assert not meets_target(row, settle_within=5.9, step_limit=2.0)
+    assert not meets_target(row, Target(settle_time=6.0))
+    assert meets_target(row, Target(settle_time=6.0, step=2.0))
+    assert not meets_target(row, Target(settle_time=5.9, step=2.0))
+
+
+def test_the_step_limit_is_per_millisecond_whatever_the_control_period():
+    """1 N per ms allows 2 N per 2 ms step and 0.1 N per 0.1 ms step, start jump included."""
+    row = _row(max_tension_step=1.8, start_jump=0.2)
+    assert not meets_target(row, Target())
+    assert meets_target(row, Target(), dt=2e-3)
+    assert not meets_target(_row(max_tension_step=0.15), Target(), dt=1e-4)
+    assert meets_target(_row(max_tension_step=0.05, start_jump=0.1), Target(), dt=1e-4)
+    assert not meets_target(_row(max_tension_step=0.05, start_jump=0.15), Target(), dt=1e-4)
 
 
 def test_summarise_counts_shares_and_medians_by_hand():
@@ -112,5 +123,5 @@ def test_a_row_without_a_start_jump_meets_a_tight_step_limit(start_jump):
         del row["start_jump"]
     else:
         row["start_jump"] = start_jump
-    assert meets_target(row, step_limit=0.1)
-    assert not meets_target({**row, "start_jump": 0.2}, step_limit=0.1)
+    assert meets_target(row, Target(step=0.1))
+    assert not meets_target({**row, "start_jump": 0.2}, Target(step=0.1))

@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from cdpr_sym.as_built import AsBuiltDraw
+    from cdpr_sym.robot.target import Target
     from cdpr_sym.sweep import SweepConfig
 
 
@@ -271,19 +272,30 @@ def sweep_command(args: argparse.Namespace, out: Output) -> int:
     (check_folder if args.format == "parquet" else check_file)("out", args.out)
     table = run_sweep(config, args.out, workers=args.workers, dask_address=args.dask,
                       progress=_progress(args), format=args.format)
-    summary = _sweep_summary(table)
-    out.result({"results": str(table), "config": config.as_dict(), "summary": summary},
-               [*_summary_lines(summary), f"results: {table}"])
+    summary, target = _sweep_summary(table)
+    out.result({"results": str(table), "config": config.as_dict(), "summary": summary,
+                "target": target},
+               [*_summary_lines(summary), f"target: {target['text']}", f"results: {table}"])
     return 0
 
 
-def _sweep_summary(table: Path) -> dict[str, dict[str, object]]:
+def _sweep_summary(table: Path) -> tuple[dict[str, dict[str, object]], dict[str, object]]:
     """Per design, the shares of :func:`~cdpr_sym.results.judging.summarise` over a stored
-    sweep table (its rows checked as a report checks them)."""
-    from cdpr_sym.results.judging import summarise
+    sweep table (its rows checked as a report checks them), judged against the sweep
+    robot's target; and that target (:func:`_target_record`)."""
+    from cdpr_sym.results.judging import summarise, sweep_target
     from cdpr_sym.sweep.tables import load_sweep_table
 
-    return summarise(load_sweep_table(table)[0])
+    rows, meta = load_sweep_table(table)
+    target, dt = sweep_target(meta)
+    return summarise(rows, target, dt=dt), _target_record(target, dt)
+
+
+def _target_record(target: Target, dt: float) -> dict[str, object]:
+    """The target a summary judged, as ``--json`` gives it: its fields (s, m, N per 1 ms),
+    the step allowed per control step of ``dt`` s (N) and the line the text prints."""
+    return {**target.as_dict(), "step_per_control_step": target.step_limit(dt),
+            "text": target.describe(dt)}
 
 
 def _summary_lines(summary: dict[str, dict[str, object]]) -> list[str]:
@@ -306,12 +318,14 @@ def _summary_lines(summary: dict[str, dict[str, object]]) -> list[str]:
 def report_command(args: argparse.Namespace, out: Output) -> int:
     if args.kind == "sweep":
         from cdpr_sym.reporting.sweep_report import write_sweep_report
-        from cdpr_sym.results.store import read_json
+        from cdpr_sym.results.judging import sweep_target
+        from cdpr_sym.results.store import read_json, sidecar_path
 
         path = write_sweep_report(args.results, args.out)
         summary = read_json(path.parent / "summary.json")  # the report's own, not read again
-        out.result({"report": str(path), "summary": summary},
-                   [*_summary_lines(summary), f"report: {path}"])
+        target = _target_record(*sweep_target(read_json(sidecar_path(args.results))))
+        out.result({"report": str(path), "summary": summary, "target": target},
+                   [*_summary_lines(summary), f"target: {target['text']}", f"report: {path}"])
         return 0
     study = study_by_name(args.kind)
     study.check_folder(args.results)

@@ -203,9 +203,10 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
 
 def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndarray,
                    r_d: np.ndarray, *, duration: float, dt: float, plant: Plant = Plant(),
-                   build_options: BuildOptions = BuildOptions(), lanes: int | None = None
-                   ) -> list[RunSummary]:
-    """``[run.summary() for run in run_many(...)]`` without storing the runs.
+                   build_options: BuildOptions = BuildOptions(), lanes: int | None = None,
+                   settle_band: float = SETTLE_TOLERANCE) -> list[RunSummary]:
+    """``[run.summary(settle_band=settle_band) for run in run_many(...)]`` without storing
+    the runs (``settle_band``, m: the band the settle times are measured in).
 
     The batched loop keeps each run's running extremes and counts as it advances, so a
     sweep of any length holds one summary row per run; the metrics equal those of
@@ -217,12 +218,12 @@ def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: n
     starts, goals, n_steps = _checked(simulator, starts, goals, duration, dt, plant)
     batch = batch_rollout(simulator, build_options, lanes)
     if batch is None:
-        return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=plant).summary()
-                for s, g in zip(starts, goals, strict=True)]
+        return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=plant).summary(
+            settle_band=settle_band) for s, g in zip(starts, goals, strict=True)]
     if not len(starts):
         return []
     rows = batch.summaries(*_inputs(simulator, starts, goals, k, r_d, dt, plant), n_steps,
-                           SETTLE_TOLERANCE)
+                           settle_band)
     robot = simulator.robot
     return run_summaries(rows, simulator.layout, goals, dt,
                          static_tensions=simulator.static_tensions(starts),

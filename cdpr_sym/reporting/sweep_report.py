@@ -9,15 +9,18 @@ from matplotlib.figure import Figure
 
 from cdpr_sym.errors import CdprError, InvalidCase
 from cdpr_sym.reporting.text import render_report
-from cdpr_sym.results.judging import OUTCOMES, outcome, summarise
+from cdpr_sym.results.judging import OUTCOMES, outcome, summarise, sweep_target
 from cdpr_sym.results.store import write_json
 from cdpr_sym.robot import Robot
 from cdpr_sym.sweep.tables import load_sweep_table
 
 
-def summary_table(summary: dict[str, dict[str, Any]]) -> str:
-    """Markdown table of :func:`summarise`, with the target's footnote (no final newline)."""
-    return render_report("sweep_table.md.j2", summary=summary).removesuffix("\n")
+def summary_table(summary: dict[str, dict[str, Any]], target: str | None = None) -> str:
+    """Markdown table of :func:`summarise`, with the target's footnote (no final newline);
+    ``target`` is the judged target's line (:meth:`~cdpr_sym.robot.target.Target.describe`),
+    None for the paper's robot's, worded as the studies' reports word it."""
+    return render_report("sweep_table.md.j2", summary=summary,
+                         target=target).removesuffix("\n")
 
 
 def feasibility_maps(rows: list[dict[str, Any]], path: Path, *, axes: tuple[int, int] = (0, 1),
@@ -74,14 +77,17 @@ SWEEP_KEYS = ("pair", "controller", "status")
 
 
 def write_sweep_report(results: Path, out_dir: Path) -> Path:
-    """``cdpr-sym report sweep``: report.md, summary.json and maps from stored results."""
+    """``cdpr-sym report sweep``: report.md, summary.json and maps from stored results,
+    judged against the sweep robot's target (:func:`~cdpr_sym.sweep.tables.sweep_target`),
+    which the report's footnote names."""
     rows, meta = load_sweep_table(results)
     missing = [name for name in SWEEP_KEYS if rows and name not in rows[0]]
     if missing:
         raise InvalidCase("results", f"{results} is not a sweep table (no column "
                           f"{', '.join(missing)})")
     out_dir.mkdir(parents=True, exist_ok=True)
-    summary = summarise(rows)
+    target, dt = sweep_target(meta)
+    summary = summarise(rows, target, dt=dt)
     names, planes = _map_planes(meta)
     figures = []
     for a, b in planes:
@@ -93,5 +99,5 @@ def write_sweep_report(results: Path, out_dir: Path) -> Path:
     rate = 1 / config["dt"] if config.get("dt") else "?"
     (out_dir / "report.md").write_text(render_report(
         "sweep.md.j2", results=results.name, config=config, rate=rate, summary=summary,
-        figures=figures))
+        figures=figures, target=target.describe(dt)))
     return out_dir / "report.md"

@@ -11,8 +11,9 @@ error, and a report would count such a row as computed. :func:`inconsistency` ch
   finished (no stop reason) with both recorded within [t_min, t_max] (to
   :data:`~cdpr_sym.results.summary.FEASIBILITY_SLACK`);
 * ``converged`` is True exactly when a settle time is recorded; a settle time lies within
-  [0, duration], and a settled run ends inside the band (``final_error`` <=
-  :data:`~cdpr_sym.results.summary.SETTLE_TOLERANCE`);
+  [0, duration], and a settled run ends inside the band it was measured in (``final_error``
+  <= the robot's target's ``error``, :data:`~cdpr_sym.results.summary.SETTLE_TOLERANCE`
+  unless its robot file states another);
 * the largest tension step is no more than the total variation it is part of.
 
 Only finished runs (status ``ok`` or ``stopped``) carry metrics; an ``error`` row has none.
@@ -40,11 +41,12 @@ FLAG_COLUMNS = ("tension_feasible", "converged")
 COUNT_COLUMNS = ("fallback_steps", "infeasible_steps")
 
 
-def inconsistency(row: dict[str, Any], t_min: float, t_max: float
-                  ) -> tuple[str, str] | None:
-    """The first column of ``row`` (a parsed sweep row) that disagrees with the others or
-    with the tension box [t_min, t_max] (N), and what is wrong; None for a consistent row
-    (see the module notes)."""
+def inconsistency(row: dict[str, Any], t_min: float, t_max: float,
+                  band: float = SETTLE_TOLERANCE) -> tuple[str, str] | None:
+    """The first column of ``row`` (a parsed sweep row) that disagrees with the others,
+    with the tension box [t_min, t_max] (N) or with the settling band ``band`` (m) its
+    settle time was measured in, and what is wrong; None for a consistent row (see the
+    module notes)."""
     if row.get("status") not in ("ok", "stopped"):
         return None
     for column in NUMBER_COLUMNS:
@@ -65,7 +67,7 @@ def inconsistency(row: dict[str, Any], t_min: float, t_max: float
         if value is not None and not (is_real(value) and float(value).is_integer()
                                       and value >= 0):
             return column, f"expected a whole number of steps >= 0, got {value!r}"
-    return _tension_disagreement(row, t_min, t_max) or _settling_disagreement(row) or (
+    return _tension_disagreement(row, t_min, t_max) or _settling_disagreement(row, band) or (
         _step_disagreement(row))
 
 
@@ -86,7 +88,7 @@ def _tension_disagreement(row: dict[str, Any], t_min: float, t_max: float
     return None
 
 
-def _settling_disagreement(row: dict[str, Any]) -> tuple[str, str] | None:
+def _settling_disagreement(row: dict[str, Any], band: float) -> tuple[str, str] | None:
     settle, error = row.get("settle_time"), row.get("final_error")
     if row["converged"] != (settle is not None):
         said = "no settle time" if settle is None else f"a settle time of {settle!r} s"
@@ -94,8 +96,8 @@ def _settling_disagreement(row: dict[str, Any]) -> tuple[str, str] | None:
     duration = row.get("duration")
     if settle is not None and duration is not None and settle > duration:
         return "settle_time", f"{settle!r} s is after the run's end at {duration!r} s"
-    if settle is not None and (error is None or error > SETTLE_TOLERANCE):
-        return "final_error", (f"{error!r} m is outside the {SETTLE_TOLERANCE:g} m band of a "
+    if settle is not None and (error is None or error > band):
+        return "final_error", (f"{error!r} m is outside the {band:g} m band of a "
                                f"run that settled at {settle!r} s")
     return None
 

@@ -8,9 +8,10 @@ from pathlib import Path
 from typing import Any
 
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.results.judging import summarise
+from cdpr_sym.results.judging import summarise, sweep_target
 from cdpr_sym.results.store import load_table
 from cdpr_sym.results.sweep_columns import known_column_types
+from cdpr_sym.robot.target import Target
 
 
 @dataclasses.dataclass(frozen=True, repr=False)
@@ -32,8 +33,17 @@ class SweepResults:
     meta: dict[str, Any]
 
     def summary(self) -> dict[str, dict[str, Any]]:
-        """Per design: shares feasible, converged, meeting the target, and medians."""
-        return summarise(self.rows)
+        """Per design: shares feasible, converged, meeting the target (:attr:`target`), and
+        medians."""
+        target, dt = sweep_target(self.meta)
+        return summarise(self.rows, target, dt=dt)
+
+    @property
+    def target(self) -> Target:
+        """The target :meth:`summary` judges against: the sweep robot's (its
+        :attr:`~cdpr_sym.robot.Robot.design_target`), its step scaled to the sweep's
+        control period (:meth:`~cdpr_sym.robot.target.Target.step_limit`)."""
+        return sweep_target(self.meta)[0]
 
     def to_pandas(self) -> Any:
         """The rows as a ``pandas.DataFrame`` (``pip install 'cdpr_sym[pandas]'``), its
@@ -74,7 +84,9 @@ class SweepResults:
             f"<td>{100 * s['feasible']:.1f} %</td><td>{100 * s['converged']:.1f} %</td>"
             f"<td>{100 * s['meets_target']:.1f} %</td></tr>"
             for name, s in self.summary().items())
-        return f"<p><code>{html.escape(repr(self))}</code></p><table>{header}{cells}</table>"
+        target, dt = sweep_target(self.meta)
+        return (f"<p><code>{html.escape(repr(self))}</code></p><table>{header}{cells}</table>"
+                f"<p>target: {html.escape(target.describe(dt))}</p>")
 
 
 def load_sweep(path: str | Path) -> SweepResults:

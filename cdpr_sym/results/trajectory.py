@@ -182,7 +182,8 @@ class Trajectory:
         """Number of control steps per flag name."""
         return {name: int(np.count_nonzero(self.flags & bit)) for bit, name in FLAG_NAMES.items()}
 
-    def metrics(self, *, static_tension: np.ndarray | None = None) -> dict[str, Any]:
+    def metrics(self, *, static_tension: np.ndarray | None = None,
+                settle_band: float = SETTLE_TOLERANCE) -> dict[str, Any]:
         """Summary numbers (SI units); tensions are judged over t > 0 (steps k >= 1).
 
         ``tension_feasible`` is False for a run that stopped early or has no command after
@@ -193,12 +194,16 @@ class Trajectory:
         |tau_k - tau_{k-1}| for k >= 1 (the first change happens at t = dt > 0).
         ``start_jump`` (N), max_i |tau_0 - tau_static|, uses ``static_tension`` (the
         argument, else the trajectory's own) and is left out when neither is known.
+        ``settle_time`` is measured in the band ``settle_band`` (m; the robot's target's
+        ``error`` where the run is judged against it).
         """
-        return self.summary(static_tension=static_tension).metrics()
+        return self.summary(static_tension=static_tension, settle_band=settle_band).metrics()
 
-    def summary(self, *, static_tension: np.ndarray | None = None) -> RunSummary:
+    def summary(self, *, static_tension: np.ndarray | None = None,
+                settle_band: float = SETTLE_TOLERANCE) -> RunSummary:
         """The running extremes and counts :meth:`metrics` is made of (see
-        :class:`~cdpr_sym.results.summary.RunSummary`)."""
+        :class:`~cdpr_sym.results.summary.RunSummary`), the settle time in ``settle_band``
+        (m)."""
         if static_tension is None:
             static_tension = self.static_tension
         after_start = self.tau[1:]
@@ -208,7 +213,7 @@ class Trajectory:
             min_tension=float(after_start.min()) if after_start.size else math.nan,
             max_tension=float(after_start.max()) if after_start.size else math.nan,
             min_alpha=float(self.alpha.min()) if self.alpha.size else math.nan,
-            settle_time=self.settle_time(),
+            settle_time=self.settle_time(settle_band),
             final_error=float(errors(self.q[-1] - self.q_goal)),
             # summed in step order, cable by cable, as the compiled summary sums: the same
             # number both ways (numpy's sum is pairwise)

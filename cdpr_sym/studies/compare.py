@@ -20,7 +20,6 @@ from cdpr_sym.reporting import plots
 from cdpr_sym.reporting.sweep_report import feasibility_maps
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results import Trajectory
-from cdpr_sym.results.judging import summarise
 from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
 from cdpr_sym.studies.compute import control_costs
@@ -36,7 +35,7 @@ from cdpr_sym.studies.outline import (
     write_study,
 )
 from cdpr_sym.sweep import SweepConfig, robot_reference
-from cdpr_sym.sweep.tables import load_sweep_table
+from cdpr_sym.sweep.tables import load_sweep_table, summarise_sweep, target_text
 
 DESIGNS = ("l2", "linf", "box", "pd-sat", "nmpc")
 #: States of each paper-case run where the fast path is checked against cvxpy.
@@ -120,7 +119,7 @@ class CompareStudy(Study):
     def aggregate(self, folder: Path) -> None:
         study = read_study(folder)
         sweep = study["config"]
-        rows, _ = load_sweep_table(folder / SWEEP_FILE, pairs=sweep["pairs"],
+        rows, meta = load_sweep_table(folder / SWEEP_FILE, pairs=sweep["pairs"],
                                    seed=sweep["seed"], controllers=sweep["controllers"])
         runs = load_runs(folder)
         plots.figure_cases(runs, folder / "paper_case_tensions.png")
@@ -132,7 +131,8 @@ class CompareStudy(Study):
                                 "controllers": tuple(study["config"]["controllers"])})
         write_json(folder / SUMMARY_FILE, {
             "paper_case": {name: run.metrics() for name, run in runs.items()},
-            "sweep": summarise(rows), "cvxpy_agreement": study["cvxpy_agreement"],
+            "sweep": summarise_sweep(rows, meta), "target": target_text(meta),
+            "cvxpy_agreement": study["cvxpy_agreement"],
             "config": config.as_dict(), "compute": study.get("compute", {})})
 
     def render(self, folder: Path) -> dict[str, Any]:
@@ -142,7 +142,7 @@ class CompareStudy(Study):
             "compare.md.j2", case=report["paper_case"], summary=summary,
             agreement=report["cvxpy_agreement"], config=report["config"],
             compute=report["compute"], best=most_feasible_and_converged(summary),
-            smooth=smooth_designs(summary)))
+            smooth=smooth_designs(summary), target=report.get("target")))
         return report
 
     def summary_lines(self, result: dict[str, Any]) -> list[str]:

@@ -14,7 +14,6 @@ from typing import Any
 
 from cdpr_sym.reporting import plots
 from cdpr_sym.reporting.text import render_report
-from cdpr_sym.results.judging import summarise
 from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
 from cdpr_sym.studies.compute import control_costs
@@ -30,7 +29,7 @@ from cdpr_sym.studies.outline import (
     write_study,
 )
 from cdpr_sym.sweep import SweepConfig, robot_reference
-from cdpr_sym.sweep.tables import load_sweep_table
+from cdpr_sym.sweep.tables import load_sweep_table, summarise_sweep, target_text
 
 DESIGNS = ("l2", "linf", "box", "pd-sat", "ida-ref", "smooth", "nmpc")
 MASS_SCALES = (1.0, 1.1, 0.9)
@@ -103,20 +102,21 @@ class DesignsStudy(Study):
         study = read_study(folder)
         sweeps = {scale: load_sweep_table(folder / _table(scale), pairs=study["pairs"],
                                           seed=study["seed"], controllers=study["designs"],
-                                          mass_scale=scale)[0]
+                                          mass_scale=scale)
                   for scale in study["mass_scales"]}
         runs = load_runs(folder)
         plots.figure_cases(runs, folder / "paper_case.png")
         plots.figure_errors(runs, folder / "paper_case_errors.png",
                             title="Paper case: distance to the goal")
-        plots.figure_distributions(sweeps[1.0], folder / "distributions.png")
+        plots.figure_distributions(sweeps[1.0][0], folder / "distributions.png")
         table = {f"{scale:.1f}": {name: summary["meets_target"]
-                                  for name, summary in summarise(rows).items()}
-                 for scale, rows in sweeps.items()}
+                                  for name, summary in summarise_sweep(*stored).items()}
+                 for scale, stored in sweeps.items()}
         write_json(folder / SUMMARY_FILE, {
             "paper_case": {name: run.metrics() for name, run in runs.items()},
-            "meets_target": table, "nominal": summarise(sweeps[1.0]), "pairs": study["pairs"],
-            "seed": study["seed"], "compute": study.get("compute", {})})
+            "meets_target": table, "nominal": summarise_sweep(*sweeps[1.0]),
+            "target": target_text(sweeps[1.0][1]),
+            "pairs": study["pairs"], "seed": study["seed"], "compute": study.get("compute", {})})
 
     def render(self, folder: Path) -> dict[str, Any]:
         designs = tuple(read_study(folder)["designs"])
@@ -126,7 +126,8 @@ class DesignsStudy(Study):
             "designs.md.j2", designs=designs, table=table, case=summary["paper_case"],
             nominal=summary["nominal"], pairs=summary["pairs"], seed=summary["seed"],
             compute=summary["compute"], best=recommended(table, designs),
-            worst_mass=functools.partial(worst_mass_share, table), nan=math.nan))
+            worst_mass=functools.partial(worst_mass_share, table), nan=math.nan,
+            target=summary.get("target")))
         return summary
 
     def summary_lines(self, result: dict[str, Any]) -> list[str]:

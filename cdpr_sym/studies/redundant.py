@@ -33,7 +33,7 @@ from cdpr_sym.robot import Robot, preset
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyOptions, StudyRequest
 from cdpr_sym.studies.outline import SUMMARY_FILE, read_study, study_sweep, write_study
 from cdpr_sym.sweep import SweepConfig
-from cdpr_sym.sweep.tables import load_sweep_table
+from cdpr_sym.sweep.tables import load_sweep_table, summarise_sweep
 from cdpr_sym.workspace import (
     WorkspaceEvaluator,
     WrenchEvaluator,
@@ -164,7 +164,8 @@ def _same_pairs(pairs: int, seed: int) -> dict[str, Any]:
         for design in DESIGNS[robot.name]:
             simulator = get_simulator(robot, controller_by_name(design))
             for summary in summarise_many(simulator, starts, goals, robot.k, robot.r_d,
-                                          duration=DURATION, dt=DT):
+                                          duration=DURATION, dt=DT,
+                                          settle_band=robot.design_target.error):
                 metrics = summary.metrics()
                 rows.append({"robot": robot.name, "controller": design,
                              "status": "ok" if metrics["stop_reason"] is None else "stopped",
@@ -224,11 +225,15 @@ class RedundantStudy(Study):
             "workspace": read_json(folder / "workspace.json"),
             "interconnection": read_json(folder / "interconnection.json"),
             "same_pairs": {"counts": same["counts"],
-                           **{name: summarise([r for r in same["rows"] if r["robot"] == name])
+                           **{name: summarise([r for r in same["rows"] if r["robot"] == name],
+                                              preset(name).design_target, dt=DT)
                               for name in SAME_FRAME}},
-            "sweeps": {name: summarise(load_sweep_table(
+            "sweeps": {name: summarise_sweep(*load_sweep_table(
                 _sweep_table(folder, name), pairs=study["pairs"], seed=study["seed"],
-                controllers=designs)[0]) for name, designs in study["designs"].items()},
+                controllers=designs)) for name, designs in study["designs"].items()},
+            # what each robot's rows were judged against (the report's footnotes)
+            "targets": {name: preset(name).design_target.describe(DT)
+                        for name in {**study["designs"], **dict.fromkeys(SAME_FRAME)}},
             "l2_fallback": {name: _median_fallback(_sweep_table(folder, name))
                             for name, designs in study["designs"].items() if "l2" in designs},
             "pairs": study["pairs"], "seed": study["seed"]})
@@ -241,6 +246,7 @@ class RedundantStudy(Study):
             interconnection=summary["interconnection"], sweeps=summary["sweeps"],
             l2_fallback=summary["l2_fallback"], pairs=summary["pairs"], seed=summary["seed"],
             redundant=redundant, square=square, same_frame=SAME_FRAME,
+            targets=summary.get("targets"),
             best=best_designs(summary["same_pairs"]), workspace_poses=WORKSPACE_POSES,
             wrench_share=WRENCH_SHARE, wrench_arm=WRENCH_ARM))
         return summary

@@ -21,7 +21,6 @@ from cdpr_sym.control.analysis import L2_FELL_BACK, construction_gap
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.reporting import plots
 from cdpr_sym.reporting.text import render_report
-from cdpr_sym.results.judging import summarise
 from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyOptions, StudyRequest
@@ -36,7 +35,7 @@ from cdpr_sym.studies.outline import (
     write_study,
 )
 from cdpr_sym.sweep import SweepConfig, robot_reference
-from cdpr_sym.sweep.tables import load_sweep_table
+from cdpr_sym.sweep.tables import load_sweep_table, summarise_sweep, target_text
 from cdpr_sym.workspace import WorkspaceEvaluator, frame_shares, interior_box
 
 ROBOTS = ("planar3", "spatial6")
@@ -137,20 +136,20 @@ class RigidStudy(Study):
         study = read_study(folder)
         # every table checked before anything is drawn
         tables = {name: load_sweep_table(_sweep_table(folder, name), pairs=study["pairs"],
-                                         seed=study["seed"])[0]
+                                         seed=study["seed"])
                   for name in study["robots"]}
         for name, measured in study["robots"].items():
             robot = Robot(**measured["robot"])
             runs = load_runs(folder / name)
             plots.figure_cases({key: runs[key] for key in SHOWN}, folder / f"{name}_case.png")
-            rows = tables[name]
+            rows, meta = tables[name]
             summary[name] = {
                 "kind": robot.kind, "n": robot.n, "n_j": robot.n_j,
                 "case": {key: run.metrics() for key, run in runs.items()},
                 "case_fallback_share": {key: float(np.mean(run.flags & L2_FELL_BACK != 0))
                                         if len(run.flags) else 0.0
                                         for key, run in runs.items()},
-                "sweep": summarise(rows),
+                "sweep": summarise_sweep(rows, meta), "target": target_text(meta),
                 "ball_share": measured["ball_share"], "ls_gap_n": measured["ls_gap_n"]}
         write_json(folder / SUMMARY_FILE, summary)
 

@@ -39,9 +39,10 @@ from cdpr_sym.control import capabilities, controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results import SETTLE_TOLERANCE
-from cdpr_sym.results.judging import SETTLE_WITHIN, STEP_LIMIT, meets_target
+from cdpr_sym.results.judging import PAPER_TARGET, meets_target
 from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
+from cdpr_sym.robot.target import Target, length_text
 from cdpr_sym.studies.interface import (
     REPORT_FILE,
     STUDY_FILE,
@@ -213,9 +214,11 @@ def tension_traces(robot: Robot, starts: np.ndarray, goals: np.ndarray, seed: in
         run = simulator.run(start, goal, robot.k, robot.r_d, duration=DURATION, dt=DT,
                             plant=plant)
         tension = run.tau[::TRACE_STRIDE]  # as built, a run's tau is the true tension
+        target = robot.design_target
         traces["designs"][design] = {
-            "meets_target": meets_target({**run.metrics(), "status": "ok" if run.stop_reason
-                                          is None else "stopped"}),
+            "meets_target": meets_target({**run.metrics(settle_band=target.error),
+                                          "status": "ok" if run.stop_reason is None
+                                          else "stopped"}, target, dt=DT),
             "tension": np.round(tension, 3).tolist()}
     return traces
 
@@ -321,7 +324,7 @@ def _damping_scan(robot: Robot, starts: np.ndarray, goals: np.ndarray, progress:
             drive = dataclasses.replace(winch_drive(robot), cable_damping=damping)
             plants = [Plant(as_built=AsBuilt(actuation=drive))] * len(starts)
             rows = _effect_rows(robot, design, "scan", plants, starts, goals)
-            shares.append(summary(rows)["scan"][design]["meets_target"])
+            shares.append(summary(rows, robot.design_target)["scan"][design]["meets_target"])
         out[design] = shares
     return out
 
@@ -335,7 +338,8 @@ def _effect_rows(robot: Robot, design: str, effect: str, plants: list[Plant],
                  starts: np.ndarray, goals: np.ndarray, first: int = 0
                  ) -> list[dict[str, Any]]:
     """One row per pair (numbered from ``first``): whether the true plant holds start and
-    goal, and the run's verdict on the true tensions."""
+    goal, and the run's verdict on the true tensions against the robot's target."""
+    target = robot.design_target
     structure = plants[0].as_built.structure()
     simulator = get_simulator(robot, controller_by_name(design), as_built=structure)
     rows = []
@@ -345,7 +349,8 @@ def _effect_rows(robot: Robot, design: str, effect: str, plants: list[Plant],
         read_error = float(np.linalg.norm(simulator.read_offset(goal, plant)))
         run = simulator.run(start, goal, robot.k, robot.r_d, duration=DURATION, dt=DT,
                             plant=plant)
-        metrics = {**run.metrics(), "status": "ok" if run.stop_reason is None else "stopped"}
+        metrics = {**run.metrics(settle_band=target.error),
+                   "status": "ok" if run.stop_reason is None else "stopped"}
         rows.append({"effect": effect, "design": design, "pair": first + index, "held": held,
                      "read_error": read_error,
                      "status": metrics["status"], "stop_reason": run.stop_reason,
@@ -356,27 +361,29 @@ def _effect_rows(robot: Robot, design: str, effect: str, plants: list[Plant],
                      "min_tension": metrics["min_tension"],
                      "max_tension": metrics["max_tension"],
                      "final_error": metrics["final_error"],
-                     "meets_target": meets_target(metrics)})
+                     "meets_target": meets_target(metrics, target, dt=DT)})
     return rows
 
 
-def _why(row: dict[str, Any]) -> str:
-    """The first target criterion a run misses."""
+def _why(row: dict[str, Any], target: Target) -> str:
+    """The first criterion of ``target`` a run misses, named by the target's own limits."""
     if row["status"] != "ok":
         return f"stopped ({row['stop_reason']})"
     if not row["tension_feasible"]:
         return "tension outside the box"
-    if row["settle_time"] is None or row["settle_time"] > SETTLE_WITHIN:
-        return "not within 1 cm by 5 s"
-    if row["max_tension_step"] > STEP_LIMIT:
-        return "tension step > 1 N"
-    return "start jump > 1 N"
+    if row["settle_time"] is None or row["settle_time"] > target.settle_time:
+        return f"not within {length_text(target.error)} by {target.settle_time:g} s"
+    limit = target.step_limit(DT)
+    if row["max_tension_step"] > limit:
+        return f"tension step > {limit:g} N"
+    return f"start jump > {limit:g} N"
 
 
-def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """Per effect and design: held pairs, the share of them meeting the target, and why
-    the others miss it; then the held pairs whose goal the encoders read within the
-    target's 1 cm (``readable``) and the share of those meeting it."""
+def summary(rows: list[dict[str, Any]], target: Target = PAPER_TARGET) -> dict[str, Any]:
+    """Per effect and design: held pairs, the share of them meeting the target (as each
+    row records it), and why the others miss ``target`` (the robot's); then the held pairs
+    whose goal the encoders read within the target's band (``readable``) and the share of
+    those meeting it."""
     out: dict[str, Any] = {}
     for effect in dict.fromkeys(row["effect"] for row in rows):
         out[effect] = {}
@@ -386,8 +393,9 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
             reasons: dict[str, int] = {}
             for row in held:
                 if not row["meets_target"]:
-                    reasons[_why(row)] = reasons.get(_why(row), 0) + 1
-            readable = [r for r in held if r.get("read_error", 0.0) < SETTLE_TOLERANCE]
+                    why = _why(row, target)
+                    reasons[why] = reasons.get(why, 0) + 1
+            readable = [r for r in held if r.get("read_error", 0.0) < target.error]
             out[effect][design] = {
                 "pairs": len(mine), "held": len(held),
                 "meets_target": _share(held),
@@ -543,14 +551,15 @@ def counting(table: dict[str, Any]) -> dict[str, str]:
             for effect, row in table.items()}
 
 
-def readable_table(table: dict[str, Any], designs: list[str]) -> str:
-    """The shares over the held pairs whose goal the encoders read within 1 cm, for the
-    :func:`misread_effects` (empty when there are none)."""
+def readable_table(table: dict[str, Any], designs: list[str],
+                   tolerance: float = SETTLE_TOLERANCE) -> str:
+    """The shares over the held pairs whose goal the encoders read within ``tolerance`` (m,
+    the target's band), for the :func:`misread_effects` (empty when there are none)."""
     misread = misread_effects(table, designs)
     if not misread:
         return ""
     return render_report("robustness_readable.md.j2", table=table, designs=designs,
-                         misread=misread, tolerance=SETTLE_TOLERANCE,
+                         misread=misread, tolerance=tolerance,
                          counted=counting(table))
 
 
@@ -588,7 +597,8 @@ class RobustnessStudy(Study):
         return [folder / SUMMARY_FILE]
 
     def aggregate(self, folder: Path) -> None:
-        table = summary(read_json(folder / RUNS_FILE))
+        target = read_study(folder)["robot"].design_target
+        table = summary(read_json(folder / RUNS_FILE), target)
         write_json(folder / SUMMARY_FILE, table)
         _figure(table, folder / "shares.png")
         if (folder / TRACES_FILE).exists():
@@ -596,6 +606,7 @@ class RobustnessStudy(Study):
 
     def render(self, folder: Path) -> dict[str, Any]:
         study = _checked_study(folder)
+        target = study["robot"].design_target
         table = read_summary(folder / SUMMARY_FILE)
         designs = study["designs"]
         (folder / REPORT_FILE).write_text(render_report(
@@ -607,7 +618,8 @@ class RobustnessStudy(Study):
             counted=counting(table), calibration=calibration_summary(study),
             traces=(read_traces(folder / TRACES_FILE) if (folder / TRACES_FILE).exists()
                     else None),
-            default_damping=Actuation().cable_damping, tolerance=SETTLE_TOLERANCE),
+            default_damping=Actuation().cable_damping, tolerance=target.error,
+            target=target, target_band=length_text(target.error)),
             encoding="utf-8")
         return table
 

@@ -79,14 +79,15 @@ DASK_CHUNK_ROWS = 1000
 
 def run_one(robot: Robot, controller_name: str, start: np.ndarray, goal: np.ndarray, *,
             duration: float, dt: float, mass_scale: float) -> dict[str, Any]:
-    """One closed-loop run as a row of metrics (status ``ok``, ``stopped`` or ``error``)."""
+    """One closed-loop run as a row of metrics (status ``ok``, ``stopped`` or ``error``),
+    its settle time measured in the band of the robot's target."""
     try:
         simulator = get_simulator(robot, controller_by_name(controller_name))
         run = simulator.run(start, goal, robot.k, robot.r_d, duration=duration, dt=dt,
                             plant=Plant(mass_scale=mass_scale))
     except _RUN_FAILURES as failure:
         return _error_row(failure)
-    return _row(run)
+    return _row(run, robot)
 
 
 def run_group(robot: Robot, controller_name: str, starts: np.ndarray, goals: np.ndarray, *,
@@ -95,16 +96,17 @@ def run_group(robot: Robot, controller_name: str, starts: np.ndarray, goals: np.
     in compiled code (:func:`~cdpr_sym.closed_loop.summarise_many`): the metrics of
     :func:`~cdpr_sym.closed_loop.run_many` on each pair, without storing the runs. When
     the group fails as a whole, each pair is run alone so only its own row reports the
-    error."""
+    error. Settle times are measured in the band of the robot's target."""
     try:
         simulator = get_simulator(robot, controller_by_name(controller_name))
         summaries = summarise_many(simulator, starts, goals, robot.k, robot.r_d,
-                                   duration=duration, dt=dt, plant=Plant(mass_scale=mass_scale))
+                                   duration=duration, dt=dt, plant=Plant(mass_scale=mass_scale),
+                                   settle_band=robot.design_target.error)
     except _RUN_FAILURES:
         return [run_one(robot, controller_name, start, goal, duration=duration, dt=dt,
                         mass_scale=mass_scale) for start, goal in zip(starts, goals,
                                                                         strict=True)]
-    return [_row(summary) for summary in summaries]
+    return [_row(summary, robot) for summary in summaries]
 
 
 def run_as_built(robot: Robot, draw: AsBuiltDraw, config: SweepConfig, pair: int,
@@ -130,14 +132,19 @@ def run_as_built(robot: Robot, draw: AsBuiltDraw, config: SweepConfig, pair: int
                for i, row in enumerate(record["anchor_offsets"])
                for axis, value in zip(axes, row, strict=True)}
     extra = {key: record[key] for key in CALIBRATION_COLUMNS if key in record}
-    return {**_row(run), "held": held, "read_error": read_error,
+    return {**_row(run, robot), "held": held, "read_error": read_error,
             "mass_scale": record["mass_scale"], **offsets, **extra}
 
 
-def _row(run: Trajectory | RunSummary) -> dict[str, Any]:
+def _row(run: Trajectory | RunSummary, robot: Robot) -> dict[str, Any]:
+    """A run's row; a trajectory's settle time measured in the band of ``robot``'s target
+    (a summary's was, when it was made: :func:`run_group`)."""
     row: dict[str, Any] = {"status": "ok" if run.stop_reason is None else "stopped",
                            "error": ""}
-    row.update(run.metrics())
+    if isinstance(run, Trajectory):
+        row.update(run.metrics(settle_band=robot.design_target.error))
+    else:
+        row.update(run.metrics())
     return row
 
 

@@ -11,7 +11,8 @@ another seed, or a sidecar copied from another sweep, fails that check. Every fi
 run's metrics must then agree with one another and with the robot's tension box
 (:mod:`cdpr_sym.results.consistency`): a hand-edited row is refused, naming its pair,
 design and column. A study that reads its own tables also says which pairs, seed and
-designs they must be of.
+designs they must be of. :func:`summarise_sweep` judges the rows against the stored robot's
+target at the stored control period (:func:`~cdpr_sym.results.judging.sweep_target`).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import numpy as np
 
 from cdpr_sym.errors import CdprError, InvalidCase
 from cdpr_sym.results.consistency import inconsistency
+from cdpr_sym.results.judging import summarise, sweep_target
 from cdpr_sym.results.store import load_table, sidecar_path
 from cdpr_sym.robot import Robot
 from cdpr_sym.sweep.config import draw_pairs
@@ -57,6 +59,21 @@ def load_sweep_table(table: Path, **expected: Any) -> tuple[list[dict[str, Any]]
     _check_drawn(rows, config, robot, table)
     _check_consistent(rows, robot, table)
     return rows, meta
+
+
+def summarise_sweep(rows: list[dict[str, Any]], meta: dict[str, Any]
+                    ) -> dict[str, dict[str, Any]]:
+    """:func:`~cdpr_sym.results.judging.summarise` of a stored sweep's rows, judged against
+    its robot's target at its control period (:func:`sweep_target`)."""
+    target, dt = sweep_target(meta)
+    return summarise(rows, target, dt=dt)
+
+
+def target_text(meta: dict[str, Any]) -> str:
+    """The line naming the target a stored sweep is judged against (:func:`sweep_target`),
+    as reports print it: ``within 1 cm of the goal by 5 s, tension steps ≤ 1 N per ms``."""
+    target, dt = sweep_target(meta)
+    return target.describe(dt)
 
 
 def _described(meta: dict[str, Any], table: Path) -> tuple[dict[str, Any], Robot]:
@@ -98,11 +115,11 @@ def _check_drawn(rows: list[dict[str, Any]], config: dict[str, Any], robot: Robo
 
 
 def _check_consistent(rows: list[dict[str, Any]], robot: Robot, table: Path) -> None:
-    """Every finished run's metrics agree with one another and with the robot's tension box
-    (:func:`~cdpr_sym.results.consistency.inconsistency`): a hand-edited row is refused,
-    naming it and its column, before anything is counted."""
+    """Every finished run's metrics agree with one another, with the robot's tension box and
+    with its target's settling band (:func:`~cdpr_sym.results.consistency.inconsistency`):
+    a hand-edited row is refused, naming it and its column, before anything is counted."""
     for row in rows:
-        wrong = inconsistency(row, robot.t_min, robot.t_max)
+        wrong = inconsistency(row, robot.t_min, robot.t_max, robot.design_target.error)
         if wrong is not None:
             column, what = wrong
             raise InvalidCase("results", f"the row of pair {int(row['pair'])} of "
