@@ -68,7 +68,8 @@ DESCRIPTIONS = {
     "pd-td": "PD + gravity compensation + tension distribution; any m >= n cables",
     "ida-winch": "IDA-PBC at the motors of the robot as built: energy shaped in the drum "
                  "coordinates, damping on the drum speeds, from the winch encoders alone",
-    "nmpc": "NMPC, hard tension and rate bounds, 50 Hz, 0.5 s horizon, one SQP step per "
+    "nmpc": "NMPC, hard tension and rate bounds, 50 Hz, horizon from the robot's braking time "
+            "(0.62 s on aras3), one SQP step per "
             "sample (real-time iteration, generated C); any m >= n cables",
     "nmpc-sqp": "the same NMPC solved to convergence by CasADi's sqpmethod at every sample",
     "nmpc-ipopt": "the same NMPC solved to convergence by IPOPT (the reference)",

@@ -187,3 +187,99 @@ def rules() -> dict[str, Any]:
             "fast_damping_ratio": FAST_DAMPING_RATIO, "case_share": CASE_SHARE,
             "command_share": COMMAND_SHARE, "guard_share": GUARD_SHARE,
             "case_damping": CASE_DAMPING}
+
+
+# -- NMPC: the horizon and the weights from the robot -------------------------------------
+#
+# The NMPC's prediction keeps the platform in the frame only if the horizon sees it brake.
+# Under the tension-rate bound (max_rate, N/s: the 1 N per 1 ms step of the target) the force
+# on the platform turns at most as fast as the cables' rates allow, so a heavy platform brakes
+# slowly: 363 kg under 800 N/s per cable turns its acceleration at about 1 m/s^3, and with the
+# 0.5 s horizon tuned on the paper's 4 kg robot (over 100 m/s^3) it raced to 4.9 m/s, saw the
+# need to brake only when braking took longer than the horizon, and left the frame. The rule
+# sizes the horizon by the time to brake and the weights by the same scales:
+#
+# * per coordinate i, at the case's start and goal at rest, the jerk J_i = max_rate /
+#   max_k |(W^+ M)_ki| and the acceleration A_i = (T_max - T_min) / 2 / max_k |(W^+ M)_ki|
+#   the cables give along that coordinate alone (the minimum-norm tension rates, and half
+#   the box for tensions that sit inside it);
+# * the horizon H = max_i T_i, T_i the rest-to-rest time of a move of l_i under J_i and A_i,
+#   l_i = NMPC_MOVE_SHARE x the frame's smallest side for a position and x the smallest
+#   angle range for an angle (one length per kind, so a point mass's cost stays the same in
+#   every direction), with T_i an S-curve's time:
+#   T = (32 l / J)^(1/3) while the acceleration stays below A, i.e. l <= 2 A^3 / J^2, else
+#   T = A / J + sqrt((A / J)^2 + 4 l / A)): within H the platform can start, cover l_i and
+#   stop again, so a plan that does not brake by its end is one the cost sees;
+# * the weights in units of those scales: Q_i = NMPC_POSITION_SCALE / l_i^2 (an error of
+#   l_i costs as much on every robot and coordinate), R_i = NMPC_VELOCITY_SCALE (H / l_i)^2
+#   (a speed of l_i / H, the pace the horizon brakes from, costs as much), and the rate
+#   weight NMPC_RATE_SCALE H^2 per box^2 (a rate of one box per horizon costs as much).
+#   The tension weight is already per box^2.
+#
+# On the paper's robot the rule gives l = 0.445 m and H = 0.62 s (x brakes slowest, the
+# box's acceleration binding there, not the rate) and Q, R and S within 1 % of the
+# hand-tuned 400 1/m^2, 2 s^2/m^2 and 3 s^2 per box^2 they replace.
+
+#: The move the horizon must fit, start to stop, as a share of the frame's smallest side (of
+#: the smallest angle range for angles).
+NMPC_MOVE_SHARE = 1 / 8
+#: Q_i l_i^2: the cost of a position error of l_i (400 / m^2 x 0.445^2 on aras3's x).
+NMPC_POSITION_SCALE = 79.0
+#: R_i l_i^2 / H^2: the cost of a speed of l_i / H (2 s^2/m^2 on aras3).
+NMPC_VELOCITY_SCALE = 1.05
+#: S / H^2: the cost of a tension rate of one box per horizon (3 s^2 per box^2 on aras3).
+NMPC_RATE_SCALE = 7.9
+
+
+def coordinate_limits(robot: Robot, max_rate: float, model: Any = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """(J, A): per coordinate, the jerk (m/s^3, rad/s^3) and acceleration (m/s^2, rad/s^2)
+    the cables give along that coordinate alone, the smaller at the case's start and goal at
+    rest: J_i = max_rate / max_k |(W^+ M)_ki|, A_i = (T_max - T_min) / 2 / max_k |(W^+ M)_ki|
+    (W^+ M e_i is the minimum-norm tension rate per unit jerk along coordinate i)."""
+    from cdpr_sym.model import SymbolicModel
+
+    model = model if model is not None else SymbolicModel(robot)
+    largest = np.zeros(robot.n)
+    for q in (robot.start, robot.goal):
+        W = np.array(model.functions["structure_matrix"](q))
+        M = np.array(model.functions["mass_matrix"](q))
+        per_unit = np.linalg.pinv(W) @ M  # (m, n): tensions per unit acceleration
+        largest = np.maximum(largest, np.max(np.abs(per_unit), axis=0))
+    half_box = 0.5 * (robot.t_max - robot.t_min)
+    return max_rate / largest, half_box / largest
+
+
+def rest_to_rest_time(distance: Any, jerk: Any, acceleration: Any) -> Any:
+    """s: the shortest rest-to-rest move over ``distance`` with |jerk| <= ``jerk`` and
+    |acceleration| <= ``acceleration`` (elementwise on arrays): (32 d / J)^(1/3) when the
+    acceleration stays below its bound (d <= 2 A^3 / J^2), else A / J + sqrt((A / J)^2 +
+    4 d / A) (the S-curve with a constant-acceleration phase)."""
+    d, j, a = (np.asarray(value, dtype=float) for value in (distance, jerk, acceleration))
+    ramp = a / j
+    return np.where(d <= 2 * a**3 / j**2, np.cbrt(32 * d / j),
+                    ramp + np.sqrt(ramp**2 + 4 * d / a))
+
+
+def nmpc_scales(robot: Robot, max_rate: float, model: Any = None
+                ) -> tuple[float, np.ndarray]:
+    """(H, l): the NMPC horizon (s) and each coordinate's move l_i (m, rad) by the rule
+    above: l_i = NMPC_MOVE_SHARE x the frame's smallest side (positions) or smallest angle
+    range (angles), H = max_i rest_to_rest_time(l_i, J_i, A_i)."""
+    ranges = (np.asarray(robot.frame_upper, dtype=float)
+              - np.asarray(robot.frame_lower, dtype=float))
+    d = robot.dimension
+    moves = np.full(robot.n, NMPC_MOVE_SHARE * float(np.min(ranges[:d])))
+    if robot.n > d:
+        moves[d:] = NMPC_MOVE_SHARE * float(np.min(ranges[d:]))
+    jerk, acceleration = coordinate_limits(robot, max_rate, model)
+    return float(np.max(rest_to_rest_time(moves, jerk, acceleration))), moves
+
+
+def nmpc_weights(moves: np.ndarray, horizon: float) -> dict[str, Any]:
+    """The NMPC cost's weights for the moves l_i (m, rad) and the horizon H (s): Q_i (1/m^2,
+    1/rad^2), R_i (s^2/m^2, s^2/rad^2) and S (s^2 per box^2), by the rule above."""
+    moves = np.asarray(moves, dtype=float)
+    return {"position": NMPC_POSITION_SCALE / moves**2,
+            "velocity": NMPC_VELOCITY_SCALE * horizon**2 / moves**2,
+            "rate": NMPC_RATE_SCALE * horizon**2}

@@ -24,13 +24,17 @@ import math
 from typing import Any, ClassVar
 
 import casadi as ca
+import numpy as np
 
 from cdpr_sym.checks import positive_number
+from cdpr_sym.control import tuning
 from cdpr_sym.control.flags import FLAG_SATURATED
 from cdpr_sym.control.interface import Capabilities, ControlLaw
 from cdpr_sym.control.parts import clip_to_box, flag_if
+from cdpr_sym.control.tuning import FROM_ROBOT
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot import Robot
 
 #: The solvers of one control sample: ``rti`` one Gauss-Newton SQP step (real-time
 #: iteration, generated to C with CasADi's ``qrqp``), ``sqp`` CasADi's ``sqpmethod`` to
@@ -48,6 +52,22 @@ MAX_INTERVALS = 200
 #: grows with them (spatial6's, with its sensitivities, 102,000 instructions at 2), and at
 #: 20 a 50 Hz design already predicts in 1 ms steps, as fine as the control step.
 MAX_SUBSTEPS = 20
+
+#: The options whose default, ``"robot"``, asks for the robot's rule (:meth:`Nmpc.tuned`).
+DERIVED = ("horizon", "position_weight", "velocity_weight", "rate_weight")
+
+
+@dataclasses.dataclass(frozen=True)
+class NmpcTuning:
+    """The numbers one robot's NMPC problem is built with: the horizon (s) and its sample
+    intervals, Q and R per coordinate (1/m^2 or 1/rad^2, s^2/m^2 or s^2/rad^2) and S (s^2
+    per (T_max - T_min)^2)."""
+
+    horizon: float
+    intervals: int
+    position_weight: np.ndarray
+    velocity_weight: np.ndarray
+    rate_weight: float
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,7 +90,8 @@ class Nmpc:
     The tension and rate weights count in units of the robot's tension box, so a robot
     whose tensions are in hundreds of newtons is not pinned to tau_goal harder than one in
     tens (on aras3's 58 N box the defaults equal the former 1e-2 and 1e-3 per N^2 within
-    11 %); the target itself weighs 0.01 rad like 1 cm, as Q does.
+    11 %). The horizon, Q, R and S default to the robot's rule (:meth:`tuned`), which gives
+    back the hand-tuned 400, 2 and 3 on the paper's robot's x.
 
     Offset-free (``observer_rate`` = L, 1/s): the prediction adds the estimated force as a
     tension offset, M ddq + C dq + grad V = W (tau + delta) with delta = W(q)^+ d_hat at
@@ -84,18 +105,27 @@ class Nmpc:
     ----------
     rate : float
         Hz, the solves per second; the simulator's period must divide 1 / rate.
-    horizon : float
+    horizon : float or "robot"
         s, the prediction horizon (rounded to whole sample intervals, at least one, at most
-        :data:`MAX_INTERVALS`).
+        :data:`MAX_INTERVALS`); ``"robot"`` (the default): the time the platform takes to
+        start, move an eighth of the frame's smallest side (of the smallest angle range, for
+        an angle) along one coordinate and stop under ``max_rate`` and the tension box, the
+        longest over the coordinates (0.62 s on the paper's robot, 3 s on a 363 kg one; see
+        :mod:`cdpr_sym.control.tuning`). A horizon shorter than the
+        platform's braking lets the plan race: the heavy robot reached 4.9 m/s with 0.5 s
+        and left the frame, since the bound on q at the nodes never saw the stop it needed.
     solver : str
         One of :data:`SOLVERS`; ``rti`` is the real-time variant, warm-started from the
         shifted previous solution.
-    position_weight : float
-        Q of the cost, 1/m^2 (1/rad^2 on angles).
-    velocity_weight : float
-        R of the cost, s^2/m^2.
-    rate_weight : float
-        S of the cost, s^2 per (T_max - T_min)^2.
+    position_weight : float or "robot"
+        Q of the cost, 1/m^2 (1/rad^2 on angles); ``"robot"``: per coordinate 79 / l_i^2,
+        l_i that eighth (an error of l_i costs the same on every robot).
+    velocity_weight : float or "robot"
+        R of the cost, s^2/m^2; ``"robot"``: per coordinate 1.05 (H / l_i)^2 (a speed of
+        l_i / H costs the same).
+    rate_weight : float or "robot"
+        S of the cost, s^2 per (T_max - T_min)^2; ``"robot"``: 7.9 H^2 (a rate of one box
+        per horizon costs the same).
     tension_weight : float
         T_w of the cost, per (T_max - T_min)^2 (>= 0).
     terminal_factor : float
@@ -121,11 +151,11 @@ class Nmpc:
     """
 
     rate: float = 50.0
-    horizon: float = 0.5
+    horizon: float | str = FROM_ROBOT
     solver: str = "rti"
-    position_weight: float = 400.0
-    velocity_weight: float = 2.0
-    rate_weight: float = 3.0
+    position_weight: float | str = FROM_ROBOT
+    velocity_weight: float | str = FROM_ROBOT
+    rate_weight: float | str = FROM_ROBOT
     tension_weight: float = 30.0
     terminal_factor: float = 10.0
     max_rate: float = 800.0
@@ -139,6 +169,8 @@ class Nmpc:
                             ("velocity_weight", "s^2/m^2"),
                             ("rate_weight", "s^2 per (T_max - T_min)^2"),
                             ("terminal_factor", "times Q and R"), ("max_rate", "N/s")):
+            if field in DERIVED and getattr(self, field) == FROM_ROBOT:
+                continue
             positive_number(field, getattr(self, field), unit)
         positive_number("tension_weight", self.tension_weight, "per (T_max - T_min)^2",
                         zero=True)
@@ -154,6 +186,8 @@ class Nmpc:
                 or not 1 <= self.substeps <= MAX_SUBSTEPS:
             raise InvalidCase("substeps", f"expected a whole number from 1 to {MAX_SUBSTEPS}, "
                               f"got {self.substeps!r}")
+        if self.horizon == FROM_ROBOT:
+            return
         samples = self.horizon * self.rate  # inf for a horizon near the largest float
         if not (math.isfinite(samples) and round(samples) <= MAX_INTERVALS):
             raise InvalidCase("horizon", f"expected at most {MAX_INTERVALS} sample intervals "
@@ -162,8 +196,43 @@ class Nmpc:
 
     @property
     def intervals(self) -> int:
-        """Sample intervals in the horizon."""
+        """Sample intervals in a given horizon (:meth:`tuned` gives them for ``"robot"``)."""
+        if self.horizon == FROM_ROBOT:
+            raise InvalidCase("horizon", "the horizon comes from the robot: ask "
+                              "Nmpc.tuned(robot) for its intervals")
         return max(1, round(self.horizon * self.rate))
+
+    def tuned(self, robot: Robot, model: SymbolicModel | None = None) -> NmpcTuning:
+        """The horizon and weights on ``robot``: the design's own numbers, and for each
+        ``"robot"`` the rule of :mod:`cdpr_sym.control.tuning` (the horizon in which the
+        platform moves from rest to rest over an eighth of the frame's smallest side under
+        ``max_rate`` and the box; the weights in units of that move and horizon).
+
+        Raises :class:`InvalidCase` (``horizon``) when the derived horizon needs more than
+        :data:`MAX_INTERVALS` intervals: no horizon the solve affords sees that robot
+        brake, so no plan can be trusted to keep it in the frame."""
+        derived, moves = tuning.nmpc_scales(robot, self.max_rate, model)
+        horizon = derived if self.horizon == FROM_ROBOT else float(self.horizon)
+        intervals = max(1, round(horizon * self.rate))
+        if intervals > MAX_INTERVALS:
+            raise InvalidCase("horizon", f"{robot.name} moves from rest to rest over an "
+                              f"eighth of its frame in {horizon:.3g} s under {self.max_rate:g} "
+                              f"N/s and its tension box, more than the {MAX_INTERVALS} "
+                              f"intervals ({MAX_INTERVALS / self.rate:g} s at {self.rate:g} "
+                              f"Hz) the solve affords: NMPC cannot plan it to a stop inside "
+                              f"the frame")
+        weights = tuning.nmpc_weights(moves, horizon)
+        n = robot.n
+
+        def chosen(value: float | str, rule: Any) -> np.ndarray:
+            return np.broadcast_to(np.asarray(rule if value == FROM_ROBOT else value,
+                                              dtype=float), (n,)).copy()
+
+        rate_weight = weights["rate"] if self.rate_weight == FROM_ROBOT else self.rate_weight
+        return NmpcTuning(horizon=horizon, intervals=intervals,
+                          position_weight=chosen(self.position_weight, weights["position"]),
+                          velocity_weight=chosen(self.velocity_weight, weights["velocity"]),
+                          rate_weight=float(rate_weight))
 
     @property
     def period(self) -> float:

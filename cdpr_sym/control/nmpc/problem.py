@@ -48,8 +48,10 @@ class NmpcProblem:
         self.n, self.m = model.n, model.m
         #: Length of z = (q, dq, tau).
         self.nz = 2 * model.n + model.m
+        #: The horizon and weights on this robot (the rule's where the design says "robot").
+        self.tuning = design.tuned(model.robot, model)
         #: Sample intervals in the horizon.
-        self.intervals = design.intervals
+        self.intervals = self.tuning.intervals
         #: Length of one stage (u_k, z_{k+1}) of v.
         self.stage = self.m + self.nz
         #: Length of v.
@@ -58,8 +60,11 @@ class NmpcProblem:
         box = model.robot.t_max - model.robot.t_min
         #: The cost's weights on the rate (s^2/N^2) and on the tension (1/N^2): the
         #: design's, per the robot's tension box squared.
-        self.rate_weight = design.rate_weight / box**2
+        self.rate_weight = self.tuning.rate_weight / box**2
         self.tension_weight = design.tension_weight / box**2
+        #: Q and R per coordinate (1/m^2 or 1/rad^2, s^2/m^2 or s^2/rad^2).
+        self.position_weight = self.tuning.position_weight
+        self.velocity_weight = self.tuning.velocity_weight
         if design.solver != "rti":
             self._check_expanded_size()
 
@@ -168,8 +173,8 @@ class NmpcProblem:
             terminal = design.terminal_factor if k == self.intervals - 1 else 1.0
             diagonal[first: first + self.m] = 2 * self.rate_weight
             z = first + self.m
-            diagonal[z: z + n] = 2 * terminal * design.position_weight
-            diagonal[z + n: z + 2 * n] = 2 * terminal * design.velocity_weight
+            diagonal[z: z + n] = 2 * terminal * self.position_weight
+            diagonal[z + n: z + 2 * n] = 2 * terminal * self.velocity_weight
             diagonal[z + 2 * n: z + self.nz] = 2 * self.tension_weight
         return diagonal
 
@@ -180,7 +185,9 @@ class NmpcProblem:
         parts = []
         for k in range(self.intervals):
             terminal = design.terminal_factor if k == self.intervals - 1 else 1.0
-            parts += [0 * tau_goal, -2 * terminal * design.position_weight * q_goal,
+            weight = self.position_weight if isinstance(q_goal, np.ndarray) \
+                else ca.DM(self.position_weight)
+            parts += [0 * tau_goal, -2 * terminal * weight * q_goal,
                       0 * q_goal, -2 * self.tension_weight * tau_goal]
         if isinstance(q_goal, np.ndarray):
             return np.concatenate(parts)

@@ -1,0 +1,152 @@
+"""NMPC's horizon and weights from the robot (``Nmpc.tuned``, ``cdpr_sym.control.tuning``):
+the rule against an independent computation (the cables' jerk and acceleration along each
+coordinate from a structure matrix written here in numpy, the S-curve's time by integrating
+its jerk profile), the refusal of a robot no affordable horizon sees brake, and runs on
+robots of many scales that settle their own case without leaving the frame."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import reference
+
+from cdpr_sym import Nmpc, Plant, SymbolicModel, preset
+from cdpr_sym.closed_loop import get_simulator
+from cdpr_sym.control import tuning
+from cdpr_sym.control.nmpc.design import MAX_INTERVALS
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot import load_robot
+from cdpr_sym.workspace.zoo import zoo
+
+DATA = Path(__file__).parent / "data"
+
+
+def _s_curve_distance(jerk: float, acceleration: float, total: float) -> tuple[float, float]:
+    """(distance, peak acceleration) of the symmetric rest-to-rest S-curve of duration
+    ``total`` with jerk +-``jerk`` and the acceleration held at ``acceleration`` once
+    reached, integrated in 1e-5 s steps (jerk +J, 0, -J over the first half, mirrored)."""
+    dt = 1e-5
+    ramp = min(acceleration / jerk, total / 4)
+    hold = total / 2 - 2 * ramp
+    profile = np.r_[np.full(round(ramp / dt), jerk), np.zeros(round(hold / dt)),
+                    np.full(round(ramp / dt), -jerk)]
+    profile = np.r_[profile, -profile]
+    a = np.cumsum(profile) * dt
+    v = np.cumsum(a) * dt
+    return float(np.sum(v) * dt), float(np.max(np.abs(a)))
+
+
+def _limits_by_hand(robot) -> tuple[np.ndarray, np.ndarray]:
+    """The rule's J_i and A_i for a point mass, with W from numpy and M = m I."""
+    anchors = np.array(robot.anchors)
+    largest = np.zeros(robot.n)
+    for q in (robot.start, robot.goal):
+        W = reference.structure_matrix(np.asarray(q, dtype=float), anchors)
+        largest = np.maximum(largest, np.abs(np.linalg.pinv(W) * robot.mass).max(axis=0))
+    return 800.0 / largest, 0.5 * (robot.t_max - robot.t_min) / largest
+
+
+@pytest.mark.parametrize("jerk, acceleration, distance",
+                         [(100.0, 50.0, 0.3), (150.0, 5.0, 0.445), (1.0, 13.0, 0.9)])
+def test_rest_to_rest_time_is_the_s_curve_that_covers_the_distance(jerk, acceleration,
+                                                                    distance):
+    """Integrating the jerk profile over the stated time covers the distance, without the
+    acceleration passing its bound; a hundredth shorter covers less."""
+    total = float(tuning.rest_to_rest_time(distance, jerk, acceleration))
+    covered, peak = _s_curve_distance(jerk, acceleration, total)
+    assert covered == pytest.approx(distance, rel=2e-3)
+    assert peak <= acceleration * (1 + 1e-3)
+    assert _s_curve_distance(jerk, acceleration, 0.99 * total)[0] < 0.995 * distance
+
+
+@pytest.mark.parametrize("name", ["aras3", "spatial4"])
+def test_horizon_and_weights_follow_the_rule_on_point_masses(name):
+    robot = preset(name)
+    jerk, acceleration = _limits_by_hand(robot)
+    sides = (robot.frame_upper - robot.frame_lower)[: robot.dimension]
+    move = min(sides) / 8
+    horizon = max(float(tuning.rest_to_rest_time(move, j, a))
+                  for j, a in zip(jerk, acceleration, strict=True))
+    tuned = Nmpc().tuned(robot)
+    assert tuned.horizon == pytest.approx(horizon, rel=1e-9)
+    assert tuned.intervals == round(horizon * 50)
+    np.testing.assert_allclose(tuned.position_weight, 79.0 / move**2, rtol=1e-12)
+    np.testing.assert_allclose(tuned.velocity_weight, 1.05 * horizon**2 / move**2, rtol=1e-12)
+    assert tuned.rate_weight == pytest.approx(7.9 * horizon**2, rel=1e-12)
+
+
+def test_the_papers_robot_keeps_its_hand_tuned_weights(aras3):
+    """On aras3 the rule gives back Q = 400, R = 2 and S = 3 within 1 % (0.62 s horizon)."""
+    tuned = Nmpc().tuned(aras3)
+    np.testing.assert_allclose(tuned.position_weight, 400.0, rtol=0.01)
+    np.testing.assert_allclose(tuned.velocity_weight, 2.0, rtol=0.01)
+    assert tuned.rate_weight == pytest.approx(3.0, rel=0.01)
+    assert 0.55 < tuned.horizon < 0.7
+
+
+def test_angles_move_by_their_own_range(spatial6):
+    """A body's angles: l = an eighth of the smallest angle range, weighed per rad^2."""
+    tuned = Nmpc().tuned(spatial6)
+    np.testing.assert_allclose(tuned.position_weight[3:], 79.0 / 0.1**2, rtol=1e-12)
+    np.testing.assert_allclose(tuned.position_weight[:3], 79.0 / 0.375**2, rtol=1e-12)
+
+
+def test_a_slower_force_gets_a_longer_horizon_and_calmer_weights():
+    """A tenth of the tension rate (as ten times the mass would): the force turns ten times
+    slower, so the horizon grows, and R / Q (the squared time the cost allows a move) with
+    it."""
+    heavy = load_robot(DATA / "heavy8.toml")
+    tuned, quicker = Nmpc(max_rate=80.0).tuned(heavy), Nmpc().tuned(heavy)
+    assert tuned.horizon > quicker.horizon
+    assert np.all(tuned.velocity_weight / tuned.position_weight
+                  > quicker.velocity_weight / quicker.position_weight)
+
+
+def test_given_numbers_are_kept():
+    tuned = Nmpc(horizon=0.5, position_weight=400.0, velocity_weight=2.0,
+                 rate_weight=3.0).tuned(preset("spatial6"))
+    assert (tuned.horizon, tuned.intervals, tuned.rate_weight) == (0.5, 25, 3.0)
+    np.testing.assert_array_equal(tuned.position_weight, np.full(6, 400.0))
+
+
+def test_a_robot_no_affordable_horizon_sees_brake_is_refused_in_one_line(aras3):
+    """At 1 N/s the paper's robot needs seconds to turn its force: more than the
+    MAX_INTERVALS the solve affords, refused naming the horizon."""
+    with pytest.raises(InvalidCase) as error:
+        Nmpc(max_rate=1.0).tuned(aras3)
+    assert error.value.field == "horizon"
+    assert f"{MAX_INTERVALS} intervals" in str(error.value) and "\n" not in str(error.value)
+
+
+def test_deriving_takes_under_a_second_on_every_zoo_robot():
+    for robot in zoo(1, 12):
+        model = SymbolicModel(robot)
+        start = time.perf_counter()
+        Nmpc().tuned(robot, model)
+        assert time.perf_counter() - start < 1.0, robot.name
+
+
+def _own_case(robot, build_options):
+    simulator = get_simulator(robot, Nmpc(), build_options=build_options)
+    return simulator.run(np.asarray(robot.start, dtype=float),
+                         np.asarray(robot.goal, dtype=float), robot.k, robot.r_d,
+                         duration=6.0, dt=1e-3, plant=Plant())
+
+
+@pytest.mark.slow  # a minute: four NMPC builds, one with a 3 s horizon
+@pytest.mark.parametrize("robot", [
+    pytest.param(lambda: zoo(1, 12)[1], id="363kg-point3"),   # left the frame at 4.5 s
+    pytest.param(lambda: zoo(1, 12)[0], id="39kg-point2"),    # settled at 4.95 s
+    pytest.param(lambda: zoo(1, 12)[10], id="9kg-planar3"),
+    pytest.param(lambda: load_robot(DATA / "heavy8.toml"), id="91kg-spatial8"),
+])
+def test_nmpc_settles_its_own_case_inside_the_frame(robot, build_options):
+    robot = robot()
+    run = _own_case(robot, build_options)
+    metrics = run.metrics()
+    assert run.stop_reason is None
+    assert metrics["tension_feasible"] and metrics["settle_time"] is not None
+    assert metrics["settle_time"] < 5.0
