@@ -210,11 +210,14 @@ def rules() -> dict[str, Any]:
 #   T = (32 l / J)^(1/3) while the acceleration stays below A, i.e. l <= 2 A^3 / J^2, else
 #   T = A / J + sqrt((A / J)^2 + 4 l / A)): within H the platform can start, cover l_i and
 #   stop again, so a plan that does not brake by its end is one the cost sees;
-# * the weights in units of those scales: Q_i = NMPC_POSITION_SCALE / l_i^2 (an error of
-#   l_i costs as much on every robot and coordinate), R_i = NMPC_VELOCITY_SCALE (H / l_i)^2
-#   (a speed of l_i / H, the pace the horizon brakes from, costs as much), and the rate
-#   weight NMPC_RATE_SCALE H^2 per box^2 (a rate of one box per horizon costs as much).
-#   The tension weight is already per box^2.
+# * the weights in units of those scales, l the positions' move: Q = NMPC_POSITION_SCALE /
+#   l^2 (an error of l costs as much on every robot), R = NMPC_VELOCITY_SCALE (H / l)^2 (a
+#   speed of l / H, the pace the horizon brakes from, costs as much), and the rate weight
+#   NMPC_RATE_SCALE H^2 per box^2 (a rate of one box per horizon costs as much). Angles
+#   weigh as positions, 0.01 rad like 1 cm: weighed by their own, shorter move, a 15 kg
+#   6-DOF platform's angles got 20 times the position weight and CasADi's qrqp returned
+#   points outside the bounds from a pair's first sample on. The tension weight is already
+#   per box^2.
 #
 # On the paper's robot the rule gives l = 0.445 m and H = 0.62 s (x brakes slowest, the
 # box's acceleration binding there, not the rate) and Q, R and S within 1 % of the
@@ -276,10 +279,9 @@ def nmpc_scales(robot: Robot, max_rate: float, model: Any = None
     return float(np.max(rest_to_rest_time(moves, jerk, acceleration))), moves
 
 
-def nmpc_weights(moves: np.ndarray, horizon: float) -> dict[str, Any]:
-    """The NMPC cost's weights for the moves l_i (m, rad) and the horizon H (s): Q_i (1/m^2,
-    1/rad^2), R_i (s^2/m^2, s^2/rad^2) and S (s^2 per box^2), by the rule above."""
-    moves = np.asarray(moves, dtype=float)
-    return {"position": NMPC_POSITION_SCALE / moves**2,
-            "velocity": NMPC_VELOCITY_SCALE * horizon**2 / moves**2,
+def nmpc_weights(move: float, horizon: float) -> dict[str, Any]:
+    """The NMPC cost's weights for the positions' move l (m) and the horizon H (s): Q (1/m^2,
+    1/rad^2 on angles), R (s^2/m^2, s^2/rad^2) and S (s^2 per box^2), by the rule above."""
+    return {"position": NMPC_POSITION_SCALE / move**2,
+            "velocity": NMPC_VELOCITY_SCALE * horizon**2 / move**2,
             "rate": NMPC_RATE_SCALE * horizon**2}

@@ -118,11 +118,12 @@ class Nmpc:
         One of :data:`SOLVERS`; ``rti`` is the real-time variant, warm-started from the
         shifted previous solution.
     position_weight : float or "robot"
-        Q of the cost, 1/m^2 (1/rad^2 on angles); ``"robot"``: per coordinate 79 / l_i^2,
-        l_i that eighth (an error of l_i costs the same on every robot).
+        Q of the cost, 1/m^2 (1/rad^2 on angles); ``"robot"``: 79 / l^2, l the eighth of
+        the frame's smallest side (an error of l costs the same on every robot; an angle
+        weighs as a position, 0.01 rad like 1 cm).
     velocity_weight : float or "robot"
-        R of the cost, s^2/m^2; ``"robot"``: per coordinate 1.05 (H / l_i)^2 (a speed of
-        l_i / H costs the same).
+        R of the cost, s^2/m^2; ``"robot"``: 1.05 (H / l)^2 (a speed of l / H costs the
+        same).
     rate_weight : float or "robot"
         S of the cost, s^2 per (T_max - T_min)^2; ``"robot"``: 7.9 H^2 (a rate of one box
         per horizon costs the same).
@@ -221,7 +222,7 @@ class Nmpc:
                               f"intervals ({MAX_INTERVALS / self.rate:g} s at {self.rate:g} "
                               f"Hz) the solve affords: NMPC cannot plan it to a stop inside "
                               f"the frame")
-        weights = tuning.nmpc_weights(moves, horizon)
+        weights = tuning.nmpc_weights(float(moves[0]), horizon)
         n = robot.n
 
         def chosen(value: float | str, rule: Any) -> np.ndarray:
