@@ -31,6 +31,7 @@ from cdpr_sym.closed_loop.case import (
     minimal_values_per_step,
 )
 from cdpr_sym.closed_loop.effects import AsBuiltReadout, StartContext, plant_effects
+from cdpr_sym.closed_loop.effects.readout import elastic_stiffness
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.step import chunk_function, plant_layout, step_function
@@ -304,7 +305,7 @@ class Simulator:
         readout = self.readout
         # the cables carry the true static tension
         reading = readout.encoder_reading(q, readout.true_static(q, plant)[0], plant)
-        read = readout.read_pose(reading, q, spec.sensing)
+        read = readout.read_pose(reading, q, spec.sensing, elastic_stiffness(plant))
         return np.full(self.robot.n, np.nan) if read is None else read - q
 
     def _check_readable(self, start: np.ndarray, plant: Plant) -> None:

@@ -168,8 +168,10 @@ def forward_kinematics_expression(model: SymbolicModel, lengths: ca.SX, q_guess:
         Newton steps, each unrolled (no branches); at least 1.
     tolerance : float
         Largest residual accepted, m (see the module notes for m > n).
-    step_tolerance : float
-        Largest Newton step at the result accepted as converged, max|dq|, m or rad.
+    step_tolerance : float or ca.SX
+        Largest Newton step at the result accepted as converged, max|dq|, m or rad (an
+        expression of the step's parameters, e.g. the encoder resolution, is the caller's
+        to keep positive).
 
     Returns
     -------
@@ -303,6 +305,8 @@ def _check_options(iterations: int, tolerance: float, step_tolerance: float) -> 
             or iterations < 1:
         raise InvalidCase("iterations", f"expected an integer >= 1, got {iterations!r}")
     for field, value in (("tolerance", tolerance), ("step_tolerance", step_tolerance)):
+        if isinstance(value, ca.SX):  # a parameter of the generated step (its caller's)
+            continue
         if (isinstance(value, bool) or not isinstance(value, numbers.Real)
                 or not math.isfinite(value) or value <= 0):
             raise InvalidCase(field, f"expected a positive, finite number, got {value!r}")

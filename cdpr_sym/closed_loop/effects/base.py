@@ -214,4 +214,7 @@ class StartContext:
 
     def read_pose(self, reading: np.ndarray) -> np.ndarray | None:
         """The pose read from ``reading`` starting from the start pose, or None."""
-        return self.readout.read_pose(reading, self.start, self.plant.as_built.sensing)
+        from cdpr_sym.closed_loop.effects.readout import elastic_stiffness
+
+        return self.readout.read_pose(reading, self.start, self.plant.as_built.sensing,
+                                      elastic_stiffness(self.plant))

@@ -18,6 +18,7 @@ import math
 from typing import TYPE_CHECKING, ClassVar
 
 import casadi as ca
+import numpy as np
 
 from cdpr_sym.as_built.spec import SENSING_PARAMETERS
 from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StartContext, StepBuild
@@ -54,7 +55,7 @@ class Encoders(PlantEffect):
         resolution, cutoff, consistency = sensing[0], sensing[1], sensing[2]
         reading = self.reading(build)
         q_read, ok = read_pose_expression(model, reading, state["q_read"], resolution,
-                                          consistency)
+                                          consistency, cable_stiffness=elastic_stiffness(build))
         dt = build.par["dt"]
         keep = ca.exp(-2 * math.pi * cutoff * dt)
         dq_read = keep * state["dq_read"] + (1 - keep) * (q_read - state["q_read"]) / dt
@@ -99,6 +100,15 @@ class Encoders(PlantEffect):
         return {"q_read": start.start if read is None else read, "dq_read": start.dq0}
 
 
+def elastic_stiffness(build: StepBuild) -> ca.SX | None:
+    """The cables' EA (N) when the plant's cables are elastic on winches, else None."""
+    if "actuation" not in build.par:
+        return None
+    from cdpr_sym.as_built import actuation
+
+    return actuation.named(build.par["actuation"])["cable_stiffness"]
+
+
 def raw_reading(model: SymbolicModel, lengths, relative):
     """What the encoders count for unstretched ``lengths`` (m): the lengths plus each
     encoder's true zero error, the model's offsets plus ``relative`` (true minus model,
@@ -119,20 +129,62 @@ def corrected(model: SymbolicModel, reading):
 
 
 def read_pose_expression(model: SymbolicModel, reading: ca.SX, guess: ca.SX, resolution,
-                         consistency, *, iterations: int | None = None) -> tuple[ca.SX, ca.SX]:
+                         consistency, *, iterations: int | None = None,
+                         cable_stiffness=None) -> tuple[ca.SX, ca.SX]:
     """(pose, ok) read from encoder lengths ``reading`` (m, less the offsets) by forward
     kinematics from ``guess``: the solver's own residual test is left wide open and
     :func:`reading_bound` decides. ``iterations`` defaults to the solver's. The simulated
-    encoders and the exported controller read the pose with this one expression."""
+    encoders and the exported controller read the pose with this one expression.
+
+    With more cables than degrees of freedom the lengths over-determine the pose, so what
+    the encoders cannot see must be put back before the fit: with ``cable_stiffness`` (EA,
+    N; elastic cables on winches, whose encoders count the unstretched length l0) each
+    reading becomes the length it has under the tension the model predicts,
+    l = l0 (1 + T / EA), T the static tension at ``guess`` (:func:`predicted_stretch`), and
+    the Gauss-Newton fit counts as converged once its next step is under half a count
+    (:func:`reading_step_tolerance`). With m = n the fit is exact and neither applies."""
     # imported where a step with encoders is built: a sweep of the ideal plant never loads
     # forward kinematics (~40 ms of its start-up)
     from cdpr_sym.model.forward_kinematics import FK_ITERATIONS, forward_kinematics_expression
 
+    if cable_stiffness is not None and model.m > model.n:
+        reading = reading * (1 + predicted_stretch(model, guess, cable_stiffness))
     q, ok, residual = forward_kinematics_expression(
         model, reading, guess, iterations=FK_ITERATIONS if iterations is None else iterations,
-        tolerance=1.0)
+        tolerance=1.0, step_tolerance=reading_step_tolerance(model.n, model.m, resolution))
     return q, ca.logic_and(ok, residual <= reading_bound(model.n, model.m, resolution,
                                                          consistency))
+
+
+def predicted_stretch(model: SymbolicModel, q, cable_stiffness):
+    """T / EA (per cable, dimensionless): the strain the model's static tension at ``q``
+    puts on cables of axial stiffness ``cable_stiffness`` (N). A reading taken while the
+    platform moves errs by the dynamic part of the tension over EA (a few 1e-4 on the
+    presets), one taken at rest by the controller's feedback over EA. Numbers or CasADi
+    expressions (``q`` symbolic: the model's SX expression)."""
+    if isinstance(q, ca.SX):
+        return model.static_tension(q) / cable_stiffness
+    tension = np.array(model.functions["static_tension"](q)).ravel()
+    return tension / cable_stiffness
+
+
+def reading_step_tolerance(n: int, m: int, resolution):
+    """The largest last Gauss-Newton step (m, or rad) of a pose read from m > n encoder
+    lengths that counts as converged: half a count, resolution / 2 (for an angle, a lever
+    arm under 1 m turns it into less than half a count of cable), and never under the
+    solver's 1e-9. Lengths that no pose fits exactly (a redundant robot's, by the cables'
+    stretch and the anchors' errors) slow Gauss-Newton to a linear rate, and its four
+    steps from the last pose left ipanema8's start pose unread with a 1e-9 test; a step
+    the encoders cannot resolve changes nothing they could tell. m = n: the solver's
+    1e-9 (Newton converges quadratically on exact lengths). Numbers or CasADi
+    expressions."""
+    from cdpr_sym.model.forward_kinematics import FK_STEP_TOLERANCE
+
+    if m == n:
+        return FK_STEP_TOLERANCE
+    if isinstance(resolution, (ca.SX, ca.MX)):
+        return ca.fmax(FK_STEP_TOLERANCE, resolution / 2)
+    return max(FK_STEP_TOLERANCE, resolution / 2)
 
 
 def reading_bound(n: int, m: int, resolution, consistency):

@@ -11,7 +11,7 @@ import numpy as np
 
 from cdpr_sym.as_built import Sensing
 from cdpr_sym.as_built.geometry import true_geometry_function
-from cdpr_sym.closed_loop.effects.encoders import corrected, raw_reading, reading_bound
+from cdpr_sym.closed_loop.effects.encoders import corrected, raw_reading, read_pose_expression
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 
@@ -30,6 +30,12 @@ def anchor_offsets(model: SymbolicModel, plant: Plant) -> np.ndarray:
     if spec is None or spec.anchor_offsets is None:
         return np.zeros(model.m * model.robot.dimension)
     return spec.anchor_offsets.ravel()
+
+
+def elastic_stiffness(plant: Plant) -> float | None:
+    """EA (N) of ``plant``'s cables when they are elastic on winches, else None."""
+    spec = plant.as_built
+    return None if spec is None or spec.actuation is None else spec.actuation.cable_stiffness
 
 
 class AsBuiltReadout:
@@ -58,10 +64,22 @@ class AsBuiltReadout:
         return true_geometry_function(self.model.robot)
 
     @functools.cached_property
-    def _forward_kinematics(self) -> ca.Function:
-        from cdpr_sym.model.forward_kinematics import forward_kinematics_function
-
-        return forward_kinematics_function(self.model, tolerance=1.0)
+    def _read_pose(self) -> ca.Function:
+        """(reading, guess, resolution, consistency, EA) -> (pose, ok): the simulated
+        encoders' and the exported controller's one expression
+        (:func:`~cdpr_sym.closed_loop.effects.encoders.read_pose_expression`; EA <= 0 for
+        rigid cables)."""
+        model = self.model
+        reading, guess = ca.SX.sym("reading", model.m), ca.SX.sym("guess", model.n)
+        resolution, consistency, stiffness = (ca.SX.sym(name) for name in (
+            "resolution", "consistency", "stiffness"))
+        rigid = read_pose_expression(model, reading, guess, resolution, consistency)
+        elastic = read_pose_expression(model, reading, guess, resolution, consistency,
+                                       cable_stiffness=stiffness)
+        outputs = [ca.if_else(stiffness > 0, a, b) for a, b in zip(elastic, rigid,
+                                                                   strict=True)]
+        return ca.Function("read_pose", [reading, guess, resolution, consistency, stiffness],
+                           outputs, {"cse": True})
 
     def true_static(self, q: np.ndarray, plant: Plant) -> tuple[np.ndarray, bool]:
         """The tension (N) holding ``plant`` at rest at ``q`` (its mass and anchors; m > n:
@@ -91,18 +109,18 @@ class AsBuiltReadout:
         relative = 0.0 if spec is None or spec.encoder_offsets is None else spec.encoder_offsets
         return raw_reading(self.model, self.unstretched_lengths(q, tension, plant), relative)
 
-    def read_pose(self, reading: np.ndarray, guess: np.ndarray, sensing: Sensing
-                  ) -> np.ndarray | None:
+    def read_pose(self, reading: np.ndarray, guess: np.ndarray, sensing: Sensing,
+                  cable_stiffness: float | None = None) -> np.ndarray | None:
         """The pose forward kinematics gives from ``guess`` for encoder ``reading`` (m),
-        rounded to the resolution, less the model's encoder offsets; None when no pose fits
-        within the reading bound."""
+        rounded to the resolution, less the model's encoder offsets (with
+        ``cable_stiffness``, EA in N, the stretch the model predicts put back, m > n); None
+        when no pose fits within the reading bound."""
         if sensing.resolution > 0:
             reading = sensing.resolution * np.floor(reading / sensing.resolution + 0.5)
         reading = corrected(self.model, reading)
-        q, ok, residual = self._forward_kinematics(reading, guess)
-        bound = reading_bound(self.model.n, self.model.m, sensing.resolution,
-                              sensing.consistency)
-        return np.array(q).ravel() if float(ok) > 0.5 and float(residual) <= bound else None
+        q, ok = self._read_pose(reading, guess, sensing.resolution, sensing.consistency,
+                                0.0 if cable_stiffness is None else cable_stiffness)
+        return np.array(q).ravel() if float(ok) > 0.5 else None
 
     def check_readable(self, start: np.ndarray, plant: Plant) -> None:
         """Raise :class:`InvalidCase` (``sensing``) when forward kinematics could not read
@@ -116,13 +134,12 @@ class AsBuiltReadout:
             return
         tension = self.true_static(start, plant)[0]
         reading = self.encoder_reading(start, tension, plant)
-        if self.read_pose(reading, start, spec.sensing) is not None:
+        if self.read_pose(reading, start, spec.sensing, elastic_stiffness(plant)) is not None:
             return
         causes = "; ".join(self._misreadings(start, tension, plant))
         bound = f"{1e3 * spec.sensing.consistency:g} mm"
         robot = self.model.robot
-        # ida-winch reads the drives, but needs as many cables as degrees of freedom
-        drives = "" if robot.m > robot.n else " or a controller that reads the drives (ida-winch)"
+        drives = " or a controller that reads the drives (ida-winch)"
         bound_hint = " or a wider [sensing] consistency" if robot.m > robot.n else ""
         raise InvalidCase("sensing", f"the encoders cannot read the start pose of "
                           f"{robot.name} ({causes}): forward kinematics finds no "
