@@ -263,13 +263,19 @@ def test_too_few_substeps_are_refused_before_anything_is_built(aras3, monkeypatc
                  plant=Plant(as_built=AsBuilt(actuation=Actuation())))
 
 
-def test_an_unreadable_redundant_robot_is_not_told_to_use_a_design_that_refuses_it(capsys):
-    """ipanema8 as built (8 cables, 6 DOF): the refusal must not suggest ida-winch, which
-    needs as many cables as degrees of freedom, and suggests a wider consistency bound."""
+def test_an_unreadable_redundant_robot_is_told_what_runs_on_it(capsys):
+    """ipanema8 as built (8 cables, 6 DOF), read by a design of the pose: the refusal names
+    a wider consistency bound and ida-winch, which reads the drives and runs m > n robots
+    (and does run this one as built: the suggestion is one a user can follow)."""
+    from cdpr_sym.as_built.draw import DEFAULT_DRAW
     from cdpr_sym.cli import main
 
     assert main(["simulate", "--robot", "ipanema8", "--controller", "smooth-lp",
                  "--as-built", "default", "--duration", "1"]) == 2
     error = capsys.readouterr().err
     assert error.startswith("cdpr-sym: error: sensing:") and len(error.splitlines()) == 1
-    assert "ida-winch" not in error and "consistency" in error
+    assert "ida-winch" in error and "consistency" in error
+    mass_scale, spec = DEFAULT_DRAW.draw_pair(preset("ipanema8"), 0, 0)
+    run = simulate("ipanema8", "ida-winch", duration=0.05,
+                   plant=Plant(mass_scale=mass_scale, as_built=spec))
+    assert run.stop_reason is None

@@ -97,8 +97,10 @@ class SmoothReference:
     (linear in the force, so the same interval test applies) and the improved closed form
     in the command (equal to it wherever it is in the box).
     Memory: [t, q_start (n), T, margin] and, with ``command_cutoff``, the filter's stages
-    (FILTER_STAGES m), which start at the first command so that the filter adds no start
-    jump.
+    (FILTER_STAGES m), which start at the tension the plant holds at rest at the start (the
+    first command for m = n; with m > n the static tension, which the guarded first command
+    can miss by the guard or, where the distribution's repairs switch cables, by far more:
+    157 N on one of ipanema8's pairs), so that the filter adds no start jump.
     """
 
     durations: tuple[float, ...] = tuple(np.round(np.arange(1.0, 4.01, 0.25), 2))
@@ -194,7 +196,11 @@ class SmoothReference:
         plan = ca.vertcat(0.0, q0, chosen_T, chosen_margin)
         if not self.command_cutoff:
             return plan
-        first = self._tracking(model, q0, ca.SX.zeros(model.n), q_goal, k, r_d, plan)[0].tau
+        if model.m == model.n:  # the first command: the static tension at a start at rest
+            first = self._tracking(model, q0, ca.SX.zeros(model.n), q_goal, k, r_d,
+                                   plan)[0].tau
+        else:  # the command's distribution in the guarded box can differ from the plant's
+            first = model.static_tension(q0)
         return ca.vertcat(plan, *([first] * FILTER_STAGES))
 
     def _choose(self, robot: Robot, a: ca.SX, b: ca.SX, step: float) -> tuple[ca.SX, ca.SX]:

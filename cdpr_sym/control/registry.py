@@ -67,7 +67,8 @@ DESCRIPTIONS = {
                  "it (15 Hz and 0.97 N on aras3): for winches",
     "pd-td": "PD + gravity compensation + tension distribution; any m >= n cables",
     "ida-winch": "IDA-PBC at the motors of the robot as built: energy shaped in the drum "
-                 "coordinates, damping on the drum speeds, from the winch encoders alone",
+                 "coordinates, damping on the drum speeds, from the winch encoders alone; any "
+                 "m >= n cables",
     "nmpc": "NMPC, hard tension and rate bounds, 50 Hz, horizon from the robot's braking time "
             "(0.62 s on aras3), one SQP step per "
             "sample (real-time iteration, generated C); any m >= n cables",
