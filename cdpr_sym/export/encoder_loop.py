@@ -44,7 +44,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.as_built import Actuation, Sensing
-from cdpr_sym.as_built.actuation import torque_reference
+from cdpr_sym.as_built.actuation import named, torque_reference
 from cdpr_sym.as_built.spec import ACTUATION_PARAMETERS, SENSING_PARAMETERS
 from cdpr_sym.closed_loop.effects.encoders import corrected, read_pose_expression
 from cdpr_sym.control import (
@@ -132,7 +132,8 @@ def core_function(loop: EncoderLoop) -> ca.Function:
     resolution, cutoff, consistency = sensing[0], sensing[1], sensing[2]
 
     lengths = corrected(model, ca.fmax(resolution, 1e-300) * counts)
-    q_read, ok = read_pose_expression(model, lengths, q_last, resolution, consistency)
+    q_read, ok = read_pose_expression(model, lengths, q_last, resolution, consistency,
+                                      cable_stiffness=named(actuation)["cable_stiffness"])
     keep = ca.exp(-2 * math.pi * cutoff * dt)
     dq_read = keep * dq_last + (1 - keep) * (q_read - q_last) / dt
     if capabilities(loop.controller).reads_drives:
@@ -202,9 +203,11 @@ def locate_function(loop: EncoderLoop) -> ca.Function:
     counts, guess = ca.SX.sym("counts", m), ca.SX.sym("guess", n)
     par = ca.SX.sym("par", loop.n_parameters)
     resolution, consistency = par[3 * n + 1], par[3 * n + 3]
+    actuation = par[3 * n + 1 + len(SENSING_PARAMETERS):]
     lengths = corrected(model, ca.fmax(resolution, 1e-300) * counts)
     q, ok = read_pose_expression(model, lengths, guess, resolution, consistency,
-                                 iterations=LOCATE_ITERATIONS)
+                                 iterations=LOCATE_ITERATIONS,
+                                 cable_stiffness=named(actuation)["cable_stiffness"])
     return ca.Function("locate", [counts, guess, par], [q, ok], ["counts", "guess", "par"],
                        ["pose", "ok"], {"cse": True})
 
