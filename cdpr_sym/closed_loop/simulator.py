@@ -31,7 +31,7 @@ from cdpr_sym.closed_loop.case import (
     minimal_values_per_step,
 )
 from cdpr_sym.closed_loop.effects import AsBuiltReadout, StartContext, plant_effects
-from cdpr_sym.closed_loop.effects.readout import elastic_stiffness
+from cdpr_sym.closed_loop.effects.base import elastic_stiffness
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.step import chunk_function, plant_layout, step_function

@@ -171,6 +171,12 @@ class PlantEffect:
 
 
 
+def elastic_stiffness(plant: Plant) -> float | None:
+    """EA (N) of ``plant``'s cables when they are elastic on winches, else None."""
+    spec = plant.as_built
+    return None if spec is None or spec.actuation is None else spec.actuation.cable_stiffness
+
+
 @dataclasses.dataclass
 class StartContext:
     """A move's start as the effects see it when they fill in their initial state.
@@ -214,7 +220,5 @@ class StartContext:
 
     def read_pose(self, reading: np.ndarray) -> np.ndarray | None:
         """The pose read from ``reading`` starting from the start pose, or None."""
-        from cdpr_sym.closed_loop.effects.readout import elastic_stiffness
-
         return self.readout.read_pose(reading, self.start, self.plant.as_built.sensing,
                                       elastic_stiffness(self.plant))

@@ -11,6 +11,7 @@ import numpy as np
 
 from cdpr_sym.as_built import Sensing
 from cdpr_sym.as_built.geometry import true_geometry_function
+from cdpr_sym.closed_loop.effects.base import elastic_stiffness
 from cdpr_sym.closed_loop.effects.encoders import corrected, raw_reading, read_pose_expression
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
@@ -30,12 +31,6 @@ def anchor_offsets(model: SymbolicModel, plant: Plant) -> np.ndarray:
     if spec is None or spec.anchor_offsets is None:
         return np.zeros(model.m * model.robot.dimension)
     return spec.anchor_offsets.ravel()
-
-
-def elastic_stiffness(plant: Plant) -> float | None:
-    """EA (N) of ``plant``'s cables when they are elastic on winches, else None."""
-    spec = plant.as_built
-    return None if spec is None or spec.actuation is None else spec.actuation.cable_stiffness
 
 
 class AsBuiltReadout:
