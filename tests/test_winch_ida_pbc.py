@@ -57,7 +57,8 @@ def _storage(robot, controller, simulator, states):
     n, m = robot.n, robot.m
     memory = x["memory"][1]  # after the first step, which sets the encoders' misfit
     reference = controller.reference(model, ca.DM(1e3), ca.DM(memory[1: n + 1]),
-                                     ca.DM(memory[n + 1]), ca.DM(robot.start))
+                                     ca.DM(memory[n + 1]), ca.DM(robot.start),
+                                     ca.DM(memory[n + 2]))
     payout_r, _, _, tension_r, _ = (np.array(ca.DM(value)).ravel() for value in reference)
     goal_payout = payout_r + memory[n + 3: n + 3 + m]
     system = AsBuiltHamiltonian(model).functions

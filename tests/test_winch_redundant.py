@@ -16,10 +16,11 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 import pytest
+from test_winch_ida_pbc import PLAIN, _knocked_run, _storage
 
 from cdpr_sym import preset, simulate
-from cdpr_sym.as_built import Actuation, AsBuilt, AsBuiltHamiltonian, Sensing
-from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.as_built import Actuation, AsBuilt, Sensing
+from cdpr_sym.closed_loop import Plant
 from cdpr_sym.closed_loop.effects.readout import AsBuiltReadout
 from cdpr_sym.control import WinchIdaPbc
 from cdpr_sym.model import SymbolicModel
@@ -119,45 +120,14 @@ def test_the_integral_acts_on_the_platform_lengths_only():
     np.testing.assert_allclose(projected, least_squares, atol=1e-12)
 
 
-LOSSLESS = Actuation(cable_damping=0.0, viscous=0.0, coulomb=0.0)
-PLAIN = WinchIdaPbc(feedback_cutoff=None, integral=0.0, rate_cutoff=1e6, drive=LOSSLESS)
-
-
 @pytest.mark.slow  # builds the as-built step of a redundant robot (~10 s)
 def test_the_stored_energy_never_rises_on_a_redundant_robot(build_options):
     """The motors hold the start of planar4 (4 cables, 2 DOF) on lossless winches while the
     platform is knocked: H_d = H + P_r . (l0 - l0*) + k_p/2 |l0 - l0*|^2 (H from the
-    port-Hamiltonian model) only falls, and the injected damping takes most of it out."""
-    robot, dt = preset("planar4"), 2e-4
-    spec = AsBuilt(actuation=LOSSLESS, substeps=4)
-    plant = Plant(as_built=spec)
-    simulator = get_simulator(robot, PLAIN, build_options=build_options,
-                              as_built=spec.structure())
-    start = np.asarray(robot.start, dtype=float)
-    x0 = simulator.initial_state(start, start, robot.k, robot.r_d,
-                                 dq0=np.full(robot.n, 0.15), plant=plant)
-    states, _ = simulator.rollout(x0, simulator.parameters(start, robot.k, robot.r_d, dt,
-                                                           plant), 5000)
-    model, n, m = SymbolicModel(robot), robot.n, robot.m
-    x = simulator.layout.x.split(states)
-    assert not x["status"].any()
-    memory = x["memory"][1]
-    reference = PLAIN.reference(model, ca.DM(1e3), ca.DM(memory[1: n + 1]),
-                                ca.DM(memory[n + 1]), ca.DM(robot.start), ca.DM(memory[n + 2]))
-    payout_r, _, _, tension_r, _ = (np.array(ca.DM(value)).ravel() for value in reference)
-    goal_payout = payout_r + memory[n + 3: n + 3 + m]
-    system = AsBuiltHamiltonian(model).functions
-    numbers = (LOSSLESS.parameters(), 1.0, np.zeros(m * robot.dimension))
-    pull = PLAIN.pull(tension_r, LOSSLESS)
-    k_p = PLAIN.gains(robot, dt, model)[0]
-    storage = []
-    for q, dq, payout, speed in zip(x["q"], x["dq"], x["payout"], x["drum_speed"],
-                                    strict=True):
-        error = payout - goal_payout
-        canonical = system["canonical"](q, dq, payout, speed, *numbers)
-        storage.append(float(system["energy"](canonical, *numbers)) + pull @ error
-                       + 0.5 * k_p * error @ error)
-    storage = np.array(storage) - storage[-1]
+    port-Hamiltonian model) only falls, as on aras3 (test_winch_ida_pbc's run and storage)."""
+    robot = preset("planar4")
+    simulator, states = _knocked_run(robot, PLAIN, build_options)
+    storage = _storage(robot, PLAIN, simulator, states)[0]
     assert storage[0] > 0.01
     assert np.diff(storage).max() <= 1e-6 * storage[0]
 
