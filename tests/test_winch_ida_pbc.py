@@ -20,12 +20,13 @@ import numpy as np
 import pytest
 
 from cdpr_sym.as_built import Actuation, AsBuilt, AsBuiltHamiltonian, Sensing
-from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.closed_loop import Plant, get_simulator, simulate
 from cdpr_sym.closed_loop.effects import plant_effects
 from cdpr_sym.closed_loop.step import plant_layout, step_function
 from cdpr_sym.control import WinchIdaPbc, controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot import preset
 
 #: A lossless winch (no cable damping, no friction), so that only the design dissipates.
 LOSSLESS = Actuation(cable_damping=0.0, viscous=0.0, coulomb=0.0)
@@ -225,3 +226,22 @@ def test_a_gain_no_sampled_loop_holds_is_refused_before_building(monkeypatch):
         simulator_module.simulate("aras3", WinchIdaPbc(stiffness=1e12), duration=1.0)
     assert raised.value.field == "stiffness" and "1e+12" in str(raised.value)
     assert WinchIdaPbc().check_period(4.0, 1e-3) is None  # the defaults at 1 kHz
+
+
+def test_on_the_ideal_plant_the_goal_is_the_rigid_cables_whatever_stretch_the_winches_model(
+        build_options):
+    """The ideal plant's cables are rigid and its tension is the command: ida-winch must not
+    compensate a stretch, drum inertia or friction the plant lacks. With winches modelled
+    ten times softer than the default build (EA 1e4 N) and heavy drums with friction, the
+    stretch change between start and goal, l_i T_i / EA, is centimetres; the goal must still
+    be reached to a millimetre (the derived gains of these winches are slow) and the first command be the static tension."""
+    aras3 = preset("aras3")
+    soft = Actuation(cable_stiffness=1e4, inertia=2e-3, coulomb=0.05)
+    model = SymbolicModel(aras3)
+    stretch_change = [float(ca.norm_inf(
+        model.cable_lengths(ca.DM(q)) * ca.DM(model.static_tension(ca.DM(q))) / 1e4))
+        for q in (aras3.start, aras3.goal)]
+    assert max(stretch_change) > 0.01  # what compensating it would put the goal off by
+    run = simulate(aras3, WinchIdaPbc(drive=soft), duration=10.0, build_options=build_options)
+    assert run.metrics()["final_error"] < 1e-3
+    np.testing.assert_allclose(run.tau[0], run.static_tension, rtol=0, atol=1e-6)

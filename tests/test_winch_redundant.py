@@ -90,13 +90,11 @@ def test_the_first_command_is_the_static_tension_the_plant_holds(name, build_opt
     """No start jump on the ideal plant: the plan's distribution of the weight differs from
     the static one (ipanema8: the exact minimum norm against the improved closed form;
     m = n + 1 both are the minimum norm), and the reference blends the difference out in
-    the null space of W.
-    The command is the pull T + T^2 / (2 EA): it differs from T by that term only."""
+    the null space of W. On the ideal plant's rigid cables the command is the tension
+    itself (no drum to pull it through)."""
     robot = preset(name)
     run = simulate(robot, DESIGN, duration=0.01, build_options=build_options)
-    static = run.static_tension
-    pull_term = static**2 / (2 * DESIGN.drive_of(robot).cable_stiffness)
-    np.testing.assert_allclose(run.tau[0], static + pull_term, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(run.tau[0], run.static_tension, rtol=0, atol=1e-6)
 
 
 def test_the_integral_acts_on_the_platform_lengths_only():

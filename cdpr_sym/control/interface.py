@@ -102,14 +102,19 @@ class DriveReading(NamedTuple):
     lengths : SX, shape (m,)
         The paid-out (unstretched) cable lengths the encoders count, less the model's
         encoder offsets, m; the geometric lengths on a robot with rigid cables.
+    rigid : bool
+        The plant's cables are rigid and its tensions are the commands (the ideal plant):
+        no stretch, drum inertia or drum friction for a controller to compensate. Fixed
+        when the step is built (a Python bool, not a symbol).
     """
 
     lengths: ca.SX
+    rigid: bool = False
 
 
 def rigid_drive_reading(model: SymbolicModel, q: ca.SX, dq: ca.SX) -> DriveReading:
     """The drive reading of rigid cables at q: the model's cable lengths l(q), m."""
-    return DriveReading(model.cable_lengths(q))
+    return DriveReading(model.cable_lengths(q), rigid=True)
 
 
 def step_with_drives(controller: Controller, model: SymbolicModel, q: ca.SX, dq: ca.SX,
