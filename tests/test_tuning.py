@@ -17,8 +17,8 @@ import pytest
 from cdpr_sym.as_built import DEFAULT_DRAW, Actuation, Sensing, scaled_actuation, scaled_sensing
 from cdpr_sym.as_built.stability import _linearised
 from cdpr_sym.cli import main
-from cdpr_sym.cli.tune import tune_report
 from cdpr_sym.control import tuning
+from cdpr_sym.control.tuning_report import tune_report
 from cdpr_sym.control.winch_level import WinchIdaPbc
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import load_robot, preset

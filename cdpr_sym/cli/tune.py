@@ -11,6 +11,7 @@ import numpy as np
 
 from cdpr_sym.cli.output import Output
 from cdpr_sym.cli.robots import checked_robot
+from cdpr_sym.control.tuning_report import tune_report
 from cdpr_sym.errors import InvalidCase
 
 
@@ -25,59 +26,6 @@ def add_parser(command) -> None:
                         help="the winches: 'default' (the robot's default build) or an "
                              "as-built TOML file")
     parser.add_argument("--dt", type=float, default=1e-3, help="control period, s")
-
-
-def _linearised_modes(robot, model, stiffness: float, damping: float, q
-                      ) -> list[dict[str, float]]:
-    """The platform's modes on the motor springs at ``q`` (rigid cables, every cable taut):
-    M ddq + k_d W W^T dq + k_p W W^T (q - q*) = 0, as (frequency Hz, damping ratio) pairs
-    from the eigenvalues of the first-order system; ``model`` the robot's SymbolicModel."""
-    W = np.array(model.functions["structure_matrix"](q))
-    M = np.array(model.functions["mass_matrix"](q))
-    n = robot.n
-    solve = np.linalg.solve(M, W @ W.T)
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-stiffness * solve, -damping * solve]])
-    modes = []
-    for value in np.linalg.eigvals(A):
-        if value.imag < -1e-12:
-            continue
-        magnitude = abs(value)
-        modes.append({"frequency_hz": float(magnitude / (2 * math.pi)),
-                      "damping_ratio": float(-value.real / magnitude) if magnitude else 1.0})
-    return sorted(modes, key=lambda mode: mode["frequency_hz"])
-
-
-def tune_report(robot, drive, dt: float) -> dict[str, Any]:
-    """Everything ``tune`` prints, as plain numbers."""
-    from cdpr_sym.control import tuning
-    from cdpr_sym.model import SymbolicModel
-    from cdpr_sym.robot.gains import case_gains
-
-    model = SymbolicModel(robot)
-    mode = tuning.drum_cable_mode(robot, drive)
-    corner = tuning.command_corner(robot, drive, dt)
-    winch = tuning.winch_gains(robot, drive, dt, model=model)
-    derived_k, derived_r_d = case_gains(robot.mass, robot.inertia, robot.n, robot.dimension,
-                                        robot.center_of_mass)
-    stated = not (np.allclose(robot.k, derived_k) and np.allclose(robot.r_d, derived_r_d))
-    return {
-        "robot": robot.name, "dt": dt,
-        "hardware": {"cable_stiffness_N": drive.cable_stiffness,
-                     "cable_damping_Ns": drive.cable_damping,
-                     "drum_radius_m": drive.drum_radius, "drum_inertia_kgm2": drive.inertia,
-                     "drum_mass_at_cable_kg": drive.inertia / drive.drum_radius**2,
-                     "coulomb_Nm": drive.coulomb, "viscous_Nms": drive.viscous,
-                     "torque_limit_Nm": drive.torque_limit,
-                     "longest_cable_m": tuning.longest_cable(robot)},
-        "drum_cable_mode_hz": mode, "command_corner_hz": corner,
-        "ida_winch": winch.as_dict(),
-        "case": {"k": robot.k.tolist(), "r_d": robot.r_d.tolist(),
-                 "source": "the robot file" if stated else "derived",
-                 "derived_k": derived_k.tolist(), "derived_r_d": derived_r_d.tolist()},
-        "modes": {name: _linearised_modes(robot, model, winch.stiffness, winch.damping, q)
-                  for name, q in (("start", robot.start), ("goal", robot.goal))},
-        "rules": tuning.rules(),
-    }
 
 
 def _lines(report: dict[str, Any]) -> list[str]:
