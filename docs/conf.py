@@ -58,6 +58,7 @@ REPORTS = {
     "redundant": "report.md",
     "robustness": "report.md",
     "calibration": "report.md",
+    "zoo": "report.md",
     "mutation": "report.md",
 }
 

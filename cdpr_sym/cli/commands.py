@@ -178,9 +178,11 @@ def check_study_args(study: Study, args: argparse.Namespace) -> tuple[StudyReque
     """The request and output folder of ``study``, every option checked before long work:
     ``pairs`` and ``seed``; ``robot`` (refused by a study of its own robots, else its case
     checked); ``out`` (a folder; required for a robot file named like a preset, whose
-    default folder would be that preset's)."""
-    check_pairs_and_seed(args)
+    default folder would be that preset's); ``pairs`` defaults to the study's own number."""
     options = study.options
+    if args.pairs is None:
+        args.pairs = options.default_pairs
+    check_pairs_and_seed(args)
     if args.robot and not options.robot:
         raise InvalidCase("robot", f"the {study.name} study compares its own presets "
                           f"({', '.join(options.own_robots)}); it takes no --robot")

@@ -113,8 +113,9 @@ def build_parser() -> argparse.ArgumentParser:
                        "spatial6 unless given; redundant compares its own presets and takes "
                        "none)")
     study.add_argument("--out", type=Path, help="output folder (default reports/<name>)")
-    study.add_argument("--pairs", type=int, default=200,
-                       help=f"start/goal pairs of the sweeps (compare, designs, rigid, "
+    study.add_argument("--pairs", type=int,
+                       help=f"start/goal pairs of the sweeps (default 200; zoo: 40 per robot; "
+                       f"compare, designs, rigid, zoo, "
                        f"redundant; at most {MAX_PAIRS:,})")
     study.add_argument("--seed", type=int, default=0, help="seed of the pair draw (>= 0)")
 

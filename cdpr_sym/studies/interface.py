@@ -45,11 +45,14 @@ class StudyOptions:
     own_robots : tuple of str
         The presets the study runs itself (without ``--robot``, or always when
         :attr:`robot` is False).
+    default_pairs : int
+        Start/goal pairs per sweep without ``--pairs``.
     """
 
     robot: bool = True
     default_robot: str | None = "aras3"
     own_robots: tuple[str, ...] = ()
+    default_pairs: int = 200
 
 
 @dataclasses.dataclass(frozen=True)

@@ -18,7 +18,7 @@ _MODULES = {"paper": "cdpr_sym.studies.paper", "compare": "cdpr_sym.studies.comp
             "designs": "cdpr_sym.studies.designs", "rigid": "cdpr_sym.studies.rigid",
             "redundant": "cdpr_sym.studies.redundant",
             "robustness": "cdpr_sym.studies.robustness",
-            "calibration": "cdpr_sym.studies.calibration"}
+            "calibration": "cdpr_sym.studies.calibration", "zoo": "cdpr_sym.studies.zoo"}
 #: The registered studies' names.
 STUDY_NAMES = tuple(_MODULES)
 
