@@ -82,6 +82,7 @@ import casadi as ca
 
 from cdpr_sym.as_built import Actuation
 from cdpr_sym.as_built.actuation import friction_torque
+from cdpr_sym.as_built.cable_law import drum_pull, unstretched_length
 from cdpr_sym.as_built.hardware import scaled_actuation
 from cdpr_sym.checks import positive_number
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
@@ -93,12 +94,6 @@ from cdpr_sym.distribution import AUTO
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
-
-
-def _positive(field: str, value: object, unit: str, *, zero: bool = False) -> float:
-    """``value`` as a float, or InvalidCase naming ``field`` unless it is a finite positive
-    number (or zero, with ``zero``)."""
-    return positive_number(field, value, unit, zero=zero)
 
 
 def _from_options(field: str, kind: type, value: object) -> object:
@@ -197,12 +192,12 @@ class WinchIdaPbc:
         for field, unit, zero in (("stiffness", "N/m", False), ("damping", "N s/m", True),
                                   ("integral", "N/(m s)", True)):
             if getattr(self, field) is not None:
-                object.__setattr__(self, field, _positive(field, getattr(self, field), unit,
-                                                          zero=zero))
-        object.__setattr__(self, "rate_cutoff", _positive("rate_cutoff", self.rate_cutoff,
-                                                          "Hz"))
+                object.__setattr__(self, field, positive_number(
+                    field, getattr(self, field), unit, zero=zero))
+        object.__setattr__(self, "rate_cutoff", positive_number("rate_cutoff",
+                                                                self.rate_cutoff, "Hz"))
         if self.feedback_cutoff is not None and self.feedback_cutoff != FROM_ROBOT:
-            object.__setattr__(self, "feedback_cutoff", _positive(
+            object.__setattr__(self, "feedback_cutoff", positive_number(
                 "feedback_cutoff", self.feedback_cutoff, "Hz"))
         stages = self.feedback_stages
         if isinstance(stages, bool) or not isinstance(stages, int) or not 1 <= stages <= 8:
@@ -335,7 +330,8 @@ class WinchIdaPbc:
                        + (1 - s) * self.start_internal(model, W, q_start, margin))
         payout = model.cable_lengths(q_r)
         if not rigid:
-            payout = payout / (1 + tension / self.drive_of(model.robot).cable_stiffness)
+            payout = unstretched_length(payout, tension,
+                                        self.drive_of(model.robot).cable_stiffness)
         jacobian = model.jacobian_ja(q_r)
         return (payout, jacobian @ dq_r, jacobian @ ddq_r, tension,
                 model.singularity_measure(W))
@@ -343,7 +339,7 @@ class WinchIdaPbc:
     def pull(self, tension, drive: Actuation):
         """The pull P = T + T^2 / (2 EA) that holds a cable of tension T on ``drive``'s drum,
         N."""
-        return tension + tension * tension / (2 * drive.cable_stiffness)
+        return drum_pull(tension, drive.cable_stiffness)
 
     def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
              r_d: ca.SX, memory: ca.SX, dt: ca.SX, *, drives: DriveReading
