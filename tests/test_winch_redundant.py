@@ -151,3 +151,21 @@ def test_the_pose_read_from_stretched_cables_puts_the_stretch_back(name):
     assert np.abs(compensated - start).max() <= 5e-6
     rigid = readout.read_pose(reading, start, sensing)
     assert rigid is None or np.abs(rigid - start).max() >= 0.1 * stretch
+
+
+@pytest.mark.slow
+def test_where_the_plan_fails_the_feed_forward_still_moves_continuously(build_options):
+    """An ipanema8 pair of the ideal plant whose plan finds no duration keeping its
+    checked distribution in the box (margin < 0): the feed-forward is then the exact
+    minimum norm in the box, continuous while the box holds the force. With a guard band
+    shrinking the box, the command jumped from 708 N to 11 N in one period where the
+    shrunk polygon vanished. Every step must stay within the robot's step limit."""
+    robot = preset("ipanema8")
+    start = [-0.670535, 0.498325, 1.085922, 0.215971, -0.028156, -0.050429]
+    goal = [0.704326, 0.127126, 0.401118, -0.081686, -0.265336, -0.103112]
+    run = simulate(robot, DESIGN, start=start, goal=goal, duration=6.0,
+                   build_options=build_options)
+    assert run.memory[0][robot.n + 2] < 0  # the plan failed: the fallback is what runs
+    metrics = run.metrics(settle_band=robot.design_target.error)
+    assert metrics["max_tension_step"] <= robot.design_target.step_limit(1e-3)
+    assert metrics["tension_feasible"] and metrics["settle_time"] is not None

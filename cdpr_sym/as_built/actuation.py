@@ -11,6 +11,7 @@ import math
 
 import casadi as ca
 
+from cdpr_sym.as_built import cable_law
 from cdpr_sym.as_built.spec import ACTUATION_PARAMETERS, FRICTION_SPEED
 
 
@@ -37,7 +38,7 @@ def drum_pull(tension: ca.SX, spring: ca.SX, parameters: ca.SX) -> ca.SX:
     With this pull the plant is port-Hamiltonian (:mod:`cdpr_sym.as_built.port_hamiltonian`):
     its energy changes only by the motors' work, friction and cable damping.
     """
-    return tension + spring * spring / (2 * named(parameters)["cable_stiffness"])
+    return cable_law.drum_pull(tension, named(parameters)["cable_stiffness"], spring)
 
 
 def cable_tension(lengths: ca.SX, rates: ca.SX, payout: ca.SX, payout_rate: ca.SX,

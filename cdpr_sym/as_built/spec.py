@@ -46,12 +46,6 @@ def _whole(value: object) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
 
-def _positive(field: str, value: float, unit: str, *, zero: bool = False) -> None:
-    """Raise :class:`InvalidCase` naming ``field`` unless ``value`` is a real number (not a
-    bool, not a numeric string), finite and positive (or zero, when ``zero``)."""
-    positive_number(field, value, unit, zero=zero)
-
-
 @dataclasses.dataclass(frozen=True)
 class Actuation:
     """Elastic cables on torque-controlled winches.
@@ -108,15 +102,15 @@ class Actuation:
     bandwidth: float = 500.0
 
     def __post_init__(self) -> None:
-        _positive("cable_stiffness", self.cable_stiffness, "N")
-        _positive("cable_damping", self.cable_damping, "N s", zero=True)
-        _positive("drum_radius", self.drum_radius, "m")
-        _positive("inertia", self.inertia, "kg m^2")
-        _positive("viscous", self.viscous, "N m s/rad", zero=True)
-        _positive("coulomb", self.coulomb, "N m", zero=True)
+        positive_number("cable_stiffness", self.cable_stiffness, "N")
+        positive_number("cable_damping", self.cable_damping, "N s", zero=True)
+        positive_number("drum_radius", self.drum_radius, "m")
+        positive_number("inertia", self.inertia, "kg m^2")
+        positive_number("viscous", self.viscous, "N m s/rad", zero=True)
+        positive_number("coulomb", self.coulomb, "N m", zero=True)
         if self.torque_limit is not None:
-            _positive("torque_limit", self.torque_limit, "N m")
-        _positive("bandwidth", self.bandwidth, "Hz")
+            positive_number("torque_limit", self.torque_limit, "N m")
+        positive_number("bandwidth", self.bandwidth, "Hz")
 
     def parameters(self) -> list[float]:
         """The numbers the generated step reads (see :data:`ACTUATION_PARAMETERS`); an
@@ -164,9 +158,9 @@ class Sensing:
     consistency: float = 0.01
 
     def __post_init__(self) -> None:
-        _positive("resolution", self.resolution, "m", zero=True)
-        _positive("velocity_cutoff", self.velocity_cutoff, "Hz")
-        _positive("consistency", self.consistency, "m", zero=True)
+        positive_number("resolution", self.resolution, "m", zero=True)
+        positive_number("velocity_cutoff", self.velocity_cutoff, "Hz")
+        positive_number("consistency", self.consistency, "m", zero=True)
 
     def check_frame(self, side: float) -> None:
         """Raise :class:`InvalidCase` (``resolution``) for encoders coarser than

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from cdpr_sym.as_built.cable_law import stretched_length
 from cdpr_sym.calibration.adequacy import SIGNIFICANCE, Adequacy
 from cdpr_sym.calibration.campaign import Campaign
 from cdpr_sym.calibration.gauge import gauge_complement
@@ -235,7 +236,7 @@ def _fit_poses(model: MeasurementModel, campaign: Campaign, theta: np.ndarray
     robot = model.robot
     lengths = campaign.readings - theta[model.slices()["offsets"]]
     if campaign.tensions is not None and np.isfinite(model.stiffness):
-        lengths = lengths * (1 + campaign.tensions / model.stiffness)  # stretched back
+        lengths = stretched_length(lengths, campaign.tensions, model.stiffness)  # back
     guesses = [0.5 * (robot.frame_lower + robot.frame_upper), robot.start, robot.goal,
                *sample_static_workspace(robot, 24, np.random.default_rng(0), margin=0.1)]
     mapped = _pose_fit(model).map(campaign.size)

@@ -42,6 +42,7 @@ import functools
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.as_built.cable_law import unstretched_length
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import kinematics
 from cdpr_sym.robot import Robot
@@ -227,10 +228,10 @@ class MeasurementModel:
         q, theta = ca.SX.sym("q", self.n), ca.SX.sym("theta", self.size)
         tension = ca.SX.sym("T", self.m)
         lengths = _lengths(self._geometry(theta), q)
-        if self.unknowns.compliance:
+        if self.unknowns.compliance:  # the law in the compliance 1 / EA it estimates
             lengths = lengths / (1 + tension * theta[self.slices()["compliance"]])
         elif np.isfinite(self.stiffness):
-            lengths = lengths / (1 + tension / self.stiffness)
+            lengths = unstretched_length(lengths, tension, self.stiffness)
         reading = lengths + theta[self.slices()["offsets"]]
         return ca.Function("encoder_reading", [q, theta, tension], [reading],
                            ["q", "theta", "T"], ["reading"])

@@ -49,6 +49,7 @@ import numpy as np
 from cdpr_sym.certify.linear import _TINY, _U, _gamma, _inflate, _mid_rad, enclose_solutions
 from cdpr_sym.certify.poses import pose_inputs
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot.tension_box import TensionBox
 
 #: The smoothed max-min search: sharpness schedule, as multiples of 1 / (T_max - T_min), and
 #: Newton steps per sharpness. The last sharpness leaves the smoothed optimum within
@@ -111,7 +112,8 @@ def farkas_directions(normals: np.ndarray, W: np.ndarray, f: np.ndarray, t_min: 
     set lies farthest outside of (the least capacity margin, Gouttefarde et al. 2011), signed
     so that c . (f - W tau_mid) > 0: normals (poses, facets, n), W (poses, n, m), f (poses,
     n); with a wrench box, J_T (poses, n, k) and its half-widths (k)."""
-    middle, half = 0.5 * (t_min + t_max), 0.5 * (t_max - t_min)
+    box = TensionBox(t_min, t_max)
+    middle, half = box.middle, box.half
     offset = f - middle * W.sum(axis=2)
     size = np.linalg.norm(normals, axis=2)
     size = np.where(size > 0, size, np.inf)
@@ -139,7 +141,8 @@ def interior_tensions(W: np.ndarray, f: np.ndarray, t_min: float, t_max: float
     for any of them.
     """
     poses, n, m = W.shape
-    middle, spread = 0.5 * (t_min + t_max), t_max - t_min
+    box = TensionBox(t_min, t_max)
+    middle, spread = box.middle, box.width
     U, S, Vt = np.linalg.svd(W)
     with np.errstate(divide="ignore", invalid="ignore"):
         y = np.einsum("bij,bi->bj", U, f - middle * W.sum(axis=2)) / S

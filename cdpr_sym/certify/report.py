@@ -64,8 +64,7 @@ def sampled_check(certificate: WorkspaceCertificate, samples: int,
         else:
             spread = 0.0
         if certificate.prop == "assumption-1":  # beta = h - |tau_1 - c|_2 > 0
-            middle = 0.5 * (robot.t_min + robot.t_max)
-            half = 0.5 * (robot.t_max - robot.t_min)
+            middle, half = robot.box.middle, robot.box.half
             feasible[start:start + len(chunk)] = (
                 half - np.linalg.norm(tension - middle, axis=1) > 0)
             continue

@@ -142,7 +142,7 @@ def check_pair_case(robot, tracking_margin: float) -> None:
         raise InvalidCase("robot", f"{robot.name}: pair certificates cover point masses "
                           f"with as many cables as degrees of freedom (n <= 3) so far")
     if isinstance(tracking_margin, bool) or not isinstance(tracking_margin, (int, float)) \
-            or not 0 <= tracking_margin < 0.5 * (robot.t_max - robot.t_min):
+            or not 0 <= tracking_margin < robot.box.half:
         raise InvalidCase("tracking_margin", f"expected a margin in N from 0 to half the "
                           f"tension box, got {tracking_margin!r}")
 

@@ -338,8 +338,7 @@ class StoragePairProof:
         # vectors, so sigma_min(W)^2 <= trace(W^T W) / n = 1, and c along W^-1's top singular
         # direction moves the tensions by |W^-1 c| >= |c|, one of them by >= |c| / sqrt(n),
         # while one of its two margins is at most half the shrunk box; no map is needed there
-        possible = bounds.coupling <= (0.5 * (self.robot.t_max - self.robot.t_min)
-                                       - self.mu) * math.sqrt(self.n)
+        possible = bounds.coupling <= (self.robot.box.half - self.mu) * math.sqrt(self.n)
         inside = (possible & np.all(reach_lower >= self.frame_lower, axis=1)
                   & np.all(reach_upper <= self.frame_upper, axis=1))
         counts = np.array([len(axis) - 1 for axis in self.edges])

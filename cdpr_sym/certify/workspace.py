@@ -574,7 +574,7 @@ def assumption_function(model: SymbolicModel, orientation: np.ndarray) -> ca.Fun
     W = model.structure_matrix(q)
     gravity = model.grad_potential(q)
     determinant = ca.det(W)
-    middle, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
+    middle, half = robot.box.middle, robot.box.half
     spread = 0
     for i in range(model.n):
         replaced = ca.horzcat(*(gravity if j == i else W[:, j] for j in range(model.n)))
@@ -673,7 +673,7 @@ def facet_function(model: SymbolicModel, orientation: np.ndarray,
     robot = model.robot
     position, q = pose_inputs(robot, orientation)
     W = model.structure_matrix(q)
-    mid, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
+    mid, half = robot.box.middle, robot.box.half
     offset = model.grad_potential(q) - W @ ca.DM.ones(model.m) * mid
     J = model.wrench_jacobian(q)
     normals = facet_normals(W)

@@ -57,8 +57,8 @@ class CvxExactBoxDesign:
         self.model, self.design = model, design
         robot = model.robot
         n, n_j = robot.n, robot.n_j
-        self.mid = 0.5 * (robot.t_min + robot.t_max)
-        self.j_bound = 100.0 * (robot.t_max - robot.t_min)
+        self.mid = robot.box.middle
+        self.j_bound = 100.0 * robot.box.width
         self.tau_1, self.tau_2 = cp.Parameter(n, name="tau_1"), cp.Parameter(n, name="tau_2")
         self.tau_pd = cp.Parameter(n, name="tau_pd")
         self.A = cp.Parameter((n, n_j), name="A")

@@ -140,7 +140,7 @@ class _ExactBoxDesign(StatelessLaw):
             r_d: ca.SX) -> ControlLaw:
         parts = tension_parts(model, q, dq, q_goal, k, r_d)
         t_min, t_max = model.robot.t_min, model.robot.t_max
-        mid, n = 0.5 * (t_min + t_max), model.n
+        mid, n = model.robot.box.middle, model.n
         tau_1, tau_2 = parts.tau_1, parts.tau_2_full
         speed = ca.norm_2(dq)
         slow = speed < self.low_speed

@@ -13,10 +13,10 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.checks import positive_number
 from cdpr_sym.distribution import AUTO, distribute
 from cdpr_sym.distribution.closed_form import closed_form
 from cdpr_sym.distribution.interval import feasible_interval
-from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 
 
@@ -67,8 +67,8 @@ def guarded_box(model: SymbolicModel, tau_static: ca.SX, guard: float
     """The box shrunk by ``guard`` N on each side, but never past the static tension
     ``tau_static`` (N, per cable): (lower, upper), N. A pose the box holds stays holdable,
     and a start at rest keeps its static tension as the first command."""
-    robot = model.robot
-    return (ca.fmin(robot.t_min + guard, tau_static), ca.fmax(robot.t_max - guard, tau_static))
+    shrunk = model.robot.box.shrunk(guard)
+    return ca.fmin(shrunk.low, tau_static), ca.fmax(shrunk.high, tau_static)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -93,7 +93,8 @@ def distributed_command(model: SymbolicModel, W: ca.SX, force: ca.SX,
     robot = model.robot
     tau, feasible = distribute(method, W, force, robot.t_min, robot.t_max)
     if guard:
-        inside, fits = distribute(method, W, force, robot.t_min + guard, robot.t_max - guard)
+        shrunk = robot.box.shrunk(guard)
+        inside, fits = distribute(method, W, force, shrunk.low, shrunk.high)
         tau = ca.if_else(fits > 0.5, inside, tau)
     tau, clipped = clip_to_box(model, tau)
     infeasible = feasible < 0.5
@@ -110,8 +111,8 @@ def flag_if(condition: ca.SX, bit: int) -> ca.SX:
 
 def beta_margin(model: SymbolicModel, tau_1: ca.SX) -> ca.SX:
     """beta of (20): (T_M - T_m)/2 - ||tau_1 - (T_m + T_M)/2||_2, N."""
-    t_min, t_max = model.robot.t_min, model.robot.t_max
-    return 0.5 * (t_max - t_min) - ca.norm_2(tau_1 - 0.5 * (t_min + t_max))
+    box = model.robot.box
+    return box.half - ca.norm_2(tau_1 - box.middle)
 
 
 def least_squares_paper(A: ca.SX, b: ca.SX) -> ca.SX:
@@ -192,12 +193,12 @@ def alpha_interval(s0: ca.SX, s1: ca.SX, lower: ca.SX, upper: ca.SX, *,
 FILTER_STAGES = 3
 
 
-def check_positive(field: str, value: float | None, what: str) -> None:
-    """Raise :class:`~cdpr_sym.errors.InvalidCase` (``field``) unless ``value`` is None or
-    a positive finite number (``what`` names it in the message, e.g. "a frequency in Hz")."""
-    if value is not None and (isinstance(value, bool) or not (
-            isinstance(value, (int, float)) and np.isfinite(value) and value > 0)):
-        raise InvalidCase(field, f"expected {what} (> 0) or None, got {value!r}")
+def check_positive(field: str, value: float | None, unit: str) -> None:
+    """Raise :class:`~cdpr_sym.errors.InvalidCase` (``field``) unless ``value`` is None
+    (the option left out) or a positive finite number in ``unit``
+    (:func:`~cdpr_sym.checks.positive_number`)."""
+    if value is not None:
+        positive_number(field, value, unit)
 
 
 def filter_command(tau: ca.SX, stages: ca.SX, cutoff: float, dt: ca.SX) -> tuple[ca.SX, ca.SX]:

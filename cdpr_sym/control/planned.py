@@ -124,7 +124,7 @@ class SmoothReference:
                 or self.samples < 3:
             raise InvalidCase("samples", f"expected at least 3 samples, got {self.samples}")
         if self.command_cutoff != FROM_ROBOT:
-            check_positive("command_cutoff", self.command_cutoff, "a frequency in Hz")
+            check_positive("command_cutoff", self.command_cutoff, "Hz")
         if self.guard != FROM_ROBOT and (
                 isinstance(self.guard, bool) or not (isinstance(self.guard, (int, float))
                                                      and 0 <= self.guard < float("inf"))):
@@ -175,7 +175,7 @@ class SmoothReference:
                 accel.append(ca.solve(W, inertial))
             else:  # Pott's closed form, linear in the force: the same interval test
                 dets.append(model.singularity_measure(W) - SINGULAR_DET)
-                middle = ca.DM.ones(model.m) * 0.5 * (robot.t_min + robot.t_max)
+                middle = ca.DM.ones(model.m) * robot.box.middle
                 pseudo_inverse = W.T @ ca.inv(W @ W.T)
                 static.append(middle + pseudo_inverse @ (model.grad_potential(q_r)
                                                          - W @ middle))
@@ -214,9 +214,9 @@ class SmoothReference:
         chosen_T, chosen_margin = ca.SX(max(self.durations)), ca.SX(-1.0)
         for margin in reversed(self.margins):
             # interval of x = 1 / T^2 (any positive value) keeping a + b x inside the band
-            low, high = alpha_interval(a, b, ca.DM.ones(a.shape[0]) * (robot.t_min + margin),
-                                       ca.DM.ones(a.shape[0]) * (robot.t_max - margin),
-                                       within=(0.0, BIG))
+            band = robot.box.shrunk(margin)
+            low, high = alpha_interval(a, b, ca.DM.ones(a.shape[0]) * band.low,
+                                       ca.DM.ones(a.shape[0]) * band.high, within=(0.0, BIG))
             for T in sorted(self.durations, reverse=True):
                 x = 1.0 / T**2
                 ok = ca.logic_and(ca.logic_and(low <= x, x <= high), slow_enough[T])
@@ -407,9 +407,9 @@ class VirtualReferenceIdaPbc:
                               f"got {self.start_share}")
         if not self.lam >= 0:  # inf allowed: J_d = 0
             raise InvalidCase("lam", f"expected a regularisation >= 0, got {self.lam}")
-        check_positive("observer_rate", self.observer_rate, "a rate in 1/s")
-        check_positive("command_cutoff", self.command_cutoff, "a frequency in Hz")
-        check_positive("goal_stiffness", self.goal_stiffness, "a stiffness in N/m")
+        check_positive("observer_rate", self.observer_rate, "1/s")
+        check_positive("command_cutoff", self.command_cutoff, "Hz")
+        check_positive("goal_stiffness", self.goal_stiffness, "N/m")
 
     def options(self) -> dict[str, Any]:
         return {"delta": self.delta, "goal_stiffness": self.goal_stiffness, "lam": self.lam,

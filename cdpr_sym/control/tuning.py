@@ -249,7 +249,7 @@ def coordinate_limits(robot: Robot, max_rate: float, model: Any = None
         M = np.array(model.functions["mass_matrix"](q))
         per_unit = np.linalg.pinv(W) @ M  # (m, n): tensions per unit acceleration
         largest = np.maximum(largest, np.max(np.abs(per_unit), axis=0))
-    half_box = 0.5 * (robot.t_max - robot.t_min)
+    half_box = robot.box.half
     return max_rate / largest, half_box / largest
 
 

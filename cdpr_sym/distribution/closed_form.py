@@ -19,6 +19,7 @@ from __future__ import annotations
 import casadi as ca
 
 from cdpr_sym.linalg import ldl_solve, weighted_gram
+from cdpr_sym.robot.tension_box import TensionBox
 
 #: Largest residual |W tau - w|_inf, relative to 1 + |w|_inf, of a tension called feasible.
 RESIDUAL = 1e-9
@@ -70,7 +71,7 @@ def _nearest_to_middle(W: ca.SX, gram: ca.SX, w: ca.SX, free: ca.SX, fixed: ca.S
     """The free cables' tension nearest the box's middle with W tau = w, the fixed ones at
     ``fixed``: tau_f = mid + W_f^T (W_f W_f^T)^{-1} (w - W (fixed + mid free)), with
     ``gram`` = W_f W_f^T and W_f = W diag(free) applied as a mask on vectors."""
-    start = fixed + (0.5 * (t_min + t_max)) * free
+    start = fixed + TensionBox(t_min, t_max).middle * free
     # W_f W_f^T is symmetric positive (semi-)definite: LDL^T, a fifth of a symbolic QR's
     # operations; where the free cables stop spanning the wrench space the residual test
     # of the caller decides

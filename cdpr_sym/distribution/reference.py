@@ -15,6 +15,7 @@ import numpy as np
 
 from cdpr_sym.distribution.methods import check_bounds
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot.tension_box import TensionBox
 
 #: Clarabel's tolerances: tight, so the reference is good to well below 1e-6 N.
 SOLVER_OPTIONS = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10}
@@ -46,7 +47,7 @@ def linf_reference(W: np.ndarray, w: np.ndarray, t_min: float, t_max: float
     tension that keeps the largest distance to the box's middle smallest."""
     W, w = _checked(W, w, t_min, t_max)
     tau = cp.Variable(W.shape[1])
-    middle = 0.5 * (t_min + t_max)
+    middle = TensionBox(t_min, t_max).middle
     return _solve(cp.Minimize(cp.norm(tau - middle, "inf")), tau, W, w, t_min, t_max)
 
 

@@ -36,6 +36,8 @@ import dataclasses
 
 import casadi as ca
 
+from cdpr_sym.robot.tension_box import TensionBox
+
 #: A cable whose row of N has a squared length at most this (a row of an orthonormal basis
 #: has at most 1) has a tension the null space does not move: its lines do not exist, and
 #: its tension tau_p,i alone must lie in the box.
@@ -177,7 +179,8 @@ def edge(rows: NullRows, tau_p: ca.SX, i: int, bound: ca.SX | float, t_min: floa
     """
     a = rows.rows[i]
     t = (bound - tau_p[i]) * rows.inverse[i]
-    middle, half = 0.5 * (t_min + t_max), 0.5 * (t_max - t_min)
+    box = TensionBox(t_min, t_max)
+    middle, half = box.middle, box.half
     reach = _reach(t_min, t_max, tau_p.shape[0])
     low, high = ca.SX(-reach), ca.SX(reach)
     for k in range(tau_p.shape[0]):
@@ -205,7 +208,7 @@ def min_norm(W: ca.SX, w: ca.SX, t_min: float, t_max: float) -> tuple[ca.SX, ca.
     """
     tau_p, N = orthogonal_split(W, w)
     rows = null_rows(N)
-    middle = 0.5 * (t_min + t_max)
+    middle = TensionBox(t_min, t_max).middle
     edges = [edge(rows, tau_p, i, ca.if_else(tau_p[i] < middle, t_min, t_max), t_min, t_max)
              for i in range(tau_p.shape[0])]
     origin = ca.logic_and(ca.mmin(tau_p) >= t_min, ca.mmax(tau_p) <= t_max)

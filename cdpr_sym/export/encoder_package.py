@@ -37,6 +37,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.as_built.cable_law import unstretched_length
 from cdpr_sym.as_built.draw import DEFAULT_DRAW
 from cdpr_sym.as_built.hardware import cable_length_range
 from cdpr_sym.codegen import c_identifier, generate_c, render
@@ -334,7 +335,7 @@ def length_bounds(robot: Robot, cable_stiffness: float) -> tuple[np.ndarray, np.
     :data:`RANGE_MARGIN` (:func:`~cdpr_sym.as_built.hardware.cable_length_range`). Sound:
     no pose of the frame has a length outside them."""
     shortest, longest = cable_length_range(robot)
-    low = shortest / (1 + robot.t_max / cable_stiffness) - RANGE_MARGIN
+    low = unstretched_length(shortest, robot.t_max, cable_stiffness) - RANGE_MARGIN
     return np.maximum(low, 0.0), longest + RANGE_MARGIN
 
 

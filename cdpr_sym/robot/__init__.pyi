@@ -9,6 +9,7 @@ from .description import (
     robot_key,
 )
 from .files import PRESET_NAMES, load_robot, preset, resolve_robot, robot_from_dict
+from .tension_box import TensionBox
 
 __all__ = ["COORDINATES", "PITCH_LIMIT", "PRESET_NAMES", "WRENCH_FIELDS", "Robot",
-           "load_robot", "preset", "resolve_robot", "robot_from_dict", "robot_key"]
+           "TensionBox", "load_robot", "preset", "resolve_robot", "robot_from_dict", "robot_key"]

@@ -21,6 +21,7 @@ import numpy as np
 
 from cdpr_sym.errors import InvalidRobot
 from cdpr_sym.robot.target import TARGET_FIELDS, Target
+from cdpr_sym.robot.tension_box import TensionBox
 
 #: Generalized coordinates by kind and dimension: names and units.
 COORDINATES = {
@@ -254,6 +255,11 @@ class Robot:
         """The smallest side of the frame box over the position coordinates, m."""
         sides = (self.frame_upper - self.frame_lower)[: self.dimension]
         return float(sides.min())
+
+    @property
+    def box(self) -> TensionBox:
+        """The tension box [t_min, t_max], N."""
+        return TensionBox(self.t_min, self.t_max)
 
     @property
     def design_target(self) -> Target:

@@ -35,7 +35,7 @@ def classification_function(model: SymbolicModel) -> ca.Function:
     # in the box (m > n: the distribution found a tension there that holds the weight)
     tau_1, held = model.static_distribution(q)
     in_box = held > 0.5
-    mid, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
+    mid, half = robot.box.middle, robot.box.half
     in_ball = ca.norm_2(tau_1 - mid) <= half
     return ca.Function("classify", [q], [tau_1, ca.logic_and(regular, in_box),
                                          ca.logic_and(regular, in_ball)],

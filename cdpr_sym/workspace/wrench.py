@@ -113,7 +113,7 @@ def wrench_function(model: SymbolicModel) -> ca.Function:
     q = ca.SX.sym("q", model.n)
     W = model.structure_matrix(q)
     J = model.wrench_jacobian(q)
-    mid, half = 0.5 * (robot.t_min + robot.t_max), 0.5 * (robot.t_max - robot.t_min)
+    mid, half = robot.box.middle, robot.box.half
     offset = model.grad_potential(q) - W @ ca.DM.ones(model.m) * mid
     column_size = ca.mmax(ca.sqrt(ca.sum1(W * W)))
     scale = column_size ** (model.n - 1)  # the largest |c| columns this size can give

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, ClassVar
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.as_built.cable_law import stretched_length
 from cdpr_sym.as_built.spec import SENSING_PARAMETERS
 from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StartContext, StepBuild
 from cdpr_sym.closed_loop.stops import LOST_POSE
@@ -140,7 +141,7 @@ def read_pose_expression(model: SymbolicModel, reading: ca.SX, guess: ca.SX, res
     the encoders cannot see must be put back before the fit: with ``cable_stiffness`` (EA,
     N; elastic cables on winches, whose encoders count the unstretched length l0) each
     reading becomes the length it has under the tension the model predicts,
-    l = l0 (1 + T / EA), T the static tension at ``guess`` (:func:`predicted_stretch`), and
+    l = l0 (1 + T / EA), T the static tension at ``guess`` (:func:`predicted_tension`), and
     the Gauss-Newton fit counts as converged once its next step is under half a count
     (:func:`reading_step_tolerance`). With m = n the fit is exact and neither applies."""
     # imported where a step with encoders is built: a sweep of the ideal plant never loads
@@ -148,7 +149,7 @@ def read_pose_expression(model: SymbolicModel, reading: ca.SX, guess: ca.SX, res
     from cdpr_sym.model.forward_kinematics import FK_ITERATIONS, forward_kinematics_expression
 
     if cable_stiffness is not None and model.m > model.n:
-        reading = reading * (1 + predicted_stretch(model, guess, cable_stiffness))
+        reading = stretched_length(reading, predicted_tension(model, guess), cable_stiffness)
     q, ok, residual = forward_kinematics_expression(
         model, reading, guess, iterations=FK_ITERATIONS if iterations is None else iterations,
         tolerance=1.0, step_tolerance=reading_step_tolerance(model.n, model.m, resolution))
@@ -156,16 +157,15 @@ def read_pose_expression(model: SymbolicModel, reading: ca.SX, guess: ca.SX, res
                                                          consistency))
 
 
-def predicted_stretch(model: SymbolicModel, q, cable_stiffness):
-    """T / EA (per cable, dimensionless): the strain the model's static tension at ``q``
-    puts on cables of axial stiffness ``cable_stiffness`` (N). A reading taken while the
-    platform moves errs by the dynamic part of the tension over EA (a few 1e-4 on the
-    presets), one taken at rest by the controller's feedback over EA. Numbers or CasADi
-    expressions (``q`` symbolic: the model's SX expression)."""
+def predicted_tension(model: SymbolicModel, q):
+    """The model's static tension at ``q`` (N, per cable): the tension whose stretch
+    :func:`read_pose_expression` puts back. A reading taken while the platform moves errs
+    by the dynamic part of the tension over EA (a strain of a few 1e-4 on the presets), one
+    taken at rest by the controller's feedback over EA. Numbers or CasADi expressions
+    (``q`` symbolic: the model's SX expression)."""
     if isinstance(q, ca.SX):
-        return model.static_tension(q) / cable_stiffness
-    tension = np.array(model.functions["static_tension"](q)).ravel()
-    return tension / cable_stiffness
+        return model.static_tension(q)
+    return np.array(model.functions["static_tension"](q)).ravel()
 
 
 def reading_step_tolerance(n: int, m: int, resolution):

@@ -10,6 +10,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.as_built import Sensing
+from cdpr_sym.as_built.cable_law import unstretched_length
 from cdpr_sym.as_built.geometry import true_geometry_function
 from cdpr_sym.closed_loop.effects.base import elastic_stiffness
 from cdpr_sym.closed_loop.effects.encoders import corrected, raw_reading, read_pose_expression
@@ -94,7 +95,7 @@ class AsBuiltReadout:
         lengths = self.true_lengths(q, plant)
         spec = plant.as_built
         if spec is not None and spec.actuation is not None:
-            lengths = lengths / (1 + tension / spec.actuation.cable_stiffness)
+            lengths = unstretched_length(lengths, tension, spec.actuation.cable_stiffness)
         return lengths
 
     def encoder_reading(self, q: np.ndarray, tension: np.ndarray, plant: Plant) -> np.ndarray:

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, ClassVar
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.as_built import actuation
+from cdpr_sym.as_built import actuation, cable_law
 from cdpr_sym.as_built.spec import ACTUATION_PARAMETERS
 from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StartContext
 from cdpr_sym.model import SymbolicModel
@@ -75,9 +75,9 @@ class Winches(PlantEffect):
     def start_values(self, start: StartContext) -> dict[str, object]:
         """At rest, each cable stretched to carry the static tension T (its payout the
         unstretched length), the drums still, the motors' torque holding them:
-        r (T + T^2 / (2 EA)), the cable's pull on the drum (:func:`actuation.drum_pull`)."""
+        r (T + T^2 / (2 EA)), the cable's pull on the drum (:func:`cable_law.drum_pull`)."""
         drive = start.plant.as_built.actuation
         tension = start.static_tension
-        pull = tension + tension**2 / (2 * drive.cable_stiffness)
+        pull = cable_law.drum_pull(tension, drive.cable_stiffness)
         return {"payout": start.unstretched_lengths(), "drum_speed": np.zeros(start.cables),
                 "motor_torque": drive.drum_radius * pull}
