@@ -2,9 +2,12 @@
 
 from pathlib import Path
 
-from cdpr_sym.studies.paper import run_paper_study
+from cdpr_sym.robot import preset
+from cdpr_sym.studies.interface import StudyRequest
+from cdpr_sym.studies.paper import STUDY
 
 if __name__ == "__main__":
     out = Path(__file__).resolve().parents[1] / "reports" / "paper"
-    for claim in run_paper_study(out):
+    request = StudyRequest(robot=preset("aras3"), source="aras3", progress=False)
+    for claim in STUDY.run(out, request):
         print(f"{claim.verdict:<13} {claim.claim}")

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import importlib
 import math
+import pkgutil
 import re
 import tomllib
 from importlib import resources
@@ -299,7 +299,7 @@ def _stand_in(name: str):
 #: Long work each command would start, replaced by a stand-in.
 HEAVY = ("cdpr_sym.cli.commands.simulate", "cdpr_sym.studies.workspace.run_workspace_study",
          "cdpr_sym.studies.bench.run_bench", "cdpr_sym.sweep.run_sweep",
-         "cdpr_sym.studies.compare.compute_compare_study")
+         "cdpr_sym.studies.compare.CompareStudy.compute")
 
 _TIMING = {"duration", "dt"}
 #: Numeric options per command: (option, fields its refusal may name, values it takes).
@@ -369,8 +369,9 @@ def _check_what_got_through(reached: Reached) -> None:
         assert 0 < config.pairs <= 100_000 and config.seed >= 0
         assert math.isfinite(config.duration) and 0 < config.dt <= config.duration
         assert kwargs["workers"] is None or 0 < kwargs["workers"] <= 256
-    else:
-        assert 0 < kwargs["pairs"] <= 100_000 and kwargs["seed"] >= 0
+    else:  # a study's compute(self, folder, request)
+        request = reached.args_[2]
+        assert 0 < request.pairs <= 100_000 and request.seed >= 0
 
 
 def command_line_property(folder: Path, capsys):
@@ -404,7 +405,7 @@ def no_long_work(monkeypatch, tmp_path):
     """The long work replaced; its modules imported first, so that none of them binds a
     stand-in by its own ``from ... import`` (which would outlive the test)."""
     for target in HEAVY:
-        importlib.import_module(target.rsplit(".", 1)[0])
+        pkgutil.resolve_name(target)  # imports the module defining it
     for target in HEAVY:
         monkeypatch.setattr(target, _stand_in(target))
     monkeypatch.chdir(tmp_path)

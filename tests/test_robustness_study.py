@@ -17,6 +17,7 @@ from cdpr_sym.calibration.drawn import drawn_robot
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.studies import robustness
+from cdpr_sym.studies.interface import StudyRequest
 
 
 def _row(effect, design, *, held=True, meets=False, status="ok", feasible=True, settle=1.0,
@@ -84,7 +85,8 @@ def test_a_small_study_stores_what_its_report_says(aras3, tmp_path, monkeypatch)
     # keep the whole study near a minute on 2 cores
     monkeypatch.setattr(robustness, "CALIBRATED_DESIGNS", ("smooth-lp",))
     monkeypatch.setattr(robustness, "DESIGNS", ("pd-sat", "smooth", "smooth-lp", "ida-winch"))
-    table = robustness.run_robustness_study(aras3, tmp_path, pairs=3, seed=5, progress=False)
+    request = StudyRequest(robot=aras3, source="aras3", pairs=3, seed=5, progress=False)
+    table = robustness.STUDY.run(tmp_path, request)
     rows = json.loads((tmp_path / "runs.json").read_text())
     study = json.loads((tmp_path / "study.json").read_text())
     calibrated = robustness.calibrated_effects(aras3)
@@ -123,7 +125,7 @@ def test_a_small_study_stores_what_its_report_says(aras3, tmp_path, monkeypatch)
                   and r["pair"] == 2)
     assert run.metrics()["final_error"] == pytest.approx(stored["final_error"], rel=1e-9)
     (tmp_path / "report.md").unlink()
-    robustness.write_robustness_report(tmp_path)
+    robustness.STUDY.report(tmp_path)
     report = (tmp_path / "report.md").read_text()
     assert "| smooth |" in report and (tmp_path / "shares.png").stat().st_size > 1000
 

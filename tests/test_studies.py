@@ -11,21 +11,16 @@ import pytest
 
 from cdpr_sym import InvalidCase, Trajectory, controller_by_name, preset, simulate
 from cdpr_sym.cli import main
+from cdpr_sym.studies.interface import StudyRequest
 from cdpr_sym.studies.outline import load_runs, save_runs
-from cdpr_sym.studies.paper import (
-    CONFIRMED,
-    CONTRADICTED,
-    UNTESTED,
-    compute_paper_study,
-    judge,
-    write_paper_report,
-)
+from cdpr_sym.studies.paper import CONFIRMED, CONTRADICTED, STUDY, UNTESTED, judge
 
 
 @pytest.fixture(scope="module")
 def paper_folder(tmp_path_factory):
     folder = tmp_path_factory.mktemp("paper")
-    compute_paper_study(folder, robot=preset("aras3"), duration=2.0, long_duration=3.0)
+    STUDY.compute(folder, StudyRequest(robot=preset("aras3"), source="aras3", progress=False),
+                  duration=2.0, long_duration=3.0)
     return folder
 
 
@@ -51,7 +46,7 @@ def test_loading_a_file_that_is_no_trajectory_is_refused(tmp_path):
 
 @pytest.mark.slow  # ~7 s; the report's text is rebuilt in the quick suite
 def test_paper_report_is_rebuilt_from_the_stored_runs_alone(paper_folder, monkeypatch):
-    claims = write_paper_report(paper_folder)
+    claims = STUDY.report(paper_folder)
     first = (paper_folder / "report.md").read_text()
     (paper_folder / "report.md").unlink()
 
@@ -59,7 +54,7 @@ def test_paper_report_is_rebuilt_from_the_stored_runs_alone(paper_folder, monkey
         raise AssertionError("a report must not simulate")
     monkeypatch.setattr("cdpr_sym.studies.paper.simulate", no_simulation)
     monkeypatch.setattr("cdpr_sym.studies.paper.simulate_adaptive", no_simulation)
-    assert write_paper_report(paper_folder) == claims
+    assert STUDY.report(paper_folder) == claims
     assert (paper_folder / "report.md").read_text() == first
 
 
@@ -67,7 +62,7 @@ def test_paper_report_text_is_rebuilt_without_the_runs(paper_folder, tmp_path, m
     """What git keeps of a paper study (study.json, metrics.json, measured.json) gives the
     same claims and report.md as the runs did."""
     folder = shutil.copytree(paper_folder, tmp_path / "copy")
-    claims = write_paper_report(folder)
+    claims = STUDY.report(folder)
     first = (folder / "report.md").read_text()
     shutil.rmtree(folder / "runs")
     (folder / "report.md").unlink()
@@ -75,7 +70,7 @@ def test_paper_report_text_is_rebuilt_without_the_runs(paper_folder, tmp_path, m
     def no_runs(*args, **kwargs):
         raise AssertionError("the report read the runs")
     monkeypatch.setattr("cdpr_sym.studies.paper.load_runs", no_runs)
-    assert write_paper_report(folder) == claims
+    assert STUDY.report(folder) == claims
     assert (folder / "report.md").read_text() == first
 
 

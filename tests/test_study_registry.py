@@ -3,7 +3,9 @@ options each study declares (its robot, its folder), and the refusals before any
 
 from __future__ import annotations
 
+import inspect
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -28,6 +30,21 @@ def test_the_registry_holds_the_documented_studies_each_under_its_own_name():
         assert isinstance(study, Study) and study.name == name
     with pytest.raises(UnknownName, match="unknown study 'papers'"):
         study_by_name("papers")
+
+
+#: A module function that would be a second way to run a study besides its object.
+SECOND_WAY = re.compile(r"(run|compute|write)_\w*_(study|report)")
+
+
+def test_a_study_runs_only_through_its_object():
+    """No registered study's module defines a public ``run_*_study``, ``compute_*_study``
+    or ``write_*_report`` of its own: ``STUDY.compute``, ``run`` and ``report`` are the
+    one way in (names it imports, such as ``write_study``, are not its own)."""
+    for name in STUDY_NAMES:
+        module = sys.modules[type(study_by_name(name)).__module__]
+        own = [key for key, value in inspect.getmembers(module, inspect.isfunction)
+               if value.__module__ == module.__name__]
+        assert [key for key in own if SECOND_WAY.fullmatch(key)] == [], module.__name__
 
 
 def _choices(*argv: str) -> list[str]:

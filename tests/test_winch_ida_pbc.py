@@ -234,7 +234,8 @@ def test_on_the_ideal_plant_the_goal_is_the_rigid_cables_whatever_stretch_the_wi
     compensate a stretch, drum inertia or friction the plant lacks. With winches modelled
     ten times softer than the default build (EA 1e4 N) and heavy drums with friction, the
     stretch change between start and goal, l_i T_i / EA, is centimetres; the goal must still
-    be reached to a millimetre (the derived gains of these winches are slow) and the first command be the static tension."""
+    be reached to a millimetre (the derived gains of these winches are slow) and the first
+    command be the static tension."""
     aras3 = preset("aras3")
     soft = Actuation(cable_stiffness=1e4, inertia=2e-3, coulomb=0.05)
     model = SymbolicModel(aras3)

@@ -1,8 +1,8 @@
 """Studies: what the toolkit measures and reports, each computed into files first.
 
-``paper``, ``compare``, ``designs``, ``rigid``, ``redundant`` and ``robustness`` are
-:class:`~cdpr_sym.studies.interface.Study` objects, found by name in
+``paper``, ``compare``, ``designs``, ``rigid``, ``redundant``, ``robustness`` and
+``calibration`` are :class:`~cdpr_sym.studies.interface.Study` objects, found by name in
 :mod:`~cdpr_sym.studies.registry` (runs and sweeps stored, condensed into small aggregate
-files, the report rebuilt from those); ``workspace`` maps the static workspace; ``bench``
-times the toolkit.
+files, the report rebuilt from those), each run through its object alone; ``workspace``
+maps the static workspace; ``bench`` times the toolkit.
 """

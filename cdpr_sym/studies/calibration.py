@@ -68,39 +68,27 @@ def least_poses(robot: Robot, kind: str) -> int:
     return estimated_least_poses(MeasurementModel(robot, stiffness=STIFFNESS), kind) + 2
 
 
-def compute_calibration_study(robots: list[Robot], folder: Path, *, seed: int = 0,
-                              progress: bool = True) -> None:
-    """``runs.json`` and ``study.json`` (see the module notes)."""
-    rows: list[dict[str, Any]] = []
-    bounds: list[dict[str, Any]] = []
-    for robot in robots:
-        for kind in kinds(robot):
-            for count in (c for c in COUNTS if c >= least_poses(robot, kind)):
-                if progress:
-                    print(f"calibration: {robot.name} / {kind} / {count} poses",
-                          file=sys.stderr, flush=True)
-                chosen = plan_poses(robot, count, kind=kind, stiffness=STIFFNESS, seed=seed)
-                rng = np.random.default_rng([seed, count])
-                random_bounds = [anchor_accuracy(robot, _random_poses(robot, count, rng),
-                                                 kind=kind, stiffness=STIFFNESS)
-                                 for _ in range(RANDOM_SETS)]
-                bounds.append({"robot": robot.name, "kind": kind, "poses": count,
-                               "chosen": anchor_accuracy(robot, chosen, kind=kind,
-                                                         stiffness=STIFFNESS),
-                               "random": random_bounds})
-                for choice in ("chosen", "random"):
-                    for index in range(CAMPAIGNS):
-                        draw = np.random.default_rng([seed, count, index])
-                        poses = (chosen if choice == "chosen"
-                                 else _random_poses(robot, count, draw))
-                        rows.append({"robot": robot.name, "kind": kind, "poses": count,
-                                     "choice": choice, "campaign": index,
-                                     **_campaign(robot, kind, poses, draw)})
-    folder.mkdir(parents=True, exist_ok=True)
-    write_json(folder / RUNS_FILE, rows)
-    write_study(folder, "calibration", None, seed=seed, robots=[r.as_dict() for r in robots],
-                counts=list(COUNTS), random_sets=RANDOM_SETS, campaigns=CAMPAIGNS,
-                error=ERROR, stiffness=STIFFNESS, bounds=bounds)
+def _pose_count(robot: Robot, kind: str, count: int, seed: int
+                ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """One point of the study, ``count`` poses of a ``kind`` campaign on ``robot``: the
+    anchors' bounds (RMS, m) at the D-optimal poses and at :data:`RANDOM_SETS` random sets,
+    and the rows of :data:`CAMPAIGNS` simulated campaigns at each choice of poses."""
+    chosen = plan_poses(robot, count, kind=kind, stiffness=STIFFNESS, seed=seed)
+    rng = np.random.default_rng([seed, count])
+    random_bounds = [anchor_accuracy(robot, _random_poses(robot, count, rng), kind=kind,
+                                     stiffness=STIFFNESS)
+                     for _ in range(RANDOM_SETS)]
+    bound = {"robot": robot.name, "kind": kind, "poses": count,
+             "chosen": anchor_accuracy(robot, chosen, kind=kind, stiffness=STIFFNESS),
+             "random": random_bounds}
+    rows = []
+    for choice in ("chosen", "random"):
+        for index in range(CAMPAIGNS):
+            draw = np.random.default_rng([seed, count, index])
+            poses = chosen if choice == "chosen" else _random_poses(robot, count, draw)
+            rows.append({"robot": robot.name, "kind": kind, "poses": count, "choice": choice,
+                         "campaign": index, **_campaign(robot, kind, poses, draw)})
+    return bound, rows
 
 
 def _random_poses(robot: Robot, count: int, rng: np.random.Generator) -> np.ndarray:
@@ -201,10 +189,27 @@ class CalibrationStudy(Study):
     runs_note = f"{RUNS_FILE} is not kept in git"
 
     def compute(self, folder: Path, request: StudyRequest) -> None:
+        """``runs.json`` and ``study.json`` (see the module notes) of the request's robot,
+        else of :data:`OWN_ROBOTS`; takes no pairs."""
         robots = ([request.robot] if request.robot is not None
                   else [preset(name) for name in OWN_ROBOTS])
-        compute_calibration_study(robots, folder, seed=request.seed,
-                                  progress=request.progress)
+        rows: list[dict[str, Any]] = []
+        bounds: list[dict[str, Any]] = []
+        for robot in robots:
+            for kind in kinds(robot):
+                for count in (c for c in COUNTS if c >= least_poses(robot, kind)):
+                    if request.progress:
+                        print(f"calibration: {robot.name} / {kind} / {count} poses",
+                              file=sys.stderr, flush=True)
+                    bound, point_rows = _pose_count(robot, kind, count, request.seed)
+                    bounds.append(bound)
+                    rows += point_rows
+        folder.mkdir(parents=True, exist_ok=True)
+        write_json(folder / RUNS_FILE, rows)
+        write_study(folder, "calibration", None, seed=request.seed,
+                    robots=[r.as_dict() for r in robots], counts=list(COUNTS),
+                    random_sets=RANDOM_SETS, campaigns=CAMPAIGNS, error=ERROR,
+                    stiffness=STIFFNESS, bounds=bounds)
 
     def run_files(self, folder: Path) -> list[Path]:
         return [folder / RUNS_FILE]

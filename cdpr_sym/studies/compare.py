@@ -44,35 +44,6 @@ AGREEMENT_STATES = 200
 SWEEP_FILE = "sweep.csv"
 
 
-def run_compare_study(out_dir: Path, *, robot: Robot | str | Path = "aras3",
-                      pairs: int = 200, seed: int = 0, designs: tuple[str, ...] = DESIGNS,
-                      progress: bool = True) -> dict[str, Any]:
-    """Paper case and a seeded sweep for ``designs``, stored; then the report from the files."""
-    compute_compare_study(out_dir, robot=robot, pairs=pairs, seed=seed, designs=designs,
-                          progress=progress)
-    return write_compare_report(out_dir)
-
-
-def compute_compare_study(out_dir: Path, *, robot: Robot | str | Path = "aras3",
-                          pairs: int = 200, seed: int = 0,
-                          designs: tuple[str, ...] = DESIGNS, progress: bool = True) -> None:
-    """Case runs (``runs/``), the sweep (``sweep.csv``) and the fast path against cvxpy."""
-    robot, robot_source = robot_reference(robot)
-    runs = case_runs(robot, designs)
-    save_runs(runs, out_dir)
-    config = SweepConfig(robot=robot_source, controllers=tuple(designs), pairs=pairs, seed=seed)
-    study_sweep(config, out_dir / SWEEP_FILE, progress=progress)
-    write_study(out_dir, "compare", robot, config=config.as_dict(),
-                cvxpy_agreement=_reference_agreement(robot, runs),
-                compute=control_costs(robot, designs))
-
-
-def write_compare_report(out_dir: Path) -> dict[str, Any]:
-    """``report.md`` from the stored files alone (with the stored runs and sweep: figures
-    and ``summary.json`` from them first). Returns the summary."""
-    return STUDY.report(out_dir)
-
-
 def _reference_agreement(robot: Robot, runs: dict[str, Trajectory],
                          samples: int = AGREEMENT_STATES) -> dict[str, dict[str, float]]:
     """Fast path against the cvxpy + Clarabel model on states of the paper-case runs."""
@@ -106,9 +77,19 @@ class CompareStudy(Study):
     name = "compare"
     options = StudyOptions()
 
-    def compute(self, folder: Path, request: StudyRequest) -> None:
-        compute_compare_study(folder, robot=request.source, pairs=request.pairs,
-                              seed=request.seed, progress=request.progress)
+    def compute(self, folder: Path, request: StudyRequest, *,
+                designs: tuple[str, ...] = DESIGNS) -> None:
+        """Case runs of ``designs`` (``runs/``), their seeded sweep (``sweep.csv``) and the
+        fast path against cvxpy (``study.json``), on the request's robot by its source."""
+        robot, robot_source = robot_reference(request.source)
+        runs = case_runs(robot, designs)
+        save_runs(runs, folder)
+        config = SweepConfig(robot=robot_source, controllers=tuple(designs),
+                             pairs=request.pairs, seed=request.seed)
+        study_sweep(config, folder / SWEEP_FILE, progress=request.progress)
+        write_study(folder, "compare", robot, config=config.as_dict(),
+                    cvxpy_agreement=_reference_agreement(robot, runs),
+                    compute=control_costs(robot, designs))
 
     def run_files(self, folder: Path) -> list[Path]:
         return [folder / RUNS / "index.json", folder / SWEEP_FILE]

@@ -15,7 +15,6 @@ from typing import Any
 from cdpr_sym.reporting import plots
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results.store import read_json, write_json
-from cdpr_sym.robot import Robot
 from cdpr_sym.studies.compute import control_costs
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyOptions, StudyRequest
 from cdpr_sym.studies.outline import (
@@ -39,36 +38,6 @@ def _table(scale: float) -> str:
     return f"sweep_mass_{scale:.1f}.csv"
 
 
-def run_designs_study(out_dir: Path, *, robot: Robot | str | Path = "aras3",
-                      pairs: int = 200, seed: int = 0, designs: tuple[str, ...] = DESIGNS,
-                      progress: bool = True) -> dict[str, Any]:
-    """Paper case and seeded sweeps (nominal and ±10 % plant mass) for every design, stored;
-    then the report from the files."""
-    compute_designs_study(out_dir, robot=robot, pairs=pairs, seed=seed, designs=designs,
-                          progress=progress)
-    return write_designs_report(out_dir)
-
-
-def compute_designs_study(out_dir: Path, *, robot: Robot | str | Path = "aras3",
-                          pairs: int = 200, seed: int = 0,
-                          designs: tuple[str, ...] = DESIGNS, progress: bool = True) -> None:
-    """Case runs (``runs/``) and one sweep table per plant mass."""
-    robot, robot_source = robot_reference(robot)
-    save_runs(case_runs(robot, designs), out_dir)
-    for scale in MASS_SCALES:
-        config = SweepConfig(robot=robot_source, controllers=tuple(designs), pairs=pairs,
-                             seed=seed, mass_scale=scale)
-        study_sweep(config, out_dir / _table(scale), progress=progress)
-    write_study(out_dir, "designs", robot, designs=list(designs), pairs=pairs, seed=seed,
-                mass_scales=list(MASS_SCALES), compute=control_costs(robot, designs))
-
-
-def write_designs_report(out_dir: Path) -> dict[str, Any]:
-    """``report.md`` from the stored files alone (with the stored runs and sweeps: figures
-    and ``summary.json`` from them first). Returns the summary."""
-    return STUDY.report(out_dir)
-
-
 def recommended(table: dict[str, dict[str, float]], designs: tuple[str, ...]) -> str:
     """The design meeting the target most often nominally (ties: the better worst case
     with the plant mass off by 10 %)."""
@@ -87,9 +56,19 @@ class DesignsStudy(Study):
     name = "designs"
     options = StudyOptions()
 
-    def compute(self, folder: Path, request: StudyRequest) -> None:
-        compute_designs_study(folder, robot=request.source, pairs=request.pairs,
-                              seed=request.seed, progress=request.progress)
+    def compute(self, folder: Path, request: StudyRequest, *,
+                designs: tuple[str, ...] = DESIGNS) -> None:
+        """Case runs of ``designs`` (``runs/``) and one seeded sweep table of them per
+        plant mass of :data:`MASS_SCALES`, on the request's robot by its source."""
+        robot, robot_source = robot_reference(request.source)
+        save_runs(case_runs(robot, designs), folder)
+        for scale in MASS_SCALES:
+            config = SweepConfig(robot=robot_source, controllers=tuple(designs),
+                                 pairs=request.pairs, seed=request.seed, mass_scale=scale)
+            study_sweep(config, folder / _table(scale), progress=request.progress)
+        write_study(folder, "designs", robot, designs=list(designs), pairs=request.pairs,
+                    seed=request.seed, mass_scales=list(MASS_SCALES),
+                    compute=control_costs(robot, designs))
 
     def run_files(self, folder: Path) -> list[Path]:
         scales = read_study(folder)["mass_scales"]

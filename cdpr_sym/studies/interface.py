@@ -87,6 +87,19 @@ class Study(abc.ABC):
     Subclasses set :attr:`name` and :attr:`options` and write :meth:`compute`,
     :meth:`run_files`, :meth:`aggregate_files`, :meth:`aggregate`, :meth:`render` and
     :meth:`summary_lines`; :meth:`report` and :meth:`run` are the same for every study.
+
+    The study object is the one way to run a study, for the command line and for code::
+
+        study = study_by_name("compare")  # or the module's STUDY
+        request = StudyRequest(robot=preset("aras3"), source="aras3", pairs=20, seed=1)
+        study.compute(folder, request, designs=("l2", "box"))  # runs and study.json
+        result = study.report(folder)  # aggregates, figures and report.md from the files
+        result = study.run(folder, request, designs=("l2", "box"))  # the two in one
+
+    ``compute(folder, request, *, ...)`` takes what every study takes in the
+    :class:`StudyRequest` (robot, pairs, seed, progress), then what only this study takes
+    as keyword-only options, each defaulting to what ``cdpr-sym study`` runs (the paper
+    study's ``duration`` and ``long_duration`` in s, compare's and designs' ``designs``).
     """
 
     name: ClassVar[str]
@@ -96,7 +109,10 @@ class Study(abc.ABC):
 
     @abc.abstractmethod
     def compute(self, folder: Path, request: StudyRequest) -> None:
-        """Simulate and write the per-run files and ``study.json`` into ``folder``."""
+        """Simulate and write the per-run files and ``study.json`` into ``folder``.
+
+        A study with options of its own takes them as keyword-only arguments after
+        ``request``, each with the default ``cdpr-sym study`` runs."""
 
     @abc.abstractmethod
     def run_files(self, folder: Path) -> list[Path]:
@@ -175,9 +191,10 @@ class Study(abc.ABC):
         """The names of the stored files a report of ``folder`` reads."""
         return [STUDY_FILE, *(path.name for path in self.aggregate_files(folder))]
 
-    def run(self, folder: Path, request: StudyRequest) -> Any:
-        """Compute into ``folder``, then report from the files; returns the result."""
-        self.compute(folder, request)
+    def run(self, folder: Path, request: StudyRequest, **options: Any) -> Any:
+        """Compute into ``folder`` (with the study's own keyword ``options``, see
+        :meth:`compute`), then report from the files; returns the result."""
+        self.compute(folder, request, **options)
         return self.report(folder)
 
     def check_folder(self, folder: Path) -> None:

@@ -37,39 +37,12 @@ from cdpr_sym.studies.paper_claims import (
     measure,
 )
 
-__all__ = ["CONFIRMED", "CONTRADICTED", "PARTLY", "STUDY", "UNTESTED", "Claim",
-           "compute_paper_study", "judge", "run_paper_study", "write_paper_report"]
+__all__ = ["CONFIRMED", "CONTRADICTED", "PARTLY", "STUDY", "UNTESTED", "Claim", "judge"]
 
 #: The runs' metrics, and what the claims and the report read off the runs.
 METRICS_FILE, MEASURED_FILE = "metrics.json", "measured.json"
 #: The l2 runs that integrate the same law differently, by the words the report uses.
 INTEGRATORS = {"l2": "RK4 at 1 kHz", "l2-dt1e-4": "RK4 at 10 kHz", "l2-cvodes": "CVODES"}
-
-
-def run_paper_study(out_dir: Path, *, robot: Robot | None = None, duration: float = 10.0,
-                    long_duration: float = 100.0) -> list[Claim]:
-    """Simulate the paper's case, store the runs, then write figures, ``metrics.json`` and
-    ``report.md`` from the stored files. Returns the judged claims."""
-    compute_paper_study(out_dir, robot=robot, duration=duration, long_duration=long_duration)
-    return write_paper_report(out_dir)
-
-
-def compute_paper_study(out_dir: Path, *, robot: Robot | None = None, duration: float = 10.0,
-                        long_duration: float = 100.0, progress: bool = False) -> None:
-    """The runs (``runs/``) and the LS construction gap on the l2 run (``study.json``);
-    with ``progress``, a line on stderr as each run starts (the first ones compile)."""
-    robot = robot or preset("aras3")
-    runs = _simulate_all(robot, duration, long_duration, progress)
-    save_runs(runs, out_dir)
-    l2 = runs["l2"]
-    gap = construction_gap(SymbolicModel(robot), l2.q, l2.dq, l2.q_goal, robot.k, robot.r_d)
-    write_study(out_dir, "paper", robot, construction_gap_N=float(gap.gaps.max()))
-
-
-def write_paper_report(out_dir: Path) -> list[Claim]:
-    """``report.md`` from the stored files alone (with the stored runs: figures,
-    ``metrics.json`` and ``measured.json`` from them first). Returns the judged claims."""
-    return STUDY.report(out_dir)
 
 
 def _simulate_all(robot: Robot, duration: float, long_duration: float,
@@ -135,8 +108,19 @@ class PaperStudy(Study):
     name = "paper"
     options = StudyOptions()
 
-    def compute(self, folder: Path, request: StudyRequest) -> None:
-        compute_paper_study(folder, robot=request.robot, progress=request.progress)
+    def compute(self, folder: Path, request: StudyRequest, *, duration: float = 10.0,
+                long_duration: float = 100.0) -> None:
+        """The runs (``runs/``), each ``duration`` s long but the l2 design's long run of
+        ``long_duration`` s, and the LS construction gap on the l2 run (``study.json``);
+        the request's robot (``aras3`` without one). With progress, a line on stderr as
+        each run starts (the first ones compile)."""
+        robot = request.robot or preset("aras3")
+        runs = _simulate_all(robot, duration, long_duration, request.progress)
+        save_runs(runs, folder)
+        l2 = runs["l2"]
+        gap = construction_gap(SymbolicModel(robot), l2.q, l2.dq, l2.q_goal, robot.k,
+                               robot.r_d)
+        write_study(folder, "paper", robot, construction_gap_N=float(gap.gaps.max()))
 
     def run_files(self, folder: Path) -> list[Path]:
         return [folder / RUNS / "index.json"]

@@ -62,27 +62,6 @@ DURATION, DT = 10.0, 1e-3
 SAME_PAIRS_FILE = "same_pairs.json"
 
 
-def run_redundant_study(out_dir: Path, *, pairs: int = 200, seed: int = 0,
-                        progress: bool = True) -> dict[str, Any]:
-    """Workspaces, same-frame pairs and own-workspace sweeps, stored; then the report."""
-    compute_redundant_study(out_dir, pairs=pairs, seed=seed, progress=progress)
-    return write_redundant_report(out_dir)
-
-
-def compute_redundant_study(out_dir: Path, *, pairs: int = 200, seed: int = 0,
-                            progress: bool = True) -> None:
-    """``workspace.json``, ``same_pairs.json`` and one sweep table per robot."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    write_json(out_dir / "workspace.json", _workspaces(seed))
-    write_json(out_dir / SAME_PAIRS_FILE, _same_pairs(pairs, seed))
-    write_json(out_dir / "interconnection.json", _interconnection(seed))
-    for name, designs in DESIGNS.items():
-        config = SweepConfig(robot=name, controllers=designs, pairs=pairs, seed=seed)
-        study_sweep(config, _sweep_table(out_dir, name), progress=progress)
-    write_study(out_dir, "redundant", None, pairs=pairs, seed=seed,
-                designs={name: list(names) for name, names in DESIGNS.items()})
-
-
 def wrench_box(robot: Robot) -> np.ndarray:
     """The study's external wrench box: force half-widths of :data:`WRENCH_SHARE` of the
     weight (N), then moment half-widths of that times :data:`WRENCH_ARM` (N m)."""
@@ -177,12 +156,6 @@ def _same_pairs(pairs: int, seed: int) -> dict[str, Any]:
     return {"counts": counts, "rows": rows}
 
 
-def write_redundant_report(out_dir: Path) -> dict[str, Any]:
-    """``report.md`` from the stored files alone (with the stored pairs and sweeps:
-    ``summary.json`` from them first). Returns the summary."""
-    return STUDY.report(out_dir)
-
-
 def _median_fallback(table: Path) -> float:
     """The median share of an l2 run's steps in the design's fallback."""
     rows = [row for row in load_table(table)[0] if row["controller"] == "l2"]
@@ -208,8 +181,18 @@ class RedundantStudy(Study):
     runs_note = "its pair runs and sweep tables are not kept in git"
 
     def compute(self, folder: Path, request: StudyRequest) -> None:
-        compute_redundant_study(folder, pairs=request.pairs, seed=request.seed,
-                                progress=request.progress)
+        """``workspace.json``, ``interconnection.json``, ``same_pairs.json`` and one seeded
+        sweep table per robot of :data:`DESIGNS` (the request's robot is not used)."""
+        pairs, seed = request.pairs, request.seed
+        folder.mkdir(parents=True, exist_ok=True)
+        write_json(folder / "workspace.json", _workspaces(seed))
+        write_json(folder / SAME_PAIRS_FILE, _same_pairs(pairs, seed))
+        write_json(folder / "interconnection.json", _interconnection(seed))
+        for name, designs in DESIGNS.items():
+            config = SweepConfig(robot=name, controllers=designs, pairs=pairs, seed=seed)
+            study_sweep(config, _sweep_table(folder, name), progress=request.progress)
+        write_study(folder, "redundant", None, pairs=pairs, seed=seed,
+                    designs={name: list(names) for name, names in DESIGNS.items()})
 
     def run_files(self, folder: Path) -> list[Path]:
         names = read_study(folder)["designs"]

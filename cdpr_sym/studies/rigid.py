@@ -50,39 +50,6 @@ DESIGNS = tuple(name for name, design in CONTROLLERS.items()
                 and name != "nmpc-of")
 
 
-def run_rigid_study(out_dir: Path, *, pairs: int = 200, seed: int = 0,
-                    robots: tuple[str | Path, ...] = ROBOTS, progress: bool = True
-                    ) -> dict[str, Any]:
-    """Case runs, sweeps and checks for each robot (preset names or robot files), stored;
-    then figures and ``report.md`` from the files."""
-    compute_rigid_study(out_dir, pairs=pairs, seed=seed, robots=robots, progress=progress)
-    return write_rigid_report(out_dir)
-
-
-def compute_rigid_study(out_dir: Path, *, pairs: int = 200, seed: int = 0,
-                        robots: tuple[str | Path, ...] = ROBOTS, progress: bool = True) -> None:
-    """Per robot: case runs (``<robot>/runs/``), a sweep (``<robot>_sweep.csv``), the ball
-    share and the LS construction gap (``study.json``)."""
-    measured = {}
-    for spec in robots:
-        robot, source = robot_reference(spec)
-        save_runs(case_runs(robot, DESIGNS), out_dir / robot.name)
-        config = SweepConfig(robot=source, controllers=DESIGNS, pairs=pairs,
-                             seed=seed)
-        study_sweep(config, _sweep_table(out_dir, robot.name), progress=progress)
-        measured[robot.name] = {
-            "robot": robot.as_dict(),
-            "ball_share": frame_shares(robot, np.random.default_rng(seed)),
-            "ls_gap_n": _construction_gap(robot, seed)}
-    write_study(out_dir, "rigid", None, robots=measured, pairs=pairs, seed=seed)
-
-
-def write_rigid_report(out_dir: Path) -> dict[str, Any]:
-    """``report.md`` from the stored files alone (with the stored runs and sweeps: figures
-    and ``summary.json`` from them first). Returns the summary."""
-    return STUDY.report(out_dir)
-
-
 def best_design(sweep: dict[str, dict[str, Any]]) -> str:
     """The design meeting the target most often (ties: the more often feasible)."""
     return max(sweep, key=lambda key: (sweep[key]["meets_target"], sweep[key]["feasible"]))
@@ -119,9 +86,22 @@ class RigidStudy(Study):
     options = StudyOptions(default_robot=None, own_robots=ROBOTS)
 
     def compute(self, folder: Path, request: StudyRequest) -> None:
-        robots = (request.source,) if request.source else ROBOTS
-        compute_rigid_study(folder, pairs=request.pairs, seed=request.seed, robots=robots,
-                            progress=request.progress)
+        """Per robot (the request's by its source, else :data:`ROBOTS`): case runs
+        (``<robot>/runs/``), a seeded sweep (``<robot>_sweep.csv``), the ball share and the
+        LS construction gap (``study.json``)."""
+        measured = {}
+        for spec in (request.source,) if request.source else ROBOTS:
+            robot, source = robot_reference(spec)
+            save_runs(case_runs(robot, DESIGNS), folder / robot.name)
+            config = SweepConfig(robot=source, controllers=DESIGNS, pairs=request.pairs,
+                                 seed=request.seed)
+            study_sweep(config, _sweep_table(folder, robot.name), progress=request.progress)
+            measured[robot.name] = {
+                "robot": robot.as_dict(),
+                "ball_share": frame_shares(robot, np.random.default_rng(request.seed)),
+                "ls_gap_n": _construction_gap(robot, request.seed)}
+        write_study(folder, "rigid", None, robots=measured, pairs=request.pairs,
+                    seed=request.seed)
 
     def run_files(self, folder: Path) -> list[Path]:
         names = read_study(folder)["robots"]

@@ -150,47 +150,6 @@ EFFECTS = (
 )
 
 
-def run_robustness_study(robot: Robot, out_dir: Path, *, pairs: int = 200, seed: int = 0,
-                         progress: bool = True) -> dict[str, Any]:
-    """Run every design under every effect, store the runs, then write the report."""
-    compute_robustness_study(robot, out_dir, pairs=pairs, seed=seed, progress=progress)
-    return write_robustness_report(out_dir)
-
-
-def compute_robustness_study(robot: Robot, out_dir: Path, *, pairs: int = 200, seed: int = 0,
-                             progress: bool = True) -> None:
-    """``runs.json`` and ``study.json`` (see the module notes)."""
-    rng = np.random.default_rng(seed)
-    poses = sample_static_workspace(robot, 2 * pairs, rng, margin=FRAME_MARGIN)
-    starts, goals = poses[:pairs], poses[pairs:]
-    rows, specs = [], {}
-    for effect in EFFECTS:
-        plants = [effect.draw(np.random.default_rng([seed, index, _tag(effect.name)]), robot)
-                  for index in range(pairs)]
-        specs[effect.name] = {"description": effect.description,
-                              "plants": [plant.record() for plant in plants]}
-        for design in DESIGNS:
-            if progress:
-                print(f"robustness: {effect.name} / {design}", file=sys.stderr, flush=True)
-            rows += _effect_rows(robot, design, effect.name, plants, starts, goals)
-    for effect, kind in calibrated_effects(robot).items():
-        if progress:
-            print(f"robustness: {effect}", file=sys.stderr, flush=True)
-        calibrated_rows, calibrations = calibrated_column(robot, effect, kind, starts, goals,
-                                                          seed)
-        rows += calibrated_rows
-        specs[effect] = {"description": _CAMPAIGNS[kind], "calibrations": calibrations}
-    scan = _damping_scan(robot, starts[:SCAN_PAIRS], goals[:SCAN_PAIRS], progress)
-    traces = tension_traces(robot, starts, goals, seed)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    write_json(out_dir / TRACES_FILE, traces, indent=None)
-    write_json(out_dir / RUNS_FILE, rows)
-    # every run's specification makes it about 0.5 MB: on one line, half the indented size
-    write_study(out_dir, "robustness", robot, indent=None, pairs=pairs, seed=seed,
-                designs=list(DESIGNS), duration=DURATION, dt=DT, effects=specs,
-                damping_scan=scan, starts=starts.tolist(), goals=goals.tolist())
-
-
 def tension_traces(robot: Robot, starts: np.ndarray, goals: np.ndarray, seed: int
                    ) -> dict[str, Any]:
     """The true cable tensions over time (every :data:`TRACE_STRIDE` periods) of each of
@@ -480,12 +439,6 @@ def _checked_study(folder: Path) -> dict[str, Any]:
     return study
 
 
-def write_robustness_report(out_dir: Path) -> dict[str, Any]:
-    """``report.md`` from the stored files alone (with the stored runs: ``summary.json``
-    and ``shares.png`` from them first). Returns the summary table."""
-    return STUDY.report(out_dir)
-
-
 def _figure(table: dict[str, Any], path: Path) -> Path:
     """A heat map of the share meeting the target, design by effect."""
     import matplotlib
@@ -587,8 +540,41 @@ class RobustnessStudy(Study):
                         [controller_by_name(name) for name in DESIGNS])
 
     def compute(self, folder: Path, request: StudyRequest) -> None:
-        compute_robustness_study(request.robot, folder, pairs=request.pairs,
-                                 seed=request.seed, progress=request.progress)
+        """``runs.json``, ``tensions.json`` and ``study.json`` of the request's robot (see
+        the module notes)."""
+        robot, pairs, seed, progress = (request.robot, request.pairs, request.seed,
+                                        request.progress)
+        rng = np.random.default_rng(seed)
+        poses = sample_static_workspace(robot, 2 * pairs, rng, margin=FRAME_MARGIN)
+        starts, goals = poses[:pairs], poses[pairs:]
+        rows, specs = [], {}
+        for effect in EFFECTS:
+            plants = [effect.draw(np.random.default_rng([seed, index, _tag(effect.name)]),
+                                  robot) for index in range(pairs)]
+            specs[effect.name] = {"description": effect.description,
+                                  "plants": [plant.record() for plant in plants]}
+            for design in DESIGNS:
+                if progress:
+                    print(f"robustness: {effect.name} / {design}", file=sys.stderr,
+                          flush=True)
+                rows += _effect_rows(robot, design, effect.name, plants, starts, goals)
+        for effect, kind in calibrated_effects(robot).items():
+            if progress:
+                print(f"robustness: {effect}", file=sys.stderr, flush=True)
+            calibrated_rows, calibrations = calibrated_column(robot, effect, kind, starts,
+                                                              goals, seed)
+            rows += calibrated_rows
+            specs[effect] = {"description": _CAMPAIGNS[kind], "calibrations": calibrations}
+        scan = _damping_scan(robot, starts[:SCAN_PAIRS], goals[:SCAN_PAIRS], progress)
+        traces = tension_traces(robot, starts, goals, seed)
+        folder.mkdir(parents=True, exist_ok=True)
+        write_json(folder / TRACES_FILE, traces, indent=None)
+        write_json(folder / RUNS_FILE, rows)
+        # every run's specification makes it about 0.5 MB: on one line, half the
+        # indented size
+        write_study(folder, "robustness", robot, indent=None, pairs=pairs, seed=seed,
+                    designs=list(DESIGNS), duration=DURATION, dt=DT, effects=specs,
+                    damping_scan=scan, starts=starts.tolist(), goals=goals.tolist())
 
     def run_files(self, folder: Path) -> list[Path]:
         return [folder / RUNS_FILE]
