@@ -47,7 +47,7 @@ def _robot_and_design(draw):
 
 
 @pytest.mark.slow
-@settings(max_examples=16, deadline=None, derandomize=True,
+@settings(max_examples=10, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow])
 @given(case=_robot_and_design())
 def test_every_recommended_design_settles_a_random_robots_own_case(case, build_options):
