@@ -48,6 +48,7 @@ def test_the_margin_of_many_tensions_is_the_worst_one():
     tensions = np.array([[3.0, 59.0], [30.0, 10.0]])
     assert box.margin(tensions) == 1.0
     assert box.margin([1.0, 30.0]) == -1.0
+    np.testing.assert_array_equal(box.margin(tensions, axis=1), [1.0, 8.0])
 
 
 def test_the_box_works_on_casadi_symbols_as_on_numbers():

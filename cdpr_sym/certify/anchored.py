@@ -193,7 +193,7 @@ def interior_tensions(W: np.ndarray, f: np.ndarray, t_min: float, t_max: float
                     best_lam = np.where(better[:, None], trial, best_lam)
                 lam = best_lam
         T0 = particular + np.einsum("bij,bi->bj", Z, lam)
-        margin = np.minimum(T0 - t_min, t_max - T0).min(axis=1)
+        margin = TensionBox(t_min, t_max).margin(T0, axis=1)
     return T0, margin, Z
 
 

@@ -176,7 +176,7 @@ def command_cutoff(robot: Robot, dt: Any, drive: Actuation | None = None) -> Any
 
 def guard_band(robot: Robot) -> float:
     """``smooth-lp``'s guard band, N: GUARD_SHARE of the box width."""
-    return GUARD_SHARE * (robot.t_max - robot.t_min)
+    return GUARD_SHARE * robot.box.width
 
 
 def rules() -> dict[str, Any]:

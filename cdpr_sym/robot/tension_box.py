@@ -13,6 +13,8 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+import numpy as np
+
 
 @dataclasses.dataclass(frozen=True)
 class TensionBox:
@@ -51,10 +53,9 @@ class TensionBox:
         """The box with ``margin`` N taken off both sides (widened for a negative one)."""
         return TensionBox(self.low + margin, self.high - margin)
 
-    def margin(self, tension: Any) -> Any:
-        """The distance (N) of ``tension`` (a number or an array of any shape, numpy) to the
-        nearer bound over all its entries: negative outside the box."""
-        import numpy as np
-
+    def margin(self, tension: Any, axis: int | None = None) -> Any:
+        """The distance (N) of ``tension`` (a number or a numpy array) to the nearer bound,
+        the least over all its entries, or along ``axis`` (per row of tensions with
+        ``axis=1``): negative outside the box."""
         tension = np.asarray(tension, dtype=float)
-        return np.minimum(tension - self.low, self.high - tension).min()
+        return np.minimum(tension - self.low, self.high - tension).min(axis=axis)

@@ -82,7 +82,7 @@ def _workspaces(seed: int) -> dict[str, Any]:
         poses = np.random.default_rng(seed).uniform(low, high, (WORKSPACE_POSES, robot.n))
         result = WorkspaceEvaluator(robot).classify(poses)
         tau = result.tau_1[result.feasible]
-        margin = np.minimum(tau.min(axis=1) - robot.t_min, robot.t_max - tau.max(axis=1))
+        margin = robot.box.margin(tau, axis=1)
         wrench = WrenchEvaluator(robot)
         box = wrench_box(robot)
         holdable = wrench.classify(poses, np.zeros_like(box))
