@@ -111,3 +111,14 @@ def test_the_tally_counts_the_robots_reaching_each_target():
     assert (tally["robots"], tally["best_ideal"], tally["best_as_built"],
             tally["nmpc_own_case"], tally["nmpc_pairs"]) == (16, 8, 8, 8, 8)
     json.dumps(tally)
+
+
+def test_a_bodys_frame_is_its_largest_position_side_not_an_angle_range():
+    """zoo(0, 8)'s last robot, a platform whose position sides (0.31-0.51 m) are shorter
+    than its angle ranges (0.8 rad): the report's frame is 0.51 m."""
+    robot = zoo(0, zoo_study.ZOO_COUNT)[-1]
+    sides = robot.frame_upper - robot.frame_lower
+    assert sides[robot.dimension:].max() > sides[: robot.dimension].max()
+    described = zoo_study.describe(robot)
+    assert described["frame_m"] == pytest.approx(0.50645)
+    assert (described["kind"], described["n"], described["m"]) == ("body 3-D", 6, 8)

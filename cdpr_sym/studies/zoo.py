@@ -97,12 +97,13 @@ def _designs(plant: str) -> tuple[str, ...]:
 
 
 def describe(robot: Robot) -> dict[str, Any]:
-    """What the report's robot table shows: kind, cables, mass (kg), the frame's largest
-    side (m) and the tension box (N)."""
+    """What the report's robot table shows: kind, cables, mass (kg), the largest side of
+    the frame box over the position coordinates (m; a body's angle ranges are not sides)
+    and the tension box (N)."""
     kind = ("point mass" if robot.rotations == 0 else "body") + f" {robot.dimension}-D"
+    sides = (robot.frame_upper - robot.frame_lower)[: robot.dimension]
     return {"kind": kind, "n": robot.n, "m": robot.m, "mass_kg": robot.mass,
-            "frame_m": float(np.max(robot.frame_upper - robot.frame_lower)),
-            "box_n": [robot.t_min, robot.t_max]}
+            "frame_m": float(sides.max()), "box_n": [robot.t_min, robot.t_max]}
 
 
 def derived_gains(robot: Robot) -> dict[str, Any]:
@@ -179,11 +180,11 @@ def best_share(tables: dict[str, tuple[list[dict[str, Any]], dict[str, Any]]],
 
 
 def _aggregate_robot(folder: Path, name: str, study: dict[str, Any]) -> dict[str, Any]:
-    """One robot's shares per plant and design, and its best-of share per plant."""
+    """One robot's description (:func:`describe` of its preset or its file in
+    ``robots/``), its target, shares per plant and design, and best-of share per plant."""
     refused = study["refused"][name]
     shares: dict[str, Any] = {}
     best: dict[str, Any] = {}
-    target = None
     for plant in PLANTS:
         tables = {}
         for design in _designs(plant):
@@ -194,7 +195,6 @@ def _aggregate_robot(folder: Path, name: str, study: dict[str, Any]) -> dict[str
                                           pairs=design_pairs(design, study["pairs"]),
                                           seed=study["seed"])
             summary = summarise_sweep(rows, meta)[design]
-            target = sweep_target(meta)
             shares.setdefault(plant, {})[design] = {
                 key: summary.get(key) for key in ("runs", "meets_target", "held",
                                                   "meets_target_held", "median_settle_s",
@@ -202,8 +202,10 @@ def _aggregate_robot(folder: Path, name: str, study: dict[str, Any]) -> dict[str
             if design in BEST_OF:
                 tables[design] = (rows, meta)
         best[plant] = best_share(tables, held_only=plant == "as_built") if tables else None
-    return {**study["robots"][name], "shares": shares, "best": best,
-            "target": target[0].describe(target[1]) if target else None}
+    source = study["sources"][name]
+    robot = preset(source) if source in PRESET_NAMES else load_robot(folder / source)
+    return {**study["robots"][name], **describe(robot), "shares": shares, "best": best,
+            "target": robot.design_target.describe(DT)}
 
 
 def _tally(robots: dict[str, dict[str, Any]]) -> dict[str, Any]:
@@ -240,8 +242,7 @@ class ZooStudy(Study):
         robots, refused = {}, {}
         for name, source in sources.items():
             robot = preset(name) if name in PRESET_NAMES else load_robot(source)
-            robots[name] = {**describe(robot), "gains": derived_gains(robot),
-                            "own_case": own_case(robot)}
+            robots[name] = {"gains": derived_gains(robot), "own_case": own_case(robot)}
             refused[name] = _sweeps(folder, name, source, pairs, seed, request.progress)
         write_study(folder, "zoo", None, pairs=pairs, seed=seed,
                     nmpc_pairs=design_pairs("nmpc", pairs), robots=robots, refused=refused,
