@@ -7,6 +7,7 @@ import csv
 import dataclasses
 import json
 import zlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,6 +28,7 @@ from cdpr_sym.closed_loop import get_simulator
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.sweep import SweepConfig, run_sweep
+from cdpr_sym.sweep.config import draw_pairs
 
 
 def test_pair_p_draws_mass_then_offsets_from_its_own_seeded_generator():
@@ -175,3 +177,35 @@ def test_plant_encoder_offsets_must_fit_the_robot():
     spec = AsBuilt(sensing=Sensing(), encoder_offsets=[0.001] * 4)
     with pytest.raises(InvalidCase, match="expected 3 values, got 4"):
         spec.check_robot(3, 3)
+
+
+ZOO_ROBOTS = Path(__file__).parents[1] / "reports" / "zoo" / "robots"
+
+
+def test_the_default_draw_integrates_a_light_robots_winches_with_the_substeps_they_need():
+    # a 0.27 kg robot whose scaled drums weigh 16 g on their cables: at 1 kHz its cables
+    # and drums move at up to ~5,000 1/s, more than two RK4 substeps can follow
+    from cdpr_sym.robot import resolve_robot
+
+    robot = resolve_robot(str(ZOO_ROBOTS / "zoo0_005_point3_m4.toml"))
+    config = SweepConfig(robot=str(ZOO_ROBOTS / "zoo0_005_point3_m4.toml"),
+                         controllers=["ida-winch"], pairs=40, seed=0, as_built="default")
+    starts, goals = draw_pairs(robot, config)
+    fixed = AsBuiltDraw(substeps=2)
+    assert DEFAULT_DRAW.draw_pair(robot, 0, 1)[1].substeps == 3
+    for draw, refused in ((fixed, True), (DEFAULT_DRAW, False)):
+        drawn = drawn_robot(robot, draw, 0, 1)
+        simulator = get_simulator(drawn.model, controller_by_name("ida-winch"),
+                                  as_built=drawn.plant.as_built.structure())
+        if refused:
+            with pytest.raises(InvalidCase, match="substeps"):
+                simulator.run(starts[1], goals[1], robot.k, robot.r_d, duration=0.05, dt=1e-3,
+                              plant=drawn.plant)
+        else:
+            run = simulator.run(starts[1], goals[1], robot.k, robot.r_d, duration=0.05, dt=1e-3,
+                                plant=drawn.plant)
+            assert run.stop_reason is None
+    # the presets' builds keep the two substeps they were checked with; a file's count stays
+    assert all(DEFAULT_DRAW.draw_pair(preset(name), 0, 0)[1].substeps == 2
+               for name in ("aras3", "spatial6", "ipanema8"))
+    assert AsBuiltDraw(substeps=5).draw_pair(robot, 0, 1)[1].substeps == 5

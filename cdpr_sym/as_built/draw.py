@@ -10,7 +10,7 @@ specification; a TOML file (:func:`load_as_built_draw`) states another:
     mass_error = 0.10      # plant mass uniform in model mass x [0.9, 1.1]
     anchor_error = 0.005   # each anchor coordinate uniform in +-5 mm
     delay = 1              # control periods
-    substeps = 2
+    substeps = 2           # leave out: the fewest the robot's winches need (substeps_for)
     torque_margin = 1.5    # winch torque limit r T_max x 1.5 (when [actuation] gives none)
 
     [actuation]            # the fields of Actuation; leave the table out for rigid cables
@@ -43,7 +43,7 @@ import numpy as np
 
 from cdpr_sym.as_built.spec import MAX_DELAY, Actuation, AsBuilt, Sensing
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.robot import Robot
+from cdpr_sym.robot import Robot, robot_key
 
 #: The tag that seeds the "as built" draws apart from other draws of the same pair.
 DRAW_TAG = zlib.crc32(b"as built")
@@ -99,8 +99,9 @@ class AsBuiltDraw:
         Encoders (None: exact state). Default :class:`FromRobot`.
     delay : int
         Command delay, control periods. Default 1.
-    substeps : int
-        RK4 steps per control period. Default 2.
+    substeps : int or None
+        RK4 steps per control period. None (default): from the robot
+        (:func:`substeps_for`: the fewest, at least 2, that follow its winches at 1 kHz).
     torque_margin : float
         Where ``actuation`` has no torque limit: r T_max times this. Default 1.5.
     """
@@ -110,7 +111,7 @@ class AsBuiltDraw:
     actuation: Actuation | FromRobot | None = dataclasses.field(default_factory=FromRobot)
     sensing: Sensing | FromRobot | None = dataclasses.field(default_factory=FromRobot)
     delay: int = 1
-    substeps: int = 2
+    substeps: int | None = None
     torque_margin: float = 1.5
 
     def __post_init__(self) -> None:
@@ -123,7 +124,7 @@ class AsBuiltDraw:
                 and math.isfinite(self.torque_margin)):
             raise InvalidCase("torque_margin", f"expected a positive factor, got "
                               f"{self.torque_margin!r}")
-        AsBuilt(delay=self.delay, substeps=self.substeps)  # checks both
+        AsBuilt(delay=self.delay, substeps=self.substeps or 2)  # checks both
 
     def drive(self, robot: Robot) -> Actuation | None:
         """The winches of ``robot``'s draws (scaled from it where the draw states none): a
@@ -147,9 +148,11 @@ class AsBuiltDraw:
         """One robot as built: (mass scale, :class:`AsBuilt`)."""
         mass_scale = float(rng.uniform(1 - self.mass_error, 1 + self.mass_error))
         offsets = rng.uniform(-self.anchor_error, self.anchor_error, (robot.m, robot.dimension))
-        return mass_scale, AsBuilt(actuation=self.drive(robot), sensing=self.encoders(robot),
+        drive = self.drive(robot)
+        substeps = self.substeps if self.substeps is not None else substeps_for(robot, drive)
+        return mass_scale, AsBuilt(actuation=drive, sensing=self.encoders(robot),
                                    delay=self.delay, anchor_offsets=offsets,
-                                   substeps=self.substeps)
+                                   substeps=substeps)
 
     def draw_pair(self, robot: Robot, seed: int, pair: int) -> tuple[float, AsBuilt]:
         """Pair ``pair``'s draw of a sweep or study seeded ``seed``."""
@@ -161,6 +164,69 @@ class AsBuiltDraw:
                 "actuation": _record(self.actuation), "sensing": _record(self.sensing),
                 "delay": self.delay, "substeps": self.substeps,
                 "torque_margin": self.torque_margin}
+
+
+#: The control period (s) :func:`substeps_for` sizes the substeps for: the toolkit's 1 kHz
+#: (a draw does not know the period of the runs it serves; a run at another period is
+#: checked again and refused in one line where the substeps do not suffice).
+SUBSTEP_PERIOD = 1e-3
+#: Substeps at least: the count the as-built plant was first checked with (the presets need
+#: no more).
+FEWEST_SUBSTEPS = 2
+#: Poses of the static workspace, besides the robot's start and goal, at which the fastest
+#: rate is taken, and the headroom over the largest found (a run's poses are others).
+RATE_POSES, RATE_HEADROOM = 32, 1.25
+#: The share of the frame's size left out on each side where those poses are drawn (the
+#: sweeps' pair draw keeps the same margin).
+FRAME_MARGIN = 0.05
+
+
+def substeps_for(robot: Robot, actuation: Actuation | None) -> int:
+    """The fewest RK4 substeps per 1 ms period (at least :data:`FEWEST_SUBSTEPS`) with
+    which the taut cables and drums of ``robot`` on ``actuation`` stay inside RK4's
+    stability region: rho h <= TORQUE_LOOP_STEP_LIMIT with rho the fastest rate
+    (:func:`cdpr_sym.as_built.stability.fastest_rate`) at the robot's start and goal and at
+    :data:`RATE_POSES` poses of its static workspace (seeded), times :data:`RATE_HEADROOM`.
+    A 0.27 kg robot on its scaled winches (drums of 16 g at the cable) moves at up to
+    5,700 1/s and needs 3; with a fixed 2, 3 of its 40 pairs were refused. None (rigid
+    cables): the fewest."""
+    if actuation is None:
+        return FEWEST_SUBSTEPS
+    key = (robot_key(robot), actuation)
+    if key not in _SUBSTEPS:
+        _SUBSTEPS[key] = _substeps_for(robot, actuation)
+    return _SUBSTEPS[key]
+
+
+_SUBSTEPS: dict[tuple[str, Actuation], int] = {}
+
+
+def _substeps_for(robot: Robot, actuation: Actuation) -> int:
+    from cdpr_sym.as_built.spec import SUBSTEP_RANGE, TORQUE_LOOP_STEP_LIMIT
+    from cdpr_sym.as_built.stability import fastest_rate
+    from cdpr_sym.model import SymbolicModel
+
+    model = SymbolicModel(robot)
+    poses = [robot.start, robot.goal, *_held_poses(robot, model)]
+    rate = max(fastest_rate(model, actuation, np.asarray(q, dtype=float)) for q in poses)
+    needed = RATE_HEADROOM * rate * SUBSTEP_PERIOD / TORQUE_LOOP_STEP_LIMIT
+    if not math.isfinite(needed):
+        return FEWEST_SUBSTEPS  # the run's own check names the implausible number
+    return int(min(max(FEWEST_SUBSTEPS, math.ceil(needed)), SUBSTEP_RANGE[1]))
+
+
+def _held_poses(robot: Robot, model: Any) -> np.ndarray:
+    """Up to :data:`RATE_POSES` poses of the frame shrunk by :data:`FRAME_MARGIN` of its
+    size on each side (uniform, seeded) that the model holds at rest with tensions in the
+    box: where runs start and end (sweeps draw their pairs there)."""
+    rng = np.random.default_rng(0)
+    lower = np.asarray(robot.frame_lower, dtype=float)
+    upper = np.asarray(robot.frame_upper, dtype=float)
+    inset = FRAME_MARGIN * (upper - lower)
+    lower, upper = lower + inset, upper - inset
+    tries = rng.uniform(lower, upper, (20 * RATE_POSES, robot.n))
+    held = np.array(model.static_distribution_function.map(len(tries))(tries.T)[1]).ravel()
+    return tries[held > 0.5][:RATE_POSES]
 
 
 def _record(part: Any) -> dict[str, Any] | None:
