@@ -56,7 +56,7 @@ def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
                      "torque_limit_Nm": drive.torque_limit,
                      "longest_cable_m": tuning.longest_cable(robot)},
         "drum_cable_mode_hz": mode, "command_corner_hz": corner,
-        "ida_winch": winch.as_dict(),
+        "ida_winch": winch.as_dict(), "platform_share": tuning.platform_share(robot),
         "case": {"k": robot.k.tolist(), "r_d": robot.r_d.tolist(),
                  "source": "the robot file" if stated else "derived",
                  "derived_k": derived_k.tolist(), "derived_r_d": derived_r_d.tolist()},

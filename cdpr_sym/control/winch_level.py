@@ -137,14 +137,15 @@ class WinchIdaPbc:
     stiffness : float or None
         k_p, N/m of cable: the motor spring shaping the energy in l0. None (default): from
         the robot (:func:`cdpr_sym.control.tuning.winch_gains`: the platform's mass on it
-        a mode at a fourteenth of the command path's corner; 503.5 N/m on the paper's
-        robot, fifty times softer than a 4 m default cable, so the platform rides on the
-        motor springs in series with the stiff cables). A run refuses one no loop sampled
+        a mode at a seventh of the command path's corner, a fourteenth with m > n cables,
+        the fastest mode below a sixth; 1,276 N/m on the paper's robot, twenty times softer
+        than a 4 m default cable, so the platform rides on the motor springs in series with
+        the stiff cables). A run refuses one no loop sampled
         at its period can hold (:meth:`check_period`).
     damping : float or None
         k_d, N s/m of cable, >= 0: the damping injected on the drum velocities (0 leaves the
         storage constant on a lossless plant). None (default): a damping ratio of 0.45 on
-        that mode (40.4 N s/m on the paper's robot); bounded as k_p is.
+        that mode (63.4 N s/m on the paper's robot); bounded as k_p is.
     drive : Actuation or None
         The controller's model of the winches (EA, drum radius and inertia, friction); the
         plant's may differ. None (default): the robot's default build
@@ -152,7 +153,7 @@ class WinchIdaPbc:
     integral : float or None
         k_i, N/(m s), >= 0: integral action on the length error, which removes the offset a
         weight error leaves on the soft motor spring (held while the command is clipped).
-        None (default): a corner a twentieth of the mode's (282 N/(m s) on the paper's
+        None (default): a corner a twentieth of the mode's (1,431 N/(m s) on the paper's
         robot).
     rate_cutoff : float
         Hz: the drum speeds are the encoders' difference quotient through a first-order
@@ -210,8 +211,8 @@ class WinchIdaPbc:
         k_p dt^2 / m >= :data:`SAMPLED_STIFFNESS_LIMIT` or k_d dt / m >=
         :data:`SAMPLED_DAMPING_LIMIT`, m = J / r^2 + M (see those constants). At 1 kHz on
         aras3 (4 kg) the limits are 1.6e7 N/m and 8,200 N s/m. Gains from the robot keep
-        k_p dt^2 / M <= (2 pi / 560)^2 and k_d dt / M <= 0.9 (2 pi / 560) by their rule (a
-        mode at most f_s / 560): they are not checked. The drive is the caller's, or the
+        k_p dt^2 / M <= (2 pi / 280)^2 and k_d dt / M <= 0.9 (2 pi / 280) by their rule (a
+        mode at most f_s / 280): they are not checked. The drive is the caller's, or the
         reference build's (the robot's scaled one is heavier still, so the limits only grow).
         """
         drive = self.drive or Actuation()
