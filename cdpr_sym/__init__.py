@@ -1,10 +1,12 @@
 """cdpr_sym: symbolic modelling, generated C and tension-feasible control of CDPRs.
 
-The package follows the flow of the work, one folder a stage: ``robot`` (the description)
-→ ``model`` (CasADi) → ``codegen`` (generated C) → ``control`` (the laws) → ``results``
-(trajectories and their files) → ``closed_loop`` (simulation) → ``workspace``
-→ ``calibration`` (the geometry as built, from measurements) → ``sweep``
-→ ``reporting``, ``studies``, ``export`` → ``cli``.
+The package follows the flow of the work, one folder a stage, each importing only the ones
+before it: ``robot`` (the description) → ``linalg`` → ``distribution`` (tensions) →
+``model`` (CasADi) → ``as_built`` (the real robot's parts) → ``codegen`` (generated C) →
+``control`` (the laws) → ``results`` (trajectories and their files) → ``closed_loop``
+(simulation) → ``workspace`` → ``certify`` (interval proofs) → ``calibration`` (the geometry
+as built, from measurements) → ``sweep`` → ``reporting`` → ``export`` → ``studies`` →
+``cli``.
 """
 
 import importlib

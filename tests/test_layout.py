@@ -8,6 +8,7 @@ import). The robot description imports no CasADi.
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -110,3 +111,26 @@ def test_the_command_line_reaches_the_studies_through_the_registry():
         studies = {name for name in _imports(path, "cdpr_sym.cli")
                    if name.startswith("cdpr_sym.studies")}
         assert studies <= CLI_REACHES, (path.name, studies - CLI_REACHES)
+
+
+def _flattened() -> list[str]:
+    return [name for names in STAGES for name in names
+            if name not in ("__main__", "__init__")]
+
+
+def test_the_design_pages_table_lists_the_stages_in_their_order():
+    """docs/design.md's table of folders, read top to bottom, is STAGES (the ground modules
+    on its first row)."""
+    page = (PACKAGE.parent / "docs" / "design.md").read_text()
+    rows = [line for line in page.splitlines() if line.startswith("| `")]
+    listed = [re.sub(r"(/|\.py)$", "", name)
+              for row in rows for name in re.findall(r"`([\w_]+(?:/|\.py))`", row.split("|")[1])]
+    assert listed == _flattened()
+
+
+def test_the_package_docstring_names_the_stages_in_their_order():
+    import cdpr_sym
+
+    named = re.findall(r"``(\w+)``", cdpr_sym.__doc__)
+    assert named == [name for name in _flattened() if name not in ("errors", "version",
+                                                                  "checks")]

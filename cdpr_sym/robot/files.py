@@ -1,4 +1,4 @@
-"""Robot files: the TOML layout of a robot (README, "Robot files"), presets and loading."""
+"""Robot files: the TOML layout of a robot (docs/guide/tour.md, "Robot files"), presets and loading."""
 
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ MAX_ROBOT_FILE_BYTES = 1 << 20
 
 
 def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
-    """Build a :class:`Robot` from the robot-file layout (README, "Robot files")."""
+    """Build a :class:`Robot` from the robot-file layout (docs/guide/tour.md, "Robot files")."""
     _check_known_fields(data, source)
     body = data.get("body", {})
     wrench = data.get("wrench", {})
@@ -159,7 +159,7 @@ def load_robot(path: str | Path) -> Robot:
     Parameters
     ----------
     path : str or Path
-        A TOML file in the robot-file layout (README, "Robot files").
+        A TOML file in the robot-file layout (docs/guide/tour.md, "Robot files").
 
     Returns
     -------
@@ -279,7 +279,7 @@ def _toml_rows(rows: list[list[float]]) -> str:
 
 
 def robot_file_text(robot: Robot, *, comment: str = "") -> str:
-    """The robot-file TOML of ``robot`` (README, "Robot files"): :func:`load_robot` reads
+    """The robot-file TOML of ``robot`` (docs/guide/tour.md, "Robot files"): :func:`load_robot` reads
     it back into an equal robot. ``comment`` (lines of text) heads the file as ``#`` lines."""
     data = robot.as_dict()
     lines = [f"# {line}" for line in comment.splitlines()]
