@@ -18,7 +18,7 @@ import time
 import casadi as ca
 import numpy as np
 import pytest
-from tools import STRICT, cmake_build, json_lines, output_of
+from tools import STRICT, built_copy, cmake_build, json_lines, output_of
 from tools import run as _run
 from tools import tool as _tool
 
@@ -283,13 +283,7 @@ def test_each_guard_test_fails_when_its_check_is_removed(winch_package, tmp_path
     assert set(tests_of) == set(FAULTS)
     source = result.out_dir / f"{result.prefix}.c"
     original = source.read_text()
-    copy = tmp_path / "package"
-    copy.mkdir()
-    for path in result.out_dir.iterdir():
-        if path.is_file():
-            (copy / path.name).write_text(path.read_text())
-    build = tmp_path / "build"
-    cmake_build(copy, build)
+    copy, build = built_copy(result.out_dir, tmp_path)
     for index, (fault, names) in enumerate(tests_of.items()):
         flag = f"found |= {result.prefix.upper()}_FAULT_{fault.upper()}"
         assert flag in original

@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 import pytest
-from tools import cmake_build, json_lines, output_of
+from tools import built_copy, cmake_build, json_lines, output_of
 from tools import run as _run
 from tools import tool as _tool
 
@@ -169,12 +169,7 @@ def test_each_safety_mechanism_removed_fails_a_test(winch_package, tmp_path):
     upper = result.prefix.upper()
     source = result.out_dir / f"{result.prefix}.c"
     original = source.read_text()
-    copy = tmp_path / "package"
-    copy.mkdir()
-    for path in result.out_dir.iterdir():
-        if path.is_file():
-            (copy / path.name).write_text(path.read_text())
-    build = cmake_build(copy, tmp_path / "build")
+    copy, build = built_copy(result.out_dir, tmp_path)
     watchdog = f"found |= {upper}_FAULT_GOAL"
     cases = dict(MUTATIONS)
     # the old package: the stale pose and no watchdog end far from the goal with status 0

@@ -43,6 +43,17 @@ def cmake_build(source: Path, build: Path) -> Path:
     return build
 
 
+def built_copy(package: Path, root: Path) -> tuple[Path, Path]:
+    """A copy of the files of the exported ``package`` in ``root / "package"`` (to be
+    changed by a test), built with CMake into ``root / "build"``: (copy, build)."""
+    copy = root / "package"
+    copy.mkdir()
+    for path in package.iterdir():
+        if path.is_file():
+            (copy / path.name).write_text(path.read_text())
+    return copy, cmake_build(copy, root / "build")
+
+
 def json_lines(text: str) -> list[dict]:
     """The JSON objects of ``text``'s lines that start with ``{``."""
     return [json.loads(line) for line in text.splitlines() if line.startswith("{")]
