@@ -271,8 +271,9 @@ def test_a_simulator_without_a_rate_limit_refuses_a_rate_limited_plant(planar2, 
         simulator.run(planar2.start, planar2.goal, planar2.k, planar2.r_d, duration=0.01,
                       dt=1e-3, plant=Plant(rate_limit=600.0))
     assert raised.value.field == "plant"
-    assert str(raised.value).endswith("a rate-limited plant needs a simulator built with "
-                                      "rate_limited=True (simulate() chooses it)")
+    assert str(raised.value).endswith("this simulator's step is built for the ideal plant, "
+                                      "the plant is a rate-limited plant (simulate() "
+                                      "chooses the step)")
 
 
 def test_a_compiled_library_is_named_after_robot_and_controller(planar2, build_options):

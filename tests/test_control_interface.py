@@ -88,8 +88,9 @@ def test_first_smooth_command_at_rest_is_the_static_tension(aras3, aras3_model):
     assert plan.size1_out(0) == CONTROLLERS["smooth"].memory_size(SymbolicModel(aras3))
 
 
-#: What the tour (docs/guide/tour.md) says each design supports beyond its law: the designs for robots with
-#: more cables than degrees of freedom, and the one that optimises at its own rate.
+#: What the tour (docs/guide/tour.md) says each design supports beyond its law: the designs
+#: for robots with more cables than degrees of freedom, and the one that optimises at its
+#: own rate.
 ANY_CABLES = {"pd-td", "smooth", "smooth-lp", "l2", "ida-winch", "nmpc", "nmpc-sqp", "nmpc-ipopt",
               "nmpc-of"}
 SAMPLED = {"nmpc", "nmpc-sqp", "nmpc-ipopt", "nmpc-of"}

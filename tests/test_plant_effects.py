@@ -16,9 +16,10 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-from cdpr_sym.as_built import AsBuiltStructure
+from cdpr_sym.as_built import Actuation, AsBuilt, AsBuiltStructure, Sensing
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.closed_loop.effects import REGISTRY, PlantEffect, plant_effects
+from cdpr_sym.closed_loop.plant_kind import PlantKind
 from cdpr_sym.closed_loop.step import plant_layout, step_function
 from cdpr_sym.control import CONTROLLERS
 from cdpr_sym.model import SymbolicModel
@@ -44,7 +45,7 @@ def test_every_effect_module_is_registered():
 @pytest.mark.parametrize("structure", [
     AsBuiltStructure(), AsBuiltStructure(actuation=True, sensing=True, delay=2, anchors=True)])
 def test_the_as_built_layout_is_the_effects_fields_in_registry_order(structure, aras3_model):
-    effects = plant_effects(as_built=structure)
+    effects = plant_effects(PlantKind(as_built=structure))
     assert [type(effect) for effect in effects] == [
         kind for kind in REGISTRY if any(type(effect) is kind for effect in effects)]
     layout = plant_layout(aras3_model, CONTROLLERS["smooth"], effects)
@@ -108,3 +109,23 @@ def test_a_new_effect_composes_with_the_step(aras3, build_options):
     np.testing.assert_allclose(falling[model.n: 2 * model.n], dq + gravity * dt, atol=1e-15)
     np.testing.assert_allclose(falling[: model.n], q + dq * dt + 0.5 * gravity * dt ** 2,
                                atol=1e-15)
+
+
+@pytest.mark.parametrize("plant, effects", [
+    (Plant(), []),
+    (Plant(mass_scale=1.1, slack=True), []),
+    (Plant(rate_limit=600.0), ["RateLimit"]),
+    (Plant(as_built=AsBuilt(actuation=Actuation(), sensing=Sensing(), delay=2,
+                            anchor_offsets=np.zeros((3, 3)))),
+     ["TrueCables", "Winches", "Delay", "Encoders", "AnchorErrors"]),
+    (Plant(as_built=AsBuilt(actuation=None, sensing=None, delay=0)), ["TrueCables", "Delay"]),
+])
+def test_a_plant_names_its_kind_and_its_kind_gives_the_effects(plant, effects):
+    """The kind holds what changes the step's code (a rate limit, the as-built structure),
+    never the numbers, and the registry turns it into the effects, in layout order."""
+    assert [type(effect).__name__ for effect in plant_effects(plant.kind)] == effects
+    numbers_apart = dataclasses.replace(plant, mass_scale=0.9)
+    assert numbers_apart.kind == plant.kind
+    suffix = plant.kind.library_suffix()
+    expected = ("" if not effects else "_rate" if plant.rate_limited else "_built_")
+    assert suffix.startswith(expected) and (suffix == "") == (not effects)

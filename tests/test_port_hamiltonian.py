@@ -22,6 +22,7 @@ from cdpr_sym.as_built import Actuation, AsBuilt, AsBuiltHamiltonian
 from cdpr_sym.as_built.geometry import true_geometry_function
 from cdpr_sym.closed_loop import Plant
 from cdpr_sym.closed_loop.effects import StepBuild, TrueCables, plant_effects
+from cdpr_sym.closed_loop.plant_kind import PlantKind
 from cdpr_sym.closed_loop.step import plant_layout
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.model import SymbolicModel
@@ -32,7 +33,7 @@ MASS_SCALE = 1.1
 
 def _plant_rhs(model: SymbolicModel, spec: AsBuilt) -> ca.Function:
     """The plant's own rhs, (z, par) -> dz/dt, as the simulator's step builds it."""
-    effects = plant_effects(as_built=spec.structure())
+    effects = plant_effects(PlantKind(as_built=spec.structure()))
     layout = plant_layout(model, controller_by_name("pd"), effects)
     x, p = ca.SX.sym("x", layout.x.size), ca.SX.sym("p", layout.p.size)
     build = StepBuild(model, effects, layout.x.split(x), layout.p.split(p))
@@ -72,7 +73,7 @@ def test_plant_is_the_port_hamiltonian_system(name, request, rng):
     rhs, layout = _plant_rhs(model, spec)
     plant = Plant(mass_scale=MASS_SCALE, as_built=spec)
     values = {}
-    for effect in plant_effects(as_built=spec.structure()):
+    for effect in plant_effects(PlantKind(as_built=spec.structure())):
         values.update(effect.parameter_values(plant))
     par = layout.parameters(robot.goal, robot.k, robot.r_d, 1e-3, mass_scale=MASS_SCALE,
                             slack=plant.slack, rate_limit=plant.rate_limit, plant=values)

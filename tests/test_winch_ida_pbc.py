@@ -22,6 +22,7 @@ import pytest
 from cdpr_sym.as_built import Actuation, AsBuilt, AsBuiltHamiltonian, Sensing
 from cdpr_sym.closed_loop import Plant, get_simulator, simulate
 from cdpr_sym.closed_loop.effects import plant_effects
+from cdpr_sym.closed_loop.plant_kind import PlantKind
 from cdpr_sym.closed_loop.step import plant_layout, step_function
 from cdpr_sym.control import WinchIdaPbc, controller_by_name
 from cdpr_sym.errors import InvalidCase
@@ -130,7 +131,7 @@ def test_reads_the_winches_not_the_pose(aras3, build_options):
     assert run.stop_reason is None
     static = run.static_tension
     np.testing.assert_allclose(run.tau[0], design.pull(static, design.drive_of(aras3)), atol=0.5)
-    effects = plant_effects(as_built=spec.structure())
+    effects = plant_effects(PlantKind(as_built=spec.structure()))
     for name, reads_pose in (("ida-winch", False), ("smooth", True)):
         controller = controller_by_name(name)
         step = step_function(SymbolicModel(aras3), controller, effects=effects)

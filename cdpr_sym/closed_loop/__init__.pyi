@@ -6,6 +6,7 @@ from .batch import run_many, summarise_many
 from .case import Case
 from .layout import Fields, StepLayout
 from .plant import Plant
+from .plant_kind import PlantKind
 from .simulator import Simulator, get_simulator, simulate
 from .step import (
     STOP_REASONS,
@@ -14,6 +15,6 @@ from .step import (
     step_layout,
 )
 
-__all__ = ["STOP_REASONS", "Case", "Fields", "Plant", "Simulator", "StepLayout",
+__all__ = ["STOP_REASONS", "Case", "Fields", "Plant", "PlantKind", "Simulator", "StepLayout",
            "get_simulator", "rk4", "run_many", "simulate", "simulate_adaptive", "step_function",
            "step_layout", "summarise_many"]

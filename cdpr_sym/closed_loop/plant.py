@@ -18,6 +18,7 @@ import numpy as np
 
 from cdpr_sym.as_built import AsBuilt
 from cdpr_sym.checks import is_real
+from cdpr_sym.closed_loop.plant_kind import PlantKind
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 
@@ -68,6 +69,13 @@ class Plant:
     def rate_limited(self) -> bool:
         """Whether the applied tension is rate limited (a state of the plant)."""
         return self.rate_limit is not None
+
+    @property
+    def kind(self) -> PlantKind:
+        """What this plant's step is built for (:class:`PlantKind`): its rate limit or
+        its as-built effects, never its numbers."""
+        return PlantKind(rate_limited=self.rate_limited,
+                         as_built=None if self.as_built is None else self.as_built.structure())
 
     def record(self) -> dict[str, object]:
         """The plant's fields as plain numbers and lists, for a run's record."""

@@ -34,6 +34,7 @@ from cdpr_sym.closed_loop.effects import AsBuiltReadout, StartContext, plant_eff
 from cdpr_sym.closed_loop.effects.base import elastic_stiffness
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
+from cdpr_sym.closed_loop.plant_kind import PlantKind
 from cdpr_sym.closed_loop.step import chunk_function, plant_layout, step_function
 from cdpr_sym.closed_loop.stops import ALL_STOP_REASONS
 from cdpr_sym.codegen import (
@@ -150,9 +151,8 @@ class Simulator:
                  rate_limited: bool = False, as_built: AsBuiltStructure | None = None
                  ) -> None:
         check_cables(controller, robot.n, robot.m)
-        if rate_limited and as_built is not None:
-            raise InvalidCase("plant", "an as-built plant limits the tension through its "
-                              "winches; build its simulator without rate_limited")
+        #: What the step is built for (:class:`PlantKind`): runs take plants of this kind.
+        self.plant_kind = PlantKind(rate_limited=rate_limited, as_built=as_built)
         self.robot = robot
         self.controller = controller
         self.model = SymbolicModel(robot)
@@ -165,7 +165,7 @@ class Simulator:
         self.chunk = chunk
         self.rate_limited = rate_limited
         #: The plant's effects (:mod:`cdpr_sym.closed_loop.effects`), in layout order.
-        self.effects = plant_effects(rate_limited=rate_limited, as_built=as_built)
+        self.effects = plant_effects(self.plant_kind)
         self.layout = plant_layout(self.model, controller, self.effects)
         #: The robot and controller part of every run's record, built once.
         self._described = described(robot, controller)
@@ -173,7 +173,7 @@ class Simulator:
         self._mapped_memory: dict[int, ca.Function] = {}
         self.backend = build_options.resolved_backend()
         self.library: CompiledLibrary | None = None
-        suffix = "_rate" if rate_limited else _as_built_suffix(as_built)
+        suffix = self.plant_kind.library_suffix()
         robot_name = f"cdpr_{c_identifier(robot.name)}"
         #: The base name of this loop's compiled libraries.
         self.library_name = f"{robot_name}_{controller_identifier(controller)}{suffix}"
@@ -403,16 +403,13 @@ class Simulator:
                                static_tension=static, taken=taken, solver_record=record)
 
     def check_plant(self, plant: Plant) -> None:
-        """Raise :class:`InvalidCase` (``plant``) when ``plant`` needs another step: a
-        rate-limited plant carries the applied tension as a state."""
-        if self.layout.rate_limited != plant.rate_limited:
-            raise InvalidCase("plant", "a rate-limited plant needs a simulator built with "
-                              "rate_limited=True (simulate() chooses it)")
-        structure = None if plant.as_built is None else plant.as_built.structure()
-        if structure != self.as_built:
-            raise InvalidCase("plant", f"this simulator's step is built for the as-built "
-                              f"effects {self.as_built}, the plant has {structure} "
-                              f"(simulate() chooses the step)")
+        """Raise :class:`InvalidCase` (``plant``) when ``plant`` is of another kind than the
+        step is built for (:class:`PlantKind`: a rate limit is a state of the plant, the
+        as-built effects are code of the step)."""
+        if plant.kind != self.plant_kind:
+            raise InvalidCase("plant", f"this simulator's step is built for "
+                              f"{self.plant_kind.describe()}, the plant is "
+                              f"{plant.kind.describe()} (simulate() chooses the step)")
         if plant.as_built is not None:
             plant.as_built.check_robot(self.robot.m, self.robot.dimension,
                                        self.robot.frame_side)
@@ -563,14 +560,6 @@ def sample_times(samples: int, dt: float) -> np.ndarray:
     return times
 
 
-def _as_built_suffix(structure: AsBuiltStructure | None) -> str:
-    """The library-name suffix of an as-built step (empty for the ideal plant)."""
-    if structure is None:
-        return ""
-    text = json.dumps(dataclasses.asdict(structure), sort_keys=True)
-    return f"_built_{hashlib.sha256(text.encode()).hexdigest()[:8]}"
-
-
 def controller_identifier(controller: Controller) -> str:
     """A C identifier for a controller and its options (options hashed)."""
     base = c_identifier(controller.name)
@@ -697,10 +686,9 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=N
         # at the robot's own case (the run checks its start and goal again)
         check_integrable(SymbolicModel(robot), plant.as_built.actuation, dt,
                          plant.as_built.substeps, (robot.start, robot.goal))
+    kind = plant.kind
     simulator = get_simulator(robot, controller, build_options=build_options,
-                              rate_limited=plant.rate_limited,
-                              as_built=None if plant.as_built is None
-                              else plant.as_built.structure())
+                              rate_limited=kind.rate_limited, as_built=kind.as_built)
     case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d, model=simulator.model)
     return simulator.run(case.start, case.goal, case.k, case.r_d,
                          duration=duration, dt=dt, plant=plant)

@@ -17,6 +17,7 @@ import casadi as ca
 from cdpr_sym.closed_loop.effects import PlantEffect, RateLimit, StepBuild, plant_effects
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import applied_tension, plant_rhs
+from cdpr_sym.closed_loop.plant_kind import PlantKind
 from cdpr_sym.closed_loop.stops import (
     ALL_STOP_REASONS,
     LOST_POSE,
@@ -38,7 +39,7 @@ def step_layout(model: SymbolicModel, controller: Controller, *,
                 rate_limited: bool = False) -> StepLayout:
     """The layout of the step of ``controller`` on ``model`` with the ideal plant (or one
     with a tension-rate limit)."""
-    return plant_layout(model, controller, plant_effects(rate_limited=rate_limited))
+    return plant_layout(model, controller, plant_effects(PlantKind(rate_limited=rate_limited)))
 
 
 def plant_layout(model: SymbolicModel, controller: Controller,
@@ -85,7 +86,7 @@ def step_function(model: SymbolicModel, controller: Controller, *,
     tension-rate limit when ``rate_limited``). Once status is non-zero the state is frozen.
     """
     if effects is None:
-        effects = plant_effects(rate_limited=rate_limited)
+        effects = plant_effects(PlantKind(rate_limited=rate_limited))
     layout = plant_layout(model, controller, effects)
     x, p = ca.SX.sym("x", layout.x.size), ca.SX.sym("p", layout.p.size)
     state, par = layout.x.split(x), layout.p.split(p)

@@ -111,7 +111,7 @@ def loop_plant(model: SymbolicModel, plant: Plant, start, goal, k, r_d, dt: floa
     as_built: AsBuilt = plant.as_built
     structure = as_built.structure()
     external = ExternalCommand()
-    effects = plant_effects(as_built=structure)
+    effects = plant_effects(plant.kind)
     layout = plant_layout(model, external, effects)
     step = step_function(model, external, effects=effects)
     simulator = get_simulator(model.robot, external, as_built=structure)

@@ -1,4 +1,5 @@
-"""Robot files: the TOML layout of a robot (docs/guide/tour.md, "Robot files"), presets and loading."""
+"""Robot files: the TOML layout of a robot (docs/guide/tour.md, "Robot files"), presets and
+loading."""
 
 from __future__ import annotations
 
@@ -279,8 +280,9 @@ def _toml_rows(rows: list[list[float]]) -> str:
 
 
 def robot_file_text(robot: Robot, *, comment: str = "") -> str:
-    """The robot-file TOML of ``robot`` (docs/guide/tour.md, "Robot files"): :func:`load_robot` reads
-    it back into an equal robot. ``comment`` (lines of text) heads the file as ``#`` lines."""
+    """The robot-file TOML of ``robot`` (docs/guide/tour.md, "Robot files"):
+    :func:`load_robot` reads it back into an equal robot. ``comment`` (lines of text) heads
+    the file as ``#`` lines."""
     data = robot.as_dict()
     lines = [f"# {line}" for line in comment.splitlines()]
     lines += [f"name = {_toml_value(robot.name)}", f"mass = {_toml_value(robot.mass)}",

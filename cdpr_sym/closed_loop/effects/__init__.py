@@ -10,7 +10,6 @@ initial state are compositions of the chosen effects. Adding an effect is one mo
 
 from __future__ import annotations
 
-from cdpr_sym.as_built import AsBuiltStructure
 from cdpr_sym.closed_loop.effects.anchors import AnchorErrors
 from cdpr_sym.closed_loop.effects.base import Dynamics, PlantEffect, StartContext, StepBuild
 from cdpr_sym.closed_loop.effects.delay import Delay
@@ -19,18 +18,17 @@ from cdpr_sym.closed_loop.effects.rate_limit import RateLimit
 from cdpr_sym.closed_loop.effects.readout import AsBuiltReadout
 from cdpr_sym.closed_loop.effects.true_cables import TrueCables
 from cdpr_sym.closed_loop.effects.winches import Winches
+from cdpr_sym.closed_loop.plant_kind import PlantKind
 
 #: Every effect, in layout order.
 REGISTRY: tuple[type[PlantEffect], ...] = (RateLimit, TrueCables, Winches, Delay, Encoders,
                                            AnchorErrors)
 
 
-def plant_effects(*, rate_limited: bool = False, as_built: AsBuiltStructure | None = None
-                  ) -> tuple[PlantEffect, ...]:
-    """The effects of a plant with a tension-rate limit (``rate_limited``) or with the
-    as-built effects ``as_built``, in :data:`REGISTRY` order; () for the ideal plant."""
-    chosen = (effect.select(rate_limited=rate_limited, as_built=as_built)
-              for effect in REGISTRY)
+def plant_effects(kind: PlantKind = PlantKind()) -> tuple[PlantEffect, ...]:
+    """The effects a plant of ``kind`` has, in :data:`REGISTRY` order; () for the ideal
+    plant."""
+    chosen = (effect.select(kind) for effect in REGISTRY)
     return tuple(effect for effect in chosen if effect is not None)
 
 

@@ -12,8 +12,8 @@ from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StepBuild
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
-    from cdpr_sym.as_built import AsBuiltStructure
     from cdpr_sym.closed_loop.plant import Plant
+    from cdpr_sym.closed_loop.plant_kind import PlantKind
 
 
 @dataclasses.dataclass(frozen=True)
@@ -24,9 +24,8 @@ class AnchorErrors(PlantEffect):
     name: ClassVar[str] = "anchors"
 
     @classmethod
-    def select(cls, *, rate_limited: bool, as_built: AsBuiltStructure | None
-               ) -> AnchorErrors | None:
-        return cls() if as_built is not None and as_built.anchors else None
+    def select(cls, kind: PlantKind) -> AnchorErrors | None:
+        return cls() if kind.as_built is not None and kind.as_built.anchors else None
 
     def parameter_fields(self, model: SymbolicModel) -> FieldList:
         return (("anchor_offsets", model.m * model.robot.dimension),)

@@ -37,8 +37,8 @@ from cdpr_sym.control import DriveReading
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
-    from cdpr_sym.as_built import AsBuiltStructure
     from cdpr_sym.closed_loop.plant import Plant
+    from cdpr_sym.closed_loop.plant_kind import PlantKind
 
 #: (name, size) pairs of a vector's fields.
 FieldList = tuple[tuple[str, int], ...]
@@ -110,10 +110,8 @@ class PlantEffect:
     name: ClassVar[str] = ""
 
     @classmethod
-    def select(cls, *, rate_limited: bool, as_built: AsBuiltStructure | None
-               ) -> PlantEffect | None:
-        """This effect as a plant with a tension-rate limit (``rate_limited``) or with the
-        as-built effects ``as_built`` (None: the ideal plant) has it; None if it has not."""
+    def select(cls, kind: PlantKind) -> PlantEffect | None:
+        """This effect as a plant of ``kind`` has it; None if it has not."""
         return None
 
     # -- declarations ------------------------------------------------------------------

@@ -12,7 +12,7 @@ from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StartConte
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
-    from cdpr_sym.as_built import AsBuiltStructure
+    from cdpr_sym.closed_loop.plant_kind import PlantKind
 
 
 @dataclasses.dataclass(frozen=True)
@@ -28,9 +28,8 @@ class Delay(PlantEffect):
     delay: int = 0
 
     @classmethod
-    def select(cls, *, rate_limited: bool, as_built: AsBuiltStructure | None
-               ) -> Delay | None:
-        return None if as_built is None else cls(as_built.delay)
+    def select(cls, kind: PlantKind) -> Delay | None:
+        return None if kind.as_built is None else cls(kind.as_built.delay)
 
     def state_fields(self, model: SymbolicModel) -> FieldList:
         return (("pending", self.delay * model.m),)

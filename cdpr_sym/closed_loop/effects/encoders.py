@@ -28,8 +28,8 @@ from cdpr_sym.control import DriveReading
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
-    from cdpr_sym.as_built import AsBuiltStructure
     from cdpr_sym.closed_loop.plant import Plant
+    from cdpr_sym.closed_loop.plant_kind import PlantKind
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,9 +41,8 @@ class Encoders(PlantEffect):
     name: ClassVar[str] = "encoders"
 
     @classmethod
-    def select(cls, *, rate_limited: bool, as_built: AsBuiltStructure | None
-               ) -> Encoders | None:
-        return cls() if as_built is not None and as_built.sensing else None
+    def select(cls, kind: PlantKind) -> Encoders | None:
+        return cls() if kind.as_built is not None and kind.as_built.sensing else None
 
     def state_fields(self, model: SymbolicModel) -> FieldList:
         return (("q_read", model.n), ("dq_read", model.n))

@@ -11,7 +11,7 @@ import casadi as ca
 from cdpr_sym.closed_loop.effects.base import PlantEffect, StartContext, StepBuild
 
 if TYPE_CHECKING:
-    from cdpr_sym.as_built import AsBuiltStructure
+    from cdpr_sym.closed_loop.plant_kind import PlantKind
 
 
 @dataclasses.dataclass(frozen=True)
@@ -26,9 +26,8 @@ class RateLimit(PlantEffect):
     name: ClassVar[str] = "rate_limit"
 
     @classmethod
-    def select(cls, *, rate_limited: bool, as_built: AsBuiltStructure | None
-               ) -> RateLimit | None:
-        return cls() if rate_limited else None
+    def select(cls, kind: PlantKind) -> RateLimit | None:
+        return cls() if kind.rate_limited else None
 
     def deliver(self, build: StepBuild, command: ca.SX) -> ca.SX:
         applied = build.state["applied"]

@@ -25,7 +25,7 @@ from cdpr_sym.control import DriveReading
 from cdpr_sym.model import SymbolicModel, rk4
 
 if TYPE_CHECKING:
-    from cdpr_sym.as_built import AsBuiltStructure
+    from cdpr_sym.closed_loop.plant_kind import PlantKind
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,9 +37,8 @@ class TrueCables(PlantEffect):
     substeps: int = 2
 
     @classmethod
-    def select(cls, *, rate_limited: bool, as_built: AsBuiltStructure | None
-               ) -> TrueCables | None:
-        return None if as_built is None else cls(as_built.substeps)
+    def select(cls, kind: PlantKind) -> TrueCables | None:
+        return None if kind.as_built is None else cls(kind.as_built.substeps)
 
     def log_fields(self, model: SymbolicModel) -> FieldList:
         return (("tension", model.m),)

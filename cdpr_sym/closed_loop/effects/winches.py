@@ -21,8 +21,8 @@ from cdpr_sym.closed_loop.effects.base import FieldList, PlantEffect, StartConte
 from cdpr_sym.model import SymbolicModel
 
 if TYPE_CHECKING:
-    from cdpr_sym.as_built import AsBuiltStructure
     from cdpr_sym.closed_loop.plant import Plant
+    from cdpr_sym.closed_loop.plant_kind import PlantKind
 
 #: The winch states: payout r theta (m), drum speed (rad/s), motor torque (N m), per cable.
 DRIVE_FIELDS = ("payout", "drum_speed", "motor_torque")
@@ -37,9 +37,8 @@ class Winches(PlantEffect):
     drive_fields: ClassVar[tuple[str, ...]] = DRIVE_FIELDS
 
     @classmethod
-    def select(cls, *, rate_limited: bool, as_built: AsBuiltStructure | None
-               ) -> Winches | None:
-        return cls() if as_built is not None and as_built.actuation else None
+    def select(cls, kind: PlantKind) -> Winches | None:
+        return cls() if kind.as_built is not None and kind.as_built.actuation else None
 
     def state_fields(self, model: SymbolicModel) -> FieldList:
         return tuple((name, model.m) for name in DRIVE_FIELDS)
