@@ -66,8 +66,10 @@ cables). Measured, 20 pairs at the default as-built build: planar4 90 %, spatial
 settle; a pose-space gain matrix put the rotations on the platform's mode but needed
 motor springs stiffer than the cables and went unstable).
 
-The command is clipped to [T_min, T_max] as a last resort (FLAG_SATURATED: the energy
-argument then no longer holds). Memory: the plan's [t, q_start (n), T, margin], then per
+The pull the cables are to carry is clipped to the box as a last resort (FLAG_SATURATED:
+the energy argument then no longer holds), and the motor's command kept where the cable's
+pull stays in the box whichever way the drum's friction acts
+(:meth:`WinchIdaPbc.kept_in_box`). Memory: the plan's [t, q_start (n), T, margin], then per
 cable the encoders' zero misfit, the last reading, the filtered drum speed (m/s of cable),
 the integral of the length error and the feedback filter's stages.
 """
@@ -370,16 +372,15 @@ class WinchIdaPbc:
                                          + integral * integrated_kept, stages_kept, dt, cutoff)
         if drives.rigid:  # the tension is the command: no drum to pull through
             command = tension_r + feedback
+            clipped = ca.fmin(ca.fmax(command, robot.t_min), robot.t_max)
+            saturated = ca.sum1(ca.fabs(clipped - command) > 0) > 0
         else:
             reflected = drive.inertia / drive.drum_radius**2
             friction = friction_torque(rate_r / drive.drum_radius,
                                        ca.DM(drive.parameters())) / drive.drum_radius
-            command = self.pull(tension_r, drive) - reflected * accel_r - friction + feedback
-        # the command (the pull the motor torque stands for) kept in the box; on rigid
-        # cables the command is the tension itself
-        low, high = robot.t_min, robot.t_max
-        clipped = ca.fmin(ca.fmax(command, low), high)
-        saturated = ca.sum1(ca.fabs(clipped - command) > 0) > 0
+            command = self.pull(tension_r, drive) + feedback
+            clipped, saturated = self.kept_in_box(
+                command, reflected * accel_r + friction, robot, drive)
         # the integral holds while the command is clipped (no wind-up)
         integrated = ca.if_else(saturated, integrated_kept,
                                 integrated_kept + dt * self.integrated_error(model, q_start,
@@ -392,6 +393,31 @@ class WinchIdaPbc:
         law = ControlLaw(clipped, ca.SX(1.0), beta, ca.SX.zeros(model.n_j), flags)
         return law, ca.vertcat(t + dt, q_start, duration, margin, misfit, reading, rate,
                                integrated, stages)
+
+    def kept_in_box(self, pull: ca.SX, drive_terms: ca.SX, robot: Robot, drive: Actuation
+                    ) -> tuple[ca.SX, ca.SX]:
+        """(the motor's tension command u / r, whether the pull was clipped) for the pull
+        ``pull`` (N) the cables are to carry, with ``drive_terms`` (N) the drums' own
+        inertia and friction at the reference, which the motor adds and the cable never
+        feels.
+
+        A drum at rest or turning slowly (J omega' = r P - tau - f(omega), f within
+        +-tau_c + b |omega|) holds its cable's pull P within tau / r +- F, F = tau_c / r
+        the Coulomb friction at the cable, whichever way the friction acts. So the pull is
+        clipped to [P(T_min), P(T_max)] first (the drive terms are then added: clipping
+        the sum let a cable reeled in at the floor carry T_min less the friction, 4-9 N
+        under a 12 N floor on a 36.6 kg robot's 4.3 N of friction), and the command to
+        [P(T_min) + F, P(T_max) - F], where the cable's pull stays in the box even when the
+        friction acts against the reference's guess of its direction (the drum turning
+        the other way than the plan near a stop). The drums' inertia is not bounded: a
+        cable still dips by (J / r^2) times the drum's unplanned acceleration. Measured as
+        built, 20 pairs each of 12 redundant robots: 15 more pairs met the target than with
+        the sum clipped to the box (spatial4 79 to 89.5 %), 4 fewer on three robots."""
+        floor, ceiling = self.pull(robot.t_min, drive), self.pull(robot.t_max, drive)
+        held = ca.fmin(ca.fmax(pull, floor), ceiling)
+        coulomb = drive.coulomb / drive.drum_radius
+        command = ca.fmin(ca.fmax(held - drive_terms, floor + coulomb), ceiling - coulomb)
+        return command, ca.sum1(ca.fabs(held - pull) > 0) > 0
 
     def integrated_error(self, model: SymbolicModel, q_start: ca.SX, duration: ca.SX,
                          t: ca.SX, q_goal: ca.SX, error: ca.SX) -> ca.SX:
