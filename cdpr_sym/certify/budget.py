@@ -66,7 +66,7 @@ STOPS = {
 }
 
 
-def check_time_limit(time_limit) -> float:
+def check_time_limit(time_limit: object) -> float:
     """A time limit in s: positive, ``math.inf`` for none; else ``InvalidCase`` naming
     ``time_limit``."""
     if isinstance(time_limit, bool) or not isinstance(time_limit, numbers.Real) \

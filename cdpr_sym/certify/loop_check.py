@@ -15,7 +15,13 @@ anchors, LU), and H_d, |c| and |q - q_g| recorded.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:  # for the annotations only: the check runs none of the design's code
+    from cdpr_sym.control.planned import VirtualReferenceIdaPbc
+    from cdpr_sym.robot import Robot
 
 #: Integration step, s.
 STEP = 5e-4
@@ -26,8 +32,9 @@ QUADRATURE = 2001
 STORAGE_EVERY = 200
 
 
-def simulate(robot, design, starts: np.ndarray, goals: np.ndarray, durations: np.ndarray,
-             *, seconds: float, step: float = STEP) -> dict[str, np.ndarray]:
+def simulate(robot: Robot, design: VirtualReferenceIdaPbc, starts: np.ndarray,
+             goals: np.ndarray, durations: np.ndarray, *, seconds: float,
+             step: float = STEP) -> dict[str, np.ndarray]:
     """Per pair (rows of ``starts``, ``goals``; the plan's duration ``durations``, s):
     ``lowest`` and ``highest`` tension (N), ``largest_coupling`` |c| (N), ``farthest``
     |q - q_g| (m), ``energy`` H_d(0) (J) and ``energy_rise`` the largest rise of H_d over
@@ -44,22 +51,23 @@ def simulate(robot, design, starts: np.ndarray, goals: np.ndarray, durations: np
     critical = 2 * np.sqrt(2 * mass * force / delta)
     width = np.maximum(design.ramp * distance, 1e-9)
 
-    def profile(r):
+    def profile(r: np.ndarray) -> np.ndarray:
         return np.minimum(np.minimum(r / delta, 1.0), np.maximum(
             design.start_share, design.start_share + (distance - r) / width))
 
-    def potential(r):  # V_xi(r) = F int_0^r f, by the trapezoid rule on a fine grid
+    # V_xi(r) = F int_0^r f, by the trapezoid rule on a fine grid
+    def potential(r: np.ndarray) -> np.ndarray:
         s = np.linspace(0.0, 1.0, QUADRATURE)[None, :] * r[:, None]
         values = np.minimum(np.minimum(s / delta, 1.0), np.maximum(
             design.start_share, design.start_share + (distance[:, None] - s) / width[:, None]))
         return force * np.sum(0.5 * (values[:, 1:] + values[:, :-1]) * np.diff(s, axis=1),
                               axis=1)
 
-    def coupling(state):
+    def coupling(state: np.ndarray) -> np.ndarray:
         q, dq, xi, dxi = np.split(state, 4, axis=1)
         return k * (q - xi) + r_d * (dq - dxi)
 
-    def rates(state):
+    def rates(state: np.ndarray) -> np.ndarray:
         _, dq, xi, dxi = np.split(state, 4, axis=1)
         c = coupling(state)
         offset = xi - goals
@@ -70,13 +78,13 @@ def simulate(robot, design, starts: np.ndarray, goals: np.ndarray, durations: np
                    + critical * delta**2 / (delta**2 + r**2))
         return np.hstack([dq, -c / mass, dxi, (c - pull - damping[:, None] * dxi) / mass])
 
-    def storage(state):
+    def storage(state: np.ndarray) -> np.ndarray:
         q, dq, xi, dxi = np.split(state, 4, axis=1)
         return (0.5 * mass * np.sum(dq**2 + dxi**2, axis=1)
                 + 0.5 * np.sum(k * (q - xi) ** 2, axis=1)
                 + potential(np.linalg.norm(xi - goals, axis=1)))
 
-    def tension(state):
+    def tension(state: np.ndarray) -> np.ndarray:
         q = np.split(state, 4, axis=1)[0]
         towards = anchors[None, :, :] - q[:, None, :]
         W = (towards / np.linalg.norm(towards, axis=2, keepdims=True)).transpose(0, 2, 1)

@@ -36,7 +36,8 @@ import numpy as np
 
 from cdpr_sym.certify.budget import STOPS
 from cdpr_sym.certify.pairs import PROPERTIES, PairCertificate
-from cdpr_sym.control.planned import SmoothReference
+from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
+from cdpr_sym.robot import Robot
 
 #: Instants per move in the plan check.
 PLAN_INSTANTS = 2001
@@ -68,7 +69,7 @@ def draw_proven(certificate: PairCertificate, samples: int,
     return starts, goals, boxes
 
 
-def plan_tensions(robot, start: np.ndarray, goal: np.ndarray, duration: float,
+def plan_tensions(robot: Robot, start: np.ndarray, goal: np.ndarray, duration: float,
                   instants: int = PLAN_INSTANTS) -> tuple[np.ndarray, np.ndarray]:
     """The minimum-jerk plan's feed-forward tension (instants, n) and det W (instants,) of a
     point mass, in numpy (independent of the CasADi model)."""
@@ -129,7 +130,7 @@ def plan_check(certificate: PairCertificate, starts: np.ndarray, goals: np.ndarr
 
 
 def loop_check(certificate: PairCertificate, starts: np.ndarray, goals: np.ndarray,
-               boxes: np.ndarray, design) -> dict[str, Any]:
+               boxes: np.ndarray, design: VirtualReferenceIdaPbc) -> dict[str, Any]:
     """``ida-ref``'s check: the loop re-derived in numpy in continuous time
     (:mod:`cdpr_sym.certify.loop_check`) for :data:`RUN_SECONDS` s, at the duration the plan
     picks and at its shortest one (the bound's); a disagreement is a pair whose tension
@@ -168,7 +169,7 @@ def loop_check(certificate: PairCertificate, starts: np.ndarray, goals: np.ndarr
 
 
 def closed_loop_check(certificate: PairCertificate, starts: np.ndarray, goals: np.ndarray,
-                      design) -> dict[str, Any]:
+                      design: SmoothReference | VirtualReferenceIdaPbc) -> dict[str, Any]:
     """The closed-loop check of the module docstring, of the design that was proven (clipped
     steps counted from the run's flags)."""
     from cdpr_sym.closed_loop import Plant, get_simulator, summarise_many

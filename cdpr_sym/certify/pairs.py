@@ -15,8 +15,11 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from cdpr_sym.certify.budget import (
     DEFAULT_TIME_LIMIT,
@@ -38,6 +41,9 @@ from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
 
+if TYPE_CHECKING:  # the designs' module is imported where a proof needs it
+    from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
+
 VERDICTS = ("proven", "disproven", "undecided", "outside")
 #: The property a proven pair box proves, per design.
 PROPERTIES = {
@@ -57,7 +63,8 @@ MAX_PAIRS = 2_000_000
 PAIR_CHUNK, FIRST_PAIR_CHUNK = 20_000, 16
 
 
-def grid(lower, upper, width: float) -> tuple[np.ndarray, np.ndarray]:
+def grid(lower: npt.ArrayLike, upper: npt.ArrayLike, width: float
+         ) -> tuple[np.ndarray, np.ndarray]:
     """Boxes of side ``width`` (m) tiling [lower, upper] (the last row of each axis cut at
     ``upper``): (box lowers, box uppers), each (boxes, d)."""
     return grid_boxes(grid_edges(lower, upper, width))
@@ -134,7 +141,7 @@ class PairCertificate:
                 found[k] = self.verdicts[hits[0]]
         return found
 
-    def write_csv(self, path) -> None:
+    def write_csv(self, path: Path) -> None:
         """``pairs.csv``: lower/upper of the start box and of the goal box per coordinate,
         the verdict and the shortest duration of a proven box."""
         header = ([f"start_lower_{name}" for name in self.names]
@@ -150,8 +157,11 @@ class PairCertificate:
         path.write_text("\n".join(lines) + "\n")
 
 
-def certify_pairs(robot: Robot, controller: str, *, starts, goals, width: float = 0.1,
-                  min_width: float | None = None, tracking_margin: float = 0.5, design=None,
+def certify_pairs(robot: Robot, controller: str, *,
+                  starts: tuple[npt.ArrayLike, npt.ArrayLike],
+                  goals: tuple[npt.ArrayLike, npt.ArrayLike], width: float = 0.1,
+                  min_width: float | None = None, tracking_margin: float = 0.5,
+                  design: SmoothReference | VirtualReferenceIdaPbc | None = None,
                   time_limit: float = DEFAULT_TIME_LIMIT,
                   progress: Callable[[Progress], None] | None = None) -> PairCertificate:
     """Verdicts for every (start box, goal box) of the grids of width ``width`` over the
@@ -207,7 +217,8 @@ def boxes_holding(robot: Robot, points: np.ndarray, width: float
 def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, np.ndarray],
                        goals: tuple[np.ndarray, np.ndarray], *, width: float,
                        min_width: float | None = None, tracking_margin: float = 0.5,
-                       design=None, time_limit: float = DEFAULT_TIME_LIMIT,
+                       design: SmoothReference | VirtualReferenceIdaPbc | None = None,
+                       time_limit: float = DEFAULT_TIME_LIMIT,
                        progress: Callable[[Progress], None] | None = None
                        ) -> PairCertificate:
     """Verdicts for the pair boxes (starts[0][k], starts[1][k]) x (goals[0][k], goals[1][k])
@@ -363,8 +374,9 @@ def default_design(controller: str):
     return {"smooth": SmoothReference, "ida-ref": VirtualReferenceIdaPbc}[controller]()
 
 
-def pair_proof(model: SymbolicModel, controller: str, design, tracking_margin: float,
-               min_width: float):
+def pair_proof(model: SymbolicModel, controller: str,
+               design: SmoothReference | VirtualReferenceIdaPbc | None,
+               tracking_margin: float, min_width: float):
     """The proof of ``controller``'s property (:data:`PROPERTIES`) for ``design`` (None:
     :func:`default_design`); ``ida-ref``'s capacity cells are a quarter of ``min_width``
     (within 5 mm to 2.5 cm)."""

@@ -57,6 +57,7 @@ from cdpr_sym.certify.interval_c import CompiledIntervalFunction
 from cdpr_sym.control.planned import SmoothReference, minimum_jerk
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot import Robot
 
 #: N: the band an option's check must clear to count as certainly passed or failed.
 SLACK = 1e-6
@@ -135,7 +136,7 @@ class Learnt(NamedTuple):
     sign: np.ndarray
 
 
-def check_pair_case(robot, tracking_margin: float) -> None:
+def check_pair_case(robot: Robot, tracking_margin: float) -> None:
     """Refuse a robot no pair certificate covers (``robot``: point masses with m = n <= 3)
     and a tracking margin out of [0, half the tension box) (``tracking_margin``)."""
     if robot.kind != "point" or robot.m != robot.n or robot.n > 3:

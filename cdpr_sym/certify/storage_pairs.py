@@ -82,6 +82,7 @@ from cdpr_sym.certify.workspace import grid_boxes, grid_edges
 from cdpr_sym.control.planned import VirtualReferenceIdaPbc
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot import Robot
 
 #: The coupling-capacity cells: a quarter of the pair boxes' side, within these bounds (m).
 CELL_FRACTION = 0.25
@@ -180,15 +181,16 @@ def particle_force_bound(distance: np.ndarray, energy: np.ndarray, *, mass: floa
     return _up(_up(pull) + _up(_up(per_speed) * _up(speed)))
 
 
-def largest_distance(start_lower, start_upper, goal_lower, goal_upper) -> np.ndarray:
+def largest_distance(start_lower: np.ndarray, start_upper: np.ndarray,
+                     goal_lower: np.ndarray, goal_upper: np.ndarray) -> np.ndarray:
     """The largest |q_g - q0| over each pair of boxes (m, rounded up)."""
     gap = np.maximum(np.abs(np.asarray(goal_upper) - np.asarray(start_lower)),
                      np.abs(np.asarray(start_upper) - np.asarray(goal_lower)))
     return _up(np.sqrt(_up(np.sum(gap * gap, axis=1))))
 
 
-def storage_bounds(distance: np.ndarray, *, mass: float, k, r_d,
-                   design: VirtualReferenceIdaPbc) -> StorageBounds:
+def storage_bounds(distance: np.ndarray, *, mass: float, k: np.ndarray | float,
+                   r_d: np.ndarray | float, design: VirtualReferenceIdaPbc) -> StorageBounds:
     """H_0, C and rho (module docstring) for start distances up to ``distance`` (m), at the
     shortest duration of the design's plan."""
     shortest = min(design.plan.durations)
@@ -209,8 +211,9 @@ def storage_bounds(distance: np.ndarray, *, mass: float, k, r_d,
                          by_impulse)
 
 
-def pair_box_bounds(robot, design: VirtualReferenceIdaPbc, start_lower, start_upper,
-                    goal_lower, goal_upper) -> StorageBounds:
+def pair_box_bounds(robot: Robot, design: VirtualReferenceIdaPbc, start_lower: np.ndarray,
+                    start_upper: np.ndarray, goal_lower: np.ndarray,
+                    goal_upper: np.ndarray) -> StorageBounds:
     """H_0, C and rho of each pair box (rows of corners, m) for ``robot``'s mass and gains."""
     return storage_bounds(largest_distance(start_lower, start_upper, goal_lower, goal_upper),
                           mass=robot.mass, k=robot.k, r_d=robot.r_d, design=design)
@@ -224,7 +227,7 @@ def capacity_function(model: SymbolicModel, low: float, high: float) -> ca.Funct
     W = model.structure_matrix(q)
     determinant = ca.det(W)
 
-    def replaced(i: int, column) -> ca.SX:
+    def replaced(i: int, column: ca.SX | ca.DM) -> ca.SX:
         return ca.det(ca.horzcat(*(column if j == i else W[:, j] for j in range(n))))
 
     gravity = model.grad_potential(q)
@@ -295,7 +298,8 @@ class StoragePairProof:
             centred=True)
         self._map: tuple[np.ndarray, np.ndarray] | None = None
 
-    def bounds(self, start_lower, start_upper, goal_lower, goal_upper) -> StorageBounds:
+    def bounds(self, start_lower: np.ndarray, start_upper: np.ndarray,
+               goal_lower: np.ndarray, goal_upper: np.ndarray) -> StorageBounds:
         """H_0, C and rho of each pair box."""
         return pair_box_bounds(self.robot, self.design, start_lower, start_upper, goal_lower,
                                goal_upper)

@@ -52,10 +52,13 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import SupportsIndex
 
 import casadi as ca
 import numpy as np
+import numpy.typing as npt
 
 from cdpr_sym.certify.anchored import (
     AnchoredVerdicts,
@@ -267,12 +270,15 @@ def check_min_width(min_width: float, largest: float, field: str = "min_width") 
                           f"{largest:g} (the widest side to split), got {min_width!r}")
 
 
-def certify_workspace(robot: Robot, *, orientation=None, min_width: float = 0.005,
-                      until: float = DEFAULT_UNTIL, compiled: bool = True, half_widths=None,
-                      prop: str = "static", orientation_range=None,
+def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
+                      min_width: float = 0.005, until: float = DEFAULT_UNTIL,
+                      compiled: bool = True, half_widths: npt.ArrayLike | None = None,
+                      prop: str = "static",
+                      orientation_range: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
                       orientation_step: float | None = None,
                       time_limit: float = DEFAULT_TIME_LIMIT,
-                      progress=None) -> WorkspaceCertificate:
+                      progress: Callable[[Progress], None] | None = None
+                      ) -> WorkspaceCertificate:
     """The certified static workspace of ``robot`` over its frame (module docstring).
 
     The refinement stops at the first of ``until``, ``min_width`` and ``time_limit`` (or a
@@ -769,7 +775,8 @@ def decide(regular: np.ndarray, margin_lower: np.ndarray, margin_upper: np.ndarr
     return np.where(feasible, 0, np.where(infeasible, 1, 2))
 
 
-def grid_edges(lower, upper, width: float) -> list[np.ndarray]:
+def grid_edges(lower: npt.ArrayLike, upper: npt.ArrayLike, width: float
+               ) -> list[np.ndarray]:
     """Per axis, the edges of cells of side ``width`` (m) tiling [lower, upper]: the lower
     corner plus multiples of ``width``, the last one cut at the upper corner (adjacent cells
     share their edges exactly)."""
@@ -783,7 +790,9 @@ def grid_edges(lower, upper, width: float) -> list[np.ndarray]:
     return edges
 
 
-def grid_boxes(edges: list[np.ndarray], ranges=None) -> tuple[np.ndarray, np.ndarray]:
+def grid_boxes(edges: list[np.ndarray],
+               ranges: Sequence[tuple[SupportsIndex, SupportsIndex]] | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
     """(lowers, uppers), each (cells, axes), of the cells between ``edges`` whose indices lie
     in ``ranges`` ((first, past-last) per axis; default every cell), the last axis fastest."""
     ranges = ranges if ranges is not None else [(0, len(axis) - 1) for axis in edges]

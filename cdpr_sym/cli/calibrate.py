@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,7 @@ from cdpr_sym.robot import Robot
 MAX_PLAN_POSES = 200
 
 
-def add_parser(command) -> None:
+def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
     """The ``calibrate`` command's options."""
     parser = command("calibrate", "estimate anchors and encoder offsets from measurements "
                      "at static poses (or, with --plan, choose the poses)")

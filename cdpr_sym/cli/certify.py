@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,7 @@ DEFAULT_SAMPLES, DEFAULT_SAMPLES_REDUNDANT = 1_000_000, 100_000
 PROGRESS_SECONDS = 1.0
 
 
-def add_parser(command) -> None:
+def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
     """The ``certify`` command's options."""
     from cdpr_sym.certify.budget import DEFAULT_TIME_LIMIT
     from cdpr_sym.certify.workspace import DEFAULT_UNTIL

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+
 from cdpr_sym.closed_loop import Case
 from cdpr_sym.errors import InvalidCase, InvalidRobot
 from cdpr_sym.robot import Robot, resolve_robot
@@ -31,7 +33,7 @@ def with_wrench_box(robot: Robot, force: list[float] | None, moment: list[float]
         raise InvalidCase(option, bad.message) from None
 
 
-def add_wrench_options(parser, *, scope: str = "") -> None:
+def add_wrench_options(parser: argparse.ArgumentParser, *, scope: str = "") -> None:
     """``--force`` and ``--moment``, the external wrench box (read by
     :func:`with_wrench_box`); ``scope`` prefixes their help (the subcommand they apply to)."""
     parser.add_argument("--force", nargs="+", type=float, metavar="N",

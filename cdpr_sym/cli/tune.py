@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -15,7 +16,7 @@ from cdpr_sym.control.tuning_report import tune_report
 from cdpr_sym.errors import InvalidCase
 
 
-def add_parser(command) -> None:
+def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
     """The ``tune`` command's options."""
     parser = command("tune", "show the gains and the hardware derived from a robot: the "
                      "winches of its default build, the command path's corner, ida-winch's "

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
+import numpy.typing as npt
 
 from cdpr_sym.closed_loop.case import Case, check_timing
 from cdpr_sym.closed_loop.plant import Plant, applied_tension, plant_rhs
@@ -43,8 +44,10 @@ def first_stop(model: SymbolicModel, q: np.ndarray) -> tuple[int, str] | None:
     return index, reason
 
 
-def simulate_adaptive(robot: Robot, controller: Controller, *, start=None, goal=None, k=None,
-                      r_d=None, duration: float = 10.0, dt: float = 1e-3,
+def simulate_adaptive(robot: Robot, controller: Controller, *,
+                      start: npt.ArrayLike | None = None, goal: npt.ArrayLike | None = None,
+                      k: npt.ArrayLike | None = None, r_d: npt.ArrayLike | None = None,
+                      duration: float = 10.0, dt: float = 1e-3,
                       plant: Plant = Plant(), rtol: float = 1e-10,
                       atol: float = 1e-10) -> Trajectory:
     """Integrate the closed loop with CVODES, the control law evaluated continuously.

@@ -7,6 +7,7 @@ import math
 import os
 
 import numpy as np
+import numpy.typing as npt
 
 from cdpr_sym.errors import InvalidCase, InvalidRobot
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
@@ -29,8 +30,9 @@ class Case:
     r_d: np.ndarray
 
     @classmethod
-    def of(cls, robot: Robot, *, start=None, goal=None, k=None, r_d=None,
-           model: SymbolicModel | None = None) -> Case:
+    def of(cls, robot: Robot, *, start: npt.ArrayLike | None = None,
+           goal: npt.ArrayLike | None = None, k: npt.ArrayLike | None = None,
+           r_d: npt.ArrayLike | None = None, model: SymbolicModel | None = None) -> Case:
         """Resolve defaults and validate.
 
         ``model`` (of ``robot``) is reused for the kinematic tests when given.

@@ -145,7 +145,8 @@ class StepLayout:
         """Offset of the stop status in x."""
         return self.x.offset("status")
 
-    def parameters(self, goal, k, r_d, dt: float, *, mass_scale: float = 1.0,
+    def parameters(self, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, dt: float, *,
+                   mass_scale: float = 1.0,
                    slack: bool = False, rate_limit: float | None = None,
                    plant: Mapping[str, object] | None = None) -> np.ndarray:
         """p for one run (``rate_limit`` in N/s, used by a rate-limited layout only;

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
+import numpy.typing as npt
 
 from cdpr_sym.as_built.stability import check_integrable
 from cdpr_sym.closed_loop.case import (
@@ -529,7 +530,8 @@ class Simulator:
         return np.array(memory).T
 
 
-def run_info(robot: Robot, controller: Controller, dt: float, k, r_d, plant: Plant, *,
+def run_info(robot: Robot, controller: Controller, dt: float, k: np.ndarray,
+             r_d: np.ndarray, plant: Plant, *,
              integrator: str, _described: dict[str, Any] | None = None,
              **extra: Any) -> dict[str, Any]:
     """What a Trajectory records about how it was made (``_described``: the robot and
@@ -623,8 +625,10 @@ def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
     return simulator
 
 
-def simulate(robot: Robot | str | Path, controller: Controller | str, *, start=None,
-             goal=None, k=None, r_d=None, duration: float = 10.0, dt: float = 1e-3,
+def simulate(robot: Robot | str | Path, controller: Controller | str, *,
+             start: npt.ArrayLike | None = None, goal: npt.ArrayLike | None = None,
+             k: npt.ArrayLike | None = None, r_d: npt.ArrayLike | None = None,
+             duration: float = 10.0, dt: float = 1e-3,
              plant: Plant = Plant(), build_options: BuildOptions = BuildOptions()
              ) -> Trajectory:
     """Simulate the sampled-data closed loop (tension held over each RK4 step of ``dt`` s).

@@ -92,7 +92,8 @@ class CvxExactBoxDesign:
         """The parameterised problems (each DPP)."""
         return (self.alpha_problem, self.linf_problem, self.project_problem)
 
-    def solve(self, q, dq, q_goal, k, r_d) -> CvxSolve:
+    def solve(self, q: np.ndarray, dq: np.ndarray, q_goal: np.ndarray, k: np.ndarray,
+              r_d: np.ndarray) -> CvxSolve:
         """Solve the design at one state with Clarabel."""
         start = time.perf_counter()
         robot = self.model.robot

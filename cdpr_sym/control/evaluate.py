@@ -11,6 +11,7 @@ import functools
 
 import casadi as ca
 import numpy as np
+import numpy.typing as npt
 
 from cdpr_sym.codegen import c_identifier
 from cdpr_sym.control.interface import ControlLaw, Controller, ControlOutput, step_with_drives
@@ -49,8 +50,10 @@ def _cached(model: SymbolicModel, controller: Controller) -> tuple[ca.Function, 
     return law_function(model, controller), initial_memory_function(model, controller)
 
 
-def tension(model: SymbolicModel, controller: Controller, q, dq, q_goal=None, *,
-            k=None, r_d=None, memory=None, dt: float = 1e-3) -> ControlOutput:
+def tension(model: SymbolicModel, controller: Controller, q: npt.ArrayLike,
+            dq: npt.ArrayLike, q_goal: npt.ArrayLike | None = None, *,
+            k: npt.ArrayLike | None = None, r_d: npt.ArrayLike | None = None,
+            memory: npt.ArrayLike | None = None, dt: float = 1e-3) -> ControlOutput:
     """Evaluate one control step on numbers (a convenience; not for hot loops).
 
     Parameters

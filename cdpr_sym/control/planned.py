@@ -493,11 +493,11 @@ class VirtualReferenceIdaPbc:
         return law, ca.vertcat(xi_next, dxi_next, force, accel, start_distance,
                                integrated_next, stages_next)
 
-    def spring_length(self, force):
+    def spring_length(self, force: ca.SX | float):
         """delta: the radius of the linear well, ``force / goal_stiffness`` when that is set."""
         return force / self.goal_stiffness if self.goal_stiffness else self.delta
 
-    def pull_profile(self, r: ca.SX, r0: ca.SX, delta) -> ca.SX:
+    def pull_profile(self, r: ca.SX, r0: ca.SX, delta: ca.SX | float) -> ca.SX:
         """f(r) / F = min(r / delta, 1, max(s, s + (r0 - r) / (ramp r0))), in (0, 1] for r > 0.
 
         Linear spring near the goal, full force in cruise, and a ramp from the share s at the

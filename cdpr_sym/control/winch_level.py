@@ -81,6 +81,7 @@ import math
 from typing import Any, ClassVar
 
 import casadi as ca
+import numpy as np
 
 from cdpr_sym.as_built import Actuation
 from cdpr_sym.as_built.actuation import friction_torque
@@ -342,7 +343,7 @@ class WinchIdaPbc:
         return (payout, jacobian @ dq_r, jacobian @ ddq_r, tension,
                 model.singularity_measure(W))
 
-    def pull(self, tension, drive: Actuation):
+    def pull(self, tension: ca.SX | np.ndarray | float, drive: Actuation):
         """The pull P = T + T^2 / (2 EA) that holds a cable of tension T on ``drive``'s drum,
         N."""
         return drum_pull(tension, drive.cable_stiffness)

@@ -103,7 +103,7 @@ class EncoderLoop:
         """[q_goal (n), k (n), r_d (n), dt, sensing, actuation]."""
         return 3 * self.model.n + 1 + len(SENSING_PARAMETERS) + len(ACTUATION_PARAMETERS)
 
-    def parameters(self, q_goal, k, r_d) -> np.ndarray:
+    def parameters(self, q_goal: np.ndarray, k: np.ndarray, r_d: np.ndarray) -> np.ndarray:
         """The parameter vector of ``core`` for a move to ``q_goal`` with gains ``k``,
         ``r_d``."""
         return np.concatenate([np.ravel(q_goal), np.ravel(k), np.ravel(r_d), [self.dt],

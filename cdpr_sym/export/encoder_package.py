@@ -37,6 +37,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.as_built import Actuation
 from cdpr_sym.as_built.cable_law import unstretched_length
 from cdpr_sym.as_built.draw import DEFAULT_DRAW
 from cdpr_sym.as_built.hardware import cable_length_range
@@ -339,7 +340,7 @@ def length_bounds(robot: Robot, cable_stiffness: float) -> tuple[np.ndarray, np.
     return np.maximum(low, 0.0), longest + RANGE_MARGIN
 
 
-def torque_limit_of(actuation, t_max: float) -> float:
+def torque_limit_of(actuation: Actuation, t_max: float) -> float:
     """The package's torque limit, N m: the winches' own, else TORQUE_MARGIN r T_max; never
     infinite (a clip at infinity clips nothing)."""
     limit = actuation.torque_limit

@@ -45,9 +45,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import TYPE_CHECKING
 
 from cdpr_sym.checks import positive_number
 from cdpr_sym.errors import InvalidCase
+
+if TYPE_CHECKING:  # numpy is imported where a function needs it
+    import numpy.typing as npt
 
 #: Fault bits of the status, by name, with their words (the header's comments).
 FAULTS: dict[str, tuple[int, str]] = {
@@ -204,7 +208,7 @@ class GuardLimits:
                 damping if self.hold_damping is None else float(self.hold_damping))
 
 
-def move_speed(q, dt: float, frame_side: float) -> float:
+def move_speed(q: npt.ArrayLike, dt: float, frame_side: float) -> float:
     """The fastest coordinate speed of a run's poses ``q`` (steps x n; m/s or rad/s), by
     differences over ``dt``, at least MIN_SPEED_SHARE ``frame_side`` (m) per second."""
     import numpy as np
@@ -260,8 +264,8 @@ def _check(field: str, value: object, unit: str, zero: bool) -> None:
     positive_number(field, value, unit, zero=zero)
 
 
-def first_trip(commands, start_tension, *, t_min: float, t_max: float, rate_limit: float,
-               dt: float) -> str | None:
+def first_trip(commands: npt.ArrayLike, start_tension: npt.ArrayLike, *, t_min: float,
+               t_max: float, rate_limit: float, dt: float) -> str | None:
     """Where a run's tension commands would trip the guard's per-sample tension checks, in
     words, or None.
 

@@ -33,7 +33,7 @@ from cdpr_sym.closed_loop.effects import plant_effects
 from cdpr_sym.closed_loop.effects.encoders import raw_reading
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.step import plant_layout
-from cdpr_sym.control import Capabilities, ControlLaw, DriveReading
+from cdpr_sym.control import Capabilities, ControlLaw, Controller, DriveReading
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.results import Trajectory
 
@@ -60,10 +60,12 @@ class ExternalCommand:
     def memory_size(self, model: SymbolicModel) -> int:
         return model.m + 1
 
-    def initial_memory(self, model, q0, q_goal, k, r_d) -> ca.SX:
+    def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
+                       r_d: ca.SX) -> ca.SX:
         return ca.SX.zeros(model.m + 1)
 
-    def step(self, model: SymbolicModel, q, dq, q_goal, k, r_d, memory, dt, *,
+    def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
+             r_d: ca.SX, memory: ca.SX, dt: ca.SX, *,
              drives: DriveReading) -> tuple[ControlLaw, ca.SX]:
         m = model.m
         law = ControlLaw(memory[:m], ca.SX(1.0), ca.SX(0.0), ca.SX.zeros(model.n_j),
@@ -104,8 +106,8 @@ class LoopPlant:
     velocity_slice: slice
 
 
-def loop_plant(model: SymbolicModel, plant: Plant, start, goal, k, r_d, dt: float
-               ) -> LoopPlant:
+def loop_plant(model: SymbolicModel, plant: Plant, start: np.ndarray, goal: np.ndarray,
+               k: np.ndarray, r_d: np.ndarray, dt: float) -> LoopPlant:
     """The as-built ``plant`` for the software in the loop: the step, the encoders and the
     run's start state, which is the Python run's (:func:`reference_run`) field by field."""
     as_built: AsBuilt = plant.as_built
@@ -140,7 +142,8 @@ def _counts_function(model: SymbolicModel, layout, effects) -> ca.Function:
                        ["counts"], {"cse": True})
 
 
-def reference_run(model: SymbolicModel, controller, plant: Plant, start, goal, k, r_d, *,
+def reference_run(model: SymbolicModel, controller: Controller, plant: Plant,
+                  start: np.ndarray, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray, *,
                   duration: float, dt: float) -> Trajectory:
     """The Python run the package's loop reproduces: ``controller`` on the as-built
     ``plant``."""

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 #: The case gains' natural frequency as a share of the command path's corner, their
 #: damping ratio, and that corner's share of the sample rate.
@@ -33,8 +34,8 @@ SAMPLE_SHARE = 1 / 40
 DEFAULT_DT = 1e-3
 
 
-def coordinate_inertias(mass: float, inertia, n: int, dimension: int,
-                        center_of_mass=None) -> np.ndarray:
+def coordinate_inertias(mass: float, inertia: npt.ArrayLike | None, n: int, dimension: int,
+                        center_of_mass: npt.ArrayLike | None = None) -> np.ndarray:
     """The inertia each coordinate moves, kg or kg m^2: the mass for a position; for an
     angle the moment of inertia about the body-frame origin's axis (a planar body's
     I + M |c|^2; a spatial body's diagonal of I + M (|c|^2 1 - c c^T)), c the centre of
@@ -59,7 +60,8 @@ def case_frequency(dt: float = DEFAULT_DT) -> float:
     return 2 * math.pi * CASE_SHARE * SAMPLE_SHARE / dt
 
 
-def case_gains(mass: float, inertia, n: int, dimension: int, center_of_mass=None,
+def case_gains(mass: float, inertia: npt.ArrayLike | None, n: int, dimension: int,
+               center_of_mass: npt.ArrayLike | None = None,
                dt: float = DEFAULT_DT) -> tuple[np.ndarray, np.ndarray]:
     """(k, r_d) by the module's rule."""
     omega = case_frequency(dt)

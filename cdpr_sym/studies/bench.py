@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.closed_loop import Plant, Simulator, get_simulator
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import CONTROLLERS, capabilities
 from cdpr_sym.errors import InvalidCase
@@ -61,7 +61,7 @@ def bench_controllers(robot: Robot, *, duration: float = 5.0, dt: float = 1e-3,
             continue  # NMPC: its cost is per solve (python -m benchmarks.nmpc)
         simulator = get_simulator(robot, controller, build_options=build_options)
 
-        def run(simulator=simulator):
+        def run(simulator: Simulator = simulator):
             return simulator.run(robot.start, robot.goal, robot.k, robot.r_d,
                                  duration=duration, dt=dt, plant=Plant())
         trajectory = run()

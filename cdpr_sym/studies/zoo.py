@@ -29,6 +29,7 @@ and its own case settled).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -211,7 +212,7 @@ def _aggregate_robot(folder: Path, name: str, study: dict[str, Any]) -> dict[str
 def _tally(robots: dict[str, dict[str, Any]]) -> dict[str, Any]:
     """How many robots reach each of the issue's targets."""
 
-    def count(test) -> int:
+    def count(test: Callable[[dict[str, Any]], object]) -> int:
         return sum(1 for robot in robots.values() if test(robot))
 
     def nmpc_share(robot: dict[str, Any]) -> float | None:

@@ -109,7 +109,8 @@ def elastic_stiffness(build: StepBuild) -> ca.SX | None:
     return actuation.named(build.par["actuation"])["cable_stiffness"]
 
 
-def raw_reading(model: SymbolicModel, lengths, relative):
+def raw_reading(model: SymbolicModel, lengths: ca.SX | np.ndarray,
+                relative: ca.SX | np.ndarray | float):
     """What the encoders count for unstretched ``lengths`` (m): the lengths plus each
     encoder's true zero error, the model's offsets plus ``relative`` (true minus model,
     :attr:`~cdpr_sym.as_built.AsBuilt.encoder_offsets`). Numbers or CasADi expressions."""
@@ -119,7 +120,7 @@ def raw_reading(model: SymbolicModel, lengths, relative):
     return lengths + relative
 
 
-def corrected(model: SymbolicModel, reading):
+def corrected(model: SymbolicModel, reading: ca.SX | np.ndarray):
     """An encoder ``reading`` (m) less the model's encoder offsets
     (:attr:`~cdpr_sym.robot.Robot.encoder_offsets`, from a calibration): the lengths the
     model's forward kinematics take. Unchanged (the same expression) without offsets."""
@@ -128,9 +129,10 @@ def corrected(model: SymbolicModel, reading):
         reading, ca.SX) else offsets)
 
 
-def read_pose_expression(model: SymbolicModel, reading: ca.SX, guess: ca.SX, resolution,
-                         consistency, *, iterations: int | None = None,
-                         cable_stiffness=None) -> tuple[ca.SX, ca.SX]:
+def read_pose_expression(model: SymbolicModel, reading: ca.SX, guess: ca.SX,
+                         resolution: ca.SX, consistency: ca.SX, *,
+                         iterations: int | None = None,
+                         cable_stiffness: ca.SX | None = None) -> tuple[ca.SX, ca.SX]:
     """(pose, ok) read from encoder lengths ``reading`` (m, less the offsets) by forward
     kinematics from ``guess``: the solver's own residual test is left wide open and
     :func:`reading_bound` decides. ``iterations`` defaults to the solver's. The simulated
@@ -156,7 +158,7 @@ def read_pose_expression(model: SymbolicModel, reading: ca.SX, guess: ca.SX, res
                                                          consistency))
 
 
-def predicted_tension(model: SymbolicModel, q):
+def predicted_tension(model: SymbolicModel, q: ca.SX | np.ndarray):
     """The model's static tension at ``q`` (N, per cable): the tension whose stretch
     :func:`read_pose_expression` puts back. A reading taken while the platform moves errs
     by the dynamic part of the tension over EA (a strain of a few 1e-4 on the presets), one
@@ -167,7 +169,7 @@ def predicted_tension(model: SymbolicModel, q):
     return np.array(model.functions["static_tension"](q)).ravel()
 
 
-def reading_step_tolerance(n: int, m: int, resolution):
+def reading_step_tolerance(n: int, m: int, resolution: ca.SX | ca.MX | float):
     """The largest last Gauss-Newton step (m, or rad) of a pose read from m > n encoder
     lengths that counts as converged: half a count, resolution / 2 (for an angle, a lever
     arm under 1 m turns it into less than half a count of cable), and never under the
@@ -186,7 +188,8 @@ def reading_step_tolerance(n: int, m: int, resolution):
     return max(FK_STEP_TOLERANCE, resolution / 2)
 
 
-def reading_bound(n: int, m: int, resolution, consistency):
+def reading_bound(n: int, m: int, resolution: ca.SX | ca.MX | float,
+                  consistency: ca.SX | ca.MX | float):
     """The largest misfit max_i |l_i(q) - read_i| (m) of a pose read from encoders: round-off
     for m = n (some pose has exactly these lengths); for m > n half a count per cable (see
     :func:`~cdpr_sym.model.forward_kinematics.quantisation_tolerance`) plus ``consistency``.

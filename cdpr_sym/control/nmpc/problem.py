@@ -178,7 +178,7 @@ class NmpcProblem:
             diagonal[z + 2 * n: z + self.nz] = 2 * self.tension_weight
         return diagonal
 
-    def gradient(self, q_goal, tau_goal):
+    def gradient(self, q_goal: np.ndarray | ca.MX, tau_goal: np.ndarray | ca.MX):
         """The cost's linear term on v for the goal pose (m, rad) and tension (N); works on
         numpy arrays and CasADi symbols alike."""
         design = self.design
