@@ -209,3 +209,5 @@ def test_the_default_draw_integrates_a_light_robots_winches_with_the_substeps_th
     assert all(DEFAULT_DRAW.draw_pair(preset(name), 0, 0)[1].substeps == 2
                for name in ("aras3", "spatial6", "ipanema8"))
     assert AsBuiltDraw(substeps=5).draw_pair(robot, 0, 1)[1].substeps == 5
+    with pytest.raises(InvalidCase, match=r"^substeps"):
+        AsBuiltDraw(substeps=0)

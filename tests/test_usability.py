@@ -230,7 +230,7 @@ def test_a_damaged_sweep_sidecar_is_one_line_not_a_traceback(tmp_path, capsys):
 
 
 def test_the_designs_the_readme_names_import_from_the_package():
-    """The README builds ``DistributedPD(method=...)``; ``ida-winch`` is ``WinchIdaPbc``."""
+    """The tour builds ``DistributedPD(method=...)``; ``ida-winch`` is ``WinchIdaPbc``."""
     from cdpr_sym import DistributedPD, WinchIdaPbc
 
     assert DistributedPD(method="min_norm_2d").name == "pd-td"

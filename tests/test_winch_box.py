@@ -50,6 +50,22 @@ def test_the_command_keeps_the_pull_in_the_box_whichever_way_friction_acts():
     np.testing.assert_array_equal(np.array(u).ravel(), middle - 0.5 * coulomb)
 
 
+def test_a_drive_whose_friction_fills_the_box_is_refused():
+    """With 2 F over the box's width no command keeps the pull in the box: refused, naming
+    the drive, when the step is built."""
+    import pytest
+
+    from cdpr_sym import preset
+    from cdpr_sym.as_built import Actuation
+    from cdpr_sym.errors import InvalidCase
+
+    aras3 = preset("aras3")  # box [2, 60] N, drum radius 0.03 m
+    pull = ca.SX.sym("pull", 3)
+    with pytest.raises(InvalidCase, match=r"^drive: the drums' Coulomb friction"):
+        WinchIdaPbc().kept_in_box(pull, ca.SX.zeros(3), aras3, Actuation(coulomb=0.9))
+    WinchIdaPbc().kept_in_box(pull, ca.SX.zeros(3), aras3, Actuation(coulomb=0.8))
+
+
 def test_a_cable_reeled_in_at_the_floor_stays_in_the_box_as_built():
     """zoo0_004 (36.6 kg on 3 cables, box [12, 767] N, 4.3 N of winch friction at the
     cable), pair 3 as built: its third cable is reeled in at the floor for 1.5 s. With the

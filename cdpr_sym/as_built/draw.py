@@ -124,7 +124,8 @@ class AsBuiltDraw:
                 and math.isfinite(self.torque_margin)):
             raise InvalidCase("torque_margin", f"expected a positive factor, got "
                               f"{self.torque_margin!r}")
-        AsBuilt(delay=self.delay, substeps=self.substeps or 2)  # checks both
+        AsBuilt(delay=self.delay,  # checks both
+                substeps=FEWEST_SUBSTEPS if self.substeps is None else self.substeps)
 
     def drive(self, robot: Robot) -> Actuation | None:
         """The winches of ``robot``'s draws (scaled from it where the draw states none): a

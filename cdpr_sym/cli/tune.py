@@ -42,7 +42,8 @@ def _lines(report: dict[str, Any]) -> list[str]:
         f"({hardware['longest_cable_m']:.3g} m); command corner f_c = min(f_dc / 2, f_s / 40) "
         f"= {report['command_corner_hz']:.2f} Hz",
         f"ida-winch: k_p {winch['stiffness']:.4g} N/m (platform mode f_c / "
-        f"{1 / report['platform_share']:.3g}, the fastest below f_c / 6), k_d "
+        f"{1 / report['platform_share']:.3g} unless the fastest mode's cap at f_c / 6 "
+        f"binds: see the modes below), k_d "
         f"{winch['damping']:.4g} N s/m (zeta 0.45), k_i {winch['integral']:.4g} N/(m s) "
         f"(corner a twentieth of the mode), filter {winch['feedback_cutoff']:.3g} Hz x 4",
         f"case gains ({case['source']}): k {np.round(case['k'], 4).tolist()}, r_d "

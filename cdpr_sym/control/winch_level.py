@@ -60,10 +60,10 @@ integral acts only on the length error a motion of the platform can remove
 (:meth:`WinchIdaPbc.integrated_error`); the internal part (the model's and the robot's
 geometry disagreeing) is left to the motor spring, which adds k_p per metre of it to the
 internal force. The storage argument above is unchanged (H_d is the same sum over the m
-cables). Measured, 20 pairs at the default as-built build: planar4 90 %, spatial4 65 %
-(true tensions down to 1.3 N on a 2 N floor), ipanema8 20 % (its 14 kg m^2 platform on
-6 cm attachment arms turns on the motor springs at 0.04-0.09 Hz: the rotations do not
-settle; a pose-space gain matrix put the rotations on the platform's mode but needed
+cables). Measured as built (the zoo study, 40 pairs at the default build; docs/guide/
+controllers.md): planar4 and spatial4 about 90 %, ipanema8 far below (its 14 kg m^2
+platform on 6 cm attachment arms turns on the motor springs at 0.04-0.09 Hz: the rotations
+do not settle; a pose-space gain matrix put the rotations on the platform's mode but needed
 motor springs stiffer than the cables and went unstable).
 
 The pull the cables are to carry is clipped to the box as a last resort (FLAG_SATURATED:
@@ -413,10 +413,22 @@ class WinchIdaPbc:
         the other way than the plan near a stop). The drums' inertia is not bounded: a
         cable still dips by (J / r^2) times the drum's unplanned acceleration. Measured as
         built, 20 pairs each of 12 redundant robots: 15 more pairs met the target than with
-        the sum clipped to the box (spatial4 79 to 89.5 %), 4 fewer on three robots."""
+        the sum clipped to the box (spatial4 79 to 89.5 %), 4 fewer on three robots.
+
+        Left out of the bound: the viscous friction of a drum turning otherwise than planned
+        (b |omega - omega_r| / r, 0.11 N s/m of cable on aras3's drums) and the drums'
+        inertia. While the command sits on [P(T_min) + F, P(T_max) - F] with the pull inside
+        the box the integral keeps running (it winds up by at most F over k_i); the flag
+        marks the pull clipped. Raises :class:`InvalidCase` (``drive``) when 2 F fills the
+        box."""
         floor, ceiling = self.pull(robot.t_min, drive), self.pull(robot.t_max, drive)
         held = ca.fmin(ca.fmax(pull, floor), ceiling)
         coulomb = drive.coulomb / drive.drum_radius
+        if floor + coulomb >= ceiling - coulomb:
+            raise InvalidCase("drive", f"the drums' Coulomb friction at the cable, "
+                              f"{coulomb:.3g} N, is at least half the box's width "
+                              f"[{robot.t_min:g}, {robot.t_max:g}] N: no motor command keeps "
+                              f"a cable's pull in the box whichever way the friction acts")
         command = ca.fmin(ca.fmax(held - drive_terms, floor + coulomb), ceiling - coulomb)
         return command, ca.sum1(ca.fabs(held - pull) > 0) > 0
 
