@@ -162,9 +162,7 @@ class Simulator:
             from cdpr_sym.closed_loop.sampled import sampled_problem
 
             problem = sampled_problem(self.model, controller)
-        self.as_built = as_built
         self.chunk = chunk
-        self.rate_limited = rate_limited
         #: The plant's effects (:mod:`cdpr_sym.closed_loop.effects`), in layout order.
         self.effects = plant_effects(self.plant_kind)
         self.layout = plant_layout(self.model, controller, self.effects)
@@ -196,6 +194,16 @@ class Simulator:
             self.sampled = SampledSolver(self.model, controller, backend=self.backend,
                                          build_options=build_options,
                                          library_name=robot_name, problem=problem)
+
+    @property
+    def as_built(self) -> AsBuiltStructure | None:
+        """The as-built effects the step is built for (:attr:`plant_kind`'s), None without."""
+        return self.plant_kind.as_built
+
+    @property
+    def rate_limited(self) -> bool:
+        """Whether the step carries a tension-rate limit (:attr:`plant_kind`'s)."""
+        return self.plant_kind.rate_limited
 
     @functools.cached_property
     def step(self) -> ca.Function:
