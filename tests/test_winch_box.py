@@ -15,6 +15,7 @@ from cdpr_sym.as_built.hardware import scaled_actuation
 from cdpr_sym.calibration.drawn import drawn_robot
 from cdpr_sym.closed_loop import get_simulator
 from cdpr_sym.control import WinchIdaPbc
+from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import resolve_robot
 from cdpr_sym.sweep import SweepConfig
 from cdpr_sym.sweep.config import draw_pairs
@@ -30,7 +31,7 @@ def test_the_command_keeps_the_pull_in_the_box_whichever_way_friction_acts():
     robot = resolve_robot(str(ROBOT))
     drive = scaled_actuation(robot)
     pull, terms = ca.SX.sym("pull", 3), ca.SX.sym("terms", 3)
-    command, saturated = WinchIdaPbc().kept_in_box(pull, terms, robot, drive)
+    command, saturated = WinchIdaPbc().kept_in_box(pull, terms, SymbolicModel(robot), drive)
     function = ca.Function("kept", [pull, terms], [command, saturated])
     coulomb = drive.coulomb / drive.drum_radius
     floor = float(drum_pull(robot.t_min, drive.cable_stiffness))
@@ -59,11 +60,11 @@ def test_a_drive_whose_friction_fills_the_box_is_refused():
     from cdpr_sym.as_built import Actuation
     from cdpr_sym.errors import InvalidCase
 
-    aras3 = preset("aras3")  # box [2, 60] N, drum radius 0.03 m
+    model = SymbolicModel(preset("aras3"))  # box [2, 60] N, drum radius 0.03 m
     pull = ca.SX.sym("pull", 3)
     with pytest.raises(InvalidCase, match=r"^drive: the drums' Coulomb friction"):
-        WinchIdaPbc().kept_in_box(pull, ca.SX.zeros(3), aras3, Actuation(coulomb=0.9))
-    WinchIdaPbc().kept_in_box(pull, ca.SX.zeros(3), aras3, Actuation(coulomb=0.8))
+        WinchIdaPbc().kept_in_box(pull, ca.SX.zeros(3), model, Actuation(coulomb=0.9))
+    WinchIdaPbc().kept_in_box(pull, ca.SX.zeros(3), model, Actuation(coulomb=0.8))
 
 
 def test_a_cable_reeled_in_at_the_floor_stays_in_the_box_as_built():

@@ -90,7 +90,7 @@ from cdpr_sym.as_built.hardware import scaled_actuation
 from cdpr_sym.checks import positive_number
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
 from cdpr_sym.control.interface import Capabilities, ControlLaw, DriveReading
-from cdpr_sym.control.parts import beta_margin, distributed_command, flag_if
+from cdpr_sym.control.parts import beta_margin, clip_to_box, distributed_command, flag_if
 from cdpr_sym.control.planned import SmoothReference, minimum_jerk
 from cdpr_sym.control.tuning import FROM_ROBOT, winch_gains
 from cdpr_sym.distribution import AUTO
@@ -372,16 +372,14 @@ class WinchIdaPbc:
         feedback, stages = self.filtered(stiffness * error + damping * error_rate
                                          + integral * integrated_kept, stages_kept, dt, cutoff)
         if drives.rigid:  # the tension is the command: no drum to pull through
-            command = tension_r + feedback
-            clipped = ca.fmin(ca.fmax(command, robot.t_min), robot.t_max)
-            saturated = ca.sum1(ca.fabs(clipped - command) > 0) > 0
+            clipped, saturated = clip_to_box(model, tension_r + feedback)
         else:
             reflected = drive.inertia / drive.drum_radius**2
             friction = friction_torque(rate_r / drive.drum_radius,
                                        ca.DM(drive.parameters())) / drive.drum_radius
-            command = self.pull(tension_r, drive) + feedback
             clipped, saturated = self.kept_in_box(
-                command, reflected * accel_r + friction, robot, drive)
+                self.pull(tension_r, drive) + feedback, reflected * accel_r + friction, model,
+                drive)
         # the integral holds while the command is clipped (no wind-up)
         integrated = ca.if_else(saturated, integrated_kept,
                                 integrated_kept + dt * self.integrated_error(model, q_start,
@@ -395,8 +393,8 @@ class WinchIdaPbc:
         return law, ca.vertcat(t + dt, q_start, duration, margin, misfit, reading, rate,
                                integrated, stages)
 
-    def kept_in_box(self, pull: ca.SX, drive_terms: ca.SX, robot: Robot, drive: Actuation
-                    ) -> tuple[ca.SX, ca.SX]:
+    def kept_in_box(self, pull: ca.SX, drive_terms: ca.SX, model: SymbolicModel,
+                    drive: Actuation) -> tuple[ca.SX, ca.SX]:
         """(the motor's tension command u / r, whether the pull was clipped) for the pull
         ``pull`` (N) the cables are to carry, with ``drive_terms`` (N) the drums' own
         inertia and friction at the reference, which the motor adds and the cable never
@@ -421,16 +419,17 @@ class WinchIdaPbc:
         the box the integral keeps running (it winds up by at most F over k_i); the flag
         marks the pull clipped. Raises :class:`InvalidCase` (``drive``) when 2 F fills the
         box."""
+        robot = model.robot
         floor, ceiling = self.pull(robot.t_min, drive), self.pull(robot.t_max, drive)
-        held = ca.fmin(ca.fmax(pull, floor), ceiling)
+        held, clipped = clip_to_box(model, pull, (floor, ceiling))
         coulomb = drive.coulomb / drive.drum_radius
         if floor + coulomb >= ceiling - coulomb:
             raise InvalidCase("drive", f"the drums' Coulomb friction at the cable, "
                               f"{coulomb:.3g} N, is at least half the box's width "
                               f"[{robot.t_min:g}, {robot.t_max:g}] N: no motor command keeps "
                               f"a cable's pull in the box whichever way the friction acts")
-        command = ca.fmin(ca.fmax(held - drive_terms, floor + coulomb), ceiling - coulomb)
-        return command, ca.sum1(ca.fabs(held - pull) > 0) > 0
+        command, _ = clip_to_box(model, held - drive_terms, (floor + coulomb, ceiling - coulomb))
+        return command, clipped
 
     def integrated_error(self, model: SymbolicModel, q_start: ca.SX, duration: ca.SX,
                          t: ca.SX, q_goal: ca.SX, error: ca.SX) -> ca.SX:

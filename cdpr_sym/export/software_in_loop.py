@@ -27,7 +27,6 @@ from typing import Any, ClassVar
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.as_built import AsBuilt
 from cdpr_sym.closed_loop import get_simulator, step_function
 from cdpr_sym.closed_loop.effects import plant_effects
 from cdpr_sym.closed_loop.effects.encoders import raw_reading
@@ -110,13 +109,12 @@ def loop_plant(model: SymbolicModel, plant: Plant, start: np.ndarray, goal: np.n
                k: np.ndarray, r_d: np.ndarray, dt: float) -> LoopPlant:
     """The as-built ``plant`` for the software in the loop: the step, the encoders and the
     run's start state, which is the Python run's (:func:`reference_run`) field by field."""
-    as_built: AsBuilt = plant.as_built
-    structure = as_built.structure()
+    kind = plant.kind
     external = ExternalCommand()
-    effects = plant_effects(plant.kind)
+    effects = plant_effects(kind)
     layout = plant_layout(model, external, effects)
     step = step_function(model, external, effects=effects)
-    simulator = get_simulator(model.robot, external, as_built=structure)
+    simulator = get_simulator(model.robot, external, as_built=kind.as_built)
     x0 = simulator.initial_state(start, goal, k, r_d, plant=plant)
     p = simulator.parameters(goal, k, r_d, dt, plant)
     return LoopPlant(step, _counts_function(model, layout, effects), x0, p,
