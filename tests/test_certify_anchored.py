@@ -15,6 +15,8 @@ import pytest
 
 from cdpr_sym.certify import anchored
 from cdpr_sym.certify import workspace as certified
+from cdpr_sym.certify.krawczyk import KrawczykVerdicts
+from cdpr_sym.certify.registry import proof_method
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import load_robot, preset
 
@@ -84,7 +86,7 @@ def _contradictions(robot, lower, upper, verdicts, rng, per_box=8):
 
 def _verdicts(robot):
     model = SymbolicModel(robot)
-    return certified.anchored_verdicts(model, np.asarray(robot.start[robot.dimension:]), True)
+    return anchored.anchored_verdicts(model, np.asarray(robot.start[robot.dimension:]), True)
 
 
 def test_interior_tensions_solve_the_statics_and_come_near_the_lps_margin(rng):
@@ -143,8 +145,8 @@ def test_with_as_many_cables_it_never_contradicts_krawczyk(rng):
     model = SymbolicModel(robot)
     orientation = np.asarray(robot.start[robot.dimension:])
     lower, upper = _boxes(robot, 3000, rng, widths=(0.005, 0.01, 0.02))
-    mine = certified.anchored_verdicts(model, orientation, True)(lower, upper)
-    theirs = certified._KrawczykVerdicts(model, orientation, True)(lower, upper)
+    mine = anchored.anchored_verdicts(model, orientation, True)(lower, upper)
+    theirs = KrawczykVerdicts(model, orientation, True)(lower, upper)
     assert not np.any((mine == 0) & (theirs == 1)) and not np.any((mine == 1) & (theirs == 0))
     decided = (mine != 2) & (theirs != 2)
     assert decided.mean() > 0.5
@@ -157,8 +159,8 @@ def test_the_numpy_walk_decides_as_the_generated_c_does(rng):
     model = SymbolicModel(robot)
     orientation = np.asarray(robot.start[robot.dimension:])
     lower, upper = _boxes(robot, 300, rng)
-    compiled = certified.anchored_verdicts(model, orientation, True)(lower, upper)
-    walked = certified.anchored_verdicts(model, orientation, False)(lower, upper)
+    compiled = anchored.anchored_verdicts(model, orientation, True)(lower, upper)
+    walked = anchored.anchored_verdicts(model, orientation, False)(lower, upper)
     # the two walks round differently in the last bits: a box on the edge may differ,
     # never the other way round
     assert not np.any((compiled == 0) & (walked == 1)) and not np.any(
@@ -262,13 +264,13 @@ def test_sampled_tensions_and_projections_lie_in_their_enclosures(robot_name, pu
 def test_the_proof_method_and_the_property_are_named():
     from cdpr_sym.certify.report import summary
 
-    named = {name: certified.proof_method(preset(name), False)
+    named = {name: proof_method(preset(name), False)
              for name in ("aras3", "planar4", "spatial6", "ipanema8")}
     assert named == {"aras3": "cramer", "planar4": "facets", "spatial6": "krawczyk",
                      "ipanema8": "anchored"}
-    assert certified.proof_method(preset("aras3"), True) == "cramer-wrench"
-    assert certified.proof_method(preset("ipanema8"), True) == "anchored"
-    assert certified.proof_method(preset("spatial6"), True) == "facets"
+    assert proof_method(preset("aras3"), True) == "cramer-wrench"
+    assert proof_method(preset("ipanema8"), True) == "anchored"
+    assert proof_method(preset("spatial6"), True) == "facets"
     redundant = summary(certified.certify_workspace(preset("planar4"), min_width=0.1), None)
     assert redundant["property"].startswith("static feasibility: some tension T")
     assert "hyperplane shifting" in redundant["method"]
@@ -306,10 +308,10 @@ def test_wrench_boxes_agree_with_hyperplane_shifting_and_forgetting_the_wrench_i
     model = SymbolicModel(robot)
     orientation = np.asarray(robot.start[robot.dimension:])
     lower, upper = _boxes(robot, 800, rng)
-    verdicts = certified.anchored_verdicts(model, orientation, True, WRENCH)(lower, upper)
+    verdicts = anchored.anchored_verdicts(model, orientation, True, WRENCH)(lower, upper)
     assert np.mean(verdicts == 0) > 0.25 and np.mean(verdicts == 1) > 0.15
     assert _wrench_contradictions(robot, lower, upper, verdicts, WRENCH, rng) == (0, 0)
-    forgetful = certified.anchored_verdicts(model, orientation, True)(lower, upper)
+    forgetful = anchored.anchored_verdicts(model, orientation, True)(lower, upper)
     assert _wrench_contradictions(robot, lower, upper, forgetful, WRENCH, rng)[0] > 0
 
 
@@ -321,7 +323,7 @@ def test_every_wrench_of_the_box_moves_the_tension_within_the_spread(rng):
     n, m, d = robot.n, robot.m, robot.dimension
     model = SymbolicModel(robot)
     orientation = np.asarray(robot.start[d:])
-    verdicts = certified.anchored_verdicts(model, orientation, False, WRENCH)
+    verdicts = anchored.anchored_verdicts(model, orientation, False, WRENCH)
     point = anchored.terms_function(model, orientation, wrench=True)
     lower, upper = _boxes(robot, 150, rng, widths=(0.002, 0.01, 0.04))
     terms = verdicts.box_terms(lower, upper)

@@ -141,6 +141,23 @@ def test_work_that_meets_the_memory_bound_before_the_time_limit_is_refused(monke
     assert refused.value.field == "min_width" and seen[-1].evaluated < 300_000
 
 
+def test_the_defaults_are_never_refused_they_stop_where_memory_ends(monkeypatch, rng):
+    """The work refused when --until is asked for is, at the defaults, stopped at the level
+    memory cannot hold, with every verdict kept: the command with no options answers
+    (``certify workspace --property assumption-1`` on aras3 was refused at its defaults)."""
+    robot = preset("planar2")
+    monkeypatch.setattr(certified, "MAX_LEVEL_BOXES", 1000)
+    with pytest.raises(InvalidCase, match="min_width:"):
+        certified.certify_workspace(robot, until=certified.DEFAULT_UNTIL)
+    certificate = certified.certify_workspace(robot)
+    assert certificate.stopped == "memory"
+    assert (certificate.min_width, certificate.until) == (certified.DEFAULT_MIN_WIDTH,
+                                                          certified.DEFAULT_UNTIL)
+    shares = certificate.shares()
+    assert shares["feasible"] > 0.8 and shares["undecided"] < 0.05
+    _sound_and_tiling(certificate, robot, rng)
+
+
 def test_work_the_time_limit_stops_first_is_not_refused(monkeypatch):
     # 0.1 ms a box: the ten million boxes before a level too large would take 1,000 s
     _slow(monkeypatch, seconds_per_box=1e-4)

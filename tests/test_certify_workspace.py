@@ -13,6 +13,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
+from cdpr_sym.certify import cramer, facets
 from cdpr_sym.certify import workspace as certified
 from cdpr_sym.certify.evaluate import IntervalFunction, centred
 from cdpr_sym.certify.interval_c import CompiledIntervalFunction
@@ -61,7 +62,7 @@ def test_every_sampled_pose_agrees_with_its_box(robot_name, min_width, rng):
 def test_the_sampled_check_catches_a_bound_that_is_too_tight(monkeypatch, rng):
     """Enclosures shrunk by a third of their width from each side (the determinant's row
     kept): a wrong proof, which the sampled check must report."""
-    original = certified._verdicts
+    original = cramer._verdicts
 
     def too_tight(bounds, n):
         lo, hi = bounds
@@ -72,7 +73,7 @@ def test_the_sampled_check_catches_a_bound_that_is_too_tight(monkeypatch, rng):
         return original((lo, hi), n)
 
     robot = preset("planar2")
-    monkeypatch.setattr(certified, "_verdicts", too_tight)
+    monkeypatch.setattr(cramer, "_verdicts", too_tight)
     broken = certified.certify_workspace(robot, min_width=0.01)
     check = sampled_check(broken, 100_000, rng)
     assert check["disagreements_feasible"] + check["disagreements_infeasible"] > 0
@@ -287,7 +288,7 @@ def test_more_cables_than_dof_agree_with_an_lp_and_with_hyperplane_shifting(rng)
 def test_a_facet_proof_without_the_weight_is_caught(monkeypatch, rng):
     """Margins that leave out |c . (grad V - W tau_mid)| prove every full-rank box feasible;
     the sampled check must contradict them."""
-    original = certified.facet_function
+    original = facets.facet_function
 
     def weightless(model, orientation, half_widths=None):
         function = original(model, orientation, half_widths)
@@ -298,7 +299,7 @@ def test_a_facet_proof_without_the_weight_is_caught(monkeypatch, rng):
         half = 0.5 * (model.robot.t_max - model.robot.t_min)
         return ca.Function("facets", [x], [ca.vertcat(half * spreads, spreads)])
 
-    monkeypatch.setattr(certified, "facet_function", weightless)
+    monkeypatch.setattr(facets, "facet_function", weightless)
     broken = certified.certify_workspace(preset("planar4"), min_width=0.02)
     assert sampled_check(broken, 100_000, rng)["disagreements_feasible"] > 0
 

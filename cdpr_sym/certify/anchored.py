@@ -46,9 +46,11 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.certify.evaluate import IntervalFunction
 from cdpr_sym.certify.linear import _TINY, _U, _gamma, _inflate, _mid_rad, enclose_solutions
 from cdpr_sym.certify.poses import pose_inputs
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot import Robot
 from cdpr_sym.robot.tension_box import TensionBox
 
 #: The smoothed max-min search: sharpness schedule, as multiples of 1 / (T_max - T_min), and
@@ -259,7 +261,7 @@ class BoxTerms:
 
 
 class AnchoredVerdicts:
-    """Verdicts (0 feasible, 1 infeasible, 2 undecided per box) by the module's certificates.
+    """A :class:`~cdpr_sym.certify.verdict.Verdict` code per box by the module's certificates.
 
     ``point`` and ``slopes`` are interval evaluators (generated C or numpy) of
     :func:`terms_function` and :func:`slopes_function`: called with (lower, upper) bounds of
@@ -461,3 +463,47 @@ def _up(x: np.ndarray) -> np.ndarray:
 
 def _down(x: np.ndarray) -> np.ndarray:
     return np.nextafter(x, -np.inf)
+
+
+def anchored_verdicts(model: SymbolicModel, orientation: np.ndarray, compiled: bool,
+                      half_widths: np.ndarray | None = None) -> AnchoredVerdicts:
+    """The certificates anchored at each box's centre (this module):
+    W and grad V at the centre and their slopes over the box, by the natural extension
+    rounded outward, in generated C or numpy."""
+    from cdpr_sym.codegen import BuildOptions
+    from cdpr_sym.robot import robot_key
+    from cdpr_sym.workspace.vectorised import pose_evaluator
+
+    robot = model.robot
+    wrench = half_widths is not None
+    point = terms_function(model, orientation, wrench)
+    slopes = slopes_function(model, orientation, wrench)
+    options = BuildOptions() if compiled else BuildOptions(backend="casadi")
+    normals = pose_evaluator(robot, lambda: normals_function(model), "facet_normals",
+                             build_options=options, recipe=f"{robot_key(robot)}\0normals")
+    evaluate = lambda poses: normals.evaluate(poses)[0]  # noqa: E731
+    if compiled:
+        from cdpr_sym.certify.interval_c import CompiledIntervalFunction
+
+        return AnchoredVerdicts(model, orientation, CompiledIntervalFunction(point),
+                                CompiledIntervalFunction(slopes), evaluate, half_widths)
+    return AnchoredVerdicts(model, orientation, IntervalFunction(point),
+                            IntervalFunction(slopes), evaluate, half_widths)
+
+
+class AnchoredMethod:
+    """A tension path and a Farkas direction per box: m > n > :data:`~cdpr_sym.certify.
+    cramer.CRAMER_UP_TO` (a wrench box or none)."""
+
+    key = "anchored"
+    description = ("a tension path and a Farkas direction chosen at each box's centre, proven "
+                   "over the box by the mean-value form and Krawczyk's method")
+
+    def covers(self, robot: Robot, wrench: bool) -> bool:
+        from cdpr_sym.certify.cramer import CRAMER_UP_TO
+
+        return robot.m > robot.n > CRAMER_UP_TO
+
+    def verdicts(self, model: SymbolicModel, orientation: np.ndarray | None, compiled: bool,
+                 wrench: np.ndarray | None) -> AnchoredVerdicts:
+        return anchored_verdicts(model, orientation, compiled, wrench)

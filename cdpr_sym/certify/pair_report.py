@@ -35,21 +35,14 @@ from typing import Any
 import numpy as np
 
 from cdpr_sym.certify.budget import STOPS
-from cdpr_sym.certify.pairs import PROPERTIES, PairCertificate
+from cdpr_sym.certify.pairs import PairCertificate
+from cdpr_sym.certify.registry import pair_property
+from cdpr_sym.certify.verdict import WORDS
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.robot import Robot
 
 #: Instants per move in the plan check.
 PLAN_INSTANTS = 2001
-#: What each design's certificate assumes.
-ASSUMPTIONS = {
-    "smooth": "nominal model (mass, geometry), continuous time, a start at rest; tracking "
-              "errors must stay within the tracking margin",
-    "ida-ref": "nominal model (mass, geometry) with the robot's gains k and r_d, continuous "
-               "time, a start at rest with the particle on the platform, J_d = 0 (lam = inf), "
-               "no observer, command filter or goal_stiffness; the sampled loop's "
-               "differences must stay within the tracking margin",
-}
 #: Simulated seconds per closed-loop run (the plan's longest duration and time to settle).
 RUN_SECONDS = 6.0
 
@@ -168,6 +161,11 @@ def loop_check(certificate: PairCertificate, starts: np.ndarray, goals: np.ndarr
             "durations_chosen_s": sorted({float(T) for T in chosen_T})}
 
 
+#: The sampled checks of proven pair boxes, by the kind a pair property names
+#: (:class:`~cdpr_sym.certify.registry.PairProperty`'s ``check``).
+SAMPLED_CHECKS = {"plan": plan_check, "loop": loop_check}
+
+
 def closed_loop_check(certificate: PairCertificate, starts: np.ndarray, goals: np.ndarray,
                       design: SmoothReference | VirtualReferenceIdaPbc) -> dict[str, Any]:
     """The closed-loop check of the module docstring, of the design that was proven (clipped
@@ -226,10 +224,10 @@ def summary(certificate: PairCertificate, checks: dict[str, Any]) -> dict[str, A
     """certificate.json's content."""
     shares = certificate.shares()
     counts = {verdict: int(np.sum(certificate.verdicts == verdict))
-              for verdict in ("proven", "disproven", "undecided", "outside")}
+              for verdict in WORDS}
     return {"robot": certificate.robot.name, "controller": certificate.controller,
-            "property": PROPERTIES[certificate.controller],
-            "assumptions": ASSUMPTIONS[certificate.controller],
+            "property": pair_property(certificate.controller).statement,
+            "assumptions": pair_property(certificate.controller).assumptions,
             "tracking_margin_N": certificate.tracking_margin,
             "coordinates": list(certificate.names), "box_width_m": certificate.width,
             "min_width_m": certificate.min_width,

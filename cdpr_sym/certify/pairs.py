@@ -5,8 +5,8 @@ The domain is the pairs whose start box and goal box are both proven statically 
 (:mod:`cdpr_sym.certify.workspace`, each grid box taken whole): a box only partly in the
 static workspace holds starts at which no design can hold the platform, so its pairs are
 reported ``outside`` and left out of the shares. What a proven pair box proves is the
-design's (:data:`PROPERTIES`); ``smooth``'s argument is :mod:`.smooth_pairs`, ``ida-ref``'s
-:mod:`.storage_pairs`.
+design's (its pair property, :func:`~cdpr_sym.certify.registry.pair_properties`);
+``smooth``'s argument is :mod:`.smooth_pairs`, ``ida-ref``'s :mod:`.storage_pairs`.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from cdpr_sym.certify.boxes import bisect, check_min_width, grid_boxes, grid_edges
 from cdpr_sym.certify.budget import (
     DEFAULT_TIME_LIMIT,
     Clock,
@@ -29,14 +30,10 @@ from cdpr_sym.certify.budget import (
     doubling_levels,
     first_level_over,
 )
-from cdpr_sym.certify.workspace import (
-    MAX_LEVEL_BOXES,
-    CramerVerdicts,
-    bisect,
-    check_min_width,
-    grid_boxes,
-    grid_edges,
-)
+from cdpr_sym.certify.cramer import CramerVerdicts
+from cdpr_sym.certify.registry import pair_property
+from cdpr_sym.certify.verdict import WORDS, Verdict, named
+from cdpr_sym.certify.workspace import MAX_LEVEL_BOXES
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
@@ -44,18 +41,8 @@ from cdpr_sym.robot import Robot
 if TYPE_CHECKING:  # the designs' module is imported where a proof needs it
     from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 
-VERDICTS = ("proven", "disproven", "undecided", "outside")
-#: The property a proven pair box proves, per design.
-PROPERTIES = {
-    "smooth": "for every start and goal in the boxes, the plan finds a plan, and whatever "
-              "duration it picks, its feed-forward tension (the command on the nominal model "
-              "in continuous time, tracking exact) stays in [T_min + mu, T_max - mu] at every "
-              "instant of the move, with det W of one sign along the path",
-    "ida-ref": "for every start and goal in the boxes, the command (the nominal model in "
-               "continuous time, from rest) stays in [T_min + mu, T_max - mu] at every "
-               "instant, for ever, over the set where the design's storage H_d keeps the "
-               "motion, with det W of one sign on it",
-}
+#: The verdicts of a pair certificate: :class:`~cdpr_sym.certify.verdict.Verdict`'s words.
+VERDICTS = WORDS
 #: Most pair boxes one certificate may hold.
 MAX_PAIRS = 2_000_000
 #: Most pair boxes decided in one call, and the first call's boxes (the cost per box it
@@ -123,7 +110,7 @@ class PairCertificate:
     def shares(self) -> dict[str, float]:
         """proven, disproven and undecided shares of the domain's (start, goal) volume."""
         volume = self.volumes()
-        inside = self.verdicts != "outside"
+        inside = self.verdicts != Verdict.OUTSIDE.word
         total = volume[inside].sum()
         return {verdict: float(volume[self.verdicts == verdict].sum() / total) if total else 0.0
                 for verdict in VERDICTS[:3]}
@@ -176,7 +163,7 @@ def certify_pairs(robot: Robot, controller: str, *,
         or a grid too large (``width``), a margin out of range (``tracking_margin``), and
         what :func:`certify_pair_boxes` refuses.
     """
-    _check_controller(controller)
+    pair_property(controller)
     _check_width(width)
     d = robot.dimension
     check_min_width(width, float(np.max(np.subtract(robot.frame_upper[:d],
@@ -243,7 +230,7 @@ def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, 
         than twice :data:`~cdpr_sym.certify.workspace.MAX_LEVEL_BOXES` pair boxes before
         the time limit stops it (``min_width``), within its first second or so.
     """
-    _check_controller(controller)
+    pair_property(controller)
     time_limit = check_time_limit(time_limit)
     min_width = width if min_width is None else min_width
     _check_width(min_width, "min_width")
@@ -255,10 +242,10 @@ def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, 
     upper = np.hstack([starts[1], goals[1]])[unique]
     n = robot.n
     static = CramerVerdicts(model, np.zeros(0), True)
-    inside = (static(lower[:, :n], upper[:, :n]) == 0) & (static(lower[:, n:],
-                                                                 upper[:, n:]) == 0)
+    inside = ((static(lower[:, :n], upper[:, :n]) == Verdict.PROVEN)
+              & (static(lower[:, n:], upper[:, n:]) == Verdict.PROVEN))
     found_lower, found_upper, found_codes, found_shortest = (
-        [lower[~inside]], [upper[~inside]], [np.full(int(np.sum(~inside)), 3)],
+        [lower[~inside]], [upper[~inside]], [np.full(int(np.sum(~inside)), Verdict.OUTSIDE)],
         [np.full(int(np.sum(~inside)), np.nan)])
     lower, upper = lower[inside], upper[inside]
     run = _Refinement(proof, lower, upper, n, min_width=min_width, time_limit=time_limit,
@@ -268,7 +255,7 @@ def certify_pair_boxes(robot: Robot, controller: str, starts: tuple[np.ndarray, 
     codes = np.concatenate([*found_codes, run.codes])
     return PairCertificate(robot, controller, tuple(robot.coordinate_names[:n]),
                            lower[:, :n], upper[:, :n], lower[:, n:], upper[:, n:],
-                           np.array(VERDICTS, dtype=object)[codes],
+                           named(codes),
                            np.concatenate([*found_shortest, run.shortest]), float(width),
                            float(min_width), float(tracking_margin),
                            time.perf_counter() - started, run.stopped, time_limit)
@@ -295,7 +282,7 @@ class _Refinement:
         volumes = np.zeros(2)  # proven, disproven
         level, stopped, inherited = 0, None, None
         while len(lower):
-            codes = np.full(len(lower), 2)
+            codes = np.full(len(lower), Verdict.UNDECIDED)
             shortest = np.full(len(lower), np.nan)
             statuses, sign, done = None, np.zeros(len(lower)), 0
             # chunks taken across the level, so the first one's cost is the level's
@@ -313,14 +300,15 @@ class _Refinement:
                 statuses[rows], sign[rows] = verdict.statuses, verdict.sign
                 volumes += [float(np.prod(upper[rows][codes[rows] == k]
                                           - lower[rows][codes[rows] == k], axis=1).sum())
-                            for k in (0, 1)]
+                            for k in (Verdict.PROVEN, Verdict.DISPROVEN)]
                 if progress is not None:
                     progress(Progress(level, len(lower), clock.evaluated, volumes[0] / total,
                                       volumes[1] / total, clock.elapsed(), time_limit))
                 if level == 0 and part.start == 0 and part.stop < len(lower):
                     _refuse_a_grid_too_slow(len(lower), clock)
             # a side within rounding of min_width counts as narrow enough
-            final = (codes != 2) | ((upper - lower).max(axis=1) <= min_width * (1 + 1e-9))
+            final = ((codes != Verdict.UNDECIDED)
+                     | ((upper - lower).max(axis=1) <= min_width * (1 + 1e-9)))
             if done < len(lower):  # out of time: the rest of the level stays undecided
                 final[:], stopped = True, "time_limit"
             elif np.all(final):
@@ -366,38 +354,23 @@ def _refuse_a_grid_too_slow(boxes: int, clock: Clock) -> None:
                           f"smaller --starts and --goals, or a longer --time-limit")
 
 
-def default_design(controller: str):
+def default_design(controller: str) -> SmoothReference | VirtualReferenceIdaPbc:
     """The design a pair certificate of ``controller`` is of, with its default options."""
-    from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
-
-    _check_controller(controller)
-    return {"smooth": SmoothReference, "ida-ref": VirtualReferenceIdaPbc}[controller]()
+    return pair_property(controller).design()
 
 
 def pair_proof(model: SymbolicModel, controller: str,
                design: SmoothReference | VirtualReferenceIdaPbc | None,
-               tracking_margin: float, min_width: float):
-    """The proof of ``controller``'s property (:data:`PROPERTIES`) for ``design`` (None:
-    :func:`default_design`); ``ida-ref``'s capacity cells are a quarter of ``min_width``
-    (within 5 mm to 2.5 cm)."""
-    from cdpr_sym.certify import storage_pairs
-    from cdpr_sym.certify.smooth_pairs import SmoothPairProof
-
-    design = default_design(controller) if design is None else design
-    if type(design) is not type(default_design(controller)):
+               tracking_margin: float, min_width: float) -> object:
+    """The proof of ``controller``'s pair property
+    (:func:`~cdpr_sym.certify.registry.pair_property`) for ``design`` (None: its default
+    design)."""
+    chosen = pair_property(controller)
+    design = chosen.design() if design is None else design
+    if type(design) is not type(chosen.design()):
         raise InvalidCase("design", f"a pair certificate of {controller} needs its design, "
                           f"got {type(design).__name__}")
-    if controller == "ida-ref":
-        cell = min(max(storage_pairs.CELL_FRACTION * min_width, storage_pairs.SMALLEST_CELL),
-                   storage_pairs.LARGEST_CELL)
-        return storage_pairs.StoragePairProof(model, design, tracking_margin, cell)
-    return SmoothPairProof(model, design, tracking_margin)
-
-
-def _check_controller(controller: str) -> None:
-    if controller not in PROPERTIES:
-        raise InvalidCase("controller", f"pair certificates exist for {sorted(PROPERTIES)}, "
-                          f"not {controller!r}")
+    return chosen.proof(model, design, tracking_margin, min_width)
 
 
 def _check_width(width: float, field: str = "width") -> None:

@@ -23,6 +23,7 @@ import itertools
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.certify.verdict import Verdict
 from cdpr_sym.robot import Robot
 
 
@@ -57,7 +58,8 @@ def orientation_pieces(lower: np.ndarray, upper: np.ndarray, step: float
 
 class OverOrientations:
     """Verdicts of position boxes over an orientation range (module docstring), from a
-    ``decide`` of whole-pose boxes (0 feasible, 1 infeasible, 2 undecided per box).
+    ``decide`` of whole-pose boxes (a :class:`~cdpr_sym.certify.verdict.Verdict` code per
+    box).
 
     After each call, :attr:`witnesses` holds for each box the index of the piece that proved
     it infeasible (-1 for the others)."""
@@ -78,7 +80,8 @@ class OverOrientations:
                 break
             codes = self.decide(np.hstack([lower[open_], np.tile(lo, (len(open_), 1))]),
                                 np.hstack([upper[open_], np.tile(hi, (len(open_), 1))]))
-            every[open_] &= codes == 0
-            witness[open_[codes == 1]] = index
+            every[open_] &= codes == Verdict.PROVEN
+            witness[open_[codes == Verdict.DISPROVEN]] = index
         self.witnesses = witness
-        return np.where(witness >= 0, 1, np.where(every, 0, 2))
+        return np.where(witness >= 0, Verdict.DISPROVEN,
+                        np.where(every, Verdict.PROVEN, Verdict.UNDECIDED)).astype(int)

@@ -7,11 +7,12 @@ case's start, or the boxes themselves for a planar robot).
 
 The sampled check draws poses uniformly over the frame in two steps (a box with probability
 proportional to its volume, then a point uniform in it), so each pose's box is known; it
-computes the static tension of each by a numeric solve of W T = grad V (CasADi's model
-functions evaluated at points, LU in numpy, not the interval code; with a wrench box, the
-tension's spread |W^-1 J^T| h over it) and counts the poses whose box's verdict it
-contradicts. With more cables than degrees of freedom each pose is classified by the sampled
-workspace's hyperplane-shifting test instead. Over an orientation range each pose's angles
+tests each pose by the property's pointwise test (``holds`` of
+:class:`~cdpr_sym.certify.registry.WorkspaceProperty`: for static feasibility a numeric solve
+of W T = grad V, CasADi's model functions evaluated at points and LU in numpy, not the
+interval code, with a wrench box the tension's spread |W^-1 J^T| h over it; with more cables
+than degrees of freedom the sampled workspace's hyperplane-shifting test) and counts the
+poses whose box's verdict it contradicts. Over an orientation range each pose's angles
 are drawn uniformly over the range, or over the witness piece in an infeasible box (there
 every orientation must fail); ``sampled_feasible_share`` is then the share among those
 draws, not an estimate of the total orientation workspace. A proof is sound only if that
@@ -25,12 +26,11 @@ import math
 from pathlib import Path
 from typing import Any
 
-import casadi as ca
 import numpy as np
 
 from cdpr_sym.certify.budget import STOPS
-from cdpr_sym.certify.workspace import METHODS, WorkspaceCertificate, proof_method
-from cdpr_sym.model import SymbolicModel
+from cdpr_sym.certify.registry import method_for, workspace_property
+from cdpr_sym.certify.workspace import WorkspaceCertificate
 
 
 def sampled_check(certificate: WorkspaceCertificate, samples: int,
@@ -43,34 +43,9 @@ def sampled_check(certificate: WorkspaceCertificate, samples: int,
     lower, upper = certificate.lower[boxes], certificate.upper[boxes]
     positions = lower + (upper - lower) * rng.random(lower.shape)
     angles = sampled_orientations(certificate, boxes, rng)
-    if robot.m > robot.n:
-        feasible = _hyperplane_shifting(certificate, positions, angles)
-        return _counts(certificate, boxes, feasible)
-    model = SymbolicModel(robot)
-    q = ca.SX.sym("q", robot.n)
-    terms = ca.Function("terms", [q], [model.structure_matrix(q), model.grad_potential(q),
-                                       ca.densify(model.wrench_jacobian(q).T)])
-    box = certificate.half_widths
-    feasible = np.zeros(samples, dtype=bool)
-    for start in range(0, samples, 100_000):
-        chunk = positions[start:start + 100_000]
-        poses = np.hstack([chunk, angles[start:start + 100_000]])
-        W, gravity, transposed = terms.map(len(chunk))(poses.T)
-        W = np.array(W).T.reshape(len(chunk), robot.n, robot.m).transpose(0, 2, 1)
-        tension = np.linalg.solve(W, np.array(gravity).T[..., None])[..., 0]
-        if box.size:  # the tension's range over the wrench box: T(0) -+ |W^-1 J^T| h
-            J_T = np.array(transposed).T.reshape(len(chunk), -1, robot.n).transpose(0, 2, 1)
-            spread = np.abs(np.linalg.solve(W, J_T)) @ box
-        else:
-            spread = 0.0
-        if certificate.prop == "assumption-1":  # beta = h - |tau_1 - c|_2 > 0
-            middle, half = robot.box.middle, robot.box.half
-            feasible[start:start + len(chunk)] = (
-                half - np.linalg.norm(tension - middle, axis=1) > 0)
-            continue
-        feasible[start:start + len(chunk)] = np.all(
-            (tension - spread >= robot.t_min) & (tension + spread <= robot.t_max), axis=1)
-    return _counts(certificate, boxes, feasible)
+    held = workspace_property(certificate.prop).holds(robot, np.hstack([positions, angles]),
+                                                      certificate.half_widths)
+    return _counts(certificate, boxes, held)
 
 
 def sampled_orientations(certificate: WorkspaceCertificate, boxes: np.ndarray,
@@ -90,22 +65,6 @@ def sampled_orientations(certificate: WorkspaceCertificate, boxes: np.ndarray,
     return lower + (upper - lower) * rng.random(lower.shape)
 
 
-def _hyperplane_shifting(certificate: WorkspaceCertificate, positions: np.ndarray,
-                         angles: np.ndarray) -> np.ndarray:
-    """More cables than degrees of freedom: each pose classified by the sampled workspace's
-    hyperplane-shifting test in generated C (:mod:`cdpr_sym.workspace.wrench`), which sees
-    the pose, not the box (its facet normals normalised, a near-singular W refused)."""
-    from cdpr_sym.workspace.wrench import WrenchEvaluator
-
-    robot = certificate.robot
-    box = (certificate.half_widths if certificate.half_widths.size
-           else np.zeros(robot.wrench_half_widths.size))
-    poses = np.hstack([positions, angles])
-    evaluator = WrenchEvaluator(robot)
-    return np.concatenate([evaluator.classify(poses[start:start + 100_000], box).feasible
-                           for start in range(0, len(poses), 100_000)])
-
-
 def _counts(certificate: WorkspaceCertificate, boxes: np.ndarray, feasible: np.ndarray
             ) -> dict[str, Any]:
     """Disagreements of the sampled poses (in ``boxes``) with their boxes' verdicts."""
@@ -123,25 +82,12 @@ def summary(certificate: WorkspaceCertificate, check: dict[str, Any] | None) -> 
     shares = certificate.shares()
     wrench = certificate.half_widths
     robot = certificate.robot
-    if robot.m > robot.n:
-        prop = ("static feasibility: some tension T in [T_min, T_max] on every cable with "
-                "W T = grad V" if not wrench.size else "wrench feasibility: for every "
-                "external wrench w of the box some tension T in [T_min, T_max] on every "
-                "cable with W T = grad V - J^T w")
-    else:
-        prop = ("static feasibility: the unique tension W^-1 grad V in [T_min, T_max] on "
-                "every cable" if not wrench.size else "wrench feasibility: the tension W^-1 "
-                "(grad V - J^T w) in [T_min, T_max] on every cable for every external "
-                "wrench w of the box")
-    if certificate.prop == "assumption-1":
-        prop = ("the paper's Assumption 1: beta = (T_max - T_min) / 2 - |tau_1 - (T_min + "
-                "T_max) / 2|_2 > 0 with tau_1 = W^-1 grad V; where it holds and dq != 0, "
-                "Theorem 1 keeps the l2 design's command in the tension box")
+    prop = workspace_property(certificate.prop).statement(robot, bool(wrench.size))
     if certificate.orientation_range is not None:
         prop += (" at every orientation of the range (the total orientation workspace; an "
                  "infeasible box is infeasible over one piece of the range)")
-    method = proof_method(robot, bool(wrench.size), certificate.prop)
-    return {"robot": robot.name, "property": prop, "method": METHODS[method],
+    method = method_for(robot, bool(wrench.size), certificate.prop)
+    return {"robot": robot.name, "property": prop, "method": method.description,
             "wrench_half_widths": wrench.tolist(),
             "coordinates": list(certificate.names),
             "orientation": (certificate.orientation.tolist()
@@ -186,8 +132,8 @@ def figure(certificate: WorkspaceCertificate, path: Path) -> None:
     from matplotlib.figure import Figure
 
     lower, upper, verdicts = certificate.lower, certificate.upper, certificate.verdicts
-    what = ("the region of Assumption 1" if certificate.prop == "assumption-1"
-            else "certified static workspace")
+    prop = workspace_property(certificate.prop)
+    what = prop.title
     title = f"{certificate.robot.name}: {what}" + (
         f" against the wrench box {certificate.half_widths.tolist()}"
         if certificate.half_widths.size else "")
@@ -212,9 +158,8 @@ def figure(certificate: WorkspaceCertificate, path: Path) -> None:
         # one collection per verdict: a patch per box took seconds for thousands of boxes
         ax.add_collection(PolyCollection(corners, facecolors=colour, edgecolors="none",
                                          linewidths=0))
-        names = {"feasible": "holds", "infeasible": "does not hold"}
-        shown = names.get(verdict, verdict) if certificate.prop == "assumption-1" else verdict
-        ax.plot([], [], "s", color=colour, label=shown)
+        shown = dict(zip(("feasible", "infeasible"), prop.legend, strict=True))
+        ax.plot([], [], "s", color=colour, label=shown.get(verdict, verdict))
     frame_lower, frame_upper = certificate.robot.frame_lower, certificate.robot.frame_upper
     ax.set_xlim(frame_lower[0], frame_upper[0])
     ax.set_ylim(frame_lower[1], frame_upper[1])

@@ -327,3 +327,25 @@ class SmoothPairProof:
                 u_lo, u_hi = (np.concatenate([u_lo[split], middle]),
                               np.concatenate([middle, u_hi[split]]))
         return holds
+
+
+class SmoothPairs:
+    """``smooth``'s pair property: its plan exists and its feed-forward keeps the box, for
+    every start and goal of a pair box (:class:`SmoothPairProof`); checked by re-planning
+    drawn pairs (the ``plan`` check of :mod:`~cdpr_sym.certify.pair_report`)."""
+
+    key = "smooth"
+    statement = ("for every start and goal in the boxes, the plan finds a plan, and whatever "
+                 "duration it picks, its feed-forward tension (the command on the nominal "
+                 "model in continuous time, tracking exact) stays in [T_min + mu, T_max - mu] "
+                 "at every instant of the move, with det W of one sign along the path")
+    check = "plan"
+    assumptions = ("nominal model (mass, geometry), continuous time, a start at rest; "
+                   "tracking errors must stay within the tracking margin")
+
+    def design(self) -> SmoothReference:
+        return SmoothReference()
+
+    def proof(self, model: SymbolicModel, design: SmoothReference, tracking_margin: float,
+              min_width: float) -> SmoothPairProof:
+        return SmoothPairProof(model, design, tracking_margin)

@@ -76,9 +76,9 @@ import math
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.certify.boxes import grid_boxes, grid_edges
 from cdpr_sym.certify.interval_c import CompiledIntervalFunction
 from cdpr_sym.certify.smooth_pairs import PairVerdicts, check_pair_case
-from cdpr_sym.certify.workspace import grid_boxes, grid_edges
 from cdpr_sym.control.planned import VirtualReferenceIdaPbc
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
@@ -391,3 +391,29 @@ def _up(values) -> np.ndarray:
     results)."""
     values = np.asarray(values, dtype=float)
     return np.nextafter(values * (1 + WIDEN), np.inf)
+
+
+class StoragePairs:
+    """``ida-ref``'s pair property: its command keeps the box for ever over the set its
+    storage keeps the motion in (:class:`StoragePairProof`, capacity cells a quarter of the
+    pairs' minimum width, within 5 mm to 2.5 cm); checked by the loop re-derived in numpy
+    (the ``loop`` check of :mod:`~cdpr_sym.certify.pair_report`)."""
+
+    key = "ida-ref"
+    statement = ("for every start and goal in the boxes, the command (the nominal model in "
+                 "continuous time, from rest) stays in [T_min + mu, T_max - mu] at every "
+                 "instant, for ever, over the set where the design's storage H_d keeps the "
+                 "motion, with det W of one sign on it")
+    check = "loop"
+    assumptions = ("nominal model (mass, geometry) with the robot's gains k and r_d, "
+                   "continuous time, a start at rest with the particle on the platform, J_d = 0 "
+                   "(lam = inf), no observer, command filter or goal_stiffness; the sampled "
+                   "loop's differences must stay within the tracking margin")
+
+    def design(self) -> VirtualReferenceIdaPbc:
+        return VirtualReferenceIdaPbc()
+
+    def proof(self, model: SymbolicModel, design: VirtualReferenceIdaPbc,
+              tracking_margin: float, min_width: float) -> StoragePairProof:
+        cell = min(max(CELL_FRACTION * min_width, SMALLEST_CELL), LARGEST_CELL)
+        return StoragePairProof(model, design, tracking_margin, cell)

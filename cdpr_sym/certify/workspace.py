@@ -1,50 +1,23 @@
-"""Certified static workspace: boxes of the frame proven feasible, proven infeasible, or
-left undecided at a minimum width.
+"""Certified workspace: boxes of the frame on which a property of poses is proven, disproven,
+or left undecided at a minimum width.
 
-**Property certified** (at a stated orientation for a rigid body; m = n first): a pose q is
-*statically feasible* when the unique tension holding the platform at rest there,
-T = W(q)^{-1} grad V(q), lies in [T_min, T_max] on every cable. By Cramer's rule
-T_i = N_i / D with D = det W and N_i the determinant of W with column i replaced by grad V,
-so on a box where D keeps one sign s:
+The property (:mod:`cdpr_sym.certify.registry`: static or wrench feasibility,
+:mod:`cdpr_sym.certify.static`; the paper's Assumption 1, :mod:`cdpr_sym.certify.assumption`)
+holds at a stated orientation for a rigid body, or at every orientation of a range
+(:mod:`cdpr_sym.certify.poses`: the total orientation workspace). The proof method that
+decides a box depends on the robot (:func:`~cdpr_sym.certify.registry.method_for`):
+Cramer's margins for m = n <= 3 (:mod:`cdpr_sym.certify.cramer`), Krawczyk's method beyond
+(:mod:`cdpr_sym.certify.krawczyk`), hyperplane shifting over boxes for m > n
+(:mod:`cdpr_sym.certify.facets`) and certificates anchored at each box's centre for m > n > 3
+(:mod:`cdpr_sym.certify.anchored`); each encloses its margins rounded outward
+(:mod:`cdpr_sym.certify.interval`).
 
-* every pose of the box is feasible iff s (N_i - T_min D) >= 0 and s (T_max D - N_i) >= 0
-  for every i, which the interval enclosures prove when their lower bounds are >= 0;
-* every pose is infeasible when, for some i, one of these is < 0 on the whole box (an
-  upper bound < 0).
-
-These margins are polynomials of W's entries, free of the division's dependency; each is
-enclosed by the mean-value form (:func:`~cdpr_sym.certify.evaluate.centred`) intersected
-with the natural extension, rounded outward (:mod:`cdpr_sym.certify.interval`). A box whose
-D may vanish (a singularity in it) or whose margins are not decided is bisected along its
+A box that is not decided (a singularity in it, margins too wide) is bisected along its
 widest coordinate (in metres) until it is narrower than the minimum width, and then reported
-undecided. The branch-and-bound evaluates a whole level of boxes in one numpy pass.
-
-For more than :data:`CRAMER_UP_TO` degrees of freedom the entries of W and grad V are
-enclosed instead, and the interval system [W] T = [grad V] solved by Krawczyk's method
-(:mod:`cdpr_sym.certify.linear`), which proves W regular on the box or decides nothing.
-
-**Wrench-feasible** (the robot's external wrench box, half-widths h: force N, moment N m; n <=
-:data:`CRAMER_UP_TO`): the pose is held against every wrench w of the box, W T = grad V -
-J^T w (:mod:`cdpr_sym.workspace.wrench`). T is affine in w, so over the box T_i ranges over
-T_i(0) -+ sum_j |B_ij| h_j / |D| with B_ij the determinant of W with column i replaced by
-(J^T)_j; the margins become s (N_i - T_min D) - P_i and s (T_max D - N_i) - P_i with
-P_i = sum_j |B_ij| h_j, enclosed the same way (|.| has slopes sign(.) in [-1, 1], the
-generalized gradient the mean-value form needs). A box is wrench-infeasible when at every
-pose some wrench of the box leaves the tension box (an upper bound < 0).
-
-**More cables than degrees of freedom** (or a wrench box for n > :data:`CRAMER_UP_TO`): hyperplane
-shifting over boxes (:func:`facet_function`, :class:`_FacetVerdicts`): every facet margin
-1/2 (T_max - T_min) sum_j |c . w_j| - |c . (grad V - W tau_mid)| - sum_i |(J c)_i| h_i >= 0 on
-the box and some facet spread sum_j |c . w_j| > 0 on it (W of full rank at every pose) prove
-it feasible; a facet margin < 0 on the whole box proves it infeasible.
-
-**More cables than degrees of freedom with n > :data:`CRAMER_UP_TO`** (no wrench box): the
-facet margins' products of minors are too wide over boxes; each box gets a tension path and
-a Farkas direction chosen at its centre and proven over it instead
-(:mod:`cdpr_sym.certify.anchored`). :func:`proof_method` names the method per robot.
-
-**Orientation ranges** (the total orientation workspace: every orientation of a range
-feasible at each position of a box): :mod:`cdpr_sym.certify.poses`.
+undecided. The branch-and-bound evaluates a whole level of boxes in one numpy pass, and
+stops at the budget's rules (:mod:`cdpr_sym.certify.budget`). Certificates name their
+verdicts in the files' words, :data:`VERDICTS` (``feasible`` for a proven box, whatever the
+property, so the files' readers need no change per property).
 """
 
 from __future__ import annotations
@@ -52,20 +25,13 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
-from typing import SupportsIndex
 
-import casadi as ca
 import numpy as np
 import numpy.typing as npt
 
-from cdpr_sym.certify.anchored import (
-    AnchoredVerdicts,
-    normals_function,
-    slopes_function,
-    terms_function,
-)
+from cdpr_sym.certify.boxes import bisect, check_min_width
 from cdpr_sym.certify.budget import (
     DEFAULT_TIME_LIMIT,
     Clock,
@@ -75,18 +41,16 @@ from cdpr_sym.certify.budget import (
     halvings,
     surface_levels,
 )
-from cdpr_sym.certify.evaluate import IntervalFunction, centred
-from cdpr_sym.certify.poses import OverOrientations, orientation_pieces, pose_inputs
+from cdpr_sym.certify.poses import OverOrientations, orientation_pieces
+from cdpr_sym.certify.registry import ProofMethod, method_for
+from cdpr_sym.certify.verdict import BoxVerdicts, Verdict, named
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
 
+#: The words of :class:`~cdpr_sym.certify.verdict.Verdict`'s PROVEN, DISPROVEN and UNDECIDED
+#: in a workspace certificate's files and ``verdicts``.
 VERDICTS = ("feasible", "infeasible", "undecided")
-#: Largest n decided by Cramer's polynomial margins (determinants by minors grow as n!);
-#: beyond, by Krawczyk's method on the interval system [W] T = [grad V]. (The tension of
-#: CasADi's symbolic QR solve, tried for spatial6, encloses +-0.26 N on a box 2 um wide and
-#: the whole line at 1 mm: its divisions' dependency.)
-CRAMER_UP_TO = 3
 #: Most boxes one level of the branch-and-bound may hold (memory: a few hundred bytes each
 #: per margin).
 MAX_LEVEL_BOXES = 4_000_000
@@ -94,9 +58,6 @@ MAX_LEVEL_BOXES = 4_000_000
 #: per-box work arrays (the anchored certificates hold several (boxes, m, m) of them) stay at
 #: a few GiB; a whole-frame ipanema8 run against a wrench box was killed for memory without.
 CHUNK = 200_000
-#: Narrowest box a certificate refines to, m: ten micrometres, far below what any cable robot
-#: is built or measured to; a narrower --min-width only asks for an endless refinement.
-MIN_BOX_WIDTH = 1e-5
 #: The orientation range's pieces: at most this wide on every angle by default (rad), and
 #: at most this many (each multiplies the work of a fixed orientation: a 6-DOF robot's
 #: whole angle range at the default step would be thousands of pieces, days of work).
@@ -106,6 +67,8 @@ MAX_PIECES = 512
 #: reaches it in about 25 s (its last 1 % is a thin shell round the boundary, which would
 #: need a level of about ten million boxes).
 DEFAULT_UNTIL = 0.99
+#: m: the narrowest box refined to by default.
+DEFAULT_MIN_WIDTH = 0.005
 
 
 @dataclasses.dataclass(frozen=True)
@@ -226,52 +189,8 @@ def _texts(values: np.ndarray) -> np.ndarray:
     return np.array([repr(float(v)) for v in distinct], dtype=object)[index.ravel()]
 
 
-def margin_function(model: SymbolicModel, orientation: np.ndarray,
-                    half_widths: np.ndarray | None = None) -> ca.Function:
-    """positions (d) -> [D, N_i - T_min D (n), T_max D - N_i (n)] at the fixed
-    ``orientation`` (``None``: of the whole pose, n); with wrench ``half_widths`` (not all
-    zero) -> [D, those margins less P_i (2n), their negatives less P_i (2n)], the second
-    block for D < 0 (module docstring)."""
-    robot = model.robot
-    position, q = pose_inputs(robot, orientation)
-    W = model.structure_matrix(q)
-    gravity = model.grad_potential(q)
-    determinant = ca.det(W)
-    numerators = []
-    for i in range(model.n):
-        replaced = ca.horzcat(*(gravity if j == i else W[:, j] for j in range(model.n)))
-        numerators.append(ca.det(replaced))
-    numerator = ca.vertcat(*numerators)
-    margins = ca.vertcat(numerator - robot.t_min * determinant,
-                         robot.t_max * determinant - numerator)
-    if half_widths is None or not np.any(half_widths):
-        return ca.Function("margins", [position], [ca.vertcat(determinant, margins)])
-    transposed = model.wrench_jacobian(q).T  # columns: generalized force of each wrench axis
-    spread = []
-    for i in range(model.n):
-        total = 0
-        for j, h in enumerate(half_widths):
-            if h:
-                replaced = ca.horzcat(*(transposed[:, j] if k == i else W[:, k]
-                                        for k in range(model.n)))
-                total = total + float(h) * ca.fabs(ca.det(replaced))
-        spread.append(total)
-    spread = ca.vertcat(*spread, *spread)
-    return ca.Function("wrench_margins", [position],
-                       [ca.vertcat(determinant, margins - spread, -margins - spread)])
-
-
-def check_min_width(min_width: float, largest: float, field: str = "min_width") -> None:
-    """Refuse a minimum box width that is not a number in [:data:`MIN_BOX_WIDTH`,
-    ``largest``] (m; the widest side there is to split), naming ``field``."""
-    if isinstance(min_width, bool) or not isinstance(min_width, (int, float)) \
-            or not MIN_BOX_WIDTH <= min_width <= largest:
-        raise InvalidCase(field, f"expected a width in m from {MIN_BOX_WIDTH:g} to "
-                          f"{largest:g} (the widest side to split), got {min_width!r}")
-
-
 def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
-                      min_width: float = 0.005, until: float = DEFAULT_UNTIL,
+                      min_width: float | None = None, until: float | None = None,
                       compiled: bool = True, half_widths: npt.ArrayLike | None = None,
                       prop: str = "static",
                       orientation_range: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
@@ -283,19 +202,21 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
 
     The refinement stops at the first of ``until``, ``min_width`` and ``time_limit`` (or a
     level too large for memory) and keeps every verdict found; what it has not decided is
-    reported undecided (:mod:`cdpr_sym.certify.budget`). Options whose work is estimated
-    to need a level too large for memory before any of these stops it are refused after
-    the first second of work.
+    reported undecided (:mod:`cdpr_sym.certify.budget`). A ``min_width`` or ``until``
+    asked for whose work is estimated to need a level too large for memory before any of
+    these stops it is refused after the first second of work; left at their defaults, the
+    refinement stops where memory ends instead (``stopped`` is ``memory``), so the call
+    with no options always gives an answer.
 
     Parameters
     ----------
     robot : Robot
-        m = n.
     orientation : sequence of float, optional
         The fixed orientation of a rigid body, rad (default the case's start's).
-    min_width : float
-        Boxes narrower than this (m, widest side) are not bisected further.
-    until : float
+    min_width : float, optional
+        Boxes narrower than this (m, widest side) are not bisected further (default
+        :data:`DEFAULT_MIN_WIDTH`).
+    until : float, optional
         Stop refining once this share of the frame's volume is decided (checked after each
         level; default :data:`DEFAULT_UNTIL`; 1.0: refine every undecided box down to
         ``min_width``); the boxes left are reported undecided.
@@ -305,11 +226,13 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
         enclosures within a few ulps.
     half_widths : sequence of float, optional
         The external wrench box (force N per axis, then moment N m for a rigid body):
-        certify the wrench-feasible workspace (:func:`proof_method` says how). Default none.
-    prop : {"static", "assumption-1"}
-        The property: static (or wrench) feasibility, or the paper's Assumption 1, under
-        which its Theorem 1 keeps the tension box (:func:`assumption_function`; m = n <=
-        :data:`CRAMER_UP_TO`, no wrench).
+        certify the wrench-feasible workspace (:func:`~cdpr_sym.certify.registry.
+        method_for` says how). Default none.
+    prop : str
+        The property, a key of :func:`~cdpr_sym.certify.registry.workspace_properties`:
+        ``static`` (static or wrench feasibility) or ``assumption-1`` (the paper's
+        Assumption 1, under which its Theorem 1 keeps the tension box; m = n <= 3, no
+        wrench).
     orientation_range : (sequence of float, sequence of float), optional
         A rigid body's (lower, upper) angles, rad, instead of a fixed ``orientation``: the
         property must hold at every orientation of the range (the total orientation
@@ -338,6 +261,9 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
         than twice :data:`MAX_LEVEL_BOXES` boxes before ``until`` (``until``) or the
         minimum width (``min_width``) or the time limit stops it.
     """
+    asked = min_width is not None or until is not None
+    min_width = DEFAULT_MIN_WIDTH if min_width is None else min_width
+    until = DEFAULT_UNTIL if until is None else until
     d = robot.dimension
     time_limit = check_time_limit(time_limit)
     check_min_width(min_width, float(np.max(np.subtract(robot.frame_upper[:d],
@@ -359,17 +285,17 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
     if isinstance(until, bool) or not isinstance(until, (int, float)) or not 0 < until <= 1:
         raise InvalidCase("until", f"expected a share in (0, 1], got {until!r}")
     wrench = _checked_half_widths(robot, half_widths)
-    _check_property(robot, prop, wrench)
+    method = method_for(robot, wrench is not None, prop)
     model = SymbolicModel(robot)
-    method = proof_method(robot, wrench is not None, prop)
     decide = _verdicts_by(method, model, None if pieces else orientation, compiled, wrench)
     if pieces:
         decide = OverOrientations(decide, *pieces)
     run = _BranchAndBound(robot, decide, min_width=float(min_width), until=float(until),
+                          refuse=asked,
                           time_limit=time_limit, progress=progress, witnesses=bool(pieces))
     names = tuple(robot.coordinate_names[:d])
     return WorkspaceCertificate(robot, names, orientation, run.lower, run.upper,
-                                np.array(VERDICTS, dtype=object)[run.codes], float(min_width),
+                                named(run.codes, VERDICTS), float(min_width),
                                 run.seconds, run.evaluated,
                                 np.zeros(0) if wrench is None else wrench, prop, span,
                                 pieces, run.witness, run.stopped, float(until), time_limit)
@@ -380,7 +306,7 @@ class _BranchAndBound:
     :mod:`cdpr_sym.certify.budget`; the results are its attributes (lower, upper, codes,
     witness, evaluated, seconds, stopped)."""
 
-    def __init__(self, robot: Robot, decide, *, min_width: float, until: float,
+    def __init__(self, robot: Robot, decide, *, min_width: float, until: float, refuse: bool,
                  time_limit: float, progress, witnesses: bool) -> None:
         d = robot.dimension
         clock = Clock(time_limit, CHUNK)
@@ -391,7 +317,7 @@ class _BranchAndBound:
         volumes = np.zeros(2)  # proven, disproven
         level, stopped = 0, None
         while len(lower):
-            verdict = np.full(len(lower), 2)
+            verdict = np.full(len(lower), Verdict.UNDECIDED)
             seen = np.full(len(lower), -1)
             done = 0
             for part in clock.chunks(len(lower)):
@@ -400,13 +326,13 @@ class _BranchAndBound:
                     seen[part] = decide.witnesses
                 volumes += [float(np.prod(upper[part][verdict[part] == k]
                                           - lower[part][verdict[part] == k], axis=1).sum())
-                            for k in (0, 1)]
+                            for k in (Verdict.PROVEN, Verdict.DISPROVEN)]
                 if progress is not None:
                     progress(Progress(level, len(lower), clock.evaluated,
                                       volumes[0] / total, volumes[1] / total,
                                       clock.elapsed(), time_limit))
             widths = upper - lower
-            final = (verdict != 2) | (widths.max(axis=1) <= min_width)
+            final = (verdict != Verdict.UNDECIDED) | (widths.max(axis=1) <= min_width)
             if done < len(lower):  # out of time: the rest of the level stays undecided
                 final[:], stopped = True, "time_limit"
             elif np.all(final):
@@ -421,7 +347,7 @@ class _BranchAndBound:
             found_upper.append(upper[final])
             found.append(verdict[final])
             witness.append(seen[final])
-            if stopped is None and clock.probing():
+            if refuse and stopped is None and clock.probing():
                 _refuse_what_cannot_finish(widths[~final], total, min_width, until, clock)
             lower, upper = bisect(lower[~final], upper[~final])
             level += 1
@@ -455,21 +381,11 @@ def _refuse_what_cannot_finish(widths: np.ndarray, total: float, min_width: floa
                       f"it first")
 
 
-def _verdicts_by(method: str, model: SymbolicModel, orientation: np.ndarray | None,
-                 compiled: bool, wrench: np.ndarray | None):
-    """The box verdicts of ``method`` (:data:`METHODS`) at the fixed ``orientation``, or
-    over whole-pose boxes (``orientation=None``)."""
-    if method == "assumption-1":
-        return _AssumptionVerdicts(model, orientation, compiled)
-    if method == "anchored":
-        return anchored_verdicts(model, orientation, compiled, wrench)
-    if method == "facets":
-        return _FacetVerdicts(model, orientation, wrench, compiled)
-    if method == "cramer-wrench":
-        return _WrenchCramerVerdicts(model, orientation, wrench, compiled)
-    if method == "cramer":
-        return CramerVerdicts(model, orientation, compiled)
-    return _KrawczykVerdicts(model, orientation, compiled)
+def _verdicts_by(method: ProofMethod, model: SymbolicModel, orientation: np.ndarray | None,
+                 compiled: bool, wrench: np.ndarray | None) -> BoxVerdicts:
+    """The box verdicts of ``method`` at the fixed ``orientation``, or over whole-pose boxes
+    (``orientation=None``)."""
+    return method.verdicts(model, orientation, compiled, wrench)
 
 
 def _checked_orientation(robot: Robot, orientation) -> np.ndarray:
@@ -529,66 +445,6 @@ def _checked_step(span: tuple[np.ndarray, np.ndarray], step) -> float:
     return float(step)
 
 
-#: How a box is decided, by robot and property (:func:`proof_method`), in words.
-METHODS = {
-    "cramer": "Cramer's margins s (N_i - T_min D), s (T_max D - N_i), mean-value form",
-    "cramer-wrench": "Cramer's margins less the wrench box's spread, mean-value form",
-    "krawczyk": "Krawczyk's method on [W] T = [grad V] from W's enclosed entries",
-    "facets": "hyperplane shifting over boxes: every facet margin enclosed",
-    "anchored": "a tension path and a Farkas direction chosen at each box's centre, proven "
-                "over the box by the mean-value form and Krawczyk's method",
-    "assumption-1": "beta D^2 enclosed by the mean-value form",
-}
-
-
-def proof_method(robot: Robot, wrench: bool, prop: str = "static") -> str:
-    """The key of :data:`METHODS` that decides ``robot``'s boxes (``wrench``: a wrench box
-    is asked for)."""
-    if prop == "assumption-1":
-        return "assumption-1"
-    if robot.m > robot.n and robot.n > CRAMER_UP_TO:
-        return "anchored"
-    if robot.m > robot.n or (wrench and robot.n > CRAMER_UP_TO):
-        return "facets"
-    if wrench:
-        return "cramer-wrench"
-    return "cramer" if robot.n <= CRAMER_UP_TO else "krawczyk"
-
-
-#: The properties a workspace certificate can be of.
-PROPERTIES = ("static", "assumption-1")
-
-
-def _check_property(robot: Robot, prop: str, wrench: np.ndarray | None) -> None:
-    if prop not in PROPERTIES:
-        raise InvalidCase("property", f"expected one of {PROPERTIES}, got {prop!r}")
-    if prop == "assumption-1" and (robot.m != robot.n or robot.n > CRAMER_UP_TO
-                                   or wrench is not None):
-        raise InvalidCase("property", f"Assumption 1 is certified for m = n <= {CRAMER_UP_TO} "
-                          f"without a wrench box; {robot.name} has m = {robot.m}, "
-                          f"n = {robot.n}")
-
-
-def assumption_function(model: SymbolicModel, orientation: np.ndarray) -> ca.Function:
-    """positions (d) -> [D, h^2 D^2 - sum_i (N_i - c D)^2]: the paper's Assumption 1,
-    beta = h - |tau_1 - c|_2 > 0 with tau_1 = W^-1 grad V = N / D, c = (T_min + T_max) / 2
-    and h = (T_max - T_min) / 2, multiplied by D^2 > 0 (no division): it holds at a pose
-    exactly when the second entry is > 0. Where it holds (and dq != 0) Theorem 1's alpha
-    and J_d keep the command in [T_min, T_max]."""
-    robot = model.robot
-    position, q = pose_inputs(robot, orientation)
-    W = model.structure_matrix(q)
-    gravity = model.grad_potential(q)
-    determinant = ca.det(W)
-    middle, half = robot.box.middle, robot.box.half
-    spread = 0
-    for i in range(model.n):
-        replaced = ca.horzcat(*(gravity if j == i else W[:, j] for j in range(model.n)))
-        spread = spread + (ca.det(replaced) - middle * determinant) ** 2
-    return ca.Function("assumption", [position],
-                       [ca.vertcat(determinant, half**2 * determinant**2 - spread)])
-
-
 def _checked_half_widths(robot: Robot, half_widths) -> np.ndarray | None:
     """The wrench box as an array, None for no wrench (or all zeros)."""
     if half_widths is None:
@@ -606,209 +462,3 @@ def _checked_half_widths(robot: Robot, half_widths) -> np.ndarray | None:
     return box
 
 
-def anchored_verdicts(model: SymbolicModel, orientation: np.ndarray, compiled: bool,
-                      half_widths: np.ndarray | None = None) -> AnchoredVerdicts:
-    """The certificates anchored at each box's centre (:mod:`cdpr_sym.certify.anchored`):
-    W and grad V at the centre and their slopes over the box, by the natural extension
-    rounded outward, in generated C or numpy."""
-    from cdpr_sym.codegen import BuildOptions
-    from cdpr_sym.robot import robot_key
-    from cdpr_sym.workspace.vectorised import pose_evaluator
-
-    robot = model.robot
-    wrench = half_widths is not None
-    point = terms_function(model, orientation, wrench)
-    slopes = slopes_function(model, orientation, wrench)
-    options = BuildOptions() if compiled else BuildOptions(backend="casadi")
-    normals = pose_evaluator(robot, lambda: normals_function(model), "facet_normals",
-                             build_options=options, recipe=f"{robot_key(robot)}\0normals")
-    evaluate = lambda poses: normals.evaluate(poses)[0]  # noqa: E731
-    if compiled:
-        from cdpr_sym.certify.interval_c import CompiledIntervalFunction
-
-        return AnchoredVerdicts(model, orientation, CompiledIntervalFunction(point),
-                                CompiledIntervalFunction(slopes), evaluate, half_widths)
-    return AnchoredVerdicts(model, orientation, IntervalFunction(point),
-                            IntervalFunction(slopes), evaluate, half_widths)
-
-
-def _enclosure(function: ca.Function, compiled: bool):
-    """The mean-value form of a one-input function, in generated C or numpy."""
-    if compiled:
-        from cdpr_sym.certify.interval_c import CompiledIntervalFunction
-
-        return CompiledIntervalFunction(function, centred=True)
-    return centred(function)
-
-
-class CramerVerdicts:
-    """Verdicts from Cramer's margins (m = n <= :data:`CRAMER_UP_TO`)."""
-
-    def __init__(self, model: SymbolicModel, orientation: np.ndarray, compiled: bool) -> None:
-        self.margins = _enclosure(margin_function(model, orientation), compiled)
-        self.n = model.n
-
-    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        return _verdicts(self.margins((lower.T, upper.T))[0], self.n)
-
-
-class _WrenchCramerVerdicts:
-    """Verdicts from Cramer's margins less the wrench box's spread (module docstring)."""
-
-    def __init__(self, model: SymbolicModel, orientation: np.ndarray, half_widths: np.ndarray,
-                 compiled: bool) -> None:
-        self.margins = _enclosure(margin_function(model, orientation, half_widths), compiled)
-        self.n = model.n
-
-    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        lo, hi = self.margins((lower.T, upper.T))[0]
-        n2 = 2 * self.n
-        positive, negative = lo[0] > 0, hi[0] < 0
-        return decide(positive | negative, np.where(positive, lo[1:1 + n2], lo[1 + n2:]),
-                      np.where(positive, hi[1:1 + n2], hi[1 + n2:]))
-
-
-def facet_function(model: SymbolicModel, orientation: np.ndarray,
-                   half_widths: np.ndarray | None = None) -> ca.Function:
-    """positions (d) -> [margin_F (facets), spread_F (facets)] at the fixed ``orientation``,
-    per set F of n - 1 columns of W with normal c (module docstring, hyperplane shifting):
-    margin_F = (T_max - T_min) / 2 spread_F - |c . (grad V - W tau_mid)| - sum_i |(J c)_i| h_i,
-    spread_F = sum_j |c . w_j|."""
-    from cdpr_sym.workspace.wrench import facet_normals, facet_projections
-
-    robot = model.robot
-    position, q = pose_inputs(robot, orientation)
-    W = model.structure_matrix(q)
-    mid, half = robot.box.middle, robot.box.half
-    offset = model.grad_potential(q) - W @ ca.DM.ones(model.m) * mid
-    J = model.wrench_jacobian(q)
-    normals = facet_normals(W)
-    margins, spreads = [], []
-    for (_, c), projections in zip(normals, facet_projections(W, normals), strict=True):
-        spread = ca.sum1(ca.fabs(projections))
-        required = ca.fabs(ca.dot(c, offset))
-        if half_widths is not None:
-            required = required + ca.dot(ca.fabs(J @ c), ca.DM(half_widths))
-        margins.append(half * spread - required)
-        spreads.append(spread)
-    return ca.Function("facets", [position], [ca.vertcat(*margins, *spreads)])
-
-
-class _FacetVerdicts:
-    """Verdicts by hyperplane shifting over boxes (any m >= n, a wrench box or none): a box is
-    feasible when every facet's margin is >= 0 on it and some facet's spread is > 0 on it (so
-    W has full rank at every pose: some n x n minor is nonzero), infeasible when some
-    facet's margin is < 0 on it (a support inequality, necessary at any rank)."""
-
-    def __init__(self, model: SymbolicModel, orientation: np.ndarray,
-                 half_widths: np.ndarray | None, compiled: bool) -> None:
-        function = facet_function(model, orientation, half_widths)
-        self.facets = function.nnz_out(0) // 2
-        self.margins = _enclosure(function, compiled)
-
-    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        lo, hi = self.margins((lower.T, upper.T))[0]
-        k = self.facets
-        full_rank = np.any(lo[k:] > 0, axis=0)
-        feasible = full_rank & np.all(lo[:k] >= 0, axis=0)
-        infeasible = np.any(hi[:k] < 0, axis=0)
-        return np.where(feasible, 0, np.where(infeasible, 1, 2))
-
-
-class _AssumptionVerdicts:
-    """Verdicts of the paper's Assumption 1 (:func:`assumption_function`): held on the whole
-    box (D of one sign, the margin's lower bound > 0) or nowhere in it (upper bound <= 0)."""
-
-    def __init__(self, model: SymbolicModel, orientation: np.ndarray, compiled: bool) -> None:
-        self.margin = _enclosure(assumption_function(model, orientation), compiled)
-
-    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        lo, hi = self.margin((lower.T, upper.T))[0]
-        regular = (lo[0] > 0) | (hi[0] < 0)
-        return np.where(regular & (lo[1] > 0), 0, np.where(hi[1] <= 0, 1, 2))
-
-
-class _KrawczykVerdicts:
-    """Verdicts from the enclosed solutions of [W] T = [grad V] (:mod:`.linear`): W's and
-    grad V's entries enclosed by the mean-value form, the system by Krawczyk's method,
-    which also proves W regular on the box (else nothing is decided)."""
-
-    def __init__(self, model: SymbolicModel, orientation: np.ndarray, compiled: bool) -> None:
-        robot = model.robot
-        position, q = pose_inputs(robot, orientation)
-        terms = ca.Function("terms", [position], [ca.vertcat(
-            ca.vec(ca.densify(model.structure_matrix(q))), model.grad_potential(q))])
-        self.terms = _enclosure(terms, compiled)
-        self.n, self.t_min, self.t_max = model.n, robot.t_min, robot.t_max
-
-    def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        from cdpr_sym.certify.linear import enclose_solutions
-
-        n = self.n
-        lo, hi = self.terms((lower.T, upper.T))[0]
-        boxes = lo.shape[1]
-        W_lo = lo[: n * n].T.reshape(boxes, n, n).transpose(0, 2, 1)  # column-major vec
-        W_hi = hi[: n * n].T.reshape(boxes, n, n).transpose(0, 2, 1)
-        t_lo, t_hi, regular = enclose_solutions(W_lo, W_hi, lo[n * n:].T, hi[n * n:].T)
-        feasible = regular & np.all((t_lo >= self.t_min) & (t_hi <= self.t_max), axis=1)
-        infeasible = regular & np.any((t_hi < self.t_min) | (t_lo > self.t_max), axis=1)
-        return np.where(feasible, 0, np.where(infeasible, 1, 2))
-
-
-def _verdicts(bounds, n: int) -> np.ndarray:
-    """0 feasible, 1 infeasible, 2 undecided, per box, from the margins' enclosures."""
-    lo, hi = bounds
-    det_lo, det_hi = lo[0], hi[0]
-    positive, negative = det_lo > 0, det_hi < 0
-    # s * margin for the sign s of D: lower and upper bounds
-    return decide(positive | negative, np.where(positive, lo[1:], -hi[1:]),
-                  np.where(positive, hi[1:], -lo[1:]))
-
-
-def decide(regular: np.ndarray, margin_lower: np.ndarray, margin_upper: np.ndarray
-           ) -> np.ndarray:
-    """0 feasible, 1 infeasible, 2 undecided, per box (columns), from the bounds of margins
-    that are >= 0 where the property holds (rows): every lower bound >= 0 proves it, some
-    upper bound < 0 disproves it, on boxes where ``regular`` (W proven regular)."""
-    feasible = regular & np.all(margin_lower >= 0, axis=0)
-    infeasible = regular & np.any(margin_upper < 0, axis=0)
-    return np.where(feasible, 0, np.where(infeasible, 1, 2))
-
-
-def grid_edges(lower: npt.ArrayLike, upper: npt.ArrayLike, width: float
-               ) -> list[np.ndarray]:
-    """Per axis, the edges of cells of side ``width`` (m) tiling [lower, upper]: the lower
-    corner plus multiples of ``width``, the last one cut at the upper corner (adjacent cells
-    share their edges exactly)."""
-    edges = []
-    for lo, hi in zip(np.asarray(lower, dtype=float), np.asarray(upper, dtype=float),
-                      strict=True):
-        count = max(1, int(np.ceil((hi - lo) / width - 1e-9)))
-        axis = np.minimum(lo + width * np.arange(count + 1), hi)
-        axis[-1] = hi
-        edges.append(axis)
-    return edges
-
-
-def grid_boxes(edges: list[np.ndarray],
-               ranges: Sequence[tuple[SupportsIndex, SupportsIndex]] | None = None
-               ) -> tuple[np.ndarray, np.ndarray]:
-    """(lowers, uppers), each (cells, axes), of the cells between ``edges`` whose indices lie
-    in ``ranges`` ((first, past-last) per axis; default every cell), the last axis fastest."""
-    ranges = ranges if ranges is not None else [(0, len(axis) - 1) for axis in edges]
-    index = np.stack(np.meshgrid(*(np.arange(a, b) for a, b in ranges), indexing="ij"),
-                     axis=-1).reshape(-1, len(edges))
-    return (np.column_stack([edges[j][index[:, j]] for j in range(len(edges))]),
-            np.column_stack([edges[j][index[:, j] + 1] for j in range(len(edges))]))
-
-
-def bisect(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each box halved along its widest side."""
-    if not len(lower):
-        return lower, upper
-    axis = np.argmax(upper - lower, axis=1)
-    middle = 0.5 * (lower[np.arange(len(lower)), axis] + upper[np.arange(len(lower)), axis])
-    left_upper, right_lower = upper.copy(), lower.copy()
-    left_upper[np.arange(len(lower)), axis] = middle
-    right_lower[np.arange(len(lower)), axis] = middle
-    return np.vstack([lower, right_lower]), np.vstack([left_upper, upper])

@@ -32,12 +32,15 @@ PROGRESS_SECONDS = 1.0
 def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
     """The ``certify`` command's options."""
     from cdpr_sym.certify.budget import DEFAULT_TIME_LIMIT
+    from cdpr_sym.certify.registry import pair_properties, workspace_properties
     from cdpr_sym.certify.workspace import DEFAULT_UNTIL
+
+    properties, designs = workspace_properties(), pair_properties()
 
     parser = command("certify", "prove over regions instead of sampling: the static (or "
                      "wrench-feasible) workspace over boxes of the frame, or a design's "
-                     "tension box over pairs of start and goal boxes (smooth or ida-ref, point "
-                     "masses, m = n <= 3)", progress=True)
+                     f"tension box over pairs of start and goal boxes ({' or '.join(designs)}, "
+                     f"point masses, m = n <= 3)", progress=True)
     parser.add_argument("what", choices=["workspace", "pairs"], help="what to certify")
     parser.add_argument("--robot", default="aras3", help="a preset or a robot file")
     parser.add_argument("--orientation", nargs="+", type=float, metavar="RAD",
@@ -48,10 +51,9 @@ def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
                         help="an orientation range is decided in pieces at most this wide on "
                              "every angle (default: 0.05)")
     add_wrench_options(parser, scope="workspace: ")
-    parser.add_argument("--property", default="static", choices=["static", "assumption-1"],
-                        help="workspace: static (or wrench) feasibility, or the region where "
-                             "the paper's Assumption 1 holds (its Theorem 1 keeps the box "
-                             "there; m = n <= 3)")
+    parser.add_argument("--property", default=next(iter(properties)), choices=list(properties),
+                        help="workspace: " + "; ".join(f"{key}: {prop.help}"
+                                                       for key, prop in properties.items()))
     parser.add_argument("--min-width", type=float, default=None,
                         help="boxes narrower than this (m) are not bisected further (default: "
                              "0.005 for the workspace, the box side for pairs)")
@@ -67,8 +69,8 @@ def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
                              "than degrees of freedom) or pairs (pairs, default 300) of the "
                              "sampled check (0: none)")
     pairs = parser.add_argument_group("pairs")
-    pairs.add_argument("--controller", default="smooth",
-                       help="the design whose pairs are certified (smooth or ida-ref)")
+    pairs.add_argument("--controller", default=next(iter(designs)),
+                       help=f"the design whose pairs are certified ({' or '.join(designs)})")
     pairs.add_argument("--starts", nargs="+", type=float, metavar="M",
                        help="the start region's lower then upper corner (default: the case's "
                             "start +- 0.15 m)")
@@ -99,7 +101,7 @@ def certify_command(args: argparse.Namespace, out: Output) -> int:
     if args.what == "pairs":
         if args.force is not None or args.moment is not None:
             raise InvalidCase("force", "--force and --moment apply to certify workspace")
-        if args.property != "static":
+        if args.property != _default_property():
             raise InvalidCase("property", "--property applies to certify workspace")
         if args.until is not None:
             raise InvalidCase("until", "--until applies to certify workspace (pairs refine "
@@ -112,8 +114,9 @@ def certify_command(args: argparse.Namespace, out: Output) -> int:
 
 
 def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
+    from cdpr_sym.certify.registry import workspace_property
     from cdpr_sym.certify.report import sampled_check, write_certificate
-    from cdpr_sym.certify.workspace import DEFAULT_UNTIL, certify_workspace
+    from cdpr_sym.certify.workspace import certify_workspace
     from cdpr_sym.cli.robots import with_wrench_box
 
     robot = with_wrench_box(robot, args.force, args.moment)
@@ -123,23 +126,19 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
                if args.samples is None else args.samples)
     if isinstance(samples, bool) or not 0 <= samples <= MAX_SAMPLES:
         raise InvalidCase("samples", f"expected 0 to {MAX_SAMPLES:,} poses, got {samples}")
-    min_width = 0.005 if args.min_width is None else args.min_width
-    until = DEFAULT_UNTIL if args.until is None else args.until
     orientation, orientation_range = _orientation(robot, args.orientation)
     with ProgressLine(enabled=_progress(args)) as progress:
         certificate = certify_workspace(robot, orientation=orientation,
                                         orientation_range=orientation_range,
                                         orientation_step=args.orientation_step,
-                                        min_width=min_width, until=until,
+                                        min_width=args.min_width, until=args.until,
                                         half_widths=half_widths, prop=args.property,
                                         time_limit=args.time_limit, progress=progress)
     check = (sampled_check(certificate, samples, np.random.default_rng(args.seed))
              if samples else None)
     content = write_certificate(certificate, args.out, check)
     what = "" if half_widths is None else f" (wrench box {half_widths.tolist()})"
-    held, failed = (("proven to hold Assumption 1", "proven not to")
-                    if args.property == "assumption-1"
-                    else ("proven feasible", "proven infeasible"))
+    held, failed = workspace_property(args.property).outcome
     if orientation_range is not None:
         what += (f" at every orientation of {list(orientation_range[0])} to "
                  f"{list(orientation_range[1])} rad")
@@ -154,6 +153,13 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     lines.append(f"written: {args.out}")
     out.result(content, lines)
     return 0
+
+
+def _default_property() -> str:
+    """The default ``--property``: the first registered workspace property."""
+    from cdpr_sym.certify.registry import workspace_properties
+
+    return next(iter(workspace_properties()))
 
 
 def _progress(args: argparse.Namespace) -> bool:
@@ -257,10 +263,9 @@ def _sweep_runs(table: Path, controller: str, n: int) -> list:
 
 def _pairs(args: argparse.Namespace, robot, out: Output) -> int:
     from cdpr_sym.certify.pair_report import (
+        SAMPLED_CHECKS,
         closed_loop_check,
         draw_proven,
-        loop_check,
-        plan_check,
         sweep_check,
         write_pair_certificate,
     )
@@ -270,6 +275,7 @@ def _pairs(args: argparse.Namespace, robot, out: Output) -> int:
         certify_pairs,
         default_design,
     )
+    from cdpr_sym.certify.registry import pair_property
 
     samples = 300 if args.samples is None else args.samples
     if isinstance(samples, bool) or not 0 <= samples <= MAX_PAIR_SAMPLES:
@@ -304,10 +310,8 @@ def _pairs(args: argparse.Namespace, robot, out: Output) -> int:
     if samples and proven:
         rng = np.random.default_rng(args.seed)
         drawn = draw_proven(certificate, samples, rng)
-        if args.controller == "smooth":
-            checks["plan"] = plan_check(certificate, *drawn, design)
-        else:
-            checks["loop"] = loop_check(certificate, *drawn, design)
+        kind = pair_property(args.controller).check
+        checks[kind] = SAMPLED_CHECKS[kind](certificate, *drawn, design)
         checks["closed_loop"] = closed_loop_check(certificate, *drawn[:2], design)
     if args.sweep is not None:
         checks["sweep"] = sweep_check(certificate, runs, args.sweep.name)
