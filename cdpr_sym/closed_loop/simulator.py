@@ -509,10 +509,14 @@ class Simulator:
 
     def initial_states(self, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,
                        r_d: np.ndarray) -> np.ndarray:
-        """x at the start of many moves from rest on the ideal plant, (runs, x size), from
-        ``starts`` and ``goals`` (runs, n) m and gains ``k`` (N/m), ``r_d`` (N s/m): row i
-        is ``initial_state(starts[i], goals[i], k, r_d)``, the controller's plans made in
-        one call of CasADi's virtual machine."""
+        """x at the start of many moves from rest on the ideal (or rate-limited) plant,
+        (runs, x size), from ``starts`` and ``goals`` (runs, n) m and gains ``k`` (N/m),
+        ``r_d`` (N s/m): row i is ``initial_state(starts[i], goals[i], k, r_d)``, the
+        controller's plans made in one call of CasADi's virtual machine and the plant
+        effects' start values given the rows at once (:class:`StartContext` of rows)."""
+        if self.as_built is not None:
+            raise InvalidCase("plant", "initial_states starts runs on the ideal or rate-limited "
+                              "plant; an as-built run starts with initial_state")
         starts = np.asarray(starts, dtype=float).reshape(-1, self.robot.n)
         goals = np.asarray(goals, dtype=float).reshape(-1, self.robot.n)
         fields = self.layout.x
@@ -520,8 +524,12 @@ class Simulator:
         states[:, fields.slice("q")] = starts
         if self.layout.n_memory and len(starts):
             states[:, fields.slice("memory")] = self._initial_memories(starts, goals, k, r_d)
-        if self.layout.rate_limited:
-            states[:, fields.slice("applied")] = self.static_tensions(starts)
+        if self.effects and len(starts):  # rows of starts: the ideal plant's effects take them
+            context = StartContext(starts, np.zeros_like(starts), Plant(),
+                                   self.static_tensions(starts), None)
+            for effect in self.effects:
+                for name, values in effect.start_values(context).items():
+                    states[:, fields.slice(name)] = values
         return states
 
     def _initial_memories(self, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,

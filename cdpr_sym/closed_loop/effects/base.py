@@ -179,6 +179,10 @@ def elastic_stiffness(plant: Plant) -> float | None:
 class StartContext:
     """A move's start as the effects see it when they fill in their initial state.
 
+    For many moves at once (:meth:`~cdpr_sym.closed_loop.simulator.Simulator.
+    initial_states`, the ideal and rate-limited plants only) the arrays hold one row per
+    move, and the effects of those plants return rows too.
+
     Attributes
     ----------
     start, dq0 : ndarray, shape (n,)
