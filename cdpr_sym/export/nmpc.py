@@ -21,7 +21,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.codegen import generate_c
+from cdpr_sym.codegen import generate_c, renamed
 from cdpr_sym.control.nmpc import Nmpc, NmpcProblem
 from cdpr_sym.control.nmpc.problem import RESIDUAL_TOLERANCE
 from cdpr_sym.errors import InvalidCase
@@ -49,14 +49,9 @@ def solver_functions(model: SymbolicModel, design: Nmpc, prefix: str) -> list[ca
     problem = NmpcProblem(model, design)
     originals = (problem.rti_function(True), problem.rti_function(False),
                  problem.fallback_function(), model.functions["static_tension"])
-    return [_renamed(function, f"{prefix}_nmpc_cg_{name}")
+    # on matrix symbols: the iterations call CasADi's qrqp, which has no scalar form
+    return [renamed(function, f"{prefix}_nmpc_cg_{name}", scalar=False, cse=False)
             for name, function in zip(SOLVER_FUNCTIONS, originals, strict=True)]
-
-
-def _renamed(function: ca.Function, name: str) -> ca.Function:
-    inputs = function.mx_in()
-    return ca.Function(name, inputs, function.call(inputs), function.name_in(),
-                       function.name_out())
 
 
 def solver_source(functions: list[ca.Function], prefix: str, avoid_stack: bool) -> str:
