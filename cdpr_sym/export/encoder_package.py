@@ -41,8 +41,7 @@ from cdpr_sym.as_built import Actuation
 from cdpr_sym.as_built.cable_law import unstretched_length
 from cdpr_sym.as_built.draw import DEFAULT_DRAW
 from cdpr_sym.as_built.hardware import cable_length_range
-from cdpr_sym.codegen import c_identifier, generate_c, renamed, render
-from cdpr_sym.codegen.names import c_double
+from cdpr_sym.codegen import c_array, c_double, c_identifier, generate_c, renamed, render
 from cdpr_sym.control import FLAG_NAMES, Controller, capabilities, check_cables, controller_by_name
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SINGULAR
 from cdpr_sym.control.planned import SmoothReference
@@ -395,26 +394,11 @@ def _work(functions: list[ca.Function]) -> dict[str, int]:
             "w": max(max(f.sz_w() for f in functions), 1)}
 
 
-def _c_array(values) -> str:
-    flat = np.asarray(values, dtype=float).ravel()
-    if flat.size == 0:
-        return "{0}"
-    lines, line = [], []
-    for value in flat:
-        line.append(c_double(value))
-        if len(line) == 4:
-            lines.append(", ".join(line))
-            line = []
-    if line:
-        lines.append(", ".join(line))
-    return "{\n    " + ",\n    ".join(lines) + "}"
-
-
 def _plant_data(plant: LoopPlant) -> str:
     return ("/* The as-built plant of the software in the loop: its start state and parameters"
             " (generated; do not edit). */\n"
-            f"static const double plant_x0[{plant.x0.size}] = {_c_array(plant.x0)};\n"
-            f"static const double plant_p[{plant.p.size}] = {_c_array(plant.p)};\n")
+            f"static const double plant_x0[{plant.x0.size}] = {c_array(plant.x0)};\n"
+            f"static const double plant_p[{plant.p.size}] = {c_array(plant.p)};\n")
 
 
 def _reference_data(run) -> str:
@@ -427,14 +411,14 @@ def _reference_data(run) -> str:
             f"#define SIL_STEPS {steps}\n#define SIL_LOST_POSE_STEP {lost}\n"
             f"#define SIL_STOP \"{run.stop_reason or 'none'}\"\n"
             f"static const double sil_command[{max(run.command.size, 1)}] = "
-            f"{_c_array(run.command)};\n"
+            f"{c_array(run.command)};\n"
             f"static const double sil_pose[{max(run.q[1:steps + 1].size, 1)}] = "
-            f"{_c_array(run.q[1:steps + 1])};\n")
+            f"{c_array(run.q[1:steps + 1])};\n")
 
 
 def _c_cases(cases: dict[str, object]) -> dict[str, object]:
     """The guard test's arrays as C initialisers (None kept), notes as they are."""
-    return {name: value if isinstance(value, str) or value is None else _c_array(value)
+    return {name: value if isinstance(value, str) or value is None else c_array(value)
             for name, value in cases.items()}
 
 
@@ -482,12 +466,12 @@ def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Funct
         "n_memory": loop.n_memory, "n_state": loop.n_state, "n_par": loop.n_parameters,
         "dt": c_double(loop.dt),
         "coordinates": list(zip(robot.coordinate_names, robot.coordinate_units, strict=True)),
-        "home": _c_array(checked.robot.start), "goal": _c_array(checked.robot.goal),
-        "k": _c_array(checked.robot.k), "r_d": _c_array(checked.robot.r_d),
-        "sensing": _c_array(spec.sensing.parameters()),
-        "actuation": _c_array(spec.actuation.parameters()),
+        "home": c_array(checked.robot.start), "goal": c_array(checked.robot.goal),
+        "k": c_array(checked.robot.k), "r_d": c_array(checked.robot.r_d),
+        "sensing": c_array(spec.sensing.parameters()),
+        "actuation": c_array(spec.actuation.parameters()),
         "resolution": c_double(spec.sensing.resolution),
-        "encoder_offsets": _c_array(offsets), "calibrated": robot.encoder_offsets is not None,
+        "encoder_offsets": c_array(offsets), "calibrated": robot.encoder_offsets is not None,
         "drum_radius": c_double(spec.actuation.drum_radius),
         "cable_stiffness": c_double(spec.actuation.cable_stiffness),
         "torque_limit": c_double(torque_limit),
@@ -496,12 +480,12 @@ def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Funct
         "drum_cable_mode": c_double(round(mode, 1)), "hold_cutoff": c_double(round(hold_corner, 3)),
         "hold_gain": c_double(-math.expm1(-2 * math.pi * hold_corner * loop.dt)),
         "not_at_rest": NOT_AT_REST, "not_located": NOT_LOCATED,
-        "length_low": _c_array(low), "length_high": _c_array(high),
-        "frame_low": _c_array(np.asarray(robot.frame_lower) + margin),
-        "frame_high": _c_array(np.asarray(robot.frame_upper) - margin),
+        "length_low": c_array(low), "length_high": c_array(high),
+        "frame_low": c_array(np.asarray(robot.frame_lower) + margin),
+        "frame_high": c_array(np.asarray(robot.frame_upper) - margin),
         "frame_margin": c_double(limits.frame_margin),
         "positions": positions,
-        "seeds": _c_array(seeds), "n_seeds": len(seeds),
+        "seeds": c_array(seeds), "n_seeds": len(seeds),
         "locate_iterations": LOCATE_ITERATIONS,
         "t_min": c_double(robot.t_min), "t_max": c_double(robot.t_max),
         "limits": {"max_speed": c_double(limits.max_speed),
