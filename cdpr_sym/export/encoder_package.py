@@ -44,7 +44,6 @@ from cdpr_sym.as_built.hardware import cable_length_range
 from cdpr_sym.codegen import c_array, c_double, c_identifier, generate_c, renamed, render
 from cdpr_sym.control import FLAG_NAMES, Controller, capabilities, check_cables, controller_by_name
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SINGULAR
-from cdpr_sym.control.planned import SmoothReference
 from cdpr_sym.control.tuning import drum_cable_mode, fastest_direction
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export.encoder_loop import (
@@ -440,9 +439,7 @@ def _context(checked: _Checked, loop: EncoderLoop, functions: dict[str, ca.Funct
     # an accepted reset: the plan, and the pose from the last pose and every seed
     operations["reset"] = operation_count(functions["start"]) + (len(seeds) + 1) * locate
     reads_drives = capabilities(checked.controller).reads_drives
-    design = checked.controller
-    planned = isinstance(design, SmoothReference) or isinstance(getattr(design, "plan", None),
-                                                               SmoothReference)
+    planned = capabilities(checked.controller).planned
     design_flags = FLAG_SINGULAR | (FLAG_INFEASIBLE if planned else 0)
     offsets = np.zeros(m) if robot.encoder_offsets is None else robot.encoder_offsets
     positions = robot.dimension
