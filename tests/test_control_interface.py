@@ -109,6 +109,18 @@ def test_capabilities_are_declared_and_read_in_one_place(name):
         assert declared.sample_period == pytest.approx(1.0 / controller.rate)
 
 
+@pytest.mark.parametrize("name", NAMES)
+def test_planned_is_declared_for_the_designs_that_follow_a_smooth_reference(name):
+    """``Capabilities.planned`` (read by the encoder package's guard) says what the type
+    test it replaced said: the design is a SmoothReference or holds one as its plan."""
+    from cdpr_sym.control import capabilities
+
+    design = CONTROLLERS[name]
+    follows_a_plan = isinstance(design, SmoothReference) or isinstance(
+        getattr(design, "plan", None), SmoothReference)
+    assert capabilities(design).planned == follows_a_plan
+
+
 def test_a_controller_without_capabilities_inverts_w_every_period():
     from cdpr_sym.control import SQUARE_STEPWISE, capabilities, check_cables
 

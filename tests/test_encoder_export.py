@@ -29,13 +29,13 @@ from cdpr_sym.closed_loop import get_simulator
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export import export_encoder_c
+from cdpr_sym.export.encoder_description import RANGE_MARGIN, length_bounds
 from cdpr_sym.export.encoder_loop import (
     EncoderLoop,
     encoder_functions,
     locate_seeds,
     operation_count,
 )
-from cdpr_sym.export.encoder_package import RANGE_MARGIN, length_bounds
 from cdpr_sym.export.guard import FAULTS
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import preset

@@ -29,7 +29,7 @@ from tools import tool as _tool
 from cdpr_sym.as_built import Actuation
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export import export_encoder_c
-from cdpr_sym.export.encoder_package import TORQUE_MARGIN, torque_limit_of
+from cdpr_sym.export.encoder_description import TORQUE_MARGIN, torque_limit_of
 from cdpr_sym.export.guard import FAULTS, GuardLimits, first_trip, hold_gains, move_speed
 
 # -- the stated rules, quick ----------------------------------------------------------------

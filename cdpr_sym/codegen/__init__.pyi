@@ -13,7 +13,7 @@ from .build import (
     require_compiler,
     run_command,
 )
-from .generate import generate_c
+from .generate import generate_c, renamed
 from .lanes import (
     MAX_LANES,
     VECTOR_FLAGS,
@@ -25,13 +25,13 @@ from .lanes import (
     unsupported_operations,
     vector_build_options,
 )
-from .names import c_double, c_identifier, is_c_identifier, plain_text
+from .names import c_array, c_double, c_identifier, is_c_identifier, plain_text
 from .native import NativeFunction, NativeLibrary
 from .templates import render
 
 __all__ = ["BACKENDS", "MAX_LANES", "VECTOR_FLAGS", "BuildOptions", "CompiledLibrary",
-           "NativeFunction", "NativeLibrary", "build", "build_recipe", "built_recipe", "c_double",
-           "c_identifier", "check_lanes", "default_cache_dir", "find_compiler", "generate_c",
-           "is_c_identifier", "lanes_preamble", "lanes_source", "native_lanes", "plain_text",
-           "render", "require_compiler", "resolve_lanes", "run_command", "unsupported_operations",
-           "vector_build_options"]
+           "NativeFunction", "NativeLibrary", "build", "build_recipe", "built_recipe", "c_array",
+           "c_double", "c_identifier", "check_lanes", "default_cache_dir", "find_compiler",
+           "generate_c", "is_c_identifier", "lanes_preamble", "lanes_source", "native_lanes",
+           "plain_text", "renamed", "render", "require_compiler", "resolve_lanes", "run_command",
+           "unsupported_operations", "vector_build_options"]

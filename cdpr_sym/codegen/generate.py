@@ -1,10 +1,49 @@
-"""CasADi code generation: the one driver that turns ``ca.Function`` objects into C."""
+"""CasADi code generation: the one driver that turns ``ca.Function`` objects into C.
+
+:func:`renamed` prepares a function for it (the name its C symbol takes, in the form CasADi
+generates), :func:`generate_c` writes the C of several in one translation unit.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import casadi as ca
+
+#: A CasADi expression, scalar (SX) or matrix (MX).
+Expression = ca.SX | ca.MX
+
+
+def renamed(function: ca.Function, name: str, *, scalar: bool = True, cse: bool = True,
+            output: Callable[[Expression], Expression] | None = None) -> ca.Function:
+    """``function`` rebuilt under ``name``, its arguments' names kept, for :func:`generate_c`.
+
+    Parameters
+    ----------
+    function : ca.Function
+        The function to rename.
+    name : str
+        The new name: the C symbol the generated function gets (a C identifier).
+    scalar : bool
+        True: rebuilt on scalar symbols (SX), every operation written out in line. False: on
+        matrix symbols (MX), which keeps the calls of a function that has no SX form (a QP
+        solver).
+    cse : bool
+        Eliminate common subexpressions when rebuilding.
+    output : callable, optional
+        Applied to each output expression (such as making it dense); default: kept as is.
+
+    Returns
+    -------
+    ca.Function
+        The same inputs and outputs (``output`` applied), under ``name``.
+    """
+    inputs = function.sx_in() if scalar else function.mx_in()
+    outputs = function.call(inputs)
+    if output is not None:
+        outputs = [output(expression) for expression in outputs]
+    return ca.Function(name, inputs, outputs, function.name_in(), function.name_out(),
+                       {"cse": cse})
 
 
 def generate_c(functions: Sequence[ca.Function], name: str, *, symbol_prefix: str = "",

@@ -1,9 +1,10 @@
-"""Names that go into generated code: the one place that makes text safe for C.
+"""Names and numbers that go into generated code: the one place that makes text safe for C.
 
 CasADi accepts a function name only if it is a C identifier that starts with a letter, has
 no double underscore and does not end with one; C compilers and file systems add a length
 limit. Robot and controller names are free text (``"my robot (v2)"``, non-ASCII letters,
-``"robot_"``), so every name passes through here first.
+``"robot_"``), so every name passes through here first. Numbers are written as C literals
+that read back exactly (:func:`c_double`, :func:`c_array`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,9 @@ from __future__ import annotations
 import hashlib
 import math
 import re
+
+import numpy as np
+from numpy.typing import ArrayLike
 
 #: Longest identifier produced (leaves room for suffixes such as ``_initial_memory``).
 MAX_IDENTIFIER = 40
@@ -60,3 +64,20 @@ def c_double(value: float) -> str:
     if math.isinf(value):
         return "INFINITY" if value > 0 else "(-INFINITY)"
     return repr(float(value))
+
+
+def c_array(values: ArrayLike) -> str:
+    """A C initialiser of ``values`` (flattened, row by row), each a :func:`c_double` literal,
+    four to a line; ``{0}`` for no values (C has no empty initialiser).
+
+    Examples
+    --------
+    >>> c_array([1.0, 2.5])
+    '{\\n    1.0, 2.5}'
+    """
+    flat = np.asarray(values, dtype=float).ravel()
+    if flat.size == 0:
+        return "{0}"
+    literals = [c_double(value) for value in flat]
+    lines = [", ".join(literals[start:start + 4]) for start in range(0, len(literals), 4)]
+    return "{\n    " + ",\n    ".join(lines) + "}"

@@ -71,11 +71,16 @@ class Capabilities:
     reads_drives : bool
         The law reads the winches (:class:`DriveReading`, the keyword ``drives`` of its
         ``step``) instead of the pose and velocity.
+    planned : bool
+        The design follows a planned reference whose plan can be infeasible (that of
+        :class:`~cdpr_sym.control.planned.SmoothReference`, the design's own or held as its
+        ``plan``): it then sets ``FLAG_INFEASIBLE``, on which an exported package stops.
     """
 
     any_cables: bool = False
     sample_period: float | None = None
     reads_drives: bool = False
+    planned: bool = False
 
     @property
     def sampled(self) -> bool:

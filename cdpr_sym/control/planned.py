@@ -21,7 +21,7 @@ import numpy as np
 
 import cdpr_sym.control.tuning as tuning
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
-from cdpr_sym.control.interface import SQUARE_STEPWISE, Capabilities, ControlLaw
+from cdpr_sym.control.interface import Capabilities, ControlLaw
 from cdpr_sym.control.parts import (
     FILTER_STAGES,
     alpha_interval,
@@ -148,8 +148,8 @@ class SmoothReference:
 
     def capabilities(self) -> Capabilities:
         """Runs on robots with more cables than degrees of freedom (its plan and command
-        go through the tension distribution)."""
-        return Capabilities(any_cables=True)
+        go through the tension distribution); follows its plan."""
+        return Capabilities(any_cables=True, planned=True)
 
     def memory_size(self, model: SymbolicModel) -> int:
         """Internal state: [t, q_start (n), T, margin] and the command filter's stages."""
@@ -419,8 +419,8 @@ class VirtualReferenceIdaPbc:
                 "command_cutoff": self.command_cutoff}
 
     def capabilities(self) -> Capabilities:
-        """m = n only: the IDA-PBC tension inverts W."""
-        return SQUARE_STEPWISE
+        """m = n only: the IDA-PBC tension inverts W; its reference follows ``plan``."""
+        return Capabilities(planned=True)
 
     def memory_size(self, model: SymbolicModel) -> int:
         """Internal state: [xi (n), dxi (n), F, a, d0], the observer's z (n) and the command

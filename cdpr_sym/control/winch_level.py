@@ -261,8 +261,8 @@ class WinchIdaPbc:
 
     def capabilities(self) -> Capabilities:
         """Any m >= n (m > n: the feed-forward distributes the force as the plan does, the
-        integral acts on the platform's lengths only); reads the winches."""
-        return Capabilities(any_cables=True, reads_drives=True)
+        integral acts on the platform's lengths only); reads the winches; follows ``plan``."""
+        return Capabilities(any_cables=True, reads_drives=True, planned=True)
 
     def _stages(self) -> int:
         """The feedback filter's stages (0 without the filter)."""

@@ -19,7 +19,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.closed_loop import STOP_REASONS, Fields, StepLayout, step_function, step_layout
-from cdpr_sym.codegen import plain_text
+from cdpr_sym.codegen import plain_text, renamed
 from cdpr_sym.control import (
     FLAG_NAMES,
     Controller,
@@ -204,11 +204,7 @@ def _entry(name: str, function: ca.Function, prefix: str, summary: str,
            docs: dict[str, str]) -> Entry:
     """``function`` renamed ``<prefix>_cg_<name>`` with dense, row-major outputs; ``docs``
     are the words of its arguments by name (an argument without any gets ``summary``)."""
-    inputs = function.sx_in()
-    outputs = [ca.densify(out.T) if out.size1() > 1 and out.size2() > 1 else ca.densify(out)
-               for out in function.call(inputs)]
-    renamed = ca.Function(f"{prefix}_cg_{name}", inputs, outputs, function.name_in(),
-                          function.name_out(), {"cse": True})
+    consistent = renamed(function, f"{prefix}_cg_{name}", output=_dense_row_major)
 
     def argument(index: int, is_input: bool) -> CArgument:
         label = (function.name_in if is_input else function.name_out)(index)
@@ -217,10 +213,16 @@ def _entry(name: str, function: ca.Function, prefix: str, summary: str,
         return CArgument(_C_NAMES.get(label, label), "in" if is_input else "out", rows * cols,
                          docs.get(label, summary) if documented else summary,
                          matrix=(rows, cols) if rows > 1 and cols > 1 else None)
-    return Entry(renamed, Wrapper(
-        name, renamed.name(), summary, renamed.n_instructions(),
+    return Entry(consistent, Wrapper(
+        name, consistent.name(), summary, consistent.n_instructions(),
         tuple(argument(i, True) for i in range(function.n_in())),
         tuple(argument(i, False) for i in range(function.n_out()))))
+
+
+def _dense_row_major(output: ca.SX) -> ca.SX:
+    """``output`` dense, a matrix transposed so that C reads it row by row."""
+    return ca.densify(output.T) if output.size1() > 1 and output.size2() > 1 \
+        else ca.densify(output)
 
 
 # -- the values the templates render --------------------------------------------------------

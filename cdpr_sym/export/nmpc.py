@@ -19,9 +19,8 @@ from __future__ import annotations
 from typing import Any
 
 import casadi as ca
-import numpy as np
 
-from cdpr_sym.codegen import generate_c
+from cdpr_sym.codegen import c_double, generate_c, renamed
 from cdpr_sym.control.nmpc import Nmpc, NmpcProblem
 from cdpr_sym.control.nmpc.problem import RESIDUAL_TOLERANCE
 from cdpr_sym.errors import InvalidCase
@@ -49,14 +48,9 @@ def solver_functions(model: SymbolicModel, design: Nmpc, prefix: str) -> list[ca
     problem = NmpcProblem(model, design)
     originals = (problem.rti_function(True), problem.rti_function(False),
                  problem.fallback_function(), model.functions["static_tension"])
-    return [_renamed(function, f"{prefix}_nmpc_cg_{name}")
+    # on matrix symbols: the iterations call CasADi's qrqp, which has no scalar form
+    return [renamed(function, f"{prefix}_nmpc_cg_{name}", scalar=False, cse=False)
             for name, function in zip(SOLVER_FUNCTIONS, originals, strict=True)]
-
-
-def _renamed(function: ca.Function, name: str) -> ca.Function:
-    inputs = function.mx_in()
-    return ca.Function(name, inputs, function.call(inputs), function.name_in(),
-                       function.name_out())
 
 
 def solver_source(functions: list[ca.Function], prefix: str, avoid_stack: bool) -> str:
@@ -79,8 +73,8 @@ def solver_description(model: SymbolicModel, design: Nmpc, functions: list[ca.Fu
         "nv": problem.size, "nmult": problem.multiplier_size,
         "period": design.period, "max_rate": design.max_rate,
         "tolerance": RESIDUAL_TOLERANCE,
-        "stage_lower": [_c_double(value) for value in lower[:stage]],
-        "stage_upper": [_c_double(value) for value in upper[:stage]],
+        "stage_lower": [c_double(value) for value in lower[:stage]],
+        "stage_upper": [c_double(value) for value in upper[:stage]],
         "symbols": {name: f"{prefix}_nmpc_cg_{name}" for name in SOLVER_FUNCTIONS},
         "work": {"SZ_ARG": max(max(f.sz_arg(), f.n_in()) for f in functions),
                  "SZ_RES": max(max(f.sz_res(), f.n_out()) for f in functions),
@@ -89,10 +83,3 @@ def solver_description(model: SymbolicModel, design: Nmpc, functions: list[ca.Fu
         "operations": {name: f.n_instructions() for name, f in zip(SOLVER_FUNCTIONS, functions,
                                                                    strict=True)},
     }
-
-
-def _c_double(value: float) -> str:
-    """A C99 double literal; infinities as ``HUGE_VAL`` (from ``<math.h>``)."""
-    if np.isinf(value):
-        return "HUGE_VAL" if value > 0 else "-HUGE_VAL"
-    return repr(float(value))
