@@ -279,3 +279,27 @@ def test_an_unreadable_redundant_robot_is_told_what_runs_on_it(capsys):
     run = simulate("ipanema8", "ida-winch", duration=0.05,
                    plant=Plant(mass_scale=mass_scale, as_built=spec))
     assert run.stop_reason is None
+
+
+def test_simulate_checks_the_runs_own_start_and_goal_before_building(aras3, monkeypatch):
+    """The early integrability check (before any code is built) is at the start and goal the
+    run integrates, not at the robot's own case."""
+    from cdpr_sym.closed_loop import simulator as simulator_module
+
+    seen = []
+
+    class Checked(Exception):
+        pass
+
+    def record(model, actuation, dt, substeps, poses):
+        seen.append([np.asarray(pose, dtype=float) for pose in poses])
+        raise Checked
+
+    monkeypatch.setattr(simulator_module, "check_integrable", record)
+    monkeypatch.setattr(simulator_module, "get_simulator", lambda *a, **k: pytest.fail(
+        "built before the check"))
+    start = np.asarray(aras3.start) + np.array([0.05, -0.05, 0.0])
+    with pytest.raises(Checked):
+        simulate(aras3, "smooth", start=start, duration=0.5,
+                 plant=Plant(as_built=AsBuilt(actuation=Actuation())))
+    assert np.allclose(seen[0][0], start) and np.allclose(seen[0][1], aras3.goal)
