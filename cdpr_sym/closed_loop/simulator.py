@@ -703,14 +703,15 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *,
     if plant.as_built is not None:
         plant.as_built.check_period(dt)  # before building: enough substeps for dt
         plant.as_built.check_robot(robot.m, robot.dimension, robot.frame_side)
-    # the case before building: its start and goal, the ones the run integrates
-    model = SymbolicModel(robot)
-    case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d, model=model)
-    if plant.as_built is not None:
+        # at the start and goal the run integrates, resolved on a model of its own
+        model = SymbolicModel(robot)
+        case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d, model=model)
         check_integrable(model, plant.as_built.actuation, dt, plant.as_built.substeps,
                          (case.start, case.goal))
     kind = plant.kind
     simulator = get_simulator(robot, controller, build_options=build_options,
                               rate_limited=kind.rate_limited, as_built=kind.as_built)
+    if plant.as_built is None:  # the cached simulator's model: its functions already built
+        case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d, model=simulator.model)
     return simulator.run(case.start, case.goal, case.k, case.r_d,
                          duration=duration, dt=dt, plant=plant)
