@@ -18,7 +18,7 @@ from cdpr_sym.certify.cramer import CRAMER_UP_TO
 from cdpr_sym.certify.enclosure import enclosure
 from cdpr_sym.certify.poses import pose_inputs
 from cdpr_sym.certify.static import unique_tensions
-from cdpr_sym.certify.verdict import BoxVerdicts, Verdict
+from cdpr_sym.certify.verdict import BoxVerdicts, codes
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
 
@@ -53,8 +53,7 @@ class AssumptionVerdicts:
     def __call__(self, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
         lo, hi = self.margin((lower.T, upper.T))[0]
         regular = (lo[0] > 0) | (hi[0] < 0)
-        return np.where(regular & (lo[1] > 0), Verdict.PROVEN,
-                        np.where(hi[1] <= 0, Verdict.DISPROVEN, Verdict.UNDECIDED)).astype(int)
+        return codes(regular & (lo[1] > 0), hi[1] <= 0)
 
 
 class AssumptionMethod:

@@ -18,7 +18,7 @@ import numpy as np
 from cdpr_sym.certify.cramer import CRAMER_UP_TO
 from cdpr_sym.certify.enclosure import enclosure
 from cdpr_sym.certify.poses import pose_inputs
-from cdpr_sym.certify.verdict import BoxVerdicts, Verdict
+from cdpr_sym.certify.verdict import BoxVerdicts, codes
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
 from cdpr_sym.workspace.wrench import facet_normals, facet_projections
@@ -66,8 +66,7 @@ class FacetVerdicts:
         full_rank = np.any(lo[k:] > 0, axis=0)
         feasible = full_rank & np.all(lo[:k] >= 0, axis=0)
         infeasible = np.any(hi[:k] < 0, axis=0)
-        return np.where(feasible, Verdict.PROVEN,
-                        np.where(infeasible, Verdict.DISPROVEN, Verdict.UNDECIDED)).astype(int)
+        return codes(feasible, infeasible)
 
 
 class FacetMethod:

@@ -18,7 +18,7 @@ from cdpr_sym.certify.cramer import CRAMER_UP_TO
 from cdpr_sym.certify.enclosure import enclosure
 from cdpr_sym.certify.linear import enclose_solutions
 from cdpr_sym.certify.poses import pose_inputs
-from cdpr_sym.certify.verdict import BoxVerdicts, Verdict
+from cdpr_sym.certify.verdict import BoxVerdicts, codes
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
 
@@ -45,8 +45,7 @@ class KrawczykVerdicts:
         t_lo, t_hi, regular = enclose_solutions(W_lo, W_hi, lo[n * n:].T, hi[n * n:].T)
         feasible = regular & np.all((t_lo >= self.t_min) & (t_hi <= self.t_max), axis=1)
         infeasible = regular & np.any((t_hi < self.t_min) | (t_lo > self.t_max), axis=1)
-        return np.where(feasible, Verdict.PROVEN,
-                        np.where(infeasible, Verdict.DISPROVEN, Verdict.UNDECIDED)).astype(int)
+        return codes(feasible, infeasible)
 
 
 class KrawczykMethod:

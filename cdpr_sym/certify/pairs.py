@@ -366,8 +366,9 @@ def pair_proof(model: SymbolicModel, controller: str,
     (:func:`~cdpr_sym.certify.registry.pair_property`) for ``design`` (None: its default
     design)."""
     chosen = pair_property(controller)
-    design = chosen.design() if design is None else design
-    if type(design) is not type(chosen.design()):
+    default = chosen.design()
+    design = default if design is None else design
+    if type(design) is not type(default):
         raise InvalidCase("design", f"a pair certificate of {controller} needs its design, "
                           f"got {type(design).__name__}")
     return chosen.proof(model, design, tracking_margin, min_width)

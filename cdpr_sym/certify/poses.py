@@ -23,7 +23,7 @@ import itertools
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.certify.verdict import Verdict
+from cdpr_sym.certify.verdict import Verdict, codes
 from cdpr_sym.robot import Robot
 
 
@@ -78,10 +78,9 @@ class OverOrientations:
             open_ = np.flatnonzero(witness < 0)
             if not len(open_):
                 break
-            codes = self.decide(np.hstack([lower[open_], np.tile(lo, (len(open_), 1))]),
+            found = self.decide(np.hstack([lower[open_], np.tile(lo, (len(open_), 1))]),
                                 np.hstack([upper[open_], np.tile(hi, (len(open_), 1))]))
-            every[open_] &= codes == Verdict.PROVEN
-            witness[open_[codes == Verdict.DISPROVEN]] = index
+            every[open_] &= found == Verdict.PROVEN
+            witness[open_[found == Verdict.DISPROVEN]] = index
         self.witnesses = witness
-        return np.where(witness >= 0, Verdict.DISPROVEN,
-                        np.where(every, Verdict.PROVEN, Verdict.UNDECIDED)).astype(int)
+        return codes(every, witness >= 0)

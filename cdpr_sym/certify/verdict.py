@@ -51,8 +51,13 @@ def decide(regular: np.ndarray, margin_lower: np.ndarray, margin_upper: np.ndarr
     """A :class:`Verdict` code per box (columns) from the bounds of margins that are >= 0
     where the property holds (rows): every lower bound >= 0 proves it, some upper bound < 0
     disproves it, on boxes where ``regular`` (W proven regular); else undecided."""
-    proven = regular & np.all(margin_lower >= 0, axis=0)
-    disproven = regular & np.any(margin_upper < 0, axis=0)
+    return codes(regular & np.all(margin_lower >= 0, axis=0),
+                 regular & np.any(margin_upper < 0, axis=0))
+
+
+def codes(proven: np.ndarray, disproven: np.ndarray) -> np.ndarray:
+    """A :class:`Verdict` code per box from two masks that never hold together: PROVEN where
+    ``proven``, DISPROVEN where ``disproven``, UNDECIDED elsewhere."""
     return np.where(proven, Verdict.PROVEN,
                     np.where(disproven, Verdict.DISPROVEN, Verdict.UNDECIDED)).astype(int)
 
