@@ -425,3 +425,17 @@ def test_version_answers_without_loading_numpy_or_casadi():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True)
     assert done.stdout.splitlines() == [f"cdpr-sym {__version__}", "0 False False"]
+
+
+@pytest.mark.parametrize("argv", [
+    ["certify", "workspace", "--property", "nonsense", "--out", "x"],
+    ["bogus"],
+    ["simulate", "--dt", "abc"],
+    ["certify"],
+])
+def test_a_usage_error_is_one_line_with_exit_status_2(argv, capsys):
+    with pytest.raises(SystemExit) as done:
+        main(argv)
+    err = capsys.readouterr().err
+    assert done.value.code == 2
+    assert err.count("\n") == 1 and ": error: " in err and "--help" in err, err

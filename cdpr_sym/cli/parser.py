@@ -23,6 +23,14 @@ _CONTROLLER_HELP = "controllers:\n" + "\n".join(
 _ROBOT_HELP = f"preset name ({', '.join(PRESET_NAMES)}) or robot TOML file"
 
 
+class _Parser(argparse.ArgumentParser):
+    """A parser whose usage errors are one line on stderr (exit status 2), as every other
+    refusal of the command is, instead of argparse's usage block before the message."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 class _Formatter(argparse.RawDescriptionHelpFormatter):
     """Defaults in the help (where there is one worth showing); epilogs kept as written."""
 
@@ -63,7 +71,7 @@ def _as_built_options(parser: argparse.ArgumentParser, seeded: str) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser of ``cdpr-sym``."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="cdpr-sym", formatter_class=_Formatter, epilog=_CONTROLLER_HELP,
         description="Model, simulate and verify tension-feasible control of cable-driven "
         "parallel robots.")
