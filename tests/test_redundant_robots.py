@@ -154,7 +154,7 @@ def _plan_admissible(robot, controller, start, goal, duration, margin):
         tau = tau_p + min(max(0.0, low), high) * h
         taus.append(tau)
     rates = np.abs(np.diff(taus, axis=0)) / (duration * (u[1] - u[0]))
-    return bool(rates.max() <= controller.max_rate)
+    return bool(rates.max() <= controller.rate_for(robot))
 
 
 @pytest.mark.slow  # several seconds: kept out of the quick suite

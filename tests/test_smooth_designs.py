@@ -59,7 +59,7 @@ def test_smooth_planned_feed_forward_respects_margin_and_rate(pairs):
         # the plan checks 33 points; between them the tension may bend by a fraction of 1 N
         assert tau.min() >= robot.t_min + margin - 0.5
         assert tau.max() <= robot.t_max - margin + 0.5
-        assert rate <= 1.1 * design.max_rate
+        assert rate <= 1.1 * design.rate_for(robot)
 
 
 def _planned_feed_forward(robot, start, goal, duration, samples):

@@ -176,6 +176,7 @@ class SmoothPairProof:
                               f"margin of at least that")
         self.n, self.t_min, self.t_max = model.n, robot.t_min, robot.t_max
         self.design, self.mu = design, float(tracking_margin)
+        self.rate = design.rate_for(robot)
         # slopes in (q0, q_g, u) on the path, in (q0, q_g) at the samples (u, x, b, c fixed)
         n = model.n
         self.path = CompiledIntervalFunction(path_function(model), centred=True,
@@ -270,7 +271,7 @@ class SmoothPairProof:
         m_hi = np.where(sign > 0, hi[1:], -lo[1:])
         band_passes = (sign != 0) & np.all(m_lo >= scale, axis=(0, 1))
         band_fails = (sign != 0) & np.any(m_hi < -scale, axis=(0, 1))
-        limit = self.design.max_rate * T / (S - 1)
+        limit = self.rate * T / (S - 1)
         step_lo_rows = np.hstack([np.tile(lower, (S - 1, 1)),
                                   np.repeat(u[:-1], boxes)[:, None],
                                   np.repeat(u[1:], boxes)[:, None], np.full((

@@ -35,6 +35,7 @@ from cdpr_sym.control.parts import (
     tension_parts,
 )
 from cdpr_sym.control.tuning import FROM_ROBOT
+from cdpr_sym.distribution.closed_form import nearest_to
 from cdpr_sym.distribution.interval import BIG, feasible_interval
 from cdpr_sym.distribution.one_dimensional import null_vector
 from cdpr_sym.errors import InvalidCase
@@ -48,6 +49,32 @@ def minimum_jerk(u: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
             60 * u - 180 * u**2 + 120 * u**3)
 
 
+def planned_preference(model: SymbolicModel, q_start: ca.SX, q_goal: ca.SX, s: ca.SX,
+                       guard: float) -> ca.SX:
+    """The tension (N) the plan's distribution stays nearest to at progress ``s`` of a move
+    with m >= n + 2 cables: (1 - s) tau_s + s tau_g, tau_s and tau_g the weight's
+    distribution at the start and the goal in the box shrunk by ``guard`` (the plan's widest
+    margin; the full box where the shrunk one cannot hold the weight).
+
+    The plan distributes its force f with the closed form about this tension,
+    p(s) + W^+ (f - W p(s)) (:func:`~cdpr_sym.distribution.closed_form.nearest_to`), linear
+    in f, so the interval test on 1 / T^2 applies as it did with Pott's closed form about
+    the box's middle, which it replaces. On a box far wider than the weight asks, the
+    middle pulled every cable towards (T_min + T_max) / 2 and the correction pushed others
+    under T_min: the plan found no margin on 32 of ipanema8's 40 zoo pairs ([10, 720] N)
+    and on 37 of a 173 kg 8-cable platform's ([21, 6846] N; both with the rate bound of
+    :func:`~cdpr_sym.control.tuning.plan_rate`), and those runs fell back to the slowest
+    plan, flagged infeasible at every step; about this tension, on 8 and 13. Checked in
+    numpy beforehand, a preference of the default distribution itself (interpolated) did
+    less well: it already sits on T_min at the start, so margin 0 at best.
+    """
+    def holding(q: ca.SX) -> ca.SX:
+        return distributed_command(model, model.structure_matrix(q), model.grad_potential(q),
+                                   guard=guard).tau
+
+    return (1 - s) * holding(q_start) + s * holding(q_goal)
+
+
 @dataclasses.dataclass(frozen=True)
 class SmoothReference:
     """Minimum-jerk reference, feed-forward tension and PD tracking (``smooth``).
@@ -59,9 +86,10 @@ class SmoothReference:
     margins : tuple of float
         Candidate tension margins, N, tried from the widest: the planned feed-forward
         tension must stay in [T_min + margin, T_max - margin].
-    max_rate : float
-        Largest planned rate of change of the feed-forward tension, N/s (600 N/s is 0.6 N
-        per 1 ms step, leaving room for the feedback under the 1 N per step target).
+    max_rate : float or "robot"
+        Largest planned rate of change of the feed-forward tension, N/s. "robot" (the
+        default): :func:`cdpr_sym.control.tuning.plan_rate`, 0.6 of the robot's target step
+        per ms (600 N/s under the 1 N per step target, leaving room for the feedback).
     samples : int
         Points along the path where the plan is checked.
     command_cutoff : float, "robot" or None
@@ -93,9 +121,11 @@ class SmoothReference:
     Command: W^{-1} (M(q) ddq_r + C(q, dq) dq_r + grad V - K (q - q_r) - R_d (dq - dq_r)),
     clipped; the plan's feed-forward is M(q_r) ddq_r + C(q_r, dq_r) dq_r + grad V (m ddq_r
     + grad V for a point mass).
-    With m > n cables W^{-1} becomes Pott's closed form mid + W^+ (f - W mid) in the plan
-    (linear in the force, so the same interval test applies) and the improved closed form
-    in the command (equal to it wherever it is in the box).
+    With m > n cables W^{-1} becomes, in the plan, the exact minimum norm for m = n + 1
+    and for m >= n + 2 the closed form p + W^+ (f - W p) about the weight's distributions at
+    the start and the goal, interpolated along the path (:func:`planned_preference`; linear
+    in the force, so the same interval test applies), and the improved closed form in the
+    command.
     Memory: [t, q_start (n), T, margin] and, with ``command_cutoff``, the filter's stages
     (FILTER_STAGES m), which start at the tension the plant holds at rest at the start (the
     first command for m = n; with m > n the static tension, which the guarded first command
@@ -105,7 +135,7 @@ class SmoothReference:
 
     durations: tuple[float, ...] = tuple(np.round(np.arange(1.0, 4.01, 0.25), 2))
     margins: tuple[float, ...] = (5.0, 3.0, 2.0, 1.0, 0.5, 0.0)
-    max_rate: float = 600.0
+    max_rate: float | str = FROM_ROBOT
     samples: int = 33
     command_cutoff: float | str | None = None
     guard: float | str = 0.0
@@ -118,8 +148,8 @@ class SmoothReference:
             raise InvalidCase("durations", f"expected positive durations, got {self.durations}")
         if not self.margins or min(self.margins) < 0:
             raise InvalidCase("margins", f"expected margins >= 0 N, got {self.margins}")
-        if not (np.isfinite(self.max_rate) and self.max_rate > 0):
-            raise InvalidCase("max_rate", f"expected a positive rate, got {self.max_rate}")
+        if self.max_rate != FROM_ROBOT:
+            check_positive("max_rate", self.max_rate, "N/s")
         if isinstance(self.samples, bool) or not isinstance(self.samples, int) \
                 or self.samples < 3:
             raise InvalidCase("samples", f"expected at least 3 samples, got {self.samples}")
@@ -136,6 +166,10 @@ class SmoothReference:
         if self.command_cutoff == FROM_ROBOT:
             return tuning.command_cutoff(robot, dt)
         return self.command_cutoff
+
+    def rate_for(self, robot: Robot) -> float:
+        """The plan's largest feed-forward tension rate on ``robot``, N/s."""
+        return tuning.plan_rate(robot) if self.max_rate == FROM_ROBOT else self.max_rate
 
     def guard_for(self, robot: Robot) -> float:
         """The guard band on ``robot``, N."""
@@ -173,12 +207,11 @@ class SmoothReference:
                 dets.append(ca.det(W))
                 static.append(model.static_tension(q_r))
                 accel.append(ca.solve(W, inertial))
-            else:  # Pott's closed form, linear in the force: the same interval test
+            else:  # a closed form, linear in the force: the same interval test
                 dets.append(model.singularity_measure(W) - SINGULAR_DET)
-                middle = ca.DM.ones(model.m) * robot.box.middle
                 pseudo_inverse = W.T @ ca.inv(W @ W.T)
-                static.append(middle + pseudo_inverse @ (model.grad_potential(q_r)
-                                                         - W @ middle))
+                static.append(nearest_to(W, model.grad_potential(q_r), planned_preference(
+                    model, q0, q_goal, s, max(self.margins))))
                 accel.append(pseudo_inverse @ inertial)
                 if model.m == model.n + 1:  # tau = W^+ (grad V + x inertial) + s h
                     segments.append((pseudo_inverse @ model.grad_potential(q_r),
@@ -210,7 +243,7 @@ class SmoothReference:
         for T in self.durations:
             tau = a + b / T**2
             rates = ca.fabs(tau[robot.m:] - tau[: -robot.m]) / (T * step)
-            slow_enough[T] = ca.mmax(rates) <= self.max_rate
+            slow_enough[T] = ca.mmax(rates) <= self.rate_for(robot)
         chosen_T, chosen_margin = ca.SX(max(self.durations)), ca.SX(-1.0)
         for margin in reversed(self.margins):
             # interval of x = 1 / T^2 (any positive value) keeping a + b x inside the band
@@ -241,7 +274,7 @@ class SmoothReference:
                 low, high = feasible_interval(tau_p, h, lower, upper)
                 taus.append(tau_p + ca.fmin(ca.fmax(0.0, low), high) * h)
             rates = ca.vertcat(*[ca.fabs(b - a) for a, b in itertools.pairwise(taus)])
-            slow_enough[T] = ca.mmax(rates) / (T * step) <= self.max_rate
+            slow_enough[T] = ca.mmax(rates) / (T * step) <= self.rate_for(robot)
         for margin in reversed(self.margins):
             for T in sorted(self.durations, reverse=True):
                 inside = ca.SX(1.0)

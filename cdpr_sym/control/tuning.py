@@ -67,6 +67,7 @@ from cdpr_sym.as_built.hardware import longest_cable
 from cdpr_sym.as_built.spec import Actuation
 from cdpr_sym.robot import Robot
 from cdpr_sym.robot.gains import CASE_DAMPING, CASE_SHARE, SAMPLE_SHARE
+from cdpr_sym.robot.target import STEP_PERIOD
 
 #: An option's value that asks for the robot's rule.
 FROM_ROBOT = "robot"
@@ -77,6 +78,9 @@ COMMAND_SHARE = 0.6
 #: ``smooth-lp``'s command filter corner at least this multiple of the tracking loop's
 #: natural frequency (5: the hand-tuned 15 Hz was five times aras3's ~3 Hz loop).
 LOOP_MULTIPLE = 5.0
+#: ``smooth``'s planned tension rate as a share of the target's step per ms (0.6: 600 N/s
+#: against 1 N per ms).
+PLAN_RATE_SHARE = 0.6
 #: ``smooth-lp``'s guard band as a share of the box width (0.97 N on the paper's robot).
 GUARD_SHARE = 1 / 60
 #: The platform's mode on the motor springs as a share of f_c: m = n cables, and more.
@@ -193,6 +197,16 @@ def command_cutoff(robot: Robot, dt: Any, drive: Actuation | None = None) -> Any
     return _larger(COMMAND_SHARE * command_corner(robot, drive, dt), LOOP_MULTIPLE * loop)
 
 
+def plan_rate(robot: Robot) -> float:
+    """``smooth``'s planned tension rate bound, N/s: PLAN_RATE_SHARE of the robot's target
+    step (:attr:`~cdpr_sym.robot.Robot.design_target`, N per 1 ms), the rest of the step
+    left to the feedback: 600 N/s under the 1 N per ms every robot with a box under 100 N
+    wide is held to; 41 kN/s for a [21, 6846] N box (68 N per ms), where the fixed 600 N/s
+    left no duration of the plan's list that a 173 kg platform's weight shifting between
+    its cables could meet, and every pair ran on the slowest, unchecked plan."""
+    return PLAN_RATE_SHARE * robot.design_target.step / STEP_PERIOD
+
+
 def guard_band(robot: Robot) -> float:
     """``smooth-lp``'s guard band, N: GUARD_SHARE of the box width."""
     return GUARD_SHARE * robot.box.width
@@ -206,6 +220,7 @@ def rules() -> dict[str, Any]:
             "integral_share": INTEGRAL_SHARE, "fast_share": FAST_SHARE,
             "fast_damping_ratio": FAST_DAMPING_RATIO, "case_share": CASE_SHARE,
             "command_share": COMMAND_SHARE, "guard_share": GUARD_SHARE,
+            "plan_rate_share": PLAN_RATE_SHARE,
             "case_damping": CASE_DAMPING}
 
 

@@ -91,12 +91,18 @@ from cdpr_sym.checks import positive_number
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
 from cdpr_sym.control.interface import Capabilities, ControlLaw, DriveReading
 from cdpr_sym.control.parts import beta_margin, clip_to_box, distributed_command, flag_if
-from cdpr_sym.control.planned import SmoothReference, minimum_jerk
-from cdpr_sym.control.tuning import FROM_ROBOT, winch_gains
+from cdpr_sym.control.planned import SmoothReference, minimum_jerk, planned_preference
+from cdpr_sym.control.tuning import FROM_ROBOT, command_corner, platform_share, winch_gains
 from cdpr_sym.distribution import AUTO
+from cdpr_sym.distribution.closed_form import nearest_to
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
+from cdpr_sym.robot.gains import DEFAULT_DT
+
+#: Periods of the platform's mode on the motor springs a planned move lasts at least
+#: (:meth:`WinchIdaPbc.paced_plan`).
+MOVE_PERIODS = 2.0
 
 
 def _from_options(field: str, kind: type, value: object) -> object:
@@ -275,42 +281,63 @@ class WinchIdaPbc:
 
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
-        """The plan (:meth:`SmoothReference.initial_memory`), then zeros: the misfit and
-        the last reading are set at the first step, the rate starts at rest."""
-        return ca.vertcat(self.plan.initial_memory(model, q0, q_goal, k, r_d),
+        """The plan (:meth:`SmoothReference.initial_memory` of :meth:`paced_plan`), then
+        zeros: the misfit and the last reading are set at the first step, the rate starts
+        at rest."""
+        return ca.vertcat(self.paced_plan(model.robot).initial_memory(model, q0, q_goal, k, r_d),
                           ca.SX.zeros((4 + self._stages()) * model.m))
 
-    def distributed(self, model: SymbolicModel, W: ca.SX, force: ca.SX, margin: ca.SX
-                    ) -> ca.SX:
+    def paced_plan(self, robot: Robot) -> SmoothReference:
+        """The plan with the durations of its list that last at least MOVE_PERIODS periods
+        of the platform's mode on the motor springs, f_p (:func:`~cdpr_sym.control.tuning.
+        platform_share` of the command path's corner at the toolkit's 1 kHz: the rate the
+        gains are derived for), the longest alone if none does. A minimum-jerk move of
+        duration T carries its acceleration at about 1 / T; faster than the loop's own
+        mode, the motor springs lag the plan by centimetres and the feedback that catches
+        up pushes cables against the box: on a 36.6 kg robot on 3 cables (f_p = 0.77 Hz)
+        1.5 s moves, which the plan's tension-rate bound allowed, let true tensions fall
+        to 2 N under a 12 N floor."""
+        floor = MOVE_PERIODS / (platform_share(robot) * command_corner(
+            robot, self.drive_of(robot), DEFAULT_DT))
+        paced = tuple(T for T in self.plan.durations if T >= floor)
+        return dataclasses.replace(self.plan, durations=paced or (max(self.plan.durations),))
+
+    def distributed(self, model: SymbolicModel, W: ca.SX, force: ca.SX, margin: ca.SX,
+                    preferred: ca.SX) -> ca.SX:
         """The feed-forward tension of a robot with m > n cables (N): where the plan holds
         (``margin`` >= 0), the distribution the plan checked along the reference path
-        (:class:`SmoothReference`: the exact minimum norm for m = n + 1, Pott's closed form
-        mid + W^+ (f - W mid) beyond), in the box by the plan's check and continuous in the
-        pose; where the plan fails, the exact minimum norm in the box for m = n + 2 (the
+        (:class:`SmoothReference`: the exact minimum norm for m = n + 1, the closed form
+        p + W^+ (f - W p) about ``preferred`` = p, the plan's
+        :func:`~cdpr_sym.control.planned.planned_preference` at the path's progress,
+        beyond), in the box by the plan's check and continuous in the pose; where the plan
+        fails, the exact minimum norm in the box for m = n + 2 (the
         nearest point of a convex polygon to the origin, continuous while the polygon is
         not empty), else the default distribution, clipped. The improved closed form, whose
         repairs switch cables, made steps of 140-176 N in one period on 3 of 20 of
         ipanema8's pairs; the minimum norm in the box shrunk by a guard band jumped by up to
         700 N where the shrunk polygon vanished and the full box's took over (ipanema8,
         ideal plant: 17 of 40 pairs missed the step limit; none without the guard)."""
-        checked = "min_norm" if model.m == model.n + 1 else "closed_form"
-        planned = distributed_command(model, W, force, method=checked).tau
+        if model.m == model.n + 1:
+            planned = distributed_command(model, W, force, method="min_norm").tau
+        else:
+            planned = clip_to_box(model, nearest_to(W, force, preferred))[0]
         fallback = distributed_command(
             model, W, force, method="min_norm_2d" if model.m == model.n + 2 else AUTO).tau
         return ca.if_else(margin >= 0, planned, fallback)
 
-    def start_internal(self, model: SymbolicModel, W: ca.SX, q_start: ca.SX, margin: ca.SX
-                       ) -> ca.SX:
+    def start_internal(self, model: SymbolicModel, W: ca.SX, q_start: ca.SX, margin: ca.SX,
+                       preferred_start: ca.SX) -> ca.SX:
         """The internal tension (N, in the null space of ``W``) that the reference adds,
         times 1 - s(t), to start at the static tension the plant holds at ``q_start``
         (:meth:`SymbolicModel.static_tension`, the default distribution) rather than at the
         plan's distribution of the same weight: their difference d lies in the null space of
         W(q_start), and its projection (I - W^T (W W^T)^{-1} W) d onto the null space of
         ``W`` (at the reference pose) changes no force. Without it, 16 of 20 of ipanema8's
-        pairs started with a jump of 17-301 N."""
+        pairs started with a jump of 17-301 N. ``preferred_start``: the plan's preferred
+        tension at the start (:func:`~cdpr_sym.control.planned.planned_preference`, s = 0)."""
         start_w = model.structure_matrix(q_start)
         difference = model.static_tension(q_start) - self.distributed(
-            model, start_w, model.grad_potential(q_start), margin)
+            model, start_w, model.grad_potential(q_start), margin, preferred_start)
         return difference - W.T @ ca.solve(W @ W.T, W @ difference)
 
     def reference(self, model: SymbolicModel, t: ca.SX, q_start: ca.SX, duration: ca.SX,
@@ -333,8 +360,11 @@ class WinchIdaPbc:
         if model.m == model.n:
             tension = ca.solve(W, force)
         else:
-            tension = (self.distributed(model, W, force, margin)
-                       + (1 - s) * self.start_internal(model, W, q_start, margin))
+            widest = max(self.plan.margins)
+            preferred = planned_preference(model, q_start, q_goal, s, widest)
+            at_start = planned_preference(model, q_start, q_goal, 0.0, widest)
+            tension = (self.distributed(model, W, force, margin, preferred)
+                       + (1 - s) * self.start_internal(model, W, q_start, margin, at_start))
         payout = model.cable_lengths(q_r)
         if not rigid:
             payout = unstretched_length(payout, tension,

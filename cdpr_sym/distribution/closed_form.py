@@ -34,6 +34,14 @@ def closed_form(W: ca.SX, w: ca.SX, t_min: float, t_max: float) -> tuple[ca.SX, 
     return tau, _inside(tau, t_min, t_max)
 
 
+def nearest_to(W: ca.SX, w: ca.SX, preferred: ca.SX) -> ca.SX:
+    """The tension (m,) nearest, in the 2-norm, to ``preferred`` (N) with W tau = w:
+    preferred + W^+ (w - W preferred), the closed form about another point than the box's
+    middle (no box test: the caller checks it). Linear in w; ``preferred`` itself where it
+    produces w already."""
+    return preferred + W.T @ ldl_solve(weighted_gram(W), w - W @ preferred)
+
+
 def improved_closed_form(W: ca.SX, w: ca.SX, t_min: float, t_max: float
                          ) -> tuple[ca.SX, ca.SX]:
     """(tau, feasible) of the improved closed-form method (m - n repairs at most).
