@@ -160,3 +160,19 @@ def test_nmpc_settles_its_own_case_inside_the_frame(robot, build_options):
     # settled (1 cm) within the 6 s run; the 363 kg robot needs about 4.7 s, near what its
     # force's rate allows at all (the S-curve over its 4.3 m move takes over 4 s)
     assert metrics["tension_feasible"] and metrics["settle_time"] is not None
+
+
+def test_the_rate_bound_follows_the_targets_step():
+    """0.8 of the robot's target step per ms: 800 N/s wherever the step is 1 N (aras3, as the
+    bound always was); on a box 100 times wider the step, the bound and the force's pace
+    grow with it, so the horizon the platform needs to brake shrinks."""
+    aras3 = preset("aras3")
+    assert Nmpc().tuned(aras3).max_rate == 800.0
+    heavy = load_robot(DATA / "heavy8.toml")
+    step = heavy.design_target.step
+    tuned = Nmpc().tuned(heavy)
+    assert step == pytest.approx(49.9) and tuned.max_rate == pytest.approx(0.8 * step * 1000)
+    assert tuned.horizon < Nmpc(max_rate=800.0).tuned(heavy).horizon
+    wide = aras3.with_case(t_max=6000.0)  # step 59.98 N per ms
+    assert Nmpc().tuned(wide).max_rate == pytest.approx(0.8 * 59.98 * 1000)
+    assert Nmpc().tuned(wide).horizon < Nmpc(max_rate=800.0).tuned(wide).horizon

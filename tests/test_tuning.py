@@ -77,7 +77,9 @@ def test_the_build_scales_with_the_tension_box_by_its_stated_laws(t_max, stiffne
     s = t_max / 60.0
     # the drum's inertia at the cable and the friction force on it in proportion to the pull
     assert drive.inertia / drive.drum_radius**2 == pytest.approx(1e-4 / 0.03**2 * s)
-    assert drive.coulomb / drive.drum_radius == pytest.approx(0.01 / 0.03 * s)
+    # the friction too, but at most a quarter of the box's floor
+    assert drive.coulomb / drive.drum_radius == pytest.approx(min(0.01 / 0.03 * s,
+                                                                  robot.t_min / 4))
     assert drive.viscous / drive.drum_radius**2 == pytest.approx(1e-4 / 0.03**2 * s)
     assert drive.cable_damping / drive.cable_stiffness == pytest.approx(4e-5)
     # the same counts per drum turn: 2 pi r / 20,480 within the reference's rounding to 1e-5
@@ -247,3 +249,15 @@ def test_smooth_lp_never_filters_below_five_times_its_tracking_loop():
     assert 0.6 * tuning.command_corner(heavy, scaled_actuation(heavy), 1e-3) < 13.0
     cutoff = controller_by_name("smooth-lp").cutoff_for(heavy, 1e-3)
     assert cutoff == pytest.approx(5 * math.sqrt(1200 / 4) / (2 * math.pi))
+
+
+def test_a_box_floor_under_the_families_friction_gets_a_drive_that_resolves_it():
+    """A 0.69 kg planar body with a [0.17, 56.3] N box (the zoo's): the family's friction at
+    the cable, T_max / 180 = 0.31 N, is over its floor; the default build's is a quarter of
+    it, so a drum at rest holds a cable at T_min within +-F without slackening it."""
+    robot = dataclasses.replace(preset("planar3"), t_min=0.17, t_max=56.3)
+    drive = scaled_actuation(robot)
+    assert drive.coulomb / drive.drum_radius == pytest.approx(0.17 / 4)
+    assert 0.01 / 0.03 * 56.3 / 60 > 0.17  # what the family alone would have given
+    # the rest of the winch still scales with the pull
+    assert drive.inertia / drive.drum_radius**2 == pytest.approx(1e-4 / 0.03**2 * 56.3 / 60)

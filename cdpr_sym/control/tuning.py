@@ -81,6 +81,9 @@ LOOP_MULTIPLE = 5.0
 #: ``smooth``'s planned tension rate as a share of the target's step per ms (0.6: 600 N/s
 #: against 1 N per ms).
 PLAN_RATE_SHARE = 0.6
+#: ``nmpc``'s tension rate bound as a share of the target's step per ms (0.8: 800 N/s
+#: against 1 N per ms).
+NMPC_RATE_SHARE = 0.8
 #: ``smooth-lp``'s guard band as a share of the box width (0.97 N on the paper's robot).
 GUARD_SHARE = 1 / 60
 #: The platform's mode on the motor springs as a share of f_c: m = n cables, and more.
@@ -207,6 +210,14 @@ def plan_rate(robot: Robot) -> float:
     return PLAN_RATE_SHARE * robot.design_target.step / STEP_PERIOD
 
 
+def nmpc_rate(robot: Robot) -> float:
+    """``nmpc``'s bound on each cable's tension rate, N/s: NMPC_RATE_SHARE of the robot's
+    target step per ms (800 N/s under 1 N per ms, the bound it always had there; the rest of
+    the step is the room a held sample's rate leaves the target). A fixed 800 N/s let a
+    173 kg platform's cables turn its weight at about 1 m/s^3 and made its horizon long."""
+    return NMPC_RATE_SHARE * robot.design_target.step / STEP_PERIOD
+
+
 def guard_band(robot: Robot) -> float:
     """``smooth-lp``'s guard band, N: GUARD_SHARE of the box width."""
     return GUARD_SHARE * robot.box.width
@@ -220,7 +231,7 @@ def rules() -> dict[str, Any]:
             "integral_share": INTEGRAL_SHARE, "fast_share": FAST_SHARE,
             "fast_damping_ratio": FAST_DAMPING_RATIO, "case_share": CASE_SHARE,
             "command_share": COMMAND_SHARE, "guard_share": GUARD_SHARE,
-            "plan_rate_share": PLAN_RATE_SHARE,
+            "plan_rate_share": PLAN_RATE_SHARE, "nmpc_rate_share": NMPC_RATE_SHARE,
             "case_damping": CASE_DAMPING}
 
 

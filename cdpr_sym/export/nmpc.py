@@ -71,7 +71,7 @@ def solver_description(model: SymbolicModel, design: Nmpc, functions: list[ca.Fu
     return {
         "intervals": problem.intervals, "nz": problem.nz, "stage": stage,
         "nv": problem.size, "nmult": problem.multiplier_size,
-        "period": design.period, "max_rate": design.max_rate,
+        "period": design.period, "max_rate": problem.tuning.max_rate,
         "tolerance": RESIDUAL_TOLERANCE,
         "stage_lower": [c_double(value) for value in lower[:stage]],
         "stage_upper": [c_double(value) for value in upper[:stage]],

@@ -54,20 +54,21 @@ MAX_INTERVALS = 200
 MAX_SUBSTEPS = 20
 
 #: The options whose default, ``"robot"``, asks for the robot's rule (:meth:`Nmpc.tuned`).
-DERIVED = ("horizon", "position_weight", "velocity_weight", "rate_weight")
+DERIVED = ("horizon", "position_weight", "velocity_weight", "rate_weight", "max_rate")
 
 
 @dataclasses.dataclass(frozen=True)
 class NmpcTuning:
     """The numbers one robot's NMPC problem is built with: the horizon (s) and its sample
     intervals, Q and R per coordinate (1/m^2 or 1/rad^2, s^2/m^2 or s^2/rad^2) and S (s^2
-    per (T_max - T_min)^2)."""
+    per (T_max - T_min)^2), and the tension-rate bound (N/s)."""
 
     horizon: float
     intervals: int
     position_weight: np.ndarray
     velocity_weight: np.ndarray
     rate_weight: float
+    max_rate: float
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,7 +87,8 @@ class Nmpc:
 
     with tau_goal the static tension at the goal. The tension is a state and its rate the
     input, so the command between samples is a ramp: bounded at the samples means bounded
-    everywhere, and |u| <= max_rate bounds each 1 ms step (0.8 N at the default 800 N/s).
+    everywhere, and |u| <= max_rate bounds each 1 ms step (by default 0.8 of the robot's
+    target step: 0.8 N under 1 N per ms).
     The tension and rate weights count in units of the robot's tension box, so a robot
     whose tensions are in hundreds of newtons is not pinned to tau_goal harder than one in
     tens (on aras3's 58 N box the defaults equal the former 1e-2 and 1e-3 per N^2 within
@@ -134,8 +136,9 @@ class Nmpc:
     observer_rate : float or None
         L, 1/s: the disturbance observer's rate (None: no observer, the force the model
         misses is not predicted).
-    max_rate : float
-        N/s, the largest rate of change of a commanded tension.
+    max_rate : float or "robot"
+        N/s, the largest rate of change of a commanded tension; "robot" (the default):
+        :func:`cdpr_sym.control.tuning.nmpc_rate`, 0.8 of the robot's target step per ms.
     substeps : int
         RK4 steps per sample interval in the prediction (1 to :data:`MAX_SUBSTEPS`).
 
@@ -159,7 +162,7 @@ class Nmpc:
     rate_weight: float | str = FROM_ROBOT
     tension_weight: float = 30.0
     terminal_factor: float = 10.0
-    max_rate: float = 800.0
+    max_rate: float | str = FROM_ROBOT
     substeps: int = 2
     observer_rate: float | None = None
 
@@ -212,12 +215,13 @@ class Nmpc:
         Raises :class:`InvalidCase` (``horizon``) when the derived horizon needs more than
         :data:`MAX_INTERVALS` intervals: no horizon the solve affords sees that robot
         brake, so no plan can be trusted to keep it in the frame."""
-        derived, moves = tuning.nmpc_scales(robot, self.max_rate, model)
+        max_rate = self.rate_for(robot)
+        derived, moves = tuning.nmpc_scales(robot, max_rate, model)
         horizon = derived if self.horizon == FROM_ROBOT else float(self.horizon)
         intervals = max(1, round(horizon * self.rate))
         if intervals > MAX_INTERVALS:
             raise InvalidCase("horizon", f"{robot.name} moves from rest to rest over an "
-                              f"eighth of its frame in {horizon:.3g} s under {self.max_rate:g} "
+                              f"eighth of its frame in {horizon:.3g} s under {max_rate:g} "
                               f"N/s and its tension box, more than the {MAX_INTERVALS} "
                               f"intervals ({MAX_INTERVALS / self.rate:g} s at {self.rate:g} "
                               f"Hz) the solve affords: NMPC cannot plan it to a stop inside "
@@ -233,7 +237,13 @@ class Nmpc:
         return NmpcTuning(horizon=horizon, intervals=intervals,
                           position_weight=chosen(self.position_weight, weights["position"]),
                           velocity_weight=chosen(self.velocity_weight, weights["velocity"]),
-                          rate_weight=float(rate_weight))
+                          rate_weight=float(rate_weight), max_rate=max_rate)
+
+    def rate_for(self, robot: Robot) -> float:
+        """The bound on each cable's tension rate on ``robot``, N/s: ``max_rate``, or for
+        ``"robot"`` :func:`cdpr_sym.control.tuning.nmpc_rate` (0.8 of its target step per
+        ms)."""
+        return tuning.nmpc_rate(robot) if self.max_rate == FROM_ROBOT else float(self.max_rate)
 
     @property
     def period(self) -> float:

@@ -196,7 +196,7 @@ class NmpcProblem:
     def variable_scale(self) -> np.ndarray:
         """The unit of each entry of v in the QP: ``max_rate`` for rates (so they lie in
         [-1, 1]), 1 for states."""
-        stage = np.r_[np.full(self.m, self.design.max_rate), np.ones(self.nz)]
+        stage = np.r_[np.full(self.m, self.tuning.max_rate), np.ones(self.nz)]
         return np.tile(stage, self.intervals)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -208,7 +208,7 @@ class NmpcProblem:
     @functools.cached_property
     def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`bounds`, computed once: :meth:`checked` reads them at every sample."""
-        robot, rate = self.model.robot, self.design.max_rate
+        robot, rate = self.model.robot, self.tuning.max_rate
         free = np.full(self.n, np.inf)
         lower = np.r_[np.full(self.m, -rate), robot.frame_lower, -free,
                       np.full(self.m, robot.t_min)]
@@ -362,7 +362,7 @@ class NmpcProblem:
         W = model.structure_matrix(q)
         damping = W.T @ ca.solve(W @ W.T, -r_d * dq)
         target, _ = clip_to_box(model, model.static_tension(q) + damping)
-        limit = self.design.max_rate
+        limit = self.tuning.max_rate
         rate = ca.fmin(ca.fmax((target - tau) / self.design.period, -limit), limit)
         return ca.Function("nmpc_fallback", [q, dq, tau, r_d], [rate],
                            ["q", "dq", "tau", "r_d"], ["rate"])
