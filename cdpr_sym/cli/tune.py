@@ -48,12 +48,24 @@ def _lines(report: dict[str, Any]) -> list[str]:
         f"(corner a twentieth of the mode), filter {winch['feedback_cutoff']:.3g} Hz x 4",
         f"case gains ({case['source']}): k {np.round(case['k'], 4).tolist()}, r_d "
         f"{np.round(case['r_d'], 4).tolist()}",
+        f"plan (smooth, smooth-lp, ida-winch): tension rate at most "
+        f"{report['plan']['max_rate_N_per_s']:.4g} N/s (0.6 of the target's step per ms); "
+        f"ida-winch's moves at least {report['plan']['ida_winch_shortest_move_s']:g} s (two "
+        f"periods of its platform mode)",
+        _nmpc_line(report["nmpc"]),
     ]
     for name, modes in report["modes"].items():
         text = ", ".join(f"{mode['frequency_hz']:.3g} Hz (zeta {mode['damping_ratio']:.2f})"
                          for mode in modes)
         lines.append(f"ida-winch's platform modes at the {name}: {text}")
     return lines
+
+
+def _nmpc_line(nmpc: dict[str, Any]) -> str:
+    if "refused" in nmpc:
+        return f"nmpc: not offered ({nmpc['refused']})"
+    return (f"nmpc: tension rate at most {nmpc['max_rate_N_per_s']:.4g} N/s (0.8 of the "
+            f"target's step per ms), horizon {nmpc['horizon_s']:.3g} s")
 
 
 def tune_command(args: argparse.Namespace, out: Output) -> int:

@@ -35,7 +35,7 @@ def linearised_modes(robot: Robot, model: Any, stiffness: float, damping: float,
 
 def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
     """Everything ``tune`` prints, as plain numbers."""
-    from cdpr_sym.control import tuning
+    from cdpr_sym.control import Nmpc, WinchIdaPbc, tuning
     from cdpr_sym.model import SymbolicModel
     from cdpr_sym.robot.gains import case_gains
 
@@ -57,6 +57,10 @@ def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
                      "longest_cable_m": tuning.longest_cable(robot)},
         "drum_cable_mode_hz": mode, "command_corner_hz": corner,
         "ida_winch": winch.as_dict(), "platform_share": tuning.platform_share(robot),
+        "plan": {"max_rate_N_per_s": tuning.plan_rate(robot),
+                 "ida_winch_shortest_move_s": min(
+                     WinchIdaPbc(drive=drive).paced_plan(robot).durations)},
+        "nmpc": _nmpc_numbers(robot, model, Nmpc()),
         "case": {"k": robot.k.tolist(), "r_d": robot.r_d.tolist(),
                  "source": "the robot file" if stated else "derived",
                  "derived_k": derived_k.tolist(), "derived_r_d": derived_r_d.tolist()},
@@ -64,3 +68,15 @@ def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
                   for name, q in (("start", robot.start), ("goal", robot.goal))},
         "rules": tuning.rules(),
     }
+
+
+def _nmpc_numbers(robot: Robot, model: Any, design: Any) -> dict[str, Any]:
+    """``nmpc``'s derived rate bound (N/s) and horizon (s), or the one-line reason it is not
+    offered on ``robot``."""
+    from cdpr_sym.errors import CdprError
+
+    try:
+        tuned = design.tuned(robot, model)
+    except CdprError as refusal:
+        return {"refused": str(refusal)}
+    return {"max_rate_N_per_s": tuned.max_rate, "horizon_s": tuned.horizon}
