@@ -12,7 +12,12 @@ import numpy as np
 import pytest
 
 from cdpr_sym import preset
-from cdpr_sym.control.planned import SmoothReference, minimum_jerk, planned_preference
+from cdpr_sym.control.planned import (
+    SmoothReference,
+    minimum_jerk,
+    planned_preference,
+    preference_ends,
+)
 from cdpr_sym.control.tuning import plan_rate
 from cdpr_sym.distribution.closed_form import nearest_to
 from cdpr_sym.model import SymbolicModel
@@ -70,12 +75,23 @@ def test_the_plan_holds_where_the_box_middle_left_the_box():
     memory = _plan(model, design, IPANEMA_START, IPANEMA_GOAL)
     duration, margin = memory[robot.n + 1], memory[robot.n + 2]
     assert margin >= 0
+    # the preference's ends hold the weight at the start and the goal inside the box shrunk
+    # by the widest margin (numpy: W tau = grad V, bounds)
+    q0, qg = ca.SX.sym("q0", robot.n), ca.SX.sym("qg", robot.n)
+    ends = np.array(ca.Function("e", [q0, qg], [preference_ends(
+        model, q0, qg, max(design.margins))])(IPANEMA_START, IPANEMA_GOAL)).ravel()
+    widest = max(design.margins)
+    for q, tau in ((IPANEMA_START, ends[: robot.m]), (IPANEMA_GOAL, ends[robot.m:])):
+        W = np.array(model.functions["structure_matrix"](q))
+        weight = np.array(model.functions["grad_potential"](q)).ravel()
+        assert np.allclose(W @ tau, weight, atol=1e-8 * np.abs(weight).max())
+        assert robot.t_min + widest - 1e-9 <= tau.min()
+        assert tau.max() <= robot.t_max - widest + 1e-9
     # the plan's claim, re-evaluated by numpy at its chosen duration and margin
-    q0, qg, s = ca.SX.sym("q0", robot.n), ca.SX.sym("qg", robot.n), ca.SX.sym("s")
-    preference = ca.Function("p", [q0, qg, s], [planned_preference(
-        model, q0, qg, s, max(design.margins))])
-    tensions = _path(model, IPANEMA_START, IPANEMA_GOAL, duration, lambda v: np.array(
-        preference(IPANEMA_START, IPANEMA_GOAL, v)).ravel())
+    s = ca.SX.sym("s")
+    preference = ca.Function("p", [s], [planned_preference(ca.DM(ends), s)])
+    tensions = _path(model, IPANEMA_START, IPANEMA_GOAL, duration,
+                     lambda v: np.array(preference(v)).ravel())
     assert tensions.min() >= robot.t_min + margin - 1e-6
     assert tensions.max() <= robot.t_max - margin + 1e-6
     rates = np.abs(np.diff(tensions, axis=0)) / (duration / 32)
@@ -117,7 +133,43 @@ def test_ida_winch_paces_its_moves_to_its_platform_mode():
     f_dc = np.sqrt(drive.cable_stiffness / longest_cable(robot) / reflected) / (2 * np.pi)
     f_p = min(f_dc / 2, 25.0) / 14
     durations = WinchIdaPbc().paced_plan(robot).durations
-    assert min(durations) >= 2 / f_p > 2.0  # the plan's own list starts at 1 s
-    assert max(durations) == max(SmoothReference().durations)
+    listed = SmoothReference().durations
+    assert 2 / f_p > 2.0  # the plan's own list starts at 1 s
+    assert durations == tuple(T for T in listed if T >= 2 / f_p)
     # aras3 (m = n, f_p = 25 / 7 Hz) keeps the whole list
     assert WinchIdaPbc().paced_plan(preset("aras3")).durations == SmoothReference().durations
+
+
+def test_ida_winch_starts_at_the_static_tension_and_produces_the_reference_force():
+    """ipanema8 (8 cables, 6 DOF), its own case: the feed-forward T_r at t = 0 is the static
+    tension the plant holds (the plan's preferred distribution plus the start's internal
+    term), and W(q_r) T_r is the rigid-body force along the path, by numpy."""
+    from cdpr_sym.control import WinchIdaPbc
+
+    robot = preset("ipanema8")
+    model = SymbolicModel(robot)
+    controller = WinchIdaPbc()
+    start, goal = np.asarray(robot.start, float), np.asarray(robot.goal, float)
+    memory = np.array(ca.evalf(controller.initial_memory(
+        model, ca.DM(start), ca.DM(goal), ca.DM(robot.k), ca.DM(robot.r_d)))).ravel()
+    n, m = robot.n, robot.m
+    duration, margin = memory[n + 1], memory[n + 2]
+    assert margin >= 0
+    ends = memory[n + 3: n + 3 + 2 * m]  # kept in the memory, as the step reads them
+    t = ca.SX.sym("t")
+    _, _, _, tension, _ = controller.reference(model, t, ca.DM(start), ca.DM(duration),
+                                               ca.DM(goal), ca.DM(margin), ends=ca.DM(ends))
+    path = ca.Function("path", [t], [tension])
+    static = np.array(model.functions["static_tension"](start)).ravel()
+    assert np.allclose(np.array(path(0.0)).ravel(), static, rtol=0, atol=1e-9)
+    F, delta = model.functions, goal - start
+    for u in np.linspace(0.0, 1.0, 21):
+        s, ds, dds = (float(v) for v in minimum_jerk(ca.DM(u)))
+        q, dq = start + delta * s, delta * ds / duration
+        force = (np.array(F["mass_matrix"](q)) @ (delta * dds / duration**2)
+                 + np.array(F["coriolis_matrix"](q, dq)) @ dq
+                 + np.array(F["grad_potential"](q)).ravel())
+        W = np.array(F["structure_matrix"](q))
+        tau = np.array(path(u * duration)).ravel()
+        assert np.allclose(W @ tau, force, atol=1e-8 * np.abs(force).max())
+        assert robot.t_min - 1e-9 <= tau.min() and tau.max() <= robot.t_max + 1e-9

@@ -50,8 +50,8 @@ def _lines(report: dict[str, Any]) -> list[str]:
         f"{np.round(case['r_d'], 4).tolist()}",
         f"plan (smooth, smooth-lp, ida-winch): tension rate at most "
         f"{report['plan']['max_rate_N_per_s']:.4g} N/s (0.6 of the target's step per ms); "
-        f"ida-winch's moves at least {report['plan']['ida_winch_shortest_move_s']:g} s (two "
-        f"periods of its platform mode)",
+        f"ida-winch's moves at least {report['plan']['ida_winch_shortest_move_s']:g} s (the "
+        f"plan's durations of two periods of its platform mode or more, else its longest)",
         _nmpc_line(report["nmpc"]),
     ]
     for name, modes in report["modes"].items():

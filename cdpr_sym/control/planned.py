@@ -49,12 +49,22 @@ def minimum_jerk(u: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
             60 * u - 180 * u**2 + 120 * u**3)
 
 
-def planned_preference(model: SymbolicModel, q_start: ca.SX, q_goal: ca.SX, s: ca.SX,
-                       guard: float) -> ca.SX:
+def preference_ends(model: SymbolicModel, q_start: ca.SX, q_goal: ca.SX, guard: float
+                    ) -> ca.SX:
+    """(tau_s, tau_g) stacked (2m, N): the weight's distribution at the start and at the
+    goal in the box shrunk by ``guard`` (the plan's widest margin; the full box where the
+    shrunk one cannot hold the weight), the ends :func:`planned_preference` interpolates."""
+    def holding(q: ca.SX) -> ca.SX:
+        return distributed_command(model, model.structure_matrix(q), model.grad_potential(q),
+                                   guard=guard).tau
+
+    return ca.vertcat(holding(q_start), holding(q_goal))
+
+
+def planned_preference(ends: ca.SX, s: ca.SX | float) -> ca.SX:
     """The tension (N) the plan's distribution stays nearest to at progress ``s`` of a move
-    with m >= n + 2 cables: (1 - s) tau_s + s tau_g, tau_s and tau_g the weight's
-    distribution at the start and the goal in the box shrunk by ``guard`` (the plan's widest
-    margin; the full box where the shrunk one cannot hold the weight).
+    with m >= n + 2 cables: (1 - s) tau_s + s tau_g, ``ends`` = (tau_s, tau_g) of
+    :func:`preference_ends`.
 
     The plan distributes its force f with the closed form about this tension,
     p(s) + W^+ (f - W p(s)) (:func:`~cdpr_sym.distribution.closed_form.nearest_to`), linear
@@ -68,11 +78,8 @@ def planned_preference(model: SymbolicModel, q_start: ca.SX, q_goal: ca.SX, s: c
     numpy beforehand, a preference of the default distribution itself (interpolated) did
     less well: it already sits on T_min at the start, so margin 0 at best.
     """
-    def holding(q: ca.SX) -> ca.SX:
-        return distributed_command(model, model.structure_matrix(q), model.grad_potential(q),
-                                   guard=guard).tau
-
-    return (1 - s) * holding(q_start) + s * holding(q_goal)
+    m = ends.shape[0] // 2
+    return (1 - s) * ends[:m] + s * ends[m:]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -196,6 +203,8 @@ class SmoothReference:
         delta = q_goal - q0
         u = np.linspace(0.0, 1.0, self.samples)
         static, accel, dets, segments = [], [], [], []
+        ends = (preference_ends(model, q0, q_goal, max(self.margins))
+                if model.m >= model.n + 2 else None)
         for value in u:
             s, ds, dds = minimum_jerk(ca.SX(value))
             q_r = q0 + delta * s
@@ -210,8 +219,9 @@ class SmoothReference:
             else:  # a closed form, linear in the force: the same interval test
                 dets.append(model.singularity_measure(W) - SINGULAR_DET)
                 pseudo_inverse = W.T @ ca.inv(W @ W.T)
-                static.append(nearest_to(W, model.grad_potential(q_r), planned_preference(
-                    model, q0, q_goal, s, max(self.margins))))
+                if ends is not None:
+                    static.append(nearest_to(W, model.grad_potential(q_r),
+                                             planned_preference(ends, s)))
                 accel.append(pseudo_inverse @ inertial)
                 if model.m == model.n + 1:  # tau = W^+ (grad V + x inertial) + s h
                     segments.append((pseudo_inverse @ model.grad_potential(q_r),

@@ -238,9 +238,10 @@ def rules() -> dict[str, Any]:
 # -- NMPC: the horizon and the weights from the robot -------------------------------------
 #
 # The NMPC's prediction keeps the platform in the frame only if the horizon sees it brake.
-# Under the tension-rate bound (max_rate, N/s: the 1 N per 1 ms step of the target) the force
+# Under the tension-rate bound (max_rate, N/s: 0.8 of the target's step per ms) the force
 # on the platform turns at most as fast as the cables' rates allow, so a heavy platform brakes
-# slowly: 363 kg under 800 N/s per cable turns its acceleration at about 1 m/s^3, and with the
+# slowly: 363 kg under 800 N/s per cable (the fixed bound it had) turns its acceleration at
+# about 1 m/s^3, and with the
 # 0.5 s horizon tuned on the paper's 4 kg robot (over 100 m/s^3) it raced to 4.9 m/s, saw the
 # need to brake only when braking took longer than the horizon, and left the frame. The rule
 # sizes the horizon by the time to brake and the weights by the same scales:

@@ -51,7 +51,8 @@ N: a drum of inertia J and radius r reads as a mass J / r^2 on its cable):
 
 **More cables than degrees of freedom** (m > n). T_r distributes the force: along a plan
 that holds, with the distribution the plan checked (the exact minimum norm for m = n + 1,
-Pott's closed form beyond: continuous, in the box by the plan's check), else with the
+beyond the closed form about the weight's distributions at start and goal, interpolated:
+continuous, in the box by the plan's check), else with the
 exact minimum norm in the box (m = n + 2) or the default
 distribution; plus (1 - s(t)) times the start's internal tension, the static tension's
 difference from that distribution projected on the null space of W(q_r), so the first
@@ -69,7 +70,8 @@ motor springs stiffer than the cables and went unstable).
 The pull the cables are to carry is clipped to the box as a last resort (FLAG_SATURATED:
 the energy argument then no longer holds), and the motor's command kept where the cable's
 pull stays in the box whichever way the drum's friction acts
-(:meth:`WinchIdaPbc.kept_in_box`). Memory: the plan's [t, q_start (n), T, margin], then per
+(:meth:`WinchIdaPbc.kept_in_box`). Memory: the plan's [t, q_start (n), T, margin] (and,
+with m >= n + 2, its preference's two ends, 2 m), then per
 cable the encoders' zero misfit, the last reading, the filtered drum speed (m/s of cable),
 the integral of the length error and the feedback filter's stages.
 """
@@ -91,7 +93,12 @@ from cdpr_sym.checks import positive_number
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
 from cdpr_sym.control.interface import Capabilities, ControlLaw, DriveReading
 from cdpr_sym.control.parts import beta_margin, clip_to_box, distributed_command, flag_if
-from cdpr_sym.control.planned import SmoothReference, minimum_jerk, planned_preference
+from cdpr_sym.control.planned import (
+    SmoothReference,
+    minimum_jerk,
+    planned_preference,
+    preference_ends,
+)
 from cdpr_sym.control.tuning import FROM_ROBOT, command_corner, platform_share, winch_gains
 from cdpr_sym.distribution import AUTO
 from cdpr_sym.distribution.closed_form import nearest_to
@@ -275,16 +282,26 @@ class WinchIdaPbc:
         return self.feedback_stages if self.feedback_cutoff is not None else 0
 
     def memory_size(self, model: SymbolicModel) -> int:
-        """[t, q_start (n), T, margin], then per cable the encoders' zero misfit, the last
+        """[t, q_start (n), T, margin], with m >= n + 2 cables the plan's preferred
+        tensions at start and goal (2 m), then per cable the encoders' zero misfit, the last
         reading, the filtered rate, the integral and the feedback filter's stages."""
-        return model.n + 3 + (4 + self._stages()) * model.m
+        return self._kept_from(model) + (4 + self._stages()) * model.m
+
+    @staticmethod
+    def _kept_from(model: SymbolicModel) -> int:
+        """Where the per-cable memory starts: after the plan and its preferred ends."""
+        return model.n + 3 + (2 * model.m if model.m >= model.n + 2 else 0)
 
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
-        """The plan (:meth:`SmoothReference.initial_memory` of :meth:`paced_plan`), then
-        zeros: the misfit and the last reading are set at the first step, the rate starts
-        at rest."""
-        return ca.vertcat(self.paced_plan(model.robot).initial_memory(model, q0, q_goal, k, r_d),
+        """The plan (:meth:`SmoothReference.initial_memory` of :meth:`paced_plan`), with
+        m >= n + 2 its preference's ends (:func:`~cdpr_sym.control.planned.preference_ends`,
+        worked out once per move rather than at every step), then zeros: the misfit and the
+        last reading are set at the first step, the rate starts at rest."""
+        plan = self.paced_plan(model.robot)
+        ends = (preference_ends(model, q0, q_goal, max(plan.margins))
+                if model.m >= model.n + 2 else ca.SX.zeros(0))
+        return ca.vertcat(plan.initial_memory(model, q0, q_goal, k, r_d), ends,
                           ca.SX.zeros((4 + self._stages()) * model.m))
 
     def paced_plan(self, robot: Robot) -> SmoothReference:
@@ -303,7 +320,7 @@ class WinchIdaPbc:
         return dataclasses.replace(self.plan, durations=paced or (max(self.plan.durations),))
 
     def distributed(self, model: SymbolicModel, W: ca.SX, force: ca.SX, margin: ca.SX,
-                    preferred: ca.SX) -> ca.SX:
+                    preferred: ca.SX | None = None) -> ca.SX:
         """The feed-forward tension of a robot with m > n cables (N): where the plan holds
         (``margin`` >= 0), the distribution the plan checked along the reference path
         (:class:`SmoothReference`: the exact minimum norm for m = n + 1, the closed form
@@ -326,7 +343,7 @@ class WinchIdaPbc:
         return ca.if_else(margin >= 0, planned, fallback)
 
     def start_internal(self, model: SymbolicModel, W: ca.SX, q_start: ca.SX, margin: ca.SX,
-                       preferred_start: ca.SX) -> ca.SX:
+                       preferred_start: ca.SX | None = None) -> ca.SX:
         """The internal tension (N, in the null space of ``W``) that the reference adds,
         times 1 - s(t), to start at the static tension the plant holds at ``q_start``
         (:meth:`SymbolicModel.static_tension`, the default distribution) rather than at the
@@ -334,22 +351,25 @@ class WinchIdaPbc:
         W(q_start), and its projection (I - W^T (W W^T)^{-1} W) d onto the null space of
         ``W`` (at the reference pose) changes no force. Without it, 16 of 20 of ipanema8's
         pairs started with a jump of 17-301 N. ``preferred_start``: the plan's preferred
-        tension at the start (:func:`~cdpr_sym.control.planned.planned_preference`, s = 0)."""
+        tension at the start (:func:`~cdpr_sym.control.planned.planned_preference`, s = 0;
+        needed with m >= n + 2 only)."""
         start_w = model.structure_matrix(q_start)
         difference = model.static_tension(q_start) - self.distributed(
             model, start_w, model.grad_potential(q_start), margin, preferred_start)
         return difference - W.T @ ca.solve(W @ W.T, W @ difference)
 
     def reference(self, model: SymbolicModel, t: ca.SX, q_start: ca.SX, duration: ca.SX,
-                  q_goal: ca.SX, margin: ca.SX | float = 0.0, *, rigid: bool = False
-                  ) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX, ca.SX]:
+                  q_goal: ca.SX, margin: ca.SX | float = 0.0, *, rigid: bool = False,
+                  ends: ca.SX | None = None) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX, ca.SX]:
         """(l0_r, dl0_r/dt, d2l0_r/dt2, T_r, det measure) at time t: the motor references
         (m, m/s, m/s^2), the feed-forward tension (N) and the reference pose's distance
         from a singularity. The rates are the rigid cables' J_a dq_r and J_a ddq_r: the
         stretch's rate (T_r' l / EA, a few mm/s) and the path's curvature term (v^2 / l,
         a few 0.01 N of drum inertia) are left out, so that both vanish with the plan's
         velocity and acceleration at its two ends. With ``rigid`` cables (the ideal plant)
-        the motor reference is the geometric length l(q_r) itself."""
+        the motor reference is the geometric length l(q_r) itself. ``ends``: the plan's
+        preferred tensions at start and goal with m >= n + 2 cables, as the memory keeps
+        them (worked out here when not given)."""
         u = ca.fmin(ca.fmax(t / duration, 0.0), 1.0)
         s, ds, dds = minimum_jerk(u)
         delta = q_goal - q_start
@@ -360,9 +380,10 @@ class WinchIdaPbc:
         if model.m == model.n:
             tension = ca.solve(W, force)
         else:
-            widest = max(self.plan.margins)
-            preferred = planned_preference(model, q_start, q_goal, s, widest)
-            at_start = planned_preference(model, q_start, q_goal, 0.0, widest)
+            if model.m >= model.n + 2 and ends is None:
+                ends = preference_ends(model, q_start, q_goal, max(self.plan.margins))
+            preferred = None if ends is None else planned_preference(ends, s)
+            at_start = None if ends is None else planned_preference(ends, 0.0)
             tension = (self.distributed(model, W, force, margin, preferred)
                        + (1 - s) * self.start_internal(model, W, q_start, margin, at_start))
         payout = model.cable_lengths(q_r)
@@ -384,11 +405,13 @@ class WinchIdaPbc:
         n, m, robot = model.n, model.m, model.robot
         t, q_start, duration, margin = (memory[0], memory[1: n + 1], memory[n + 1],
                                         memory[n + 2])
-        kept = [memory[n + 3 + i * m: n + 3 + (i + 1) * m] for i in range(4)]
+        base = self._kept_from(model)
+        ends = memory[n + 3: base] if base > n + 3 else None
+        kept = [memory[base + i * m: base + (i + 1) * m] for i in range(4)]
         misfit_kept, last, rate_kept, integrated_kept = kept
-        stages_kept = memory[n + 3 + 4 * m:]
+        stages_kept = memory[base + 4 * m:]
         payout_r, rate_r, accel_r, tension_r, singularity = self.reference(
-            model, t, q_start, duration, q_goal, margin, rigid=drives.rigid)
+            model, t, q_start, duration, q_goal, margin, rigid=drives.rigid, ends=ends)
         reading = drives.lengths
         first = t <= 0
         misfit = ca.if_else(first, reading - payout_r, misfit_kept)
@@ -420,8 +443,9 @@ class WinchIdaPbc:
                  + flag_if(singular, FLAG_SINGULAR))
         beta = beta_margin(model, tension_r)
         law = ControlLaw(clipped, ca.SX(1.0), beta, ca.SX.zeros(model.n_j), flags)
-        return law, ca.vertcat(t + dt, q_start, duration, margin, misfit, reading, rate,
-                               integrated, stages)
+        return law, ca.vertcat(t + dt, q_start, duration, margin,
+                               ca.SX.zeros(0) if ends is None else ends, misfit, reading,
+                               rate, integrated, stages)
 
     def kept_in_box(self, pull: ca.SX, drive_terms: ca.SX, model: SymbolicModel,
                     drive: Actuation) -> tuple[ca.SX, ca.SX]:

@@ -112,7 +112,8 @@ class Nmpc:
         :data:`MAX_INTERVALS`); ``"robot"`` (the default): the time the platform takes to
         start, move an eighth of the frame's smallest side (of the smallest angle range, for
         an angle) along one coordinate and stop under ``max_rate`` and the tension box, the
-        longest over the coordinates (0.62 s on the paper's robot, 3 s on a 363 kg one; see
+        longest over the coordinates (0.62 s on the paper's robot; 3 s on a 363 kg one under a
+        fixed 800 N/s, 0.67 s under its own target's rate; see
         :mod:`cdpr_sym.control.tuning`). A horizon shorter than the
         platform's braking lets the plan race: the heavy robot reached 4.9 m/s with 0.5 s
         and left the frame, since the bound on q at the nodes never saw the stop it needed.
