@@ -217,12 +217,14 @@ class Nmpc:
         :data:`MAX_INTERVALS` intervals: no horizon the solve affords sees that robot
         brake, so no plan can be trusted to keep it in the frame."""
         max_rate = self.rate_for(robot)
-        derived, moves = tuning.nmpc_scales(robot, max_rate, model)
+        # the horizon sees the platform brake at the slowest pace any derived bound gives
+        pace = min(max_rate, tuning.NMPC_HORIZON_PACE)
+        derived, moves = tuning.nmpc_scales(robot, pace, model)
         horizon = derived if self.horizon == FROM_ROBOT else float(self.horizon)
         intervals = max(1, round(horizon * self.rate))
         if intervals > MAX_INTERVALS:
             raise InvalidCase("horizon", f"{robot.name} moves from rest to rest over an "
-                              f"eighth of its frame in {horizon:.3g} s under {max_rate:g} "
+                              f"eighth of its frame in {horizon:.3g} s under {pace:g} "
                               f"N/s and its tension box, more than the {MAX_INTERVALS} "
                               f"intervals ({MAX_INTERVALS / self.rate:g} s at {self.rate:g} "
                               f"Hz) the solve affords: NMPC cannot plan it to a stop inside "
