@@ -162,19 +162,21 @@ def test_nmpc_settles_its_own_case_inside_the_frame(robot, build_options):
     assert metrics["tension_feasible"] and metrics["settle_time"] is not None
 
 
-def test_the_rate_bound_follows_the_targets_step_and_the_horizon_keeps_its_pace():
-    """0.8 of the robot's target step per ms: 800 N/s wherever the step is 1 N (aras3, as the
-    bound always was); on a wider box the bound grows with the step, while the horizon (and
-    the weights sized by it) stays the one that sees the platform brake at 800 N/s; a bound
-    stated slower than that still lengthens it."""
+def test_the_rate_bound_from_the_target_keeps_the_horizons_pace():
+    """``max_rate="robot"``: 0.8 of the robot's target step per ms (800 N/s, the default,
+    wherever the step is 1 N); on a wider box the bound grows with the step while the
+    horizon (and the weights sized by it) stays the one that sees the platform brake at
+    800 N/s; a bound stated slower than that still lengthens it."""
     aras3 = preset("aras3")
     assert Nmpc().tuned(aras3).max_rate == 800.0
+    assert Nmpc(max_rate="robot").tuned(aras3).max_rate == 800.0
     heavy = load_robot(DATA / "heavy8.toml")
     step = heavy.design_target.step
-    tuned, paced = Nmpc().tuned(heavy), Nmpc(max_rate=800.0).tuned(heavy)
+    tuned, paced = Nmpc(max_rate="robot").tuned(heavy), Nmpc().tuned(heavy)
     assert step == pytest.approx(49.9) and tuned.max_rate == pytest.approx(0.8 * step * 1000)
+    assert paced.max_rate == 800.0
     assert (tuned.horizon, tuned.rate_weight) == (paced.horizon, paced.rate_weight)
     assert Nmpc(max_rate=400.0).tuned(heavy).horizon > tuned.horizon
     wide = aras3.with_case(t_max=6000.0)  # step 59.98 N per ms
-    assert Nmpc().tuned(wide).max_rate == pytest.approx(0.8 * 59.98 * 1000)
-    assert Nmpc().tuned(wide).horizon == Nmpc(max_rate=800.0).tuned(wide).horizon
+    assert Nmpc(max_rate="robot").tuned(wide).max_rate == pytest.approx(0.8 * 59.98 * 1000)
+    assert Nmpc(max_rate="robot").tuned(wide).horizon == Nmpc().tuned(wide).horizon

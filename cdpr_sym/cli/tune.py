@@ -64,8 +64,9 @@ def _lines(report: dict[str, Any]) -> list[str]:
 def _nmpc_line(nmpc: dict[str, Any]) -> str:
     if "refused" in nmpc:
         return f"nmpc: not offered ({nmpc['refused']})"
-    return (f"nmpc: tension rate at most {nmpc['max_rate_N_per_s']:.4g} N/s (0.8 of the "
-            f"target's step per ms), horizon {nmpc['horizon_s']:.3g} s")
+    return (f"nmpc: tension rate at most {nmpc['max_rate_N_per_s']:.4g} N/s ("
+            f"{nmpc['robot_rate_N_per_s']:.4g} N/s with max_rate='robot', 0.8 of the target's "
+            f"step per ms), horizon {nmpc['horizon_s']:.3g} s")
 
 
 def tune_command(args: argparse.Namespace, out: Output) -> int:

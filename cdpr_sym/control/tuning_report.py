@@ -73,10 +73,12 @@ def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
 def _nmpc_numbers(robot: Robot, model: Any, design: Any) -> dict[str, Any]:
     """``nmpc``'s derived rate bound (N/s) and horizon (s), or the one-line reason it is not
     offered on ``robot``."""
+    from cdpr_sym.control import tuning
     from cdpr_sym.errors import CdprError
 
     try:
         tuned = design.tuned(robot, model)
     except CdprError as refusal:
         return {"refused": str(refusal)}
-    return {"max_rate_N_per_s": tuned.max_rate, "horizon_s": tuned.horizon}
+    return {"max_rate_N_per_s": tuned.max_rate, "horizon_s": tuned.horizon,
+            "robot_rate_N_per_s": tuning.nmpc_rate(robot)}
