@@ -306,9 +306,10 @@ class WinchIdaPbc:
 
     def paced_plan(self, robot: Robot) -> SmoothReference:
         """The plan with the durations of its list that last at least MOVE_PERIODS periods
-        of the platform's mode on the motor springs, f_p (:func:`~cdpr_sym.control.tuning.
-        platform_share` of the command path's corner at the toolkit's 1 kHz: the rate the
-        gains are derived for), the longest alone if none does. A minimum-jerk move of
+        of the platform's mode on the motor springs, the longest alone if none does.
+
+        f_p is :func:`~cdpr_sym.control.tuning.platform_share` of the command path's corner
+        at the toolkit's 1 kHz (the rate the gains are derived for). A minimum-jerk move of
         duration T carries its acceleration at about 1 / T; faster than the loop's own
         mode, the motor springs lag the plan by centimetres and the feedback that catches
         up pushes cables against the box: on a 36.6 kg robot on 3 cables (f_p = 0.77 Hz)
