@@ -196,15 +196,25 @@ class SmoothReference:
         """Internal state: [t, q_start (n), T, margin] and the command filter's stages."""
         return model.n + 3 + (FILTER_STAGES * model.m if self.command_cutoff else 0)
 
+    def ends_for(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX) -> ca.SX | None:
+        """The plan's preferred tensions at start and goal with m >= n + 2 cables
+        (:func:`preference_ends`, in the box shrunk by the widest margin); None with fewer
+        cables, where the plan needs none."""
+        if model.m < model.n + 2:
+            return None
+        return preference_ends(model, q0, q_goal, max(self.margins))
+
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
-                       r_d: ca.SX) -> ca.SX:
-        """Plan: the first admissible (margin, T) in preference order."""
+                       r_d: ca.SX, *, ends: ca.SX | None = None) -> ca.SX:
+        """Plan: the first admissible (margin, T) in preference order. ``ends``: the
+        preferred tensions of :meth:`ends_for` when the caller has them already (worked
+        out here when not given)."""
         robot = model.robot
         delta = q_goal - q0
         u = np.linspace(0.0, 1.0, self.samples)
         static, accel, dets, segments = [], [], [], []
-        ends = (preference_ends(model, q0, q_goal, max(self.margins))
-                if model.m >= model.n + 2 else None)
+        if ends is None:
+            ends = self.ends_for(model, q0, q_goal)
         for value in u:
             s, ds, dds = minimum_jerk(ca.SX(value))
             q_r = q0 + delta * s

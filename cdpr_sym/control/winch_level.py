@@ -93,12 +93,7 @@ from cdpr_sym.checks import positive_number
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
 from cdpr_sym.control.interface import Capabilities, ControlLaw, DriveReading
 from cdpr_sym.control.parts import beta_margin, clip_to_box, distributed_command, flag_if
-from cdpr_sym.control.planned import (
-    SmoothReference,
-    minimum_jerk,
-    planned_preference,
-    preference_ends,
-)
+from cdpr_sym.control.planned import SmoothReference, minimum_jerk, planned_preference
 from cdpr_sym.control.tuning import FROM_ROBOT, command_corner, platform_share, winch_gains
 from cdpr_sym.distribution import AUTO
 from cdpr_sym.distribution.closed_form import nearest_to
@@ -299,9 +294,9 @@ class WinchIdaPbc:
         worked out once per move rather than at every step), then zeros: the misfit and the
         last reading are set at the first step, the rate starts at rest."""
         plan = self.paced_plan(model.robot)
-        ends = (preference_ends(model, q0, q_goal, max(plan.margins))
-                if model.m >= model.n + 2 else ca.SX.zeros(0))
-        return ca.vertcat(plan.initial_memory(model, q0, q_goal, k, r_d), ends,
+        ends = plan.ends_for(model, q0, q_goal)
+        return ca.vertcat(plan.initial_memory(model, q0, q_goal, k, r_d, ends=ends),
+                          ca.SX.zeros(0) if ends is None else ends,
                           ca.SX.zeros((4 + self._stages()) * model.m))
 
     def paced_plan(self, robot: Robot) -> SmoothReference:
@@ -381,8 +376,8 @@ class WinchIdaPbc:
         if model.m == model.n:
             tension = ca.solve(W, force)
         else:
-            if model.m >= model.n + 2 and ends is None:
-                ends = preference_ends(model, q_start, q_goal, max(self.plan.margins))
+            if ends is None:
+                ends = self.plan.ends_for(model, q_start, q_goal)
             preferred = None if ends is None else planned_preference(ends, s)
             at_start = None if ends is None else planned_preference(ends, 0.0)
             tension = (self.distributed(model, W, force, margin, preferred)
