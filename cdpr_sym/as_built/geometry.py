@@ -2,7 +2,8 @@
 
 :func:`true_geometry_function` gives the true cable lengths and their Jacobian with the
 anchors moved by symbolic offsets, so one generated step serves every drawn offset. It reuses
-:mod:`cdpr_sym.model.kinematics` on a view of the robot whose anchors are symbols.
+:mod:`cdpr_sym.model.kinematics` on a view of the robot whose anchors are symbols
+(:mod:`cdpr_sym.model.geometry_view`).
 """
 
 from __future__ import annotations
@@ -10,20 +11,8 @@ from __future__ import annotations
 import casadi as ca
 
 from cdpr_sym.model import kinematics
+from cdpr_sym.model.geometry_view import anchors_moved
 from cdpr_sym.robot import Robot
-
-
-class _MovedAnchors:
-    """A robot whose anchors are a_i + offset_i (symbols); every other field is the robot's."""
-
-    def __init__(self, robot: Robot, offsets: ca.SX) -> None:
-        self._robot = robot
-        d = robot.dimension
-        self.anchors = [ca.DM(robot.anchors[i]) + offsets[i * d: (i + 1) * d]
-                        for i in range(robot.m)]
-
-    def __getattr__(self, name: str):
-        return getattr(self._robot, name)
 
 
 def true_geometry_function(robot: Robot) -> ca.Function:
@@ -33,7 +22,8 @@ def true_geometry_function(robot: Robot) -> ca.Function:
     ``robot.anchors[i] + offsets[i]``.
     """
     q = ca.SX.sym("q", robot.n)
-    offsets = ca.SX.sym("anchor_offsets", robot.m * robot.dimension)
-    lengths = kinematics.cable_lengths(_MovedAnchors(robot, offsets), q)
+    moved = anchors_moved(robot)
+    offsets = moved.parameters
+    lengths = kinematics.cable_lengths(moved, q)
     return ca.Function("true_geometry", [q, offsets], [lengths, ca.jacobian(lengths, q)],
                        ["q", "anchor_offsets"], ["l", "J_a"])

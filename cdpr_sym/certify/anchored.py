@@ -273,7 +273,11 @@ class AnchoredVerdicts:
                  normals, half_widths: np.ndarray | None = None) -> None:
         # the boxes span the positions, or the whole pose (``orientation=None``)
         self.n, self.m = model.n, model.m
-        self.d = model.n if orientation is None else model.robot.dimension
+        #: the pose's entries of a box (the positions, or the whole pose), then the
+        #: geometry's symbols (anchors known to a tolerance, :mod:`.tolerance`)
+        self.pose_width = model.n if orientation is None else model.robot.dimension
+        parameters = getattr(model.robot, "parameters", None)
+        self.d = self.pose_width + (0 if parameters is None else parameters.numel())
         self.t_min, self.t_max = model.robot.t_min, model.robot.t_max
         if not 0 <= self.t_min < self.t_max:  # the Farkas support is increasing in c . w_j
             raise ValueError(f"expected 0 <= t_min < t_max, got {self.t_min}, {self.t_max}")
@@ -335,7 +339,8 @@ class AnchoredVerdicts:
         # a box whose centre holds a tension in the box cannot be infeasible
         rest = np.nonzero(margin <= 0)[0]
         if len(rest):
-            poses = np.hstack([terms.centre[rest], np.tile(self.orientation, (len(rest), 1))])
+            poses = np.hstack([terms.centre[rest][:, :self.pose_width],
+                               np.tile(self.orientation, (len(rest), 1))])
             normals = self.normals(poses).reshape(len(rest), -1, n)
             chosen = terms.take(rest)
             J_mid = 0.5 * chosen.J0[0] + 0.5 * chosen.J0[1]
@@ -474,12 +479,12 @@ def anchored_verdicts(model: SymbolicModel, orientation: np.ndarray, compiled: b
     from cdpr_sym.robot import robot_key
     from cdpr_sym.workspace.vectorised import pose_evaluator
 
-    robot = model.robot
+    robot = getattr(model.robot, "nominal", model.robot)  # the normals: at the nominal anchors
     wrench = half_widths is not None
     point = terms_function(model, orientation, wrench)
     slopes = slopes_function(model, orientation, wrench)
     options = BuildOptions() if compiled else BuildOptions(backend="casadi")
-    normals = pose_evaluator(robot, lambda: normals_function(model), "facet_normals",
+    normals = pose_evaluator(robot, lambda: normals_function(SymbolicModel(robot)), "facet_normals",
                              build_options=options, recipe=f"{robot_key(robot)}\0normals")
     evaluate = lambda poses: normals.evaluate(poses)[0]  # noqa: E731
     if compiled:

@@ -29,13 +29,16 @@ from cdpr_sym.robot import Robot
 
 def pose_inputs(robot: Robot, orientation: np.ndarray | None) -> tuple[ca.SX, ca.SX]:
     """(the function's input, the pose q): the position (d) completed by the fixed
-    ``orientation`` (rad), or, with ``orientation=None``, the whole pose (n) as the input."""
+    ``orientation`` (rad), or, with ``orientation=None``, the whole pose (n) as the input.
+    A robot whose geometry is symbolic (:mod:`cdpr_sym.model.geometry_view`) has its
+    symbols appended to the input: a box then spans the pose's entries and the geometry's."""
+    parameters = getattr(robot, "parameters", None)
     if orientation is None:
         q = ca.SX.sym("q", robot.n)
-        return q, q
+        return (q if parameters is None else ca.vertcat(q, parameters)), q
     position = ca.SX.sym("p", robot.dimension)
     q = ca.vertcat(position, ca.DM(orientation)) if len(orientation) else position
-    return position, q
+    return (position if parameters is None else ca.vertcat(position, parameters)), q
 
 
 def orientation_pieces(lower: np.ndarray, upper: np.ndarray, step: float

@@ -43,9 +43,11 @@ from cdpr_sym.certify.budget import (
 )
 from cdpr_sym.certify.poses import OverOrientations, orientation_pieces
 from cdpr_sym.certify.registry import ProofMethod, method_for
+from cdpr_sym.certify.tolerance import OverAnchorTolerance, checked_tolerance
 from cdpr_sym.certify.verdict import BoxVerdicts, Verdict, named
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.model.geometry_view import anchors_moved
 from cdpr_sym.robot import Robot
 
 #: The words of :class:`~cdpr_sym.certify.verdict.Verdict`'s PROVEN, DISPROVEN and UNDECIDED
@@ -112,6 +114,9 @@ class WorkspaceCertificate:
         The share of the volume asked for.
     time_limit : float
         s of branch-and-bound allowed (``inf``: none).
+    anchor_tolerance : float
+        m: the verdicts hold for every anchor within this distance of the robot's on every
+        axis (:mod:`cdpr_sym.certify.tolerance`; 0: at the robot's anchors).
     """
 
     robot: Robot
@@ -131,6 +136,7 @@ class WorkspaceCertificate:
     stopped: str = "complete"
     until: float = 1.0
     time_limit: float = math.inf
+    anchor_tolerance: float = 0.0
 
     def volumes(self) -> np.ndarray:
         return np.prod(self.upper - self.lower, axis=1)
@@ -196,7 +202,9 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
                       orientation_range: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
                       orientation_step: float | None = None,
                       time_limit: float = DEFAULT_TIME_LIMIT,
-                      progress: Callable[[Progress], None] | None = None
+                      progress: Callable[[Progress], None] | None = None,
+                      anchor_tolerance: float = 0.0,
+                      region: tuple[npt.ArrayLike, npt.ArrayLike] | None = None
                       ) -> WorkspaceCertificate:
     """The certified static workspace of ``robot`` over its frame (module docstring).
 
@@ -248,6 +256,12 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
         boxes not decided by then, evaluated or not, are reported undecided.
     progress : callable, optional
         Called after every chunk with a :class:`~cdpr_sym.certify.budget.Progress`.
+    anchor_tolerance : float
+        m: prove each verdict for every anchor in a_i + [-tol, tol]^d
+        (:mod:`cdpr_sym.certify.tolerance`); default 0, the robot's anchors.
+    region : (sequence of float, sequence of float), optional
+        The positions' (lower, upper) corners of the box certified, m, inside the frame
+        (default: the frame); shares are of its volume.
 
     Raises
     ------
@@ -257,7 +271,9 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
         (``orientation_range``), a step not positive or cutting the range into more than
         :data:`MAX_PIECES` pieces (``orientation_step``), a minimum width not positive
         (``min_width``), a wrench box of the wrong size or negative (``half_widths``), a
-        time limit not positive (``time_limit``); work estimated to need a level of more
+        time limit not positive (``time_limit``), a tolerance negative or over a tenth of
+        the anchors' spacing (``anchor_tolerance``), a region of the wrong size, empty or
+        outside the frame (``region``); work estimated to need a level of more
         than twice :data:`MAX_LEVEL_BOXES` boxes before ``until`` (``until``) or the
         minimum width (``min_width``) or the time limit stops it.
     """
@@ -285,12 +301,16 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
     if isinstance(until, bool) or not isinstance(until, (int, float)) or not 0 < until <= 1:
         raise InvalidCase("until", f"expected a share in (0, 1], got {until!r}")
     wrench = _checked_half_widths(robot, half_widths)
+    tolerance = checked_tolerance(robot, anchor_tolerance)
+    lower, upper = _checked_region(robot, region)
     method = method_for(robot, wrench is not None, prop)
-    model = SymbolicModel(robot)
+    model = SymbolicModel(anchors_moved(robot) if tolerance else robot)
     decide = _verdicts_by(method, model, None if pieces else orientation, compiled, wrench)
+    if tolerance:
+        decide = OverAnchorTolerance(decide, robot.m * d, tolerance)
     if pieces:
         decide = OverOrientations(decide, *pieces)
-    run = _BranchAndBound(robot, decide, min_width=float(min_width), until=float(until),
+    run = _BranchAndBound(lower, upper, decide, min_width=float(min_width), until=float(until),
                           refuse=asked,
                           time_limit=time_limit, progress=progress, witnesses=bool(pieces))
     names = tuple(robot.coordinate_names[:d])
@@ -298,7 +318,8 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
                                 named(run.codes, VERDICTS), float(min_width),
                                 run.seconds, run.evaluated,
                                 np.zeros(0) if wrench is None else wrench, prop, span,
-                                pieces, run.witness, run.stopped, float(until), time_limit)
+                                pieces, run.witness, run.stopped, float(until), time_limit,
+                                tolerance)
 
 
 class _BranchAndBound:
@@ -306,12 +327,11 @@ class _BranchAndBound:
     :mod:`cdpr_sym.certify.budget`; the results are its attributes (lower, upper, codes,
     witness, evaluated, seconds, stopped)."""
 
-    def __init__(self, robot: Robot, decide, *, min_width: float, until: float, refuse: bool,
-                 time_limit: float, progress, witnesses: bool) -> None:
-        d = robot.dimension
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, decide, *, min_width: float,
+                 until: float, refuse: bool, time_limit: float, progress,
+                 witnesses: bool) -> None:
         clock = Clock(time_limit, CHUNK)
-        lower = np.asarray(robot.frame_lower[:d], dtype=float)[None, :]
-        upper = np.asarray(robot.frame_upper[:d], dtype=float)[None, :]
+        lower, upper = lower[None, :], upper[None, :]
         total = float(np.prod(upper - lower))
         found_lower, found_upper, found, witness = [], [], [], []
         volumes = np.zeros(2)  # proven, disproven
@@ -386,6 +406,30 @@ def _verdicts_by(method: ProofMethod, model: SymbolicModel, orientation: np.ndar
     """The box verdicts of ``method`` at the fixed ``orientation``, or over whole-pose boxes
     (``orientation=None``)."""
     return method.verdicts(model, orientation, compiled, wrench)
+
+
+def _checked_region(robot: Robot, region) -> tuple[np.ndarray, np.ndarray]:
+    """The positions' box certified, (lower, upper), m: the frame's by default, else
+    ``region`` checked to be a non-empty box of d positions inside the frame."""
+    d = robot.dimension
+    frame = (np.asarray(robot.frame_lower[:d], dtype=float),
+             np.asarray(robot.frame_upper[:d], dtype=float))
+    if region is None:
+        return frame
+    try:
+        lower, upper = (np.asarray(corner, dtype=float).ravel() for corner in region)
+    except (TypeError, ValueError):
+        raise InvalidCase("region", f"expected (lower, upper) corners, got {region!r}") from None
+    if lower.size != d or upper.size != d or not np.all(np.isfinite(lower) & np.isfinite(upper)):
+        raise InvalidCase("region", f"expected {d} finite lower and {d} upper positions (m), "
+                          f"got {lower.tolist()} and {upper.tolist()}")
+    if not np.all(lower < upper):
+        raise InvalidCase("region", f"expected lower < upper on every axis, got "
+                          f"{lower.tolist()} and {upper.tolist()}")
+    if np.any(lower < frame[0]) or np.any(upper > frame[1]):
+        raise InvalidCase("region", f"{lower.tolist()} to {upper.tolist()} leaves the frame "
+                          f"({frame[0].tolist()} to {frame[1].tolist()})")
+    return lower, upper
 
 
 def _checked_orientation(robot: Robot, orientation) -> np.ndarray:

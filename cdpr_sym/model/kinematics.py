@@ -32,7 +32,7 @@ SINGULAR_DET = 1e-6
 def as_point(value: object) -> ca.SX | ca.DM:
     """A robot's point as a CasADi column: numbers become constants, while a symbolic
     point (a plant whose anchors are parameters, :mod:`cdpr_sym.as_built`) stays symbolic."""
-    return value if isinstance(value, ca.SX) else ca.DM(value)
+    return value if isinstance(value, (ca.SX, ca.MX)) else ca.DM(value)
 
 
 def position(robot: Robot, q: ca.SX) -> ca.SX:
@@ -62,7 +62,7 @@ def attachment_points(robot: Robot, q: ca.SX) -> list[ca.SX]:
     if robot.kind == "point":
         return [p] * robot.m
     R = rotation(robot, q)
-    return [p + R @ ca.DM(b) for b in robot.attachments]
+    return [p + R @ as_point(b) for b in robot.attachments]
 
 
 def center_of_mass(robot: Robot, q: ca.SX) -> ca.SX:

@@ -68,9 +68,16 @@ class SymbolicModel:
 
     def _kinematic(self, expression: Callable[[Robot, ca.SX], ca.SX], q: ca.SX) -> ca.SX:
         """``expression(robot, q)``. A rigid body's is differentiated by CasADi, which needs
-        a purely symbolic q: it is built once on a symbol and called at ``q``."""
+        a purely symbolic q: it is built once on a symbol and called at ``q`` (on a symbolic
+        geometry, :mod:`~cdpr_sym.model.geometry_view`, it is built at each call)."""
         if self.robot.kind == "point":
             return expression(self.robot, q)
+        parameters = getattr(self.robot, "parameters", None)
+        if parameters is not None:
+            symbol = ca.SX.sym("q", self.n)
+            built = ca.Function(expression.__name__, [symbol, parameters],
+                                [expression(self.robot, symbol)])
+            return built(q, parameters)
         if expression not in self._of_symbol:
             symbol = ca.SX.sym("q", self.n)
             self._of_symbol[expression] = ca.Function(expression.__name__, [symbol],
