@@ -86,8 +86,15 @@ def summary(certificate: WorkspaceCertificate, check: dict[str, Any] | None) -> 
     if certificate.orientation_range is not None:
         prop += (" at every orientation of the range (the total orientation workspace; an "
                  "infeasible box is infeasible over one piece of the range)")
+    if certificate.anchor_tolerance:
+        prop += (f", for every anchor within {certificate.anchor_tolerance:g} m of the robot's "
+                 f"on every axis")
     method = method_for(robot, bool(wrench.size), certificate.prop)
+    lower = certificate.lower.min(axis=0) if len(certificate.lower) else np.zeros(0)
+    upper = certificate.upper.max(axis=0) if len(certificate.upper) else np.zeros(0)
     return {"robot": robot.name, "property": prop, "method": method.description,
+            "anchor_tolerance_m": certificate.anchor_tolerance,
+            "region": {"lower": lower.tolist(), "upper": upper.tolist()},
             "wrench_half_widths": wrench.tolist(),
             "coordinates": list(certificate.names),
             "orientation": (certificate.orientation.tolist()

@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot import Robot
 
 
 class OverAnchorTolerance:
@@ -44,7 +45,7 @@ class OverAnchorTolerance:
         return self.decide.witnesses
 
 
-def checked_tolerance(robot, tolerance) -> float:
+def checked_tolerance(robot: Robot, tolerance: object) -> float:
     """The anchor tolerance, m: finite, >= 0 and at most a tenth of the frame's largest
     side (a wider one is not a build tolerance; the proof would hold, and say little)."""
     if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) \

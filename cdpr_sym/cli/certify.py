@@ -85,6 +85,12 @@ def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
                        help="a sweep table (CSV): certify the boxes (of a grid anchored at the "
                             "frame's corner) holding its pairs instead of the regions, and "
                             "check its runs of the design inside proven boxes")
+    parser.add_argument("--anchor-tolerance", type=float, default=0.0, metavar="M",
+                        help="workspace: prove each verdict for every anchor within this "
+                             "distance of the robot's on every axis, m (0: at its anchors)")
+    parser.add_argument("--region", nargs="+", type=float, metavar="M",
+                        help="workspace: certify this box of positions, its lower then upper "
+                             "corner, m (default: the frame)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sampled check")
     parser.add_argument("--out", type=Path, required=True,
                         help="folder of boxes.csv (pairs.csv), certificate.json and "
@@ -108,6 +114,9 @@ def certify_command(args: argparse.Namespace, out: Output) -> int:
                               "to --min-width or --time-limit)")
         if args.orientation is not None or args.orientation_step is not None:
             raise InvalidCase("orientation", "--orientation and --orientation-step apply to "
+                              "certify workspace")
+        if args.anchor_tolerance or args.region is not None:
+            raise InvalidCase("anchor_tolerance", "--anchor-tolerance and --region apply to "
                               "certify workspace")
         return _pairs(args, robot, out)
     return _workspace(args, robot, out)
@@ -133,7 +142,9 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
                                         orientation_step=args.orientation_step,
                                         min_width=args.min_width, until=args.until,
                                         half_widths=half_widths, prop=args.property,
-                                        time_limit=args.time_limit, progress=progress)
+                                        time_limit=args.time_limit, progress=progress,
+                                        anchor_tolerance=args.anchor_tolerance,
+                                        region=_region(robot, args.region))
     check = (sampled_check(certificate, samples, np.random.default_rng(args.seed))
              if samples else None)
     content = write_certificate(certificate, args.out, check)
@@ -142,7 +153,10 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     if orientation_range is not None:
         what += (f" at every orientation of {list(orientation_range[0])} to "
                  f"{list(orientation_range[1])} rad")
-    lines = [f"{robot.name}{what}: {100 * content['decided_share']:.2f} % of the frame decided "
+    if args.anchor_tolerance:
+        what += f" for every anchor within {args.anchor_tolerance:g} m"
+    where = "the frame" if args.region is None else "the region"
+    lines = [f"{robot.name}{what}: {100 * content['decided_share']:.2f} % of {where} decided "
              f"({100 * content['feasible_share']:.2f} % {held}, "
              f"{100 * content['infeasible_share']:.2f} % {failed}) in "
              f"{content['seconds']:.1f} s, {content['boxes']:,} boxes"
@@ -153,6 +167,17 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     lines.append(f"written: {args.out}")
     out.result(content, lines)
     return 0
+
+
+def _region(robot, numbers: list[float] | None) -> tuple[list[float], list[float]] | None:
+    """``--region`` as (lower, upper), its count checked."""
+    if numbers is None:
+        return None
+    d = robot.dimension
+    if len(numbers) != 2 * d:
+        raise InvalidCase("region", f"expected {d} lower then {d} upper positions (m), got "
+                          f"{len(numbers)} numbers")
+    return numbers[:d], numbers[d:]
 
 
 def _default_property() -> str:
@@ -291,7 +316,9 @@ def _pairs(args: argparse.Namespace, robot, out: Output) -> int:
             certificate = certify_pairs(robot, args.controller, starts=starts, goals=goals,
                                         width=args.box, min_width=args.min_width,
                                         tracking_margin=args.tracking_margin, design=design,
-                                        time_limit=args.time_limit, progress=progress)
+                                        time_limit=args.time_limit, progress=progress,
+                                        anchor_tolerance=args.anchor_tolerance,
+                                        region=_region(robot, args.region))
     else:
         if args.starts is not None or args.goals is not None:
             raise InvalidCase("sweep", "--sweep certifies the sweep's own pairs; leave out "

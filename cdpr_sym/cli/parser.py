@@ -198,9 +198,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help="with --from-encoders: seed of the as-built draw")
     from cdpr_sym.cli.calibrate import add_parser as add_calibrate
     from cdpr_sym.cli.certify import add_parser as add_certify
+    from cdpr_sym.cli.design import add_parser as add_design
     from cdpr_sym.cli.tune import add_parser as add_tune
 
     add_calibrate(command)
     add_certify(command)
+    add_design(command)
     add_tune(command)
     return parser

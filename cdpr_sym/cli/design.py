@@ -1,0 +1,128 @@
+"""``cdpr-sym design geometry``: anchors (and attachments) placed for a task region, the result
+proven over the region for every anchor within the build's tolerance."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+
+from cdpr_sym.cli.output import Output
+from cdpr_sym.cli.paths import check_file, check_folder
+from cdpr_sym.errors import InvalidCase
+
+
+def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
+    """The ``design`` command's options."""
+    from cdpr_sym.geometry.design import CERTIFY_SECONDS, DEFAULT_TOLERANCE
+    from cdpr_sym.geometry.variables import VARY
+
+    parser = command("design", "design a robot's geometry: place its anchors (and a body's "
+                     "attachments) so that a task box is statically feasible with margin, "
+                     "then prove the share of the box covered for every anchor within the "
+                     "build's tolerance")
+    parser.add_argument("what", choices=["geometry"], help="what to design")
+    parser.add_argument("--robot", default="aras3", help="a preset or a robot file")
+    parser.add_argument("--task", nargs="+", type=float, required=True, metavar="M",
+                        help="the task box's lower then upper corner (positions, m; a rigid "
+                             "body at its case's start orientation)")
+    parser.add_argument("--vary", default="anchors", choices=list(VARY),
+                        help="what moves: the anchors, a rigid body's attachments, or both "
+                             "(attachments stay in the box they span)")
+    parser.add_argument("--within", nargs="+", type=float, metavar="M",
+                        help="the box the anchors may be placed in, lower then upper corner "
+                             "(default: the box the robot's anchors span)")
+    parser.add_argument("--anchor-tolerance", type=float, default=DEFAULT_TOLERANCE,
+                        metavar="M", help="the certificate holds for every anchor within this "
+                                          "distance on every axis, m")
+    parser.add_argument("--property", default="static", choices=["static"],
+                        help="static: the platform held at rest with every tension in the box")
+    parser.add_argument("--time-limit", type=float, default=CERTIFY_SECONDS, metavar="S",
+                        help="each certificate's branch-and-bound time limit, s")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="seed of the tolerance scenarios and the sampled check")
+    parser.add_argument("--certificate", type=Path, metavar="DIR",
+                        help="also write the designed robot's certificate (boxes.csv, "
+                             "certificate.json, workspace.png) to this folder")
+    parser.add_argument("--out", type=Path, required=True,
+                        help="the designed robot file (.toml)")
+
+
+def design_command(args: argparse.Namespace, out: Output) -> int:
+    import math
+
+    from cdpr_sym.cli.robots import checked_robot
+    from cdpr_sym.geometry.design import design_geometry
+    from cdpr_sym.robot.files import robot_file_text
+
+    robot = checked_robot(args.robot)
+    d = robot.dimension
+    if len(args.task) != 2 * d:
+        raise InvalidCase("task", f"expected {d} lower then {d} upper positions (m), got "
+                          f"{len(args.task)} numbers")
+    within = None
+    if args.within is not None:
+        if len(args.within) != 2 * d:
+            raise InvalidCase("within", f"expected {d} lower then {d} upper coordinates (m), "
+                              f"got {len(args.within)} numbers")
+        within = (args.within[:d], args.within[d:])
+    if not (math.isfinite(args.time_limit) and args.time_limit > 0):
+        raise InvalidCase("time_limit", f"expected a positive number of seconds, got "
+                          f"{args.time_limit!r}")
+    if args.seed < 0:
+        raise InvalidCase("seed", f"expected a whole number >= 0, got {args.seed}")
+    check_file("out", args.out)
+    if args.certificate is not None:
+        check_folder("certificate", args.certificate)
+    design = design_geometry(robot, args.task[:d], args.task[d:], vary=args.vary,
+                             within=within, anchor_tolerance=args.anchor_tolerance,
+                             certify_seconds=args.time_limit, seed=args.seed)
+    summary = design.summary()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(robot_file_text(design.robot, comment=_comment(summary)))
+    summary["written"] = str(args.out)
+    if args.certificate is not None:
+        from cdpr_sym.certify.report import write_certificate
+
+        write_certificate(design.certificate, args.certificate, None)
+        summary["certificate"] = str(args.certificate)
+    out.result(summary, _lines(summary))
+    return 0
+
+
+def _comment(summary: dict) -> str:
+    certified = summary["certified"]
+    task = summary["task"]
+    return (f"{summary['robot']} with its {summary['vary']} placed by cdpr-sym design geometry "
+            f"for the task box\n{task['lower']} to {task['upper']} m: "
+            f"{100 * certified['feasible']:.2f} % of it proven statically feasible for every "
+            f"anchor within\n+-{1000 * summary['anchor_tolerance_m']:g} mm of the anchors "
+            f"below ({100 * summary['original_certified']['feasible']:.2f} % with the "
+            f"geometry given).")
+
+
+def _lines(summary: dict) -> list[str]:
+    certified, given = summary["certified"], summary["original_certified"]
+    tolerance = 1000 * summary["anchor_tolerance_m"]
+    optimiser = summary["optimiser"]
+    margin = summary["margin_N"]
+    lines = [
+        f"{summary['robot']}: {summary['vary']} designed for the task box "
+        f"{summary['task']['lower']} to {summary['task']['upper']} m",
+        f"proven feasible for every anchor within +-{tolerance:g} mm: "
+        f"{100 * certified['feasible']:.2f} % of the task ({100 * certified['infeasible']:.2f} "
+        f"% proven infeasible, {100 * certified['undecided']:.2f} % undecided); the geometry "
+        f"given: {100 * given['feasible']:.2f} %",
+        (f"common margin {margin:.3g} N on all {summary['samples']} samples" if margin >= 0
+         else f"no geometry found holds every sample (best common margin {margin:.3g} N); "
+              f"{100 * summary['samples_held']:.1f} % of the {summary['samples']} samples held"),
+        f"sampled check at the nominal anchors: {100 * summary['sampled_share']:.2f} % of "
+        f"uniform poses (given: {100 * summary['original_sampled_share']:.2f} %)",
+        f"optimiser: {optimiser['evaluations']} evaluations, {optimiser['seconds']:.1f} s "
+        f"({optimiser['status']}); {summary['seconds']:.1f} s in all",
+        f"written: {summary['written']}",
+    ]
+    if certified["stopped"] == "time_limit":
+        lines.insert(2, "the certificate stopped at its time limit: a longer --time-limit "
+                        "decides more")
+    return lines

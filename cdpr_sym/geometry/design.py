@@ -1,0 +1,201 @@
+"""A geometry design run: optimise the anchors (and attachments) on samples of the task
+region, then prove what the result covers with the interval engine.
+
+1. **Optimise** (:mod:`~cdpr_sym.geometry.surrogate`): from the robot's own geometry,
+   maximise the common static margin t over the task region's sample poses, each at a
+   scenario of the anchor tolerance. If t* < 0 (no geometry found holds every sample), hold
+   as many samples as the reweighted l1 problem finds instead.
+2. **Certify** (:func:`~cdpr_sym.certify.workspace.certify_workspace` over the task region,
+   ``anchor_tolerance``): the share of the region's volume proven statically feasible for
+   every anchor within the tolerance of the designed ones; what is proven infeasible (for
+   every such placement) and what is left undecided. The robot's own geometry is certified
+   the same way, for the comparison.
+3. **Judge on fresh poses** (:meth:`~cdpr_sym.certify.static.StaticFeasibility.holds`: the
+   unique tension with m = n, hyperplane shifting in generated C with m > n): the share of
+   :data:`CHECK_POSES` uniform poses of the region statically feasible, before and after, at
+   the nominal anchors: an estimate independent of both the optimiser and the proof.
+
+The optimiser is local (IPOPT from the robot's geometry): the share found is what this
+start reaches, not a proven optimum; the certificate is what is claimed. Of the robot's own
+geometry and the solves' results, the one holding the most samples is kept
+(:func:`best_of`), so the design is never worse than the robot on the samples.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+import numpy.typing as npt
+
+from cdpr_sym.certify.static import StaticFeasibility
+from cdpr_sym.certify.workspace import WorkspaceCertificate, certify_workspace
+from cdpr_sym.geometry.sampled import static_margins
+from cdpr_sym.geometry.surrogate import SampledProblem, Solution
+from cdpr_sym.geometry.task import TaskRegion, task_region
+from cdpr_sym.geometry.variables import GeometryVariables, geometry_variables
+from cdpr_sym.robot import Robot
+
+#: m: the anchor tolerance proven by default (a frame drilled to +-5 mm).
+DEFAULT_TOLERANCE = 0.005
+#: Uniform poses of the task region of the independent sampled check.
+CHECK_POSES = 20_000
+#: s: the certificate's branch-and-bound time limit by default (each of the two).
+CERTIFY_SECONDS = 120.0
+#: m: the certificate's narrowest box (the workspace certificate's default).
+CERTIFY_MIN_WIDTH = 0.005
+
+
+@dataclasses.dataclass(frozen=True)
+class GeometryDesign:
+    """What a design run found and proved.
+
+    Attributes
+    ----------
+    robot, original : Robot
+        The designed robot (the original's other fields kept) and the one given.
+    task : TaskRegion
+    variables : GeometryVariables
+    tolerance : float
+        m.
+    solution : Solution
+        The optimiser's (the share problem's when the margin problem's t* < 0).
+    margin_solution : Solution
+        The margin problem's.
+    certificate, original_certificate : WorkspaceCertificate
+        Over the task region, anchors within the tolerance.
+    sampled_share, original_sampled_share : float
+        Shares of :data:`CHECK_POSES` uniform poses held at the nominal anchors.
+    seconds : float
+        Wall-clock time of the whole run.
+    """
+
+    robot: Robot
+    original: Robot
+    task: TaskRegion
+    variables: GeometryVariables
+    tolerance: float
+    solution: Solution
+    margin_solution: Solution
+    certificate: WorkspaceCertificate
+    original_certificate: WorkspaceCertificate
+    sampled_share: float
+    original_sampled_share: float
+    seconds: float
+
+    @property
+    def certified_share(self) -> float:
+        """The task region's share proven feasible for every anchor within the tolerance."""
+        return self.certificate.shares()["feasible"]
+
+    @property
+    def margin_newtons(self) -> float:
+        """The optimiser's common margin t* w, N (negative: no geometry found held every
+        sample)."""
+        return self.margin_solution.margin * (self.robot.t_max - self.robot.t_min)
+
+    def summary(self) -> dict:
+        """A JSON-ready account of the run."""
+        def shares(certificate: WorkspaceCertificate) -> dict:
+            return {**certificate.shares(), "stopped": certificate.stopped,
+                    "seconds": certificate.seconds, "boxes": len(certificate.lower)}
+
+        return {
+            "robot": self.original.name, "vary": self.variables.vary,
+            "task": {"lower": self.task.lower.tolist(), "upper": self.task.upper.tolist(),
+                     "orientation": self.task.orientation.tolist()},
+            "within": {"lower": self.variables.lower.tolist(),
+                       "upper": self.variables.upper.tolist()},
+            "anchor_tolerance_m": self.tolerance,
+            "samples": len(self.solution.held),
+            "margin_N": self.margin_newtons,
+            "samples_held": float(np.mean(self.solution.held)),
+            "optimiser": {"evaluations": self.margin_solution.evaluations
+                          + (0 if self.solution is self.margin_solution
+                             else self.solution.evaluations),
+                          "status": self.solution.status,
+                          "seconds": self.margin_solution.seconds
+                          + (0 if self.solution is self.margin_solution
+                             else self.solution.seconds)},
+            "anchors": np.asarray(self.robot.anchors).tolist(),
+            "attachments": (None if self.robot.attachments is None
+                            else np.asarray(self.robot.attachments).tolist()),
+            "certified": shares(self.certificate),
+            "original_certified": shares(self.original_certificate),
+            "sampled_share": self.sampled_share,
+            "original_sampled_share": self.original_sampled_share,
+            "seconds": self.seconds,
+        }
+
+
+def design_geometry(robot: Robot, task_lower: npt.ArrayLike, task_upper: npt.ArrayLike, *,
+                    vary: str = "anchors",
+                    within: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+                    anchor_tolerance: float = DEFAULT_TOLERANCE,
+                    certify_seconds: float = CERTIFY_SECONDS, seed: int = 0,
+                    name: str | None = None) -> GeometryDesign:
+    """Design ``robot``'s geometry for the task box (module docstring).
+
+    Parameters
+    ----------
+    robot : Robot
+    task_lower, task_upper : sequence of float
+        The task region's corners (positions, m; inside the frame).
+    vary : str
+        ``anchors``, ``attachments`` (a rigid body) or ``both``.
+    within : (sequence of float, sequence of float), optional
+        The box the anchors may be placed in, m (default: the box the robot's anchors span).
+    anchor_tolerance : float
+        m, proven by the certificate and drawn as scenarios by the optimiser.
+    certify_seconds : float
+        Each certificate's time limit, s.
+    seed : int
+        Of the tolerance scenarios and the sampled check.
+    name : str, optional
+        The designed robot's name (default the robot's with ``-designed``).
+
+    Raises
+    ------
+    InvalidCase
+        A bad task (``task``), ``vary``, ``within`` or ``anchor_tolerance``: checked
+        before any optimisation.
+    """
+    from cdpr_sym.certify.tolerance import checked_tolerance
+
+    started = time.perf_counter()
+    task = task_region(robot, task_lower, task_upper)
+    variables = geometry_variables(robot, vary, within)
+    tolerance = checked_tolerance(robot, anchor_tolerance)
+    problem = SampledProblem(variables, task.grid(), tolerance, seed)
+    margin_solution = problem.solve_margin(variables.initial())
+    solution = margin_solution
+    if margin_solution.margin < 0:
+        solution = problem.solve_share(margin_solution.vector)
+    vector = best_of(variables, problem.poses,
+                     [variables.initial(), margin_solution.vector, solution.vector])
+    designed = variables.robot_at(vector, name or f"{robot.name}-designed")
+    certificate, original_certificate = (
+        certify_workspace(r, region=(task.lower, task.upper), anchor_tolerance=tolerance,
+                          orientation=task.orientation if len(task.orientation) else None,
+                          until=1.0, min_width=CERTIFY_MIN_WIDTH, time_limit=certify_seconds)
+        for r in (designed, robot))
+    poses = task.uniform(CHECK_POSES, np.random.default_rng(seed))
+    shares = [float(np.mean(StaticFeasibility().holds(r, poses, np.zeros(0))))
+              for r in (designed, robot)]
+    return GeometryDesign(designed, robot, task, variables, tolerance, solution,
+                          margin_solution, certificate, original_certificate, shares[0],
+                          shares[1], time.perf_counter() - started)
+
+
+def best_of(variables: GeometryVariables, poses: np.ndarray, vectors: list[np.ndarray]
+            ) -> np.ndarray:
+    """The design vector whose robot holds the most ``poses`` at its nominal anchors, ties
+    broken by the least margin (:func:`~cdpr_sym.geometry.sampled.static_margins`): a
+    local optimiser may end worse than it started, and the robot's own geometry is among
+    the candidates, so a design is never worse than the robot on the samples."""
+    scores = []
+    for vector in vectors:
+        margins = static_margins(variables.robot_at(vector), poses)
+        scores.append((float(np.mean(margins >= 0)), float(np.min(margins))))
+    return vectors[max(range(len(vectors)), key=lambda k: scores[k])]

@@ -1,0 +1,85 @@
+"""The task region of a geometry design: a box of positions (at the case's orientation for a
+rigid body) that must be statically feasible, and the sample poses that stand for it.
+
+Sample rule: a grid of k points per axis spanning the box, its faces and corners included
+(the corners are where a region's feasibility usually fails first), with k the smallest
+count giving at least :data:`SAMPLES` points in all (7 per axis in 3-D: 343 poses; 19 in
+2-D: 361).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot import Robot
+
+#: Sample poses of the region by default (the grid's count per axis rounds it up).
+SAMPLES = 343
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskRegion:
+    """A box of positions, m, and the fixed orientation of a rigid body, rad.
+
+    Attributes
+    ----------
+    lower, upper : ndarray, shape (d,)
+    orientation : ndarray
+        Empty for a point mass.
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    orientation: np.ndarray
+
+    @property
+    def volume(self) -> float:
+        """m^d."""
+        return float(np.prod(self.upper - self.lower))
+
+    def grid(self, per_axis: int | None = None) -> np.ndarray:
+        """Sample poses (rows of n: positions then the orientation), a grid of ``per_axis``
+        points per axis (default: the module's rule)."""
+        d = len(self.lower)
+        k = per_axis or max(2, math.ceil(SAMPLES ** (1.0 / d) - 1e-9))
+        axes = [np.linspace(lo, hi, k) for lo, hi in zip(self.lower, self.upper, strict=True)]
+        positions = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, d)
+        return np.hstack([positions, np.tile(self.orientation, (len(positions), 1))])
+
+    def uniform(self, count: int, rng: np.random.Generator) -> np.ndarray:
+        """``count`` poses drawn uniformly in the box (rows of n)."""
+        positions = self.lower + (self.upper - self.lower) * rng.random((count, len(self.lower)))
+        return np.hstack([positions, np.tile(self.orientation, (count, 1))])
+
+
+def task_region(robot: Robot, lower: npt.ArrayLike, upper: npt.ArrayLike) -> TaskRegion:
+    """The task region of ``robot``: d finite positions each side, lower < upper, inside the
+    frame; a rigid body holds the case's start orientation.
+
+    Raises
+    ------
+    InvalidCase
+        ``task`` named, with what is wrong.
+    """
+    d = robot.dimension
+    try:
+        lo = np.asarray(lower, dtype=float).ravel()
+        hi = np.asarray(upper, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise InvalidCase("task", f"expected {d} lower then {d} upper positions (m)") from None
+    if lo.size != d or hi.size != d or not np.all(np.isfinite(lo) & np.isfinite(hi)):
+        raise InvalidCase("task", f"expected {d} finite lower then {d} upper positions (m), "
+                          f"got {lo.tolist()} and {hi.tolist()}")
+    if not np.all(lo < hi):
+        raise InvalidCase("task", f"expected lower < upper on every axis, got {lo.tolist()} "
+                          f"and {hi.tolist()}")
+    frame_lo, frame_hi = robot.frame_lower[:d], robot.frame_upper[:d]
+    if np.any(lo < frame_lo) or np.any(hi > frame_hi):
+        raise InvalidCase("task", f"{lo.tolist()} to {hi.tolist()} leaves the frame "
+                          f"({frame_lo.tolist()} to {frame_hi.tolist()})")
+    return TaskRegion(lo, hi, np.asarray(robot.start[d:], dtype=float))
