@@ -59,8 +59,8 @@ def test_the_regularity_floor_holds_at_the_design():
         W, _ = structure_and_gravity(r, problem.poses)
         return np.abs(np.linalg.det(W)) / np.prod(np.linalg.norm(W, axis=1), axis=1)
 
-    assert problem.floor == pytest.approx(0.5 * measures(robot).min(), rel=1e-9)
-    assert measures(designed).min() >= problem.floor * (1 - 1e-6)
+    assert problem.floor == pytest.approx((0.5 * measures(robot).min()) ** 2, rel=1e-9)
+    assert measures(designed).min() ** 2 >= problem.floor * (1 - 1e-6)
 
 
 def test_the_design_is_never_worse_than_the_robot_on_the_samples():

@@ -24,9 +24,10 @@ violation ends at zero are the share held.
 **Regularity.** Static feasibility at a sample only asks that W T = grad V be solvable
 there; a geometry whose W loses rank can still solve it (a body whose attachments all meet
 at its centre of mass holds its weight with no moment to spare) and holds nothing else. Each
-sample's singularity measure (|det W| / prod |w_i|, or its Gram form with m > n:
-:func:`~cdpr_sym.model.kinematics.singularity_measure`) is kept at least
-:data:`REGULARITY_SHARE` of the robot's own least one over the samples.
+sample's singularity measure (|det W| / prod |w_i| with m = n, its Gram form with m > n:
+:func:`~cdpr_sym.model.kinematics.singularity_measure`; held squared, as det(V V^T) with V
+W's columns made unit) is kept at least :data:`REGULARITY_SHARE` of the robot's own least
+one over the samples.
 
 W is (a_i - P_i) / l_i in generalized coordinates (:mod:`cdpr_sym.model.kinematics`), built on
 a robot whose geometry is symbolic; the maps over samples are CasADi ``map`` calls, so the
@@ -42,9 +43,12 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.geometry.variables import GeometryVariables
+from cdpr_sym.linalg import gram_determinant, weighted_gram
 from cdpr_sym.model import SymbolicModel, kinematics
 from cdpr_sym.model.geometry_view import GeometryView
 
+#: IPOPT's Hessian: ``exact`` (CasADi's second derivatives) or ``limited-memory``.
+HESSIAN = "exact"
 #: IPOPT's iteration limit per solve.
 MAX_ITERATIONS = 400
 #: Reweighting rounds of the share problem, and its epsilon (share of the box width).
@@ -111,13 +115,13 @@ class SampledProblem:
         W = kinematics.structure_matrix(view, q)
         gravity = SymbolicModel(robot).grad_potential(q)
         self.balance = ca.Function("balance", [q, p, e, T], [W @ T - gravity])
-        measure = ca.Function("regularity", [q, p, e],
-                              [kinematics.singularity_measure(view, W)])
+        measure = ca.Function("regularity", [q, p, e], [_regularity(view, W)])
         self.regularity = measure.map(self.N, "serial")
         at_start = np.array(self.regularity(self.poses.T, ca.repmat(variables.initial(), 1,
                                                                      self.N), 0 * self.offsets.T))
-        #: the least regularity a design may have at a sample (module docstring)
-        self.floor = REGULARITY_SHARE * float(np.nanmin(at_start))
+        #: the least regularity a design may have at a sample (module docstring): the
+        #: measure squared, so the share squared
+        self.floor = REGULARITY_SHARE ** 2 * float(np.nanmin(at_start))
 
     def _residuals(self, p: ca.MX, tensions: ca.MX) -> ca.MX:
         """[W T - grad V at every sample (n N); each sample's regularity (N)]."""
@@ -214,6 +218,16 @@ class SampledProblem:
                         status)
 
 
+def _regularity(view: GeometryView, W: ca.SX) -> ca.SX:
+    """The singularity measure squared, det(V V^T) with V = W's columns made unit
+    (:func:`~cdpr_sym.model.kinematics.singularity_measure` without its square root and
+    scale): the LDL^T pivots of the Gram matrix, a few hundred operations where a 6 x 6
+    determinant by minors takes thousands, and smooth where the measure's root is not."""
+    m = W.shape[1]
+    weights = None if view.kind == "point" else [1.0 / ca.sumsqr(W[:, i]) for i in range(m)]
+    return gram_determinant(weighted_gram(W, weights))
+
+
 def _with_offsets(view: GeometryView, offsets: ca.SX) -> GeometryView:
     """``view`` with every anchor moved by its slice of ``offsets`` (m d)."""
     d = view.dimension
@@ -240,7 +254,8 @@ def _ipopt(x: ca.MX, objective: ca.MX, constraints: ca.MX, x0, lbx, ubx, lbg, ub
         problem["p"] = parameters[0]
     solver = ca.nlpsol("geometry", "ipopt", problem, {
         "print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-        "ipopt.max_iter": MAX_ITERATIONS, "ipopt.tol": 1e-8})
+        "ipopt.max_iter": MAX_ITERATIONS, "ipopt.tol": 1e-8,
+        "ipopt.hessian_approximation": HESSIAN})
     started = time.perf_counter()
     arguments = {"x0": x0, "lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
     if parameters is not None:

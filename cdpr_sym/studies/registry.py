@@ -18,7 +18,8 @@ _MODULES = {"paper": "cdpr_sym.studies.paper", "compare": "cdpr_sym.studies.comp
             "designs": "cdpr_sym.studies.designs", "rigid": "cdpr_sym.studies.rigid",
             "redundant": "cdpr_sym.studies.redundant",
             "robustness": "cdpr_sym.studies.robustness",
-            "calibration": "cdpr_sym.studies.calibration", "zoo": "cdpr_sym.studies.zoo"}
+            "calibration": "cdpr_sym.studies.calibration", "zoo": "cdpr_sym.studies.zoo",
+            "geometry": "cdpr_sym.studies.geometry"}
 #: The registered studies' names.
 STUDY_NAMES = tuple(_MODULES)
 
