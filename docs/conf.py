@@ -59,6 +59,7 @@ REPORTS = {
     "robustness": "report.md",
     "calibration": "report.md",
     "zoo": "report.md",
+    "geometry": "report.md",
     "mutation": "report.md",
 }
 

@@ -142,3 +142,47 @@ def test_aras3_anchors_cover_the_task_for_every_anchor_within_5_mm():
     assert design.original_certificate.shares()["feasible"] == pytest.approx(0.43, abs=0.02)
     assert design.certified_share >= 0.99
     assert np.all(design.robot.anchors[:, 2] == 4.26)
+
+
+def test_the_baseline_optimises_the_design_objective_within_its_budget():
+    """Differential evolution's objective is the least pointwise margin (the margin
+    problem's at tolerance 0), it spends its budget (a generation at least) and its best
+    is what the objective says of its vector."""
+    from cdpr_sym.geometry.baseline import POPULATION, differential_evolution, objective
+
+    robot = preset("planar2")
+    task = task_region(robot, [-0.3, 1.0], [0.9, 1.9])
+    variables = geometry_variables(robot)
+    poses = task.grid()
+    start = variables.initial()
+    assert objective(variables, poses, start) == static_margins(robot, poses).min()
+    free = int(np.sum(variables.upper > variables.lower))
+    found = differential_evolution(variables, poses, budget=4 * POPULATION * free, seed=3)
+    assert POPULATION * free <= found.evaluations <= 4 * POPULATION * free
+    assert found.margin == pytest.approx(objective(variables, poses, found.vector), abs=1e-12)
+    assert found.margin >= objective(variables, poses, start)  # the robot's own is a member
+
+
+def test_motor_sizing_is_proven_and_is_what_the_samples_need():
+    """aras3's task box: the sizing's T_max is proven (its certificate covers the task for
+    every anchor within 5 mm, and poses in its proven boxes hold in numpy at the nominal
+    anchors), it is below the 60 N box, and the samples' bound is the largest tension
+    numpy's solve needs at the sized anchors (to the tolerance scenarios' spread)."""
+    from cdpr_sym.geometry.sampled import margins_and_tensions
+    from cdpr_sym.geometry.sizing import COVERED, smallest_t_max
+
+    robot = preset("aras3")
+    sizing = smallest_t_max(robot, [-0.6, -1.2, 1.0], [0.6, 1.2, 2.8])
+    assert sizing.proven_t_max is not None and sizing.proven_t_max < robot.t_max
+    assert sizing.robot.t_max == sizing.proven_t_max
+    assert sizing.certificate.shares()["feasible"] >= COVERED
+    assert sizing.proven_t_max >= sizing.sampled_t_max
+    task = task_region(robot, [-0.6, -1.2, 1.0], [0.6, 1.2, 2.8])
+    _, tensions = margins_and_tensions(sizing.robot, task.grid())
+    assert np.max(tensions) == pytest.approx(sizing.sampled_t_max, rel=0.01)
+    rng = np.random.default_rng(11)
+    proven = np.flatnonzero(sizing.certificate.verdicts == "feasible")
+    pick = rng.choice(proven, 500)
+    lower, upper = sizing.certificate.lower[pick], sizing.certificate.upper[pick]
+    points = lower + (upper - lower) * rng.random(lower.shape)
+    assert np.all(static_margins(sizing.robot, points) >= -1e-9)

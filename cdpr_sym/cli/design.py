@@ -37,6 +37,10 @@ def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
                                           "distance on every axis, m")
     parser.add_argument("--property", default="static", choices=["static"],
                         help="static: the platform held at rest with every tension in the box")
+    parser.add_argument("--size-motors", action="store_true",
+                        help="also find the smallest upper tension bound T_max (the motors' "
+                             "size) with which a geometry covers the task, proven (the "
+                             "geometry placed again for it; the file written is the design's)")
     parser.add_argument("--time-limit", type=float, default=CERTIFY_SECONDS, metavar="S",
                         help="each certificate's branch-and-bound time limit, s")
     parser.add_argument("--seed", type=int, default=0,
@@ -78,6 +82,8 @@ def design_command(args: argparse.Namespace, out: Output) -> int:
                              within=within, anchor_tolerance=args.anchor_tolerance,
                              certify_seconds=args.time_limit, seed=args.seed)
     summary = design.summary()
+    if args.size_motors:
+        summary["sizing"] = _sizing(robot, args, within)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(robot_file_text(design.robot, comment=_comment(summary)))
     summary["written"] = str(args.out)
@@ -88,6 +94,35 @@ def design_command(args: argparse.Namespace, out: Output) -> int:
         summary["certificate"] = str(args.certificate)
     out.result(summary, _lines(summary))
     return 0
+
+
+def _sizing(robot, args: argparse.Namespace, within) -> dict:
+    from cdpr_sym.geometry.sizing import COVERED, smallest_t_max
+
+    d = robot.dimension
+    sizing = smallest_t_max(robot, args.task[:d], args.task[d:], vary=args.vary, within=within,
+                            anchor_tolerance=args.anchor_tolerance,
+                            certify_seconds=args.time_limit, seed=args.seed)
+    return {"sampled_t_max_N": sizing.sampled_t_max, "proven_t_max_N": sizing.proven_t_max,
+            "covered_share": COVERED, "samples_held": sizing.samples_held,
+            "certified": sizing.certificate.shares(),
+            "certified_t_max_N": sizing.robot.t_max,
+            "anchors": sizing.robot.anchors.tolist()}
+
+
+def _sizing_line(sizing: dict, t_max: float) -> str:
+    certified = 100 * sizing["certified"]["feasible"]
+    if sizing["proven_t_max_N"] is not None:
+        return (f"motor sizing: T_max = {sizing['proven_t_max_N']:g} N proven to cover "
+                f"{certified:.3f} % of the task (the samples need "
+                f"{sizing['sampled_t_max_N']:.4g} N; the box given: {t_max:g} N)")
+    if not sizing["samples_held"]:
+        return (f"motor sizing: no T_max covers the task with the geometry found: the floor "
+                f"or the geometry fails, not the motors ({certified:.2f} % proven at "
+                f"T_max = {sizing['certified_t_max_N']:g} N)")
+    return (f"motor sizing: the samples need {sizing['sampled_t_max_N']:.4g} N, but no raise "
+            f"of it tried was proven to cover the task ({certified:.2f} % at "
+            f"{sizing['certified_t_max_N']:g} N)")
 
 
 def _comment(summary: dict) -> str:
@@ -122,6 +157,8 @@ def _lines(summary: dict) -> list[str]:
         f"({optimiser['status']}); {summary['seconds']:.1f} s in all",
         f"written: {summary['written']}",
     ]
+    if "sizing" in summary:
+        lines.insert(-1, _sizing_line(summary["sizing"], summary["t_max_N"]))
     if certified["stopped"] == "time_limit":
         lines.insert(2, "the certificate stopped at its time limit: a longer --time-limit "
                         "decides more")

@@ -18,6 +18,7 @@ import time
 
 import numpy as np
 
+from cdpr_sym.errors import CdprError
 from cdpr_sym.geometry.sampled import static_margins
 from cdpr_sym.geometry.variables import GeometryVariables
 
@@ -42,7 +43,7 @@ def objective(variables: GeometryVariables, poses: np.ndarray, vector: np.ndarra
     width = robot.t_max - robot.t_min
     try:
         margins = static_margins(variables.robot_at(vector), poses)
-    except Exception:  # noqa: BLE001 - a geometry the robot description refuses
+    except CdprError:  # a geometry the robot description refuses (a case pose on an anchor)
         return -width
     least = float(np.min(margins))
     return least if np.isfinite(least) else -width

@@ -108,6 +108,7 @@ class GeometryDesign:
             "within": {"lower": self.variables.lower.tolist(),
                        "upper": self.variables.upper.tolist()},
             "anchor_tolerance_m": self.tolerance,
+            "t_max_N": self.robot.t_max,
             "samples": len(self.solution.held),
             "margin_N": self.margin_newtons,
             "samples_held": float(np.mean(self.solution.held)),

@@ -185,6 +185,29 @@ class SampledProblem:
         return Solution(vector, margin, held, result.evaluations, result.iterations,
                         result.seconds, result.status)
 
+    def solve_sizing(self, start: np.ndarray) -> tuple[Solution, float]:
+        """The least upper tension bound holding every sample (motor sizing): minimise tau
+        over (p, T, tau) with T_min <= T_j <= tau; returns the solution (its ``margin`` 0)
+        and tau, N. The design's tolerance scenarios and regularity floor hold as for
+        :meth:`solve_margin`."""
+        robot, k, mN = self.variables.robot, self.variables.size, self.m * self.N
+        p, tensions, tau = ca.MX.sym("p", k), ca.MX.sym("T", self.m, self.N), ca.MX.sym("tau")
+        flat = ca.vec(tensions)
+        constraints = ca.vertcat(self._residuals(p, tensions), flat - tau)
+        low, high = self._equalities()
+        lbg = np.concatenate([low, np.full(mN, -np.inf)])
+        ubg = np.concatenate([high, np.zeros(mN)])
+        tensions0, _ = self.initial_tensions(start)
+        x0 = np.concatenate([start, tensions0.T.ravel(), [robot.t_max]])
+        lbx = np.concatenate([self.variables.lower, np.full(mN, robot.t_min), [robot.t_min]])
+        ubx = np.concatenate([self.variables.upper, np.full(mN, np.inf), [np.inf]])
+        result = _ipopt(ca.vertcat(p, flat, tau), tau / self.width + self._spread(flat),
+                        constraints, x0, lbx, ubx, lbg, ubg)
+        x = result.x
+        held = np.ones(self.N, dtype=bool)
+        return (Solution(x[:k], 0.0, held, result.evaluations, result.iterations,
+                         result.seconds, result.status), float(x[-1]))
+
     def solve_share(self, start: np.ndarray, rounds: int = SHARE_ROUNDS) -> Solution:
         """Hold as many samples as the reweighted l1 problem finds (module docstring)."""
         robot, k, mN, N = self.variables.robot, self.variables.size, self.m * self.N, self.N
