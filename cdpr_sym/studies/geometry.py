@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results.store import read_json, write_json
@@ -55,7 +56,8 @@ def central_task(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
     return centre - half, centre + half
 
 
-def run_case(robot: Robot, vary: str, lower, upper, seed: int) -> dict[str, Any]:
+def run_case(robot: Robot, vary: str, lower: npt.ArrayLike, upper: npt.ArrayLike, seed: int
+             ) -> dict[str, Any]:
     """One case's design, its baselines and their certificates (module docstring)."""
     from cdpr_sym.certify.workspace import certify_workspace
     from cdpr_sym.geometry.baseline import differential_evolution
