@@ -4,7 +4,8 @@ geometry (the design's sampled share, the derivative-free baseline's objective).
 The margin of a pose is the largest t such that some tension T with W T = grad V has every
 cable in [T_min + t, T_max - t], N: t >= 0 exactly where the pose is statically feasible.
 With m = n the tension is unique and t = min_i min(T_i - T_min, T_max - T_i) from numpy's
-solve; with m > n it is a linear programme solved by SciPy's HiGHS, one per pose. W and
+solve; with m > n it is a linear programme solved by SciPy's HiGHS (all poses in one
+block-diagonal programme, pose by pose where one has no tension at all). W and
 grad V come from the symbolic model evaluated by CasADi; nothing here shares code with the
 smooth problem of :mod:`~cdpr_sym.geometry.surrogate`.
 """
@@ -48,13 +49,40 @@ def margins_and_tensions(robot: Robot, poses: np.ndarray) -> tuple[np.ndarray, n
         margins[regular] = np.minimum(tension - lo, hi - tension).min(axis=1)
         tensions[regular] = tension
         return margins, tensions
-    for k, (W_k, f_k) in enumerate(zip(W, gravity, strict=True)):
-        margins[k], tensions[k] = _lp_margin(W_k, f_k, lo, hi)
+    return _lp_margins(W, gravity, lo, hi)
+
+
+def _lp_margins(W: np.ndarray, gravity: np.ndarray, lo: float, hi: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Each pose's max t: W T = f, lo + t <= T <= hi - t, as one block-diagonal linear
+    programme (maximising the sum of the t's: the poses share no variable, so each t
+    reaches its own maximum) solved by HiGHS; -inf and NaN where a pose has no tension."""
+    from scipy.optimize import linprog
+    from scipy.sparse import block_diag, csr_matrix, hstack, identity, kron, vstack
+
+    poses, n, m = W.shape
+    equalities = hstack([block_diag(list(W), format="csr"), csr_matrix((poses * n, poses))])
+    column = csr_matrix(np.ones((m, 1)))
+    spread = kron(identity(poses, format="csr"), column)
+    eye = identity(poses * m, format="csr")
+    inequalities = vstack([hstack([eye, spread]), hstack([-eye, spread])])
+    bound = np.concatenate([np.full(poses * m, hi), np.full(poses * m, -lo)])
+    cost = np.concatenate([np.zeros(poses * m), -np.ones(poses)])
+    result = linprog(cost, A_ub=inequalities, b_ub=bound, A_eq=equalities,
+                     b_eq=gravity.ravel(), bounds=[(None, None)] * (poses * (m + 1)),
+                     method="highs")
+    if result.status == 0:
+        return result.x[poses * m:], result.x[:poses * m].reshape(poses, m)
+    # some pose has no tension at all (the block is infeasible): pose by pose
+    margins, tensions = np.full(poses, -np.inf), np.full((poses, m), np.nan)
+    for k in range(poses):
+        margins[k], tensions[k] = _lp_margin(W[k], gravity[k], lo, hi)
     return margins, tensions
 
 
 def _lp_margin(W: np.ndarray, f: np.ndarray, lo: float, hi: float) -> tuple[float, np.ndarray]:
-    """max t: W T = f, lo + t <= T <= hi - t (variables T then t), by HiGHS: (t, T)."""
+    """One pose's max t: W T = f, lo + t <= T <= hi - t (variables T then t), by HiGHS:
+    (t, T); (-inf, NaN) where no tension solves W T = f."""
     from scipy.optimize import linprog
 
     n, m = W.shape
