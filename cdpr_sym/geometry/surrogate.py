@@ -49,7 +49,9 @@ from cdpr_sym.model.geometry_view import GeometryView
 
 #: IPOPT's Hessian: ``exact`` (CasADi's second derivatives) or ``limited-memory``.
 HESSIAN = "exact"
-#: IPOPT's iteration limit per solve.
+#: IPOPT's iteration limit per solve. Its barrier parameter follows the adaptive strategy:
+#: with the monotone default, planar4's margin problem at zero tolerance ran out of 400
+#: iterations far from its optimum (adaptive: 56 iterations; aras3 24 against 34).
 MAX_ITERATIONS = 400
 #: Reweighting rounds of the share problem, and its epsilon (share of the box width).
 SHARE_ROUNDS, SHARE_EPSILON = 4, 0.01
@@ -278,7 +280,7 @@ def _ipopt(x: ca.MX, objective: ca.MX, constraints: ca.MX, x0, lbx, ubx, lbg, ub
     solver = ca.nlpsol("geometry", "ipopt", problem, {
         "print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
         "ipopt.max_iter": MAX_ITERATIONS, "ipopt.tol": 1e-8,
-        "ipopt.hessian_approximation": HESSIAN})
+        "ipopt.hessian_approximation": HESSIAN, "ipopt.mu_strategy": "adaptive"})
     started = time.perf_counter()
     arguments = {"x0": x0, "lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
     if parameters is not None:
