@@ -117,6 +117,7 @@ def test_the_command_writes_a_robot_file_that_reads_back(tmp_path):
     (["--task", "-0.3", "1.0", "0.9"], "task"),
     (["--task", "-0.3", "1.0", "0.9", "2.5"], "task"),
     (["--task", "0.9", "1.0", "-0.3", "1.9"], "task"),
+    (["--task", "-1", "0", "1", "2"], "task"),  # holds both anchors
     (["--task", "-0.3", "1.0", "0.9", "1.9", "--vary", "attachments"], "vary"),
     (["--task", "-0.3", "1.0", "0.9", "1.9", "--within", "1", "2", "0"], "within"),
     (["--task", "-0.3", "1.0", "0.9", "1.9", "--within", "1", "2", "-1", "2"], "within"),

@@ -159,6 +159,8 @@ def _lines(summary: dict) -> list[str]:
     ]
     if "sizing" in summary:
         lines.insert(-1, _sizing_line(summary["sizing"], summary["t_max_N"]))
+    if summary["kept_given"]:
+        lines.insert(1, "the geometry given is kept: no solve held more samples than it")
     if certified["stopped"] == "time_limit":
         lines.insert(2, "the certificate stopped at its time limit: a longer --time-limit "
                         "decides more")

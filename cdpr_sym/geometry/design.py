@@ -119,6 +119,9 @@ class GeometryDesign:
                           "seconds": self.margin_solution.seconds
                           + (0 if self.solution is self.margin_solution
                              else self.solution.seconds)},
+            "kept_given": bool(np.array_equal(self.robot.anchors, self.original.anchors) and (
+                self.robot.attachments is None
+                or np.array_equal(self.robot.attachments, self.original.attachments))),
             "anchors": np.asarray(self.robot.anchors).tolist(),
             "attachments": (None if self.robot.attachments is None
                             else np.asarray(self.robot.attachments).tolist()),

@@ -156,6 +156,7 @@ class SampledProblem:
         missing = ~np.all(np.isfinite(tension), axis=1)
         if missing.any():
             W, gravity = structure_and_gravity(robot, self.poses[missing])
+            W = np.where(np.isfinite(W), W, 0.0)  # a sample on an anchor: no direction
             least = np.einsum("bmn,bn->bm", np.linalg.pinv(W), gravity)
             least = np.where(np.isfinite(least), least, robot.t_min)
             tension[missing] = np.clip(least, robot.t_min, robot.t_max)

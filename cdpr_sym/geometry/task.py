@@ -59,7 +59,8 @@ class TaskRegion:
 
 def task_region(robot: Robot, lower: npt.ArrayLike, upper: npt.ArrayLike) -> TaskRegion:
     """The task region of ``robot``: d finite positions each side, lower < upper, inside the
-    frame; a rigid body holds the case's start orientation.
+    frame, and for a point mass holding none of its anchors; a rigid body holds the case's
+    start orientation.
 
     Raises
     ------
@@ -82,4 +83,11 @@ def task_region(robot: Robot, lower: npt.ArrayLike, upper: npt.ArrayLike) -> Tas
     if np.any(lo < frame_lo) or np.any(hi > frame_hi):
         raise InvalidCase("task", f"{lo.tolist()} to {hi.tolist()} leaves the frame "
                           f"({frame_lo.tolist()} to {frame_hi.tolist()})")
+    if robot.kind == "point":
+        anchors = np.asarray(robot.anchors, dtype=float)
+        inside = np.all((anchors >= lo) & (anchors <= hi), axis=1)
+        if inside.any():
+            raise InvalidCase("task", f"the task box holds anchor {int(np.argmax(inside)) + 1} "
+                              f"({anchors[inside][0].tolist()}): a point there has no cable "
+                              f"direction; keep the task off the anchors")
     return TaskRegion(lo, hi, np.asarray(robot.start[d:], dtype=float))

@@ -107,7 +107,8 @@ class GeometryStudy(Study):
         for name, vary, lower, upper in CASES:
             robot = preset(name)
             if lower is None:
-                lower, upper = central_task(robot)
+                lower, upper = (tuple(float(v) for v in corner)
+                                for corner in central_task(robot))
             if request.progress:
                 print(f"geometry: {name}, {vary}, task {list(lower)} to {list(upper)}",
                       file=sys.stderr, flush=True)
