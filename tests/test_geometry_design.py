@@ -146,44 +146,89 @@ def test_aras3_anchors_cover_the_task_for_every_anchor_within_5_mm():
 
 
 def test_the_baseline_optimises_the_design_objective_within_its_budget():
-    """Differential evolution's objective is the least pointwise margin (the margin
-    problem's at tolerance 0), it spends its budget (a generation at least) and its best
-    is what the objective says of its vector."""
+    """Differential evolution's objective is the least pointwise margin, recomputed here
+    from a numpy statics of the point mass (W's columns the unit vectors to the anchors),
+    it spends its budget (a generation at least) and never ends below the robot's own."""
     from cdpr_sym.geometry.baseline import POPULATION, differential_evolution, objective
 
     robot = preset("planar2")
     task = task_region(robot, [-0.3, 1.0], [0.9, 1.9])
     variables = geometry_variables(robot)
     poses = task.grid()
+
+    def least_margin(anchors: np.ndarray) -> float:
+        towards = anchors[None, :, :] - poses[:, None, :]
+        W = (towards / np.linalg.norm(towards, axis=2, keepdims=True)).transpose(0, 2, 1)
+        weight = np.tile([0.0, robot.mass * robot.gravity], (len(poses), 1))
+        T = np.linalg.solve(W, weight[..., None])[..., 0]
+        return float(np.minimum(T - robot.t_min, robot.t_max - T).min())
+
     start = variables.initial()
-    assert objective(variables, poses, start) == static_margins(robot, poses).min()
+    assert objective(variables, poses, start) == pytest.approx(least_margin(robot.anchors),
+                                                               abs=1e-9)
     free = int(np.sum(variables.upper > variables.lower))
     found = differential_evolution(variables, poses, budget=4 * POPULATION * free, seed=3)
     assert POPULATION * free <= found.evaluations <= 4 * POPULATION * free
-    assert found.margin == pytest.approx(objective(variables, poses, found.vector), abs=1e-12)
-    assert found.margin >= objective(variables, poses, start)  # the robot's own is a member
+    designed = variables.robot_at(found.vector)
+    assert found.margin == pytest.approx(least_margin(designed.anchors), abs=1e-9)
+    assert found.margin >= least_margin(robot.anchors)  # the robot's own is a member
 
 
-def test_motor_sizing_is_proven_and_is_what_the_samples_need():
-    """aras3's task box: the sizing's T_max is proven (its certificate covers the task for
-    every anchor within 5 mm, and poses in its proven boxes hold in numpy at the nominal
-    anchors), it is below the 60 N box, and the samples' bound is the largest tension
-    numpy's solve needs at the sized anchors (to the tolerance scenarios' spread)."""
-    from cdpr_sym.geometry.sampled import margins_and_tensions
-    from cdpr_sym.geometry.sizing import COVERED, smallest_t_max
+def test_the_share_problem_holds_what_it_says_and_more_than_the_margin_problem():
+    """planar2 on a task no geometry covers: the share problem's held samples are feasible
+    at its anchors (numpy), and it holds at least as many as the margin problem's optimum."""
+    robot = preset("planar2")
+    task = task_region(robot, [-0.3, 1.0], [0.9, 1.9])
+    variables = geometry_variables(robot)
+    problem = SampledProblem(variables, task.grid(), 0.0)
+    margin = problem.solve_margin(variables.initial())
+    share = problem.solve_share(margin.vector)
+    assert margin.margin < 0
+    width = robot.t_max - robot.t_min
+    at_share = static_margins(variables.robot_at(share.vector), problem.poses)
+    assert np.all(at_share[share.held] >= -1e-5 * width)
+    at_margin = static_margins(variables.robot_at(margin.vector), problem.poses)
+    assert np.mean(at_share >= -1e-5 * width) >= np.mean(at_margin >= 0)
+
+
+def test_a_rigid_body_designed_with_its_attachments_keeps_the_floor_and_is_proven():
+    """planar3, anchors and attachments varied: the design stays in its bounds, keeps W
+    at least half as regular as the robot's least (numpy's |det W| / prod |w_i|, the
+    rigid body's moment rows included), and its certificate's claim holds at drawn
+    placements."""
+    robot = preset("planar3")
+    d = robot.dimension
+    lower = robot.frame_lower[:d] + 0.25 * (robot.frame_upper[:d] - robot.frame_lower[:d])
+    upper = robot.frame_upper[:d] - 0.25 * (robot.frame_upper[:d] - robot.frame_lower[:d])
+    design = design_geometry(robot, lower, upper, vary="both", certify_seconds=30)
+    anchors = np.asarray(robot.anchors)
+    assert np.all(design.robot.anchors >= anchors.min(axis=0))
+    assert np.all(design.robot.anchors <= anchors.max(axis=0))
+    attachments = np.asarray(robot.attachments)
+    assert np.all(design.robot.attachments >= attachments.min(axis=0))
+    assert np.all(design.robot.attachments <= attachments.max(axis=0))
+    poses = design.task.grid()
+
+    def measures(r):
+        W, _ = structure_and_gravity(r, poses)
+        return np.abs(np.linalg.det(W)) / np.prod(np.linalg.norm(W, axis=1), axis=1)
+
+    if not design.summary()["kept_given"]:
+        assert measures(design.robot).min() >= 0.5 * measures(robot).min() * (1 - 1e-6)
+    assert design.certified_share >= design.original_certificate.shares()["feasible"] - 1e-9
+    assert design.placement_check["violations"] == 0
+
+
+def test_the_placement_check_can_fail():
+    """A certificate proven at the nominal anchors, checked as if it held for +-5 cm: the
+    check finds placements that break proven poses (so a proof that ignored the tolerance
+    would show in every design's report)."""
+    from cdpr_sym.certify.workspace import certify_workspace
+    from cdpr_sym.geometry.design import placement_check
 
     robot = preset("aras3")
-    sizing = smallest_t_max(robot, [-0.6, -1.2, 1.0], [0.6, 1.2, 2.8])
-    assert sizing.proven_t_max is not None and sizing.proven_t_max < robot.t_max
-    assert sizing.robot.t_max == sizing.proven_t_max
-    assert sizing.certificate.shares()["feasible"] >= COVERED
-    assert sizing.proven_t_max >= sizing.sampled_t_max
-    task = task_region(robot, [-0.6, -1.2, 1.0], [0.6, 1.2, 2.8])
-    _, tensions = margins_and_tensions(sizing.robot, task.grid())
-    assert np.max(tensions) == pytest.approx(sizing.sampled_t_max, rel=0.01)
-    rng = np.random.default_rng(11)
-    proven = np.flatnonzero(sizing.certificate.verdicts == "feasible")
-    pick = rng.choice(proven, 500)
-    lower, upper = sizing.certificate.lower[pick], sizing.certificate.upper[pick]
-    points = lower + (upper - lower) * rng.random(lower.shape)
-    assert np.all(static_margins(sizing.robot, points) >= -1e-9)
+    nominal = certify_workspace(robot, region=([-1.0, -2.0, 0.5], [1.0, 2.0, 3.5]),
+                                min_width=0.05, until=1.0)
+    rng = np.random.default_rng(5)
+    assert placement_check(nominal, 0.05, rng)["violations"] > 0
+    assert placement_check(nominal, 0.0, rng)["violations"] == 0

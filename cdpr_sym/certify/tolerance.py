@@ -13,8 +13,7 @@ of more dimensions:
 * **undecided** otherwise (in particular where some placements hold and others do not).
 
 The offsets are never bisected: a box that the tolerance leaves undecided stays so down to
-the minimum width. With delta = 0 the certificate is the nominal one, decided on degenerate
-offset intervals.
+the minimum width. With delta = 0 the nominal model is used (no offsets at all).
 """
 
 from __future__ import annotations

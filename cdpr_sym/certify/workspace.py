@@ -272,7 +272,7 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
         :data:`MAX_PIECES` pieces (``orientation_step``), a minimum width not positive
         (``min_width``), a wrench box of the wrong size or negative (``half_widths``), a
         time limit not positive (``time_limit``), a tolerance negative or over a tenth of
-        the anchors' spacing (``anchor_tolerance``), a region of the wrong size, empty or
+        the frame's largest side (``anchor_tolerance``), a region of the wrong size, empty or
         outside the frame (``region``); work estimated to need a level of more
         than twice :data:`MAX_LEVEL_BOXES` boxes before ``until`` (``until``) or the
         minimum width (``min_width``) or the time limit stops it.

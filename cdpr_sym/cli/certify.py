@@ -316,9 +316,7 @@ def _pairs(args: argparse.Namespace, robot, out: Output) -> int:
             certificate = certify_pairs(robot, args.controller, starts=starts, goals=goals,
                                         width=args.box, min_width=args.min_width,
                                         tracking_margin=args.tracking_margin, design=design,
-                                        time_limit=args.time_limit, progress=progress,
-                                        anchor_tolerance=args.anchor_tolerance,
-                                        region=_region(robot, args.region))
+                                        time_limit=args.time_limit, progress=progress)
     else:
         if args.starts is not None or args.goals is not None:
             raise InvalidCase("sweep", "--sweep certifies the sweep's own pairs; leave out "

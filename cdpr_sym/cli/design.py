@@ -105,6 +105,7 @@ def _sizing(robot, args: argparse.Namespace, within) -> dict:
                             certify_seconds=args.time_limit, seed=args.seed)
     return {"sampled_t_max_N": sizing.sampled_t_max, "proven_t_max_N": sizing.proven_t_max,
             "covered_share": COVERED, "samples_held": sizing.samples_held,
+            "status": sizing.status,
             "certified": sizing.certificate.shares(),
             "certified_t_max_N": sizing.robot.t_max,
             "anchors": sizing.robot.anchors.tolist()}
@@ -116,6 +117,9 @@ def _sizing_line(sizing: dict, t_max: float) -> str:
         return (f"motor sizing: T_max = {sizing['proven_t_max_N']:g} N proven to cover "
                 f"{certified:.3f} % of the task (the samples need "
                 f"{sizing['sampled_t_max_N']:.4g} N; the box given: {t_max:g} N)")
+    if sizing["status"] != "Solve_Succeeded":
+        return (f"motor sizing: the sizing solve ended with {sizing['status']} "
+                f"({certified:.2f} % proven at T_max = {sizing['certified_t_max_N']:g} N)")
     if not sizing["samples_held"]:
         return (f"motor sizing: no T_max covers the task with the geometry found: the floor "
                 f"or the geometry fails, not the motors ({certified:.2f} % proven at "
@@ -141,6 +145,7 @@ def _lines(summary: dict) -> list[str]:
     tolerance = 1000 * summary["anchor_tolerance_m"]
     optimiser = summary["optimiser"]
     margin = summary["margin_N"]
+    checked = summary["placement_check"]
     lines = [
         f"{summary['robot']}: {summary['vary']} designed for the task box "
         f"{summary['task']['lower']} to {summary['task']['upper']} m",
@@ -148,9 +153,14 @@ def _lines(summary: dict) -> list[str]:
         f"{100 * certified['feasible']:.2f} % of the task ({100 * certified['infeasible']:.2f} "
         f"% proven infeasible, {100 * certified['undecided']:.2f} % undecided); the geometry "
         f"given: {100 * given['feasible']:.2f} %",
-        (f"common margin {margin:.3g} N on all {summary['samples']} samples" if margin >= 0
-         else f"no geometry found holds every sample (best common margin {margin:.3g} N); "
-              f"{100 * summary['samples_held']:.1f} % of the {summary['samples']} samples held"),
+        (f"least margin {margin:.3g} N over the {summary['samples']} samples at the "
+         f"nominal anchors" if margin >= 0
+         else f"{100 * summary['samples_held']:.1f} % of the {summary['samples']} samples held "
+              f"at the nominal anchors (least margin {margin:.3g} N; no geometry found holds "
+              f"them all)"),
+        f"the proof sampled: {checked['poses']} poses of its proven boxes at "
+        f"{checked['placements']} anchor placements within the tolerance, "
+        f"{checked['violations']} infeasible",
         f"sampled check at the nominal anchors: {100 * summary['sampled_share']:.2f} % of "
         f"uniform poses (given: {100 * summary['original_sampled_share']:.2f} %)",
         f"optimiser: {optimiser['evaluations']} evaluations, {optimiser['seconds']:.1f} s "

@@ -1,9 +1,10 @@
 """The derivative-free baseline of a geometry design: the same sampled objective handed to
 SciPy's differential evolution with a stated budget of evaluations.
 
-Objective (shared with :mod:`~cdpr_sym.geometry.surrogate`'s margin problem at zero
-tolerance): the least static margin over the task region's sample poses at the design
-vector's geometry, N (:func:`~cdpr_sym.geometry.sampled.static_margins`: numpy's tension with
+Objective (the one :mod:`~cdpr_sym.geometry.surrogate`'s margin problem maximises at zero
+tolerance, without its regularity floor, which a derivative-free search has no way to
+hold but by a penalty): the least static margin over the task region's sample poses at the
+design vector's geometry, N (:func:`~cdpr_sym.geometry.sampled.static_margins`: numpy's tension with
 m = n, HiGHS's linear programme with m > n), maximised within the same bounds. A geometry
 with a singular sample scores the box width below zero (differential evolution needs finite
 values). An evaluation is one pass over every sample, as one of IPOPT's constraint
@@ -53,8 +54,8 @@ def differential_evolution(variables: GeometryVariables, poses: np.ndarray, budg
                            seed: int = 0) -> BaselineResult:
     """Maximise :func:`objective` by SciPy's differential evolution, stopping once ``budget``
     evaluations are spent (the population's first generation always runs: at least
-    :data:`POPULATION` x the varied coordinates), from the robot's geometry among a Latin
-    hypercube population, without the gradient polish."""
+    :data:`POPULATION` x the varied coordinates), from the robot's geometry among a
+    population drawn uniformly in the bounds, without the gradient polish."""
     from scipy.optimize import differential_evolution as evolve
 
     free = variables.upper > variables.lower

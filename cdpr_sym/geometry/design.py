@@ -69,6 +69,10 @@ class GeometryDesign:
         Shares of :data:`CHECK_POSES` uniform poses held at the nominal anchors.
     seconds : float
         Wall-clock time of the whole run.
+    sample_margins : ndarray
+        The designed robot's margin at each sample pose, nominal anchors, N.
+    placement_check : dict
+        :func:`placement_check` of the designed robot's certificate.
     """
 
     robot: Robot
@@ -83,6 +87,8 @@ class GeometryDesign:
     sampled_share: float
     original_sampled_share: float
     seconds: float
+    sample_margins: np.ndarray
+    placement_check: dict
 
     @property
     def certified_share(self) -> float:
@@ -91,9 +97,9 @@ class GeometryDesign:
 
     @property
     def margin_newtons(self) -> float:
-        """The optimiser's common margin t* w, N (negative: no geometry found held every
-        sample)."""
-        return self.margin_solution.margin * (self.robot.t_max - self.robot.t_min)
+        """The least margin over the samples of the geometry kept, at its nominal anchors,
+        N (negative: some sample not held)."""
+        return float(np.min(self.sample_margins))
 
     def summary(self) -> dict:
         """A JSON-ready account of the run."""
@@ -111,7 +117,10 @@ class GeometryDesign:
             "t_max_N": self.robot.t_max,
             "samples": len(self.solution.held),
             "margin_N": self.margin_newtons,
-            "samples_held": float(np.mean(self.solution.held)),
+            "samples_held": float(np.mean(self.sample_margins >= 0)),
+            "optimiser_margin_N": self.margin_solution.margin * (self.robot.t_max
+                                                                 - self.robot.t_min),
+            "placement_check": self.placement_check,
             "optimiser": {"evaluations": self.margin_solution.evaluations
                           + (0 if self.solution is self.margin_solution
                              else self.solution.evaluations),
@@ -187,9 +196,40 @@ def design_geometry(robot: Robot, task_lower: npt.ArrayLike, task_upper: npt.Arr
     poses = task.uniform(CHECK_POSES, np.random.default_rng(seed))
     shares = [float(np.mean(StaticFeasibility().holds(r, poses, np.zeros(0))))
               for r in (designed, robot)]
+    checked = placement_check(certificate, tolerance, np.random.default_rng(seed))
     return GeometryDesign(designed, robot, task, variables, tolerance, solution,
                           margin_solution, certificate, original_certificate, shares[0],
-                          shares[1], time.perf_counter() - started)
+                          shares[1], time.perf_counter() - started,
+                          static_margins(designed, problem.poses), checked)
+
+
+#: The placement check's drawn placements (half at corners of the tolerance box) and poses.
+CHECK_PLACEMENTS, CHECK_PLACED_POSES = 16, 500
+
+
+def placement_check(certificate: WorkspaceCertificate, tolerance: float,
+                    rng: np.random.Generator) -> dict:
+    """The certificate's claim sampled: poses drawn in its proven-feasible boxes, held at
+    anchors drawn within the tolerance (half at corners of the tolerance box, half inside),
+    each judged by :func:`~cdpr_sym.geometry.sampled.static_margins`; the count found
+    infeasible must be 0. Returns poses, placements and violations."""
+    robot = certificate.robot
+    proven = np.flatnonzero(certificate.verdicts == "feasible")
+    if not len(proven):
+        return {"poses": 0, "placements": 0, "violations": 0}
+    pick = rng.choice(proven, CHECK_PLACED_POSES)
+    lower, upper = certificate.lower[pick], certificate.upper[pick]
+    positions = lower + (upper - lower) * rng.random(lower.shape)
+    poses = np.hstack([positions, np.tile(certificate.orientation, (len(positions), 1))])
+    anchors = np.asarray(robot.anchors, dtype=float)
+    violations = 0
+    for k in range(CHECK_PLACEMENTS):
+        offsets = (rng.choice([-1.0, 1.0], size=anchors.shape) if k % 2 == 0
+                   else rng.uniform(-1.0, 1.0, size=anchors.shape))
+        placed = robot.with_case(anchors=anchors + tolerance * offsets)
+        violations += int(np.sum(static_margins(placed, poses) < -1e-9))
+    return {"poses": CHECK_PLACED_POSES, "placements": CHECK_PLACEMENTS,
+            "violations": violations}
 
 
 def best_of(variables: GeometryVariables, poses: np.ndarray, vectors: list[np.ndarray]

@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cdpr_sym.certify.workspace import WorkspaceCertificate, certify_workspace
-from cdpr_sym.geometry.sampled import static_margins
+from cdpr_sym.geometry.sampled import margins_and_tensions
 from cdpr_sym.geometry.surrogate import SampledProblem
 from cdpr_sym.geometry.task import task_region
 from cdpr_sym.geometry.variables import geometry_variables
@@ -27,8 +27,8 @@ from cdpr_sym.robot import Robot
 
 #: The raises of the samples' bound tried in turn (shares of it).
 HEADROOM = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
-#: The gate before the proofs: every sample held at the nominal anchors to within this
-#: share of the box width.
+#: The gate before the proofs: every sample's tension at least T_min less this share of
+#: (tau - T_min) at the nominal anchors.
 GATE = 0.01
 #: The proven share of the task that counts as covering it.
 COVERED = 0.999
@@ -51,10 +51,13 @@ class Sizing:
     certificate : WorkspaceCertificate
         Of that robot over the task.
     samples_held : bool
-        Whether the sizing's geometry holds every sample with some T_max (checked by the
-        pointwise judge, :func:`~cdpr_sym.geometry.sampled.static_margins`): False when the
-        floor T_min or the geometry, not T_max, is what fails (a point mass outside its
+        Whether the sizing's solve converged and its geometry holds every sample on or over
+        the floor T_min (by the pointwise judge at the nominal anchors,
+        :func:`~cdpr_sym.geometry.sampled.margins_and_tensions`): False when the solve failed
+        or the floor or the geometry, not T_max, is what fails (a point mass outside its
         anchors' reach); then only the largest raise is certified, for the record.
+    status : str
+        IPOPT's return status of the sizing solve.
     """
 
     sampled_t_max: float
@@ -62,6 +65,7 @@ class Sizing:
     robot: Robot
     certificate: WorkspaceCertificate
     samples_held: bool
+    status: str
 
 
 def smallest_t_max(robot: Robot, task_lower: npt.ArrayLike, task_upper: npt.ArrayLike, *,
@@ -79,10 +83,16 @@ def smallest_t_max(robot: Robot, task_lower: npt.ArrayLike, task_upper: npt.Arra
     problem = SampledProblem(variables, task.grid(), tolerance, seed)
     solution, tau = problem.solve_sizing(variables.initial())
     placed = variables.robot_at(solution.vector, f"{robot.name}-sized")
-    loose = placed.with_case(t_max=max(tau, robot.t_min + 1e-9) * (1 + HEADROOM[0]))
-    # the solve holds each sample at its own tolerance scenario, the judge at the nominal
-    # anchors: a sample on the floor may read a little under it (0.07 N on aras3)
-    held = bool(np.all(static_margins(loose, problem.poses) >= -GATE * problem.width))
+    # the gate: every sample's tension on or over the floor at the nominal anchors (the
+    # ceiling is what the raises below are for); the solve holds each sample at its own
+    # tolerance scenario, so a sample on the floor may read a little under it (0.07 N on
+    # aras3): GATE of the sized box's width is allowed
+    loose = placed.with_case(t_max=max(tau, robot.t_min + 1e-9) * (1 + HEADROOM[-1]))
+    _, tensions = margins_and_tensions(loose, problem.poses)
+    floor = np.nanmin(tensions, axis=1) - robot.t_min if np.all(np.isfinite(tensions)) \
+        else np.array([-np.inf])
+    held = (solution.status == "Solve_Succeeded"
+            and bool(np.all(floor >= -GATE * (tau - robot.t_min))))
     sized, certificate = placed, None
     for share in HEADROOM if held else HEADROOM[-1:]:
         bound = float(np.ceil(tau * (1 + share) * 100) / 100)  # to the centinewton above
@@ -92,5 +102,5 @@ def smallest_t_max(robot: Robot, task_lower: npt.ArrayLike, task_upper: npt.Arra
             time_limit=certify_seconds,
             orientation=task.orientation if len(task.orientation) else None)
         if held and certificate.shares()["feasible"] >= COVERED:
-            return Sizing(tau, bound, sized, certificate, held)
-    return Sizing(tau, None, sized, certificate, held)
+            return Sizing(tau, bound, sized, certificate, held, solution.status)
+    return Sizing(tau, None, sized, certificate, held, solution.status)

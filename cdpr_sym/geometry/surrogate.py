@@ -132,6 +132,11 @@ class SampledProblem:
         return ca.vertcat(ca.vec(mapped(self.poses.T, shared, self.offsets.T, tensions)),
                           self.regularity(self.poses.T, shared, self.offsets.T).T)
 
+    def _bounded(self, vector: np.ndarray) -> np.ndarray:
+        """IPOPT's design vector clipped into its bounds (IPOPT relaxes them by about 1e-8
+        of their size: an anchor 3.5e-8 m outside the frame)."""
+        return np.clip(vector, self.variables.lower, self.variables.upper)
+
     def _spread(self, flat: ca.MX) -> ca.MX:
         """REGULARISER x the mean squared distance of the tensions from the box's middle, in
         box widths: a tie-break among the tensions that hold a sample equally well."""
@@ -181,7 +186,7 @@ class SampledProblem:
         result = _ipopt(ca.vertcat(p, flat, t), -t + self._spread(flat), constraints, x0, lbx,
                         ubx, lbg, ubg)
         x = result.x
-        vector, tension = x[:k], x[k:k + mN].reshape(self.N, self.m)
+        vector, tension = self._bounded(x[:k]), x[k:k + mN].reshape(self.N, self.m)
         margin = float(x[-1])
         held = np.all((tension >= robot.t_min - HELD * self.width)
                       & (tension <= robot.t_max + HELD * self.width), axis=1)
@@ -208,8 +213,8 @@ class SampledProblem:
                         constraints, x0, lbx, ubx, lbg, ubg)
         x = result.x
         held = np.ones(self.N, dtype=bool)
-        return (Solution(x[:k], 0.0, held, result.evaluations, result.iterations,
-                         result.seconds, result.status), float(x[-1]))
+        return (Solution(self._bounded(x[:k]), 0.0, held, result.evaluations,
+                         result.iterations, result.seconds, result.status), float(x[-1]))
 
     def solve_share(self, start: np.ndarray, rounds: int = SHARE_ROUNDS) -> Solution:
         """Hold as many samples as the reweighted l1 problem finds (module docstring)."""
@@ -240,8 +245,8 @@ class SampledProblem:
             status = result.status
             omega = 1.0 / (np.maximum(x[k + mN:], 0.0) + SHARE_EPSILON)
         s = x[k + mN:]
-        return Solution(x[:k], -float(s.max()), s <= HELD, evaluations, iterations, seconds,
-                        status)
+        return Solution(self._bounded(x[:k]), -float(s.max()), s <= HELD, evaluations,
+                        iterations, seconds, status)
 
 
 def _regularity(view: GeometryView, W: ca.SX) -> ca.SX:

@@ -10,9 +10,9 @@ frame's size on every axis (the rule; no task was chosen per robot). Each case r
   own geometry certified the same way;
 * the baseline (:func:`~cdpr_sym.geometry.baseline.differential_evolution`): SciPy's
   differential evolution maximising the least sampled margin at the nominal anchors, with
-  the budget of the design's own margin solve at zero tolerance (the same objective, so the
-  same problem: :mod:`~cdpr_sym.geometry.baseline`), and with 20 times that budget; each
-  result certified as the design's is.
+  the budget of the design's own margin solve at zero tolerance (the same objective; the
+  baseline holds no regularity floor: :mod:`~cdpr_sym.geometry.baseline`), and with 20 times
+  that budget; each result certified as the design's is.
 
 ``runs.json`` holds the cases' results; the report is written from ``summary.json``.
 """
@@ -160,6 +160,9 @@ def _row(row: dict[str, Any]) -> dict[str, Any]:
             "stopped": design["certified"]["stopped"],
             "margin_N": design["margin_N"], "samples_held": design["samples_held"],
             "sampled_share": design["sampled_share"],
+            "placement_violations": design["placement_check"]["violations"],
+            "placement_poses": (design["placement_check"]["poses"]
+                                * design["placement_check"]["placements"]),
             "given_sampled_share": design["original_sampled_share"],
             "evaluations": design["optimiser"]["evaluations"],
             "optimiser_seconds": design["optimiser"]["seconds"],
