@@ -41,7 +41,7 @@ class BaselineResult:
 def objective(variables: GeometryVariables, poses: np.ndarray, vector: np.ndarray) -> float:
     """The least margin over ``poses`` at ``vector``'s geometry, N (module docstring)."""
     robot = variables.robot
-    width = robot.t_max - robot.t_min
+    width = robot.box.width
     try:
         margins = static_margins(variables.robot_at(vector), poses)
     except CdprError:  # a geometry the robot description refuses (a case pose on an anchor)

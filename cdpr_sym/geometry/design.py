@@ -118,8 +118,7 @@ class GeometryDesign:
             "samples": len(self.solution.held),
             "margin_N": self.margin_newtons,
             "samples_held": float(np.mean(self.sample_margins >= 0)),
-            "optimiser_margin_N": self.margin_solution.margin * (self.robot.t_max
-                                                                 - self.robot.t_min),
+            "optimiser_margin_N": self.margin_solution.margin * self.robot.box.width,
             "placement_check": self.placement_check,
             "optimiser": {"evaluations": self.margin_solution.evaluations
                           + (0 if self.solution is self.margin_solution

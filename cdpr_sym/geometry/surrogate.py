@@ -106,7 +106,7 @@ class SampledProblem:
         robot = variables.robot
         self.variables, self.poses = variables, np.asarray(poses, dtype=float)
         self.m, self.n, self.N = robot.m, robot.n, len(self.poses)
-        self.width = robot.t_max - robot.t_min
+        self.width = robot.box.width
         rng = np.random.default_rng(seed)
         self.offsets = tolerance * rng.choice([-1.0, 1.0], size=(self.N, robot.m * robot.dimension))
         q = ca.SX.sym("q", robot.n)
@@ -140,8 +140,7 @@ class SampledProblem:
     def _spread(self, flat: ca.MX) -> ca.MX:
         """REGULARISER x the mean squared distance of the tensions from the box's middle, in
         box widths: a tie-break among the tensions that hold a sample equally well."""
-        robot = self.variables.robot
-        middle = 0.5 * (robot.t_min + robot.t_max)
+        middle = self.variables.robot.box.middle
         return REGULARISER * ca.sumsqr((flat - middle) / self.width) / self.N
 
     def _equalities(self) -> tuple[np.ndarray, np.ndarray]:

@@ -69,7 +69,7 @@ def run_case(robot: Robot, vary: str, lower: npt.ArrayLike, upper: npt.ArrayLike
     task, variables = design.task, design.variables
     poses = task.grid()
     nominal = SampledProblem(variables, poses, 0.0, seed).solve_margin(variables.initial())
-    width = robot.t_max - robot.t_min
+    width = robot.box.width
     baselines = []
     for multiple in BUDGETS:
         budget = multiple * nominal.evaluations
