@@ -204,8 +204,8 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
                       time_limit: float = DEFAULT_TIME_LIMIT,
                       progress: Callable[[Progress], None] | None = None,
                       anchor_tolerance: float = 0.0,
-                      region: tuple[npt.ArrayLike, npt.ArrayLike] | None = None
-                      ) -> WorkspaceCertificate:
+                      region: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+                      refuse: bool | None = None) -> WorkspaceCertificate:
     """The certified static workspace of ``robot`` over its frame (module docstring).
 
     The refinement stops at the first of ``until``, ``min_width`` and ``time_limit`` (or a
@@ -262,6 +262,10 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
     region : (sequence of float, sequence of float), optional
         The positions' (lower, upper) corners of the box certified, m, inside the frame
         (default: the frame); shares are of its volume.
+    refuse : bool, optional
+        Whether work estimated not to fit in memory is refused (the default when
+        ``min_width`` or ``until`` is given) or stopped where memory ends, keeping what is
+        decided (the default otherwise; what a caller that must give an answer asks for).
 
     Raises
     ------
@@ -277,7 +281,7 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
         than twice :data:`MAX_LEVEL_BOXES` boxes before ``until`` (``until``) or the
         minimum width (``min_width``) or the time limit stops it.
     """
-    asked = min_width is not None or until is not None
+    asked = (min_width is not None or until is not None) if refuse is None else refuse
     min_width = DEFAULT_MIN_WIDTH if min_width is None else min_width
     until = DEFAULT_UNTIL if until is None else until
     d = robot.dimension

@@ -43,8 +43,22 @@ DEFAULT_TOLERANCE = 0.005
 CHECK_POSES = 20_000
 #: s: the certificate's branch-and-bound time limit by default (each of the two).
 CERTIFY_SECONDS = 120.0
-#: m: the certificate's narrowest box (the workspace certificate's default).
-CERTIFY_MIN_WIDTH = 0.005
+#: m: the certificate's narrowest box: the workspace certificate's default (5 mm), or
+#: this share of the task box's largest side if that is wider (a 20 m task stops at 4 cm,
+#: as a 2.5 m one stops at 5 mm).
+CERTIFY_MIN_WIDTH, CERTIFY_MIN_SHARE = 0.005, 1.0 / 512
+
+
+def certify_task(robot: Robot, task: TaskRegion, tolerance: float, seconds: float
+                 ) -> WorkspaceCertificate:
+    """``robot``'s certificate over the task box for every anchor within ``tolerance``:
+    refined until every box is decided, down to :data:`CERTIFY_MIN_WIDTH` (or its share
+    of the task), within ``seconds``, stopping where memory ends rather than refusing."""
+    width = max(CERTIFY_MIN_WIDTH, CERTIFY_MIN_SHARE * float(np.max(task.upper - task.lower)))
+    return certify_workspace(robot, region=(task.lower, task.upper),
+                             anchor_tolerance=tolerance,
+                             orientation=task.orientation if len(task.orientation) else None,
+                             until=1.0, min_width=width, time_limit=seconds, refuse=False)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -187,11 +201,8 @@ def design_geometry(robot: Robot, task_lower: npt.ArrayLike, task_upper: npt.Arr
     vector = best_of(variables, problem.poses,
                      [variables.initial(), margin_solution.vector, solution.vector])
     designed = variables.robot_at(vector, name or f"{robot.name}-designed")
-    certificate, original_certificate = (
-        certify_workspace(r, region=(task.lower, task.upper), anchor_tolerance=tolerance,
-                          orientation=task.orientation if len(task.orientation) else None,
-                          until=1.0, min_width=CERTIFY_MIN_WIDTH, time_limit=certify_seconds)
-        for r in (designed, robot))
+    certificate, original_certificate = (certify_task(r, task, tolerance, certify_seconds)
+                                         for r in (designed, robot))
     poses = task.uniform(CHECK_POSES, np.random.default_rng(seed))
     shares = [float(np.mean(StaticFeasibility().holds(r, poses, np.zeros(0))))
               for r in (designed, robot)]

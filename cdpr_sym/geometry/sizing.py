@@ -18,7 +18,8 @@ import dataclasses
 import numpy as np
 import numpy.typing as npt
 
-from cdpr_sym.certify.workspace import WorkspaceCertificate, certify_workspace
+from cdpr_sym.certify.workspace import WorkspaceCertificate
+from cdpr_sym.geometry.design import certify_task
 from cdpr_sym.geometry.sampled import margins_and_tensions
 from cdpr_sym.geometry.surrogate import SampledProblem
 from cdpr_sym.geometry.task import task_region
@@ -97,10 +98,7 @@ def smallest_t_max(robot: Robot, task_lower: npt.ArrayLike, task_upper: npt.Arra
     for share in HEADROOM if held else HEADROOM[-1:]:
         bound = float(np.ceil(tau * (1 + share) * 100) / 100)  # to the centinewton above
         sized = placed.with_case(t_max=bound)
-        certificate = certify_workspace(
-            sized, region=(task.lower, task.upper), anchor_tolerance=tolerance, until=1.0,
-            time_limit=certify_seconds,
-            orientation=task.orientation if len(task.orientation) else None)
+        certificate = certify_task(sized, task, tolerance, certify_seconds)
         if held and certificate.shares()["feasible"] >= COVERED:
             return Sizing(tau, bound, sized, certificate, held, solution.status)
     return Sizing(tau, None, sized, certificate, held, solution.status)

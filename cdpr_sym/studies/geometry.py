@@ -59,9 +59,8 @@ def central_task(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
 def run_case(robot: Robot, vary: str, lower: npt.ArrayLike, upper: npt.ArrayLike, seed: int
              ) -> dict[str, Any]:
     """One case's design, its baselines and their certificates (module docstring)."""
-    from cdpr_sym.certify.workspace import certify_workspace
     from cdpr_sym.geometry.baseline import differential_evolution
-    from cdpr_sym.geometry.design import design_geometry
+    from cdpr_sym.geometry.design import certify_task, design_geometry
     from cdpr_sym.geometry.surrogate import SampledProblem
 
     design = design_geometry(robot, lower, upper, vary=vary, anchor_tolerance=TOLERANCE,
@@ -74,10 +73,8 @@ def run_case(robot: Robot, vary: str, lower: npt.ArrayLike, upper: npt.ArrayLike
     for multiple in BUDGETS:
         budget = multiple * nominal.evaluations
         found = differential_evolution(variables, poses, budget, seed)
-        certificate = certify_workspace(
-            variables.robot_at(found.vector), region=(task.lower, task.upper),
-            anchor_tolerance=TOLERANCE, until=1.0, time_limit=CERTIFY_SECONDS,
-            orientation=task.orientation if len(task.orientation) else None)
+        certificate = certify_task(variables.robot_at(found.vector), task, TOLERANCE,
+                                   CERTIFY_SECONDS)
         baselines.append({"budget": budget, "evaluations": found.evaluations,
                           "margin_N": found.margin, "seconds": found.seconds,
                           "certified": certificate.shares()["feasible"],
