@@ -79,7 +79,7 @@ def test_no_committed_report_file_is_over_a_megabyte():
     "reports/designs/sweep_mass_1.0.csv", "reports/rigid/spatial6_sweep.csv",
     "reports/rigid/planar3/runs/index.json", "reports/redundant/same_pairs.json",
     "reports/redundant/ipanema8_sweep.csv", "reports/robustness/runs.json",
-    "reports/calibration/runs.json"])
+    "reports/calibration/runs.json", "reports/geometry/runs.json"])
 def test_the_per_run_files_are_left_out_of_git(path):
     done = _git("check-ignore", "--no-index", "--quiet", path)
     assert done.returncode == 0, f"{path} is not ignored"

@@ -3,8 +3,8 @@ region, then prove what the result covers with the interval engine.
 
 1. **Optimise** (:mod:`~cdpr_sym.geometry.surrogate`): from the robot's own geometry,
    maximise the common static margin t over the task region's sample poses, each at a
-   scenario of the anchor tolerance. If t* < 0 (no geometry found holds every sample), hold
-   as many samples as the reweighted l1 problem finds instead.
+   scenario of the anchor tolerance. If t* < 0 (no geometry found holds every sample) and
+   the solve converged, hold as many samples as the reweighted l1 problem finds instead.
 2. **Certify** (:func:`~cdpr_sym.certify.workspace.certify_workspace` over the task region,
    ``anchor_tolerance``): the share of the region's volume proven statically feasible for
    every anchor within the tolerance of the designed ones; what is proven infeasible (for
@@ -37,6 +37,10 @@ from cdpr_sym.geometry.task import TaskRegion, task_region
 from cdpr_sym.geometry.variables import GeometryVariables, geometry_variables
 from cdpr_sym.robot import Robot
 
+#: IPOPT's statuses after which t* < 0 says that no geometry near the start holds every
+#: sample, so that holding the most of them is worth a solve: a failed solve says nothing
+#: (ipanema8 with its attachments varied ends "infeasible" from a start holding them all).
+CONVERGED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 #: m: the anchor tolerance proven by default (a frame drilled to +-5 mm).
 DEFAULT_TOLERANCE = 0.005
 #: Uniform poses of the task region of the independent sampled check.
@@ -196,7 +200,7 @@ def design_geometry(robot: Robot, task_lower: npt.ArrayLike, task_upper: npt.Arr
     problem = SampledProblem(variables, task.grid(), tolerance, seed)
     margin_solution = problem.solve_margin(variables.initial())
     solution = margin_solution
-    if margin_solution.margin < 0:
+    if margin_solution.margin < 0 and margin_solution.status in CONVERGED:
         solution = problem.solve_share(margin_solution.vector)
     vector = best_of(variables, problem.poses,
                      [variables.initial(), margin_solution.vector, solution.vector])

@@ -47,8 +47,11 @@ from cdpr_sym.linalg import gram_determinant, weighted_gram
 from cdpr_sym.model import SymbolicModel, kinematics
 from cdpr_sym.model.geometry_view import GeometryView
 
-#: IPOPT's Hessian: ``exact`` (CasADi's second derivatives) or ``limited-memory``.
-HESSIAN = "exact"
+#: IPOPT's Hessian by body kind: CasADi's exact second derivatives, except for a spatial
+#: body, whose W is itself a derivative of the cable lengths (through the rotation): its
+#: exact Hessian made ipanema8's design with its attachments varied run over 15 minutes,
+#: L-BFGS 16 s.
+HESSIAN = {"point": "exact", "planar": "exact", "spatial": "limited-memory"}
 #: IPOPT's iteration limit per solve. Its barrier parameter follows the adaptive strategy:
 #: with the monotone default, planar4's margin problem at zero tolerance ran out of 400
 #: iterations far from its optimum (adaptive: 56 iterations; aras3 24 against 34).
@@ -107,6 +110,7 @@ class SampledProblem:
         self.variables, self.poses = variables, np.asarray(poses, dtype=float)
         self.m, self.n, self.N = robot.m, robot.n, len(self.poses)
         self.width = robot.box.width
+        self.hessian = HESSIAN[robot.kind]
         rng = np.random.default_rng(seed)
         self.offsets = tolerance * rng.choice([-1.0, 1.0], size=(self.N, robot.m * robot.dimension))
         q = ca.SX.sym("q", robot.n)
@@ -183,7 +187,7 @@ class SampledProblem:
         lbx = np.concatenate([self.variables.lower, np.full(mN, -inf), [-inf]])
         ubx = np.concatenate([self.variables.upper, np.full(mN, inf), [0.5]])
         result = _ipopt(ca.vertcat(p, flat, t), -t + self._spread(flat), constraints, x0, lbx,
-                        ubx, lbg, ubg)
+                        ubx, lbg, ubg, hessian=self.hessian)
         x = result.x
         vector, tension = self._bounded(x[:k]), x[k:k + mN].reshape(self.N, self.m)
         margin = float(x[-1])
@@ -209,7 +213,8 @@ class SampledProblem:
         lbx = np.concatenate([self.variables.lower, np.full(mN, robot.t_min), [robot.t_min]])
         ubx = np.concatenate([self.variables.upper, np.full(mN, np.inf), [np.inf]])
         result = _ipopt(ca.vertcat(p, flat, tau), tau / self.width + self._spread(flat),
-                        constraints, x0, lbx, ubx, lbg, ubg)
+                        constraints, x0, lbx, ubx, lbg, ubg,
+                         hessian=self.hessian)
         x = result.x
         held = np.ones(self.N, dtype=bool)
         return (Solution(self._bounded(x[:k]), 0.0, held, result.evaluations,
@@ -236,7 +241,8 @@ class SampledProblem:
         for _ in range(rounds):
             result = _ipopt(ca.vertcat(p, flat, violation),
                             ca.dot(weights, violation) + self._spread(flat),
-                            constraints, x, lbx, ubx, lbg, ubg, parameters=(weights, omega))
+                            constraints, x, lbx, ubx, lbg, ubg, parameters=(weights, omega),
+                            hessian=self.hessian)
             x = result.x
             evaluations += result.evaluations
             iterations += result.iterations
@@ -277,7 +283,8 @@ class _Result:
 
 
 def _ipopt(x: ca.MX, objective: ca.MX, constraints: ca.MX, x0, lbx, ubx, lbg, ubg,
-           parameters: tuple[ca.MX, np.ndarray] | None = None) -> _Result:
+           parameters: tuple[ca.MX, np.ndarray] | None = None, hessian: str = "exact"
+           ) -> _Result:
     """One IPOPT solve, quiet; its constraint evaluations, iterations, time and status."""
     problem = {"x": x, "f": objective, "g": constraints}
     if parameters is not None:
@@ -285,7 +292,7 @@ def _ipopt(x: ca.MX, objective: ca.MX, constraints: ca.MX, x0, lbx, ubx, lbg, ub
     solver = ca.nlpsol("geometry", "ipopt", problem, {
         "print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
         "ipopt.max_iter": MAX_ITERATIONS, "ipopt.tol": 1e-8,
-        "ipopt.hessian_approximation": HESSIAN, "ipopt.mu_strategy": "adaptive"})
+        "ipopt.hessian_approximation": hessian, "ipopt.mu_strategy": "adaptive"})
     started = time.perf_counter()
     arguments = {"x0": x0, "lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
     if parameters is not None:
