@@ -152,7 +152,7 @@ def _row(row: dict[str, Any]) -> dict[str, Any]:
     design = row["design"]
     task = design["task"]
     return {"robot": row["robot"], "m": row["m"], "n": row["n"], "kind": row["kind"],
-            "vary": row["vary"],
+            "vary": row["vary"], "kept_given": design["kept_given"],
             "task": f"{_corner(task['lower'])} to {_corner(task['upper'])}",
             "given": design["original_certified"]["feasible"],
             "designed": design["certified"]["feasible"],
@@ -197,8 +197,9 @@ def _figure(table: list[dict[str, Any]], path: Path) -> None:
                  label=label, color=colour)
     axes.set_xticks(x, labels, fontsize=8)
     axes.set_ylabel("task proven feasible, % (anchors +-5 mm)")
-    axes.set_ylim(0, 105)
-    axes.legend(fontsize=8, loc="lower right")
+    axes.set_ylim(0, 122)
+    axes.set_yticks(range(0, 101, 20))
+    axes.legend(fontsize=8, loc="upper center", ncol=len(series), frameon=False)
     figure.tight_layout()
     figure.savefig(path, dpi=100)
     plt.close(figure)
