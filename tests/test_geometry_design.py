@@ -191,6 +191,7 @@ def test_the_share_problem_holds_what_it_says_and_more_than_the_margin_problem()
     assert np.mean(at_share >= -1e-5 * width) >= np.mean(at_margin >= 0)
 
 
+@pytest.mark.slow
 def test_a_rigid_body_designed_with_its_attachments_keeps_the_floor_and_is_proven():
     """planar3, anchors and attachments varied: the design stays in its bounds, keeps W
     at least half as regular as the robot's least (numpy's |det W| / prod |w_i|, the
