@@ -47,11 +47,13 @@ from cdpr_sym.linalg import gram_determinant, weighted_gram
 from cdpr_sym.model import SymbolicModel, kinematics
 from cdpr_sym.model.geometry_view import GeometryView
 
-#: IPOPT's Hessian by body kind: CasADi's exact second derivatives, except for a spatial
-#: body, whose W is itself a derivative of the cable lengths (through the rotation): its
-#: exact Hessian made ipanema8's design with its attachments varied run over 15 minutes,
-#: L-BFGS 16 s.
-HESSIAN = {"point": "exact", "planar": "exact", "spatial": "limited-memory"}
+#: IPOPT's Hessian: CasADi's exact second derivatives, except when a spatial body's
+#: attachments vary (W, itself a derivative of the cable lengths through the rotation, is
+#: then a product of the varied attachments and the rotation): that exact Hessian ran
+#: ipanema8's anchors-and-attachments design past 15 minutes, L-BFGS 2 minutes. With the
+#: anchors alone the exact one stays (the 173 kg 8-cable zoo platform: sampled share 16 %
+#: -> 100 % exact, 16 % with L-BFGS).
+LIMITED_MEMORY = "limited-memory"
 #: IPOPT's iteration limit per solve. Its barrier parameter follows the adaptive strategy:
 #: with the monotone default, planar4's margin problem at zero tolerance ran out of 400
 #: iterations far from its optimum (adaptive: 56 iterations; aras3 24 against 34).
@@ -110,7 +112,8 @@ class SampledProblem:
         self.variables, self.poses = variables, np.asarray(poses, dtype=float)
         self.m, self.n, self.N = robot.m, robot.n, len(self.poses)
         self.width = robot.box.width
-        self.hessian = HESSIAN[robot.kind]
+        self.hessian = (LIMITED_MEMORY if robot.kind == "spatial" and variables.attachments_vary
+                        else "exact")
         rng = np.random.default_rng(seed)
         self.offsets = tolerance * rng.choice([-1.0, 1.0], size=(self.N, robot.m * robot.dimension))
         q = ca.SX.sym("q", robot.n)
