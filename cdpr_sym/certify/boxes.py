@@ -10,10 +10,38 @@ import numpy as np
 import numpy.typing as npt
 
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot import Robot
 
 #: Narrowest box a certificate refines to, m: ten micrometres, far below what any cable robot
 #: is built or measured to; a narrower --min-width only asks for an endless refinement.
 MIN_BOX_WIDTH = 1e-5
+
+def checked_region(robot: Robot, region: tuple[npt.ArrayLike, npt.ArrayLike] | None,
+                   field: str = "region") -> tuple[np.ndarray, np.ndarray]:
+    """A box of positions, (lower, upper), m: the frame's for ``region=None``, else
+    ``region`` checked to hold d finite positions each side, lower < upper on every axis,
+    inside the frame; :class:`InvalidCase` naming ``field`` otherwise."""
+    d = robot.dimension
+    frame = (np.asarray(robot.frame_lower[:d], dtype=float),
+             np.asarray(robot.frame_upper[:d], dtype=float))
+    if region is None:
+        return frame
+    try:
+        lower, upper = (np.asarray(corner, dtype=float).ravel() for corner in region)
+    except (TypeError, ValueError):
+        raise InvalidCase(field, f"expected {d} lower then {d} upper positions (m), got "
+                          f"{region!r}") from None
+    if lower.size != d or upper.size != d or not np.all(np.isfinite(lower) & np.isfinite(upper)):
+        raise InvalidCase(field, f"expected {d} finite lower then {d} upper positions (m), "
+                          f"got {lower.tolist()} and {upper.tolist()}")
+    if not np.all(lower < upper):
+        raise InvalidCase(field, f"expected lower < upper on every axis, got "
+                          f"{lower.tolist()} and {upper.tolist()}")
+    if np.any(lower < frame[0]) or np.any(upper > frame[1]):
+        raise InvalidCase(field, f"{lower.tolist()} to {upper.tolist()} leaves the frame "
+                          f"({frame[0].tolist()} to {frame[1].tolist()})")
+    return lower, upper
+
 
 def check_min_width(min_width: float, largest: float, field: str = "min_width") -> None:
     """Refuse a minimum box width that is not a number in [:data:`MIN_BOX_WIDTH`,

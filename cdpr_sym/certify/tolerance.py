@@ -18,10 +18,9 @@ the minimum width. With delta = 0 the nominal model is used (no offsets at all).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from cdpr_sym.checks import positive_number
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
 
@@ -47,13 +46,10 @@ class OverAnchorTolerance:
 def checked_tolerance(robot: Robot, tolerance: object) -> float:
     """The anchor tolerance, m: finite, >= 0 and at most a tenth of the frame's largest
     side (a wider one is not a build tolerance; the proof would hold, and say little)."""
-    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) \
-            or not math.isfinite(tolerance) or tolerance < 0:
-        raise InvalidCase("anchor_tolerance", f"expected a distance >= 0 in m, got "
-                          f"{tolerance!r}")
+    tolerance = positive_number("anchor_tolerance", tolerance, "m", zero=True)
     d = robot.dimension
     side = float(np.max(np.subtract(robot.frame_upper[:d], robot.frame_lower[:d])))
     if tolerance > 0.1 * side:
         raise InvalidCase("anchor_tolerance", f"{tolerance:g} m is more than a tenth of the "
                           f"frame's largest side ({side:.4g} m)")
-    return float(tolerance)
+    return tolerance

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from cdpr_sym.certify.boxes import bisect, check_min_width
+from cdpr_sym.certify.boxes import bisect, check_min_width, checked_region
 from cdpr_sym.certify.budget import (
     DEFAULT_TIME_LIMIT,
     Clock,
@@ -306,7 +306,7 @@ def certify_workspace(robot: Robot, *, orientation: npt.ArrayLike | None = None,
         raise InvalidCase("until", f"expected a share in (0, 1], got {until!r}")
     wrench = _checked_half_widths(robot, half_widths)
     tolerance = checked_tolerance(robot, anchor_tolerance)
-    lower, upper = _checked_region(robot, region)
+    lower, upper = checked_region(robot, region)
     method = method_for(robot, wrench is not None, prop)
     model = SymbolicModel(anchors_moved(robot) if tolerance else robot)
     decide = _verdicts_by(method, model, None if pieces else orientation, compiled, wrench)
@@ -410,30 +410,6 @@ def _verdicts_by(method: ProofMethod, model: SymbolicModel, orientation: np.ndar
     """The box verdicts of ``method`` at the fixed ``orientation``, or over whole-pose boxes
     (``orientation=None``)."""
     return method.verdicts(model, orientation, compiled, wrench)
-
-
-def _checked_region(robot: Robot, region) -> tuple[np.ndarray, np.ndarray]:
-    """The positions' box certified, (lower, upper), m: the frame's by default, else
-    ``region`` checked to be a non-empty box of d positions inside the frame."""
-    d = robot.dimension
-    frame = (np.asarray(robot.frame_lower[:d], dtype=float),
-             np.asarray(robot.frame_upper[:d], dtype=float))
-    if region is None:
-        return frame
-    try:
-        lower, upper = (np.asarray(corner, dtype=float).ravel() for corner in region)
-    except (TypeError, ValueError):
-        raise InvalidCase("region", f"expected (lower, upper) corners, got {region!r}") from None
-    if lower.size != d or upper.size != d or not np.all(np.isfinite(lower) & np.isfinite(upper)):
-        raise InvalidCase("region", f"expected {d} finite lower and {d} upper positions (m), "
-                          f"got {lower.tolist()} and {upper.tolist()}")
-    if not np.all(lower < upper):
-        raise InvalidCase("region", f"expected lower < upper on every axis, got "
-                          f"{lower.tolist()} and {upper.tolist()}")
-    if np.any(lower < frame[0]) or np.any(upper > frame[1]):
-        raise InvalidCase("region", f"{lower.tolist()} to {upper.tolist()} leaves the frame "
-                          f"({frame[0].tolist()} to {frame[1].tolist()})")
-    return lower, upper
 
 
 def _checked_orientation(robot: Robot, orientation) -> np.ndarray:

@@ -53,8 +53,7 @@ def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
 
 
 def design_command(args: argparse.Namespace, out: Output) -> int:
-    import math
-
+    from cdpr_sym.checks import positive_number
     from cdpr_sym.cli.robots import checked_robot
     from cdpr_sym.geometry.design import design_geometry
     from cdpr_sym.robot.files import robot_file_text
@@ -70,9 +69,7 @@ def design_command(args: argparse.Namespace, out: Output) -> int:
             raise InvalidCase("within", f"expected {d} lower then {d} upper coordinates (m), "
                               f"got {len(args.within)} numbers")
         within = (args.within[:d], args.within[d:])
-    if not (math.isfinite(args.time_limit) and args.time_limit > 0):
-        raise InvalidCase("time_limit", f"expected a positive number of seconds, got "
-                          f"{args.time_limit!r}")
+    positive_number("time_limit", args.time_limit, "s")
     if args.seed < 0:
         raise InvalidCase("seed", f"expected a whole number >= 0, got {args.seed}")
     check_file("out", args.out)

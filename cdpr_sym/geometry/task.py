@@ -15,6 +15,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from cdpr_sym.certify.boxes import checked_region
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
 
@@ -68,21 +69,7 @@ def task_region(robot: Robot, lower: npt.ArrayLike, upper: npt.ArrayLike) -> Tas
         ``task`` named, with what is wrong.
     """
     d = robot.dimension
-    try:
-        lo = np.asarray(lower, dtype=float).ravel()
-        hi = np.asarray(upper, dtype=float).ravel()
-    except (TypeError, ValueError):
-        raise InvalidCase("task", f"expected {d} lower then {d} upper positions (m)") from None
-    if lo.size != d or hi.size != d or not np.all(np.isfinite(lo) & np.isfinite(hi)):
-        raise InvalidCase("task", f"expected {d} finite lower then {d} upper positions (m), "
-                          f"got {lo.tolist()} and {hi.tolist()}")
-    if not np.all(lo < hi):
-        raise InvalidCase("task", f"expected lower < upper on every axis, got {lo.tolist()} "
-                          f"and {hi.tolist()}")
-    frame_lo, frame_hi = robot.frame_lower[:d], robot.frame_upper[:d]
-    if np.any(lo < frame_lo) or np.any(hi > frame_hi):
-        raise InvalidCase("task", f"{lo.tolist()} to {hi.tolist()} leaves the frame "
-                          f"({frame_lo.tolist()} to {frame_hi.tolist()})")
+    lo, hi = checked_region(robot, (lower, upper), "task")
     if robot.kind == "point":
         anchors = np.asarray(robot.anchors, dtype=float)
         inside = np.all((anchors >= lo) & (anchors <= hi), axis=1)
