@@ -50,6 +50,7 @@ from cdpr_sym.certify.evaluate import IntervalFunction
 from cdpr_sym.certify.linear import _TINY, _U, _gamma, _inflate, _mid_rad, enclose_solutions
 from cdpr_sym.certify.poses import pose_inputs
 from cdpr_sym.model import SymbolicModel
+from cdpr_sym.model.geometry_view import geometry_symbols, nominal
 from cdpr_sym.robot import Robot
 from cdpr_sym.robot.tension_box import TensionBox
 
@@ -276,7 +277,7 @@ class AnchoredVerdicts:
         #: the pose's entries of a box (the positions, or the whole pose), then the
         #: geometry's symbols (anchors known to a tolerance, :mod:`.tolerance`)
         self.pose_width = model.n if orientation is None else model.robot.dimension
-        parameters = getattr(model.robot, "parameters", None)
+        parameters = geometry_symbols(model.robot)
         self.d = self.pose_width + (0 if parameters is None else parameters.numel())
         self.t_min, self.t_max = model.robot.t_min, model.robot.t_max
         if not 0 <= self.t_min < self.t_max:  # the Farkas support is increasing in c . w_j
@@ -479,7 +480,7 @@ def anchored_verdicts(model: SymbolicModel, orientation: np.ndarray, compiled: b
     from cdpr_sym.robot import robot_key
     from cdpr_sym.workspace.vectorised import pose_evaluator
 
-    robot = getattr(model.robot, "nominal", model.robot)  # the normals: at the nominal anchors
+    robot = nominal(model.robot)  # the normals: at the nominal anchors
     wrench = half_widths is not None
     point = terms_function(model, orientation, wrench)
     slopes = slopes_function(model, orientation, wrench)

@@ -24,6 +24,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.certify.verdict import Verdict, codes
+from cdpr_sym.model.geometry_view import geometry_symbols
 from cdpr_sym.robot import Robot
 
 
@@ -32,7 +33,7 @@ def pose_inputs(robot: Robot, orientation: np.ndarray | None) -> tuple[ca.SX, ca
     ``orientation`` (rad), or, with ``orientation=None``, the whole pose (n) as the input.
     A robot whose geometry is symbolic (:mod:`cdpr_sym.model.geometry_view`) has its
     symbols appended to the input: a box then spans the pose's entries and the geometry's."""
-    parameters = getattr(robot, "parameters", None)
+    parameters = geometry_symbols(robot)
     if orientation is None:
         q = ca.SX.sym("q", robot.n)
         return (q if parameters is None else ca.vertcat(q, parameters)), q

@@ -96,8 +96,3 @@ def _lp_margin(W: np.ndarray, f: np.ndarray, lo: float, hi: float) -> tuple[floa
     if result.status != 0:
         return -np.inf, np.full(m, np.nan)
     return float(result.x[-1]), result.x[:m]
-
-
-def share_feasible(robot: Robot, poses: np.ndarray) -> float:
-    """The share of ``poses`` with a margin >= 0."""
-    return float(np.mean(static_margins(robot, poses) >= 0))

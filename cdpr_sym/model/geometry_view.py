@@ -63,6 +63,12 @@ def anchors_moved(robot: Robot, name: str = "anchor_offsets") -> GeometryView:
     return GeometryView(robot, offsets, anchors=anchors)
 
 
-def is_symbolic(robot: Robot | GeometryView) -> bool:
-    """Whether ``robot``'s geometry holds symbols (a view with parameters)."""
-    return isinstance(robot, GeometryView) and robot.parameters.numel() > 0
+def geometry_symbols(robot: Robot | GeometryView) -> ca.SX | None:
+    """The symbols ``robot``'s geometry depends on (a view's :attr:`~GeometryView.
+    parameters`), None for a robot whose geometry is numbers."""
+    return robot.parameters if isinstance(robot, GeometryView) else None
+
+
+def nominal(robot: Robot | GeometryView) -> Robot:
+    """The robot with numeric geometry behind ``robot`` (``robot`` itself if it is one)."""
+    return robot.nominal if isinstance(robot, GeometryView) else robot

@@ -26,6 +26,7 @@ from cdpr_sym.distribution import AUTO, distribute
 from cdpr_sym.linalg import gram_determinant, weighted_gram
 from cdpr_sym.model import kinematics
 from cdpr_sym.model.cable_wrench import cable_wrench, generalized_cable_force
+from cdpr_sym.model.geometry_view import geometry_symbols
 from cdpr_sym.model.newton_euler import rigid_acceleration, wrench_acceleration
 from cdpr_sym.robot import Robot
 
@@ -72,7 +73,7 @@ class SymbolicModel:
         geometry, :mod:`~cdpr_sym.model.geometry_view`, it is built at each call)."""
         if self.robot.kind == "point":
             return expression(self.robot, q)
-        parameters = getattr(self.robot, "parameters", None)
+        parameters = geometry_symbols(self.robot)
         if parameters is not None:
             symbol = ca.SX.sym("q", self.n)
             built = ca.Function(expression.__name__, [symbol, parameters],
