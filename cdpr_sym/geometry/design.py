@@ -191,13 +191,9 @@ def design_geometry(robot: Robot, task_lower: npt.ArrayLike, task_upper: npt.Arr
         A bad task (``task``), ``vary``, ``within`` or ``anchor_tolerance``: checked
         before any optimisation.
     """
-    from cdpr_sym.certify.tolerance import checked_tolerance
-
     started = time.perf_counter()
-    task = task_region(robot, task_lower, task_upper)
-    variables = geometry_variables(robot, vary, within)
-    tolerance = checked_tolerance(robot, anchor_tolerance)
-    problem = SampledProblem(variables, task.grid(), tolerance, seed)
+    task, variables, tolerance, problem = sampled_problem(robot, task_lower, task_upper, vary,
+                                                          within, anchor_tolerance, seed)
     margin_solution = problem.solve_margin(variables.initial())
     solution = margin_solution
     if margin_solution.margin < 0 and margin_solution.status in CONVERGED:
@@ -215,6 +211,20 @@ def design_geometry(robot: Robot, task_lower: npt.ArrayLike, task_upper: npt.Arr
                           margin_solution, certificate, original_certificate, shares[0],
                           shares[1], time.perf_counter() - started,
                           static_margins(designed, problem.poses), checked)
+
+
+def sampled_problem(robot: Robot, task_lower: npt.ArrayLike, task_upper: npt.ArrayLike,
+                    vary: str, within: tuple[npt.ArrayLike, npt.ArrayLike] | None,
+                    anchor_tolerance: float, seed: int
+                    ) -> tuple[TaskRegion, GeometryVariables, float, SampledProblem]:
+    """The checked task, design variables and tolerance (each refused in one line naming
+    its field before any work) and the sampled problem on the task's grid."""
+    from cdpr_sym.certify.tolerance import checked_tolerance
+
+    task = task_region(robot, task_lower, task_upper)
+    variables = geometry_variables(robot, vary, within)
+    tolerance = checked_tolerance(robot, anchor_tolerance)
+    return task, variables, tolerance, SampledProblem(variables, task.grid(), tolerance, seed)
 
 
 #: The placement check's drawn placements (half at corners of the tolerance box) and poses.

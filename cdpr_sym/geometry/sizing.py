@@ -19,11 +19,8 @@ import numpy as np
 import numpy.typing as npt
 
 from cdpr_sym.certify.workspace import WorkspaceCertificate
-from cdpr_sym.geometry.design import certify_task
+from cdpr_sym.geometry.design import certify_task, sampled_problem
 from cdpr_sym.geometry.sampled import margins_and_tensions
-from cdpr_sym.geometry.surrogate import SampledProblem
-from cdpr_sym.geometry.task import task_region
-from cdpr_sym.geometry.variables import geometry_variables
 from cdpr_sym.robot import Robot
 
 #: The raises of the samples' bound tried in turn (shares of it).
@@ -76,12 +73,8 @@ def smallest_t_max(robot: Robot, task_lower: npt.ArrayLike, task_upper: npt.Arra
                    seed: int = 0) -> Sizing:
     """The smallest proven T_max of ``robot`` for the task box (module docstring); the
     arguments are :func:`~cdpr_sym.geometry.design.design_geometry`'s."""
-    from cdpr_sym.certify.tolerance import checked_tolerance
-
-    task = task_region(robot, task_lower, task_upper)
-    variables = geometry_variables(robot, vary, within)
-    tolerance = checked_tolerance(robot, anchor_tolerance)
-    problem = SampledProblem(variables, task.grid(), tolerance, seed)
+    task, variables, tolerance, problem = sampled_problem(robot, task_lower, task_upper, vary,
+                                                          within, anchor_tolerance, seed)
     solution, tau = problem.solve_sizing(variables.initial())
     placed = variables.robot_at(solution.vector, f"{robot.name}-sized")
     # the gate: every sample's tension on or over the floor at the nominal anchors (the

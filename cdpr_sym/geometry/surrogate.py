@@ -156,6 +156,14 @@ class SampledProblem:
         return (np.concatenate([zero, np.full(self.N, self.floor)]),
                 np.concatenate([zero, np.full(self.N, np.inf)]))
 
+    def _in_the_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of [:meth:`_residuals`; a row per tension held over T_min; a row per
+        tension held under T_max] (the margin and share problems' constraints)."""
+        robot, mN = self.variables.robot, self.m * self.N
+        low, high = self._equalities()
+        return (np.concatenate([low, np.full(mN, robot.t_min), np.full(mN, -np.inf)]),
+                np.concatenate([high, np.full(mN, np.inf), np.full(mN, robot.t_max)]))
+
     def initial_tensions(self, vector: np.ndarray) -> tuple[np.ndarray, float]:
         """A tension per sample at the design ``vector`` (m, N) and the least margin it
         leaves (share of w): the sampled judge's (:mod:`~cdpr_sym.geometry.sampled`) where
@@ -182,15 +190,14 @@ class SampledProblem:
         constraints = ca.vertcat(self._residuals(p, tensions), flat - t * self.width,
                                  flat + t * self.width)
         inf = np.inf
-        low, high = self._equalities()
-        lbg = np.concatenate([low, np.full(mN, robot.t_min), np.full(mN, -inf)])
-        ubg = np.concatenate([high, np.full(mN, inf), np.full(mN, robot.t_max)])
+        lbg, ubg = self._in_the_box()
         tensions0, margin0 = self.initial_tensions(start)
         x0 = np.concatenate([start, tensions0.T.ravel(), [margin0]])
         lbx = np.concatenate([self.variables.lower, np.full(mN, -inf), [-inf]])
         ubx = np.concatenate([self.variables.upper, np.full(mN, inf), [0.5]])
-        result = _ipopt(ca.vertcat(p, flat, t), -t + self._spread(flat), constraints, x0, lbx,
-                        ubx, lbg, ubg, hessian=self.hessian)
+        solver = _solver(ca.vertcat(p, flat, t), -t + self._spread(flat), constraints,
+                         self.hessian)
+        result = _solve(solver, x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         x = result.x
         vector, tension = self._bounded(x[:k]), x[k:k + mN].reshape(self.N, self.m)
         margin = float(x[-1])
@@ -215,9 +222,9 @@ class SampledProblem:
         x0 = np.concatenate([start, tensions0.T.ravel(), [robot.t_max]])
         lbx = np.concatenate([self.variables.lower, np.full(mN, robot.t_min), [robot.t_min]])
         ubx = np.concatenate([self.variables.upper, np.full(mN, np.inf), [np.inf]])
-        result = _ipopt(ca.vertcat(p, flat, tau), tau / self.width + self._spread(flat),
-                        constraints, x0, lbx, ubx, lbg, ubg,
-                         hessian=self.hessian)
+        solver = _solver(ca.vertcat(p, flat, tau), tau / self.width + self._spread(flat),
+                         constraints, self.hessian)
+        result = _solve(solver, x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         x = result.x
         held = np.ones(self.N, dtype=bool)
         return (Solution(self._bounded(x[:k]), 0.0, held, result.evaluations,
@@ -225,27 +232,26 @@ class SampledProblem:
 
     def solve_share(self, start: np.ndarray, rounds: int = SHARE_ROUNDS) -> Solution:
         """Hold as many samples as the reweighted l1 problem finds (module docstring)."""
-        robot, k, mN, N = self.variables.robot, self.variables.size, self.m * self.N, self.N
+        k, mN, N = self.variables.size, self.m * self.N, self.N
         p, tensions = ca.MX.sym("p", k), ca.MX.sym("T", self.m, N)
         violation, weights = ca.MX.sym("s", N), ca.MX.sym("w", N)
         flat = ca.vec(tensions)
         spread = ca.vec(ca.repmat(violation.T, self.m, 1)) * self.width
         constraints = ca.vertcat(self._residuals(p, tensions), flat + spread, flat - spread)
         inf = np.inf
-        low, high = self._equalities()
-        lbg = np.concatenate([low, np.full(mN, robot.t_min), np.full(mN, -inf)])
-        ubg = np.concatenate([high, np.full(mN, inf), np.full(mN, robot.t_max)])
+        lbg, ubg = self._in_the_box()
         x = np.concatenate([start, self.initial_tensions(start)[0].T.ravel(), np.full(N, 0.1)])
         lbx = np.concatenate([self.variables.lower, np.full(mN, -inf), np.zeros(N)])
         ubx = np.concatenate([self.variables.upper, np.full(mN, inf), np.full(N, inf)])
         omega = np.ones(N)
         evaluations = iterations = 0
         seconds, status = 0.0, ""
+        # one solver for every round: only the weights (its parameter) change
+        solver = _solver(ca.vertcat(p, flat, violation),
+                         ca.dot(weights, violation) + self._spread(flat), constraints,
+                         self.hessian, weights)
         for _ in range(rounds):
-            result = _ipopt(ca.vertcat(p, flat, violation),
-                            ca.dot(weights, violation) + self._spread(flat),
-                            constraints, x, lbx, ubx, lbg, ubg, parameters=(weights, omega),
-                            hessian=self.hessian)
+            result = _solve(solver, x0=x, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg, p=omega)
             x = result.x
             evaluations += result.evaluations
             iterations += result.iterations
@@ -285,21 +291,23 @@ class _Result:
     status: str
 
 
-def _ipopt(x: ca.MX, objective: ca.MX, constraints: ca.MX, x0, lbx, ubx, lbg, ubg,
-           parameters: tuple[ca.MX, np.ndarray] | None = None, hessian: str = "exact"
-           ) -> _Result:
-    """One IPOPT solve, quiet; its constraint evaluations, iterations, time and status."""
+def _solver(x: ca.MX, objective: ca.MX, constraints: ca.MX, hessian: str,
+            parameter: ca.MX | None = None) -> ca.Function:
+    """A quiet IPOPT solver of ``objective`` over ``x`` (with ``parameter``, if given, as
+    its parameter): its derivatives are generated once, whatever number of solves follow."""
     problem = {"x": x, "f": objective, "g": constraints}
-    if parameters is not None:
-        problem["p"] = parameters[0]
-    solver = ca.nlpsol("geometry", "ipopt", problem, {
+    if parameter is not None:
+        problem["p"] = parameter
+    return ca.nlpsol("geometry", "ipopt", problem, {
         "print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
         "ipopt.max_iter": MAX_ITERATIONS, "ipopt.tol": 1e-8,
         "ipopt.hessian_approximation": hessian, "ipopt.mu_strategy": "adaptive"})
+
+
+def _solve(solver: ca.Function, **arguments: np.ndarray) -> _Result:
+    """One solve (x0, bounds and parameter as ``nlpsol`` names them); its constraint
+    evaluations, iterations, time and status."""
     started = time.perf_counter()
-    arguments = {"x0": x0, "lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
-    if parameters is not None:
-        arguments["p"] = parameters[1]
     solution = solver(**arguments)
     seconds = time.perf_counter() - started
     stats = solver.stats()
