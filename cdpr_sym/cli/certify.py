@@ -12,7 +12,7 @@ import numpy as np
 
 from cdpr_sym.cli.output import Output
 from cdpr_sym.cli.paths import check_folder
-from cdpr_sym.cli.robots import add_wrench_options
+from cdpr_sym.cli.robots import add_wrench_options, split_corners
 from cdpr_sym.errors import InvalidCase
 
 #: Most poses of the sampled check.
@@ -144,7 +144,8 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
                                         half_widths=half_widths, prop=args.property,
                                         time_limit=args.time_limit, progress=progress,
                                         anchor_tolerance=args.anchor_tolerance,
-                                        region=_region(robot, args.region))
+                                        region=split_corners("region", args.region,
+                                                             robot.dimension))
     check = (sampled_check(certificate, samples, np.random.default_rng(args.seed))
              if samples else None)
     content = write_certificate(certificate, args.out, check)
@@ -167,17 +168,6 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     lines.append(f"written: {args.out}")
     out.result(content, lines)
     return 0
-
-
-def _region(robot, numbers: list[float] | None) -> tuple[list[float], list[float]] | None:
-    """``--region`` as (lower, upper), its count checked."""
-    if numbers is None:
-        return None
-    d = robot.dimension
-    if len(numbers) != 2 * d:
-        raise InvalidCase("region", f"expected {d} lower then {d} upper positions (m), got "
-                          f"{len(numbers)} numbers")
-    return numbers[:d], numbers[d:]
 
 
 def _default_property() -> str:
@@ -266,10 +256,8 @@ def _corners(field: str, values, default_centre) -> tuple[np.ndarray, np.ndarray
     centre = np.asarray(default_centre, dtype=float)
     if values is None:
         return centre - DEFAULT_HALF_WIDTH, centre + DEFAULT_HALF_WIDTH
-    if len(values) != 2 * centre.size:
-        raise InvalidCase(field, f"expected {2 * centre.size} numbers (the lower corner, "
-                          f"then the upper one, m), got {len(values)}")
-    return np.asarray(values[: centre.size]), np.asarray(values[centre.size:])
+    lower, upper = split_corners(field, values, centre.size)
+    return np.asarray(lower), np.asarray(upper)
 
 
 def _sweep_runs(table: Path, controller: str, n: int) -> list:

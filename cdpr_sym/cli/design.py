@@ -54,33 +54,25 @@ def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
 
 def design_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.checks import positive_number
-    from cdpr_sym.cli.robots import checked_robot
+    from cdpr_sym.cli.robots import checked_robot, split_corners
     from cdpr_sym.geometry.design import design_geometry
     from cdpr_sym.robot.files import robot_file_text
 
     robot = checked_robot(args.robot)
-    d = robot.dimension
-    if len(args.task) != 2 * d:
-        raise InvalidCase("task", f"expected {d} lower then {d} upper positions (m), got "
-                          f"{len(args.task)} numbers")
-    within = None
-    if args.within is not None:
-        if len(args.within) != 2 * d:
-            raise InvalidCase("within", f"expected {d} lower then {d} upper coordinates (m), "
-                              f"got {len(args.within)} numbers")
-        within = (args.within[:d], args.within[d:])
+    task = split_corners("task", args.task, robot.dimension)
+    within = split_corners("within", args.within, robot.dimension)
     positive_number("time_limit", args.time_limit, "s")
     if args.seed < 0:
         raise InvalidCase("seed", f"expected a whole number >= 0, got {args.seed}")
     check_file("out", args.out)
     if args.certificate is not None:
         check_folder("certificate", args.certificate)
-    design = design_geometry(robot, args.task[:d], args.task[d:], vary=args.vary,
+    design = design_geometry(robot, *task, vary=args.vary,
                              within=within, anchor_tolerance=args.anchor_tolerance,
                              certify_seconds=args.time_limit, seed=args.seed)
     summary = design.summary()
     if args.size_motors:
-        summary["sizing"] = _sizing(robot, args, within)
+        summary["sizing"] = _sizing(robot, args, task, within)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(robot_file_text(design.robot, comment=_comment(summary)))
     summary["written"] = str(args.out)
@@ -93,11 +85,10 @@ def design_command(args: argparse.Namespace, out: Output) -> int:
     return 0
 
 
-def _sizing(robot, args: argparse.Namespace, within) -> dict:
+def _sizing(robot, args: argparse.Namespace, task, within) -> dict:
     from cdpr_sym.geometry.sizing import COVERED, smallest_t_max
 
-    d = robot.dimension
-    sizing = smallest_t_max(robot, args.task[:d], args.task[d:], vary=args.vary, within=within,
+    sizing = smallest_t_max(robot, *task, vary=args.vary, within=within,
                             anchor_tolerance=args.anchor_tolerance,
                             certify_seconds=args.time_limit, seed=args.seed)
     return {"sampled_t_max_N": sizing.sampled_t_max, "proven_t_max_N": sizing.proven_t_max,

@@ -43,3 +43,15 @@ def add_wrench_options(parser: argparse.ArgumentParser, *, scope: str = "") -> N
     parser.add_argument("--moment", nargs="+", type=float, metavar="NM",
                         help=f"{scope}rigid bodies: half-widths of the external moment box, "
                              "N m")
+
+
+def split_corners(field: str, numbers: list[float] | None, d: int
+                  ) -> tuple[list[float], list[float]] | None:
+    """An option's 2 d numbers as (lower corner, upper corner), None when not given; a
+    count other than 2 d is refused in one line naming ``field``."""
+    if numbers is None:
+        return None
+    if len(numbers) != 2 * d:
+        raise InvalidCase(field, f"expected {2 * d} numbers (the lower corner, then the upper "
+                          f"one, m), got {len(numbers)}")
+    return list(numbers[:d]), list(numbers[d:])
