@@ -233,3 +233,28 @@ def test_the_placement_check_can_fail():
     rng = np.random.default_rng(5)
     assert placement_check(nominal, 0.05, rng)["violations"] > 0
     assert placement_check(nominal, 0.0, rng)["violations"] == 0
+
+
+def test_motor_sizing_is_proven_and_is_what_the_samples_need():
+    """aras3's task box: the sizing's T_max is proven (its certificate covers the task for
+    every anchor within 5 mm, and poses in its proven boxes hold in numpy at the nominal
+    anchors), it is below the 60 N box, and the samples' bound is the largest tension
+    numpy's solve needs at the sized anchors (to the tolerance scenarios' spread)."""
+    from cdpr_sym.geometry.sampled import margins_and_tensions
+    from cdpr_sym.geometry.sizing import COVERED, smallest_t_max
+
+    robot = preset("aras3")
+    sizing = smallest_t_max(robot, [-0.6, -1.2, 1.0], [0.6, 1.2, 2.8])
+    assert sizing.proven_t_max is not None and sizing.proven_t_max < robot.t_max
+    assert sizing.robot.t_max == sizing.proven_t_max
+    assert sizing.certificate.shares()["feasible"] >= COVERED
+    assert sizing.proven_t_max >= sizing.sampled_t_max
+    task = task_region(robot, [-0.6, -1.2, 1.0], [0.6, 1.2, 2.8])
+    _, tensions = margins_and_tensions(sizing.robot, task.grid())
+    assert np.max(tensions) == pytest.approx(sizing.sampled_t_max, rel=0.01)
+    rng = np.random.default_rng(11)
+    proven = np.flatnonzero(sizing.certificate.verdicts == "feasible")
+    pick = rng.choice(proven, 500)
+    lower, upper = sizing.certificate.lower[pick], sizing.certificate.upper[pick]
+    points = lower + (upper - lower) * rng.random(lower.shape)
+    assert np.all(static_margins(sizing.robot, points) >= -1e-9)
