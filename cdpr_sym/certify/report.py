@@ -176,3 +176,53 @@ def figure(certificate: WorkspaceCertificate, path: Path) -> None:
     ax.set_title(title, fontsize=10)
     ax.legend(loc="upper right", fontsize=8)
     fig.savefig(path, dpi=110)
+
+
+#: A box's verdict word in ``boxes.csv`` as a picture's code (1 proven feasible, -1 proven
+#: infeasible, 0 undecided; :func:`cdpr_sym.robot.picture.draw_boxes`).
+VERDICT_CODES = {"feasible": 1, "infeasible": -1, "undecided": 0}
+
+
+def read_boxes(folder: Path, robot: Any) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """The boxes of the certificate ``folder/boxes.csv`` (:meth:`WorkspaceCertificate.
+    write_csv`) as (lower, upper, verdict code) over ``robot``'s position coordinates, m.
+
+    Raises
+    ------
+    InvalidCase
+        Field ``certificate``: no such certificate, not one of ``robot`` (its
+        certificate.json names another robot, or its boxes have other coordinates), or a
+        malformed row.
+    """
+    from cdpr_sym.errors import InvalidCase
+
+    folder = Path(folder)
+    table, record = folder / "boxes.csv", folder / "certificate.json"
+    if not table.is_file() or not record.is_file():
+        raise InvalidCase("certificate", f"no workspace certificate in {folder} (expected "
+                          "boxes.csv and certificate.json, as `cdpr-sym certify workspace "
+                          "--out DIR` writes)")
+    try:
+        named = json.loads(record.read_text()).get("robot")
+    except (ValueError, UnicodeDecodeError, AttributeError):
+        raise InvalidCase("certificate", f"{record} is not a certificate's JSON") from None
+    if named != robot.name:
+        raise InvalidCase("certificate", f"the certificate in {folder} is of robot "
+                          f"{named!r}, not {robot.name!r}")
+    names = list(robot.coordinate_names[: robot.dimension])
+    lines = table.read_text().splitlines()
+    expected = [f"lower_{n}" for n in names] + [f"upper_{n}" for n in names] + ["verdict"]
+    if not lines or lines[0].split(",")[: len(expected)] != expected:
+        raise InvalidCase("certificate", f"{table} does not start with the columns "
+                          f"{','.join(expected)}")
+    d, boxes = len(names), []
+    for number, line in enumerate(lines[1:], start=2):
+        cells = line.split(",")
+        try:
+            corners = np.array(cells[: 2 * d], dtype=float)
+            code = VERDICT_CODES[cells[2 * d]]
+        except (ValueError, KeyError, IndexError):
+            raise InvalidCase("certificate", f"{table} line {number} is not a box "
+                              f"({line[:60]!r})") from None
+        boxes.append((corners[:d], corners[d:], code))
+    return boxes

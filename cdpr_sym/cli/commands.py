@@ -21,6 +21,7 @@ from cdpr_sym.cli.parser import MAX_WORKERS
 from cdpr_sym.cli.paths import check_file, check_folder
 from cdpr_sym.cli.robots import checked_robot, with_wrench_box
 from cdpr_sym.cli.tune import tune_command
+from cdpr_sym.cli.view import view_command
 from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
 from cdpr_sym.closed_loop.effects.readout import check_draw_runs
@@ -106,6 +107,11 @@ def check_simulate_args(args: argparse.Namespace) -> SimulateInput:
     plant = Plant(mass_scale=args.mass_scale, slack=args.slack, rate_limit=args.rate_limit)
     case = Case.of(robot, start=args.start, goal=args.goal, k=args.k, r_d=args.r_d)
     save = save_path(args.save, field="save") if args.save is not None else None
+    if args.animate is not None:
+        from cdpr_sym.results.animation import animation_writer
+
+        animation_writer(args.animate)
+        check_file("animate", args.animate)
     draw = check_as_built_args(args, robot, controller, case.start)
     return SimulateInput(robot, controller, case, plant, save, draw)
 
@@ -164,8 +170,12 @@ def simulate_command(args: argparse.Namespace, out: Output) -> int:
                          f"{1e3 * drawn['as_built']['anchor_rms_error']:.3f} mm RMS off")
     if saved:
         lines.append(f"  trajectory           {saved}")
+    if args.animate is not None:
+        run.animate(robot).save(args.animate)
+        lines.append(f"  animation            {args.animate}")
     out.result({**m, **drawn, "robot": robot.name, "controller": args.controller,
-                "saved": str(saved) if saved else None}, lines)
+                "saved": str(saved) if saved else None,
+                "animation": None if args.animate is None else str(args.animate)}, lines)
     return 0
 
 
@@ -385,4 +395,5 @@ def _export_encoders(args: argparse.Namespace, robot, out: Output) -> int:
 HANDLERS = {"simulate": simulate_command, "study": study_command, "bench": bench_command,
             "workspace": workspace_command, "sweep": sweep_command, "report": report_command,
             "export-c": export_command, "calibrate": calibrate_command,
-            "certify": certify_command, "tune": tune_command, "design": design_command}
+            "certify": certify_command, "tune": tune_command, "design": design_command,
+            "view": view_command}

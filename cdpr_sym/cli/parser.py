@@ -112,6 +112,9 @@ def build_parser() -> argparse.ArgumentParser:
                      "is found)")
     sim.add_argument("--save", type=Path, help="write the trajectory to an .npz file (.npz is "
                      "appended to a name without it)")
+    sim.add_argument("--animate", type=Path, metavar="FILE",
+                     help="write an animation of the run: .gif or .html (matplotlib alone), "
+                     ".mp4 (needs ffmpeg); cables coloured by tension against the box")
     _as_built_options(sim, "the draw")
 
     study = command("study", "run a study and write its report", progress=True)
@@ -200,9 +203,11 @@ def build_parser() -> argparse.ArgumentParser:
     from cdpr_sym.cli.certify import add_parser as add_certify
     from cdpr_sym.cli.design import add_parser as add_design
     from cdpr_sym.cli.tune import add_parser as add_tune
+    from cdpr_sym.cli.view import add_parser as add_view
 
     add_calibrate(command)
     add_certify(command)
     add_design(command)
     add_tune(command)
+    add_view(command)
     return parser

@@ -470,7 +470,7 @@ class Simulator:
                           integrator="rk4-sampled", backend=self.backend,
                           **({} if solver_record is None else {"solver": solver_record}),
                           _described=self._described),
-            memory=x["memory"],
+            memory=x["memory"], q_read=x.get("q_read"),
             static_tension=(self._static_tension(states[0, : self.robot.n])
                             if static_tension is None else static_tension),
             **log)

@@ -59,6 +59,9 @@ class Trajectory:
     command : ndarray, shape (N, m), optional
         Runs on an as-built plant: the controller's tension command, N. ``tau`` is then the
         true tension in the cables at t[k], on which the run is judged.
+    q_read : ndarray, shape (N + 1, n), optional
+        Runs on an as-built plant whose controller reads the pose from the encoders: the
+        pose it read at t[k] (m; rad), beside the true pose ``q``.
     """
 
     t: np.ndarray
@@ -77,6 +80,7 @@ class Trajectory:
     memory: np.ndarray | None = None
     static_tension: np.ndarray | None = None
     command: np.ndarray | None = None
+    q_read: np.ndarray | None = None
 
     def __repr__(self) -> str:
         robot, controller = self.info.get("robot", "?"), self.info.get("controller", "?")
@@ -129,6 +133,35 @@ class Trajectory:
             return run_figure(self, title=title, alpha=alpha, axes=ax, pyplot=True)
         except ValueError as wrong:
             raise InvalidCase("ax", str(wrong).removeprefix("axes: ")) from None
+
+    def animate(self, robot: Any = None, *, fps: float = 25.0, speed: float = 1.0,
+                ax: Any = None) -> Any:
+        """The run animated on its robot: the end-effector moving, each cable coloured by
+        its tension against the box (red and dashed outside it), the path and the goal, and
+        for an as-built run that reads the pose, a ghost where the controller read it
+        (:mod:`cdpr_sym.results.animation`).
+
+        Parameters
+        ----------
+        robot : Robot, optional
+            The robot the run is drawn on; default the preset the run names.
+        fps : float
+            Frames per second of the animation.
+        speed : float
+            Run seconds per wall-clock second: one frame every round(speed / (fps dt))
+            samples, and the last.
+        ax : matplotlib Axes, optional
+            Draw here (2-D axes for a planar robot, 3-D otherwise); default new ones.
+
+        Returns
+        -------
+        cdpr_sym.results.animation.RunAnimation
+            A matplotlib animation: a notebook shows it; ``.save("run.gif")`` writes it
+            (``.gif``, ``.html``; ``.mp4`` with ffmpeg).
+        """
+        from cdpr_sym.results.animation import animate_run  # matplotlib: pictures only
+
+        return animate_run(self, robot, fps=fps, speed=speed, ax=ax)
 
     def to_pandas(self) -> Any:
         """One row per sample: t, q_*, dq_* and the command held from that sample
@@ -260,7 +293,8 @@ class Trajectory:
                                else np.full(cables, np.nan)),
             "t_min": self.t_min, "t_max": self.t_max,
             "stop_reason": self.stop_reason or "", "info": self.info,
-            **({} if self.command is None else {"command": self.command})}
+            **({} if self.command is None else {"command": self.command}),
+            **({} if self.q_read is None else {"q_read": self.q_read})}
 
     @classmethod
     def load(cls, path: str | Path) -> Trajectory:
@@ -281,7 +315,7 @@ class Trajectory:
                    stop_reason=str(data.get("stop_reason", "")) or None,
                    info=json.loads(str(data["info"])), memory=data.get("memory"),
                    static_tension=None if np.isnan(static).all() else static,
-                   command=data.get("command"))
+                   command=data.get("command"), q_read=data.get("q_read"))
 
 
 def save_path(path: str | Path, *, field: str = "path") -> Path:

@@ -191,6 +191,24 @@ class Robot:
                         for key, value in rows)
         return f"<p><b>{html.escape(self.name)}</b></p><table>{cells}</table>"
 
+    def draw(self, *, ax: Any = None, pose: Any = None, tensions: Any = None,
+             goal: Any = None, title: str | None = None) -> Any:
+        """Draw the robot at ``pose`` (default its case's start): frame, anchors, cables
+        (coloured by ``tensions`` against the box, N, when given; those outside it red and
+        dashed) and the end-effector, in the (x, z) plane or in 3-D
+        (:func:`cdpr_sym.robot.picture.draw_robot`, which also draws workspaces and
+        certificates). Returns the matplotlib Axes; a new figure is made through pyplot
+        unless ``ax`` is given.
+
+        Examples
+        --------
+        >>> from cdpr_sym import preset
+        >>> ax = preset("planar3").draw(pose=[0.1, 1.0, 0.1])
+        """
+        from cdpr_sym.robot.picture import draw_robot  # matplotlib: 0.3 s, pictures only
+
+        return draw_robot(self, pose=pose, ax=ax, tensions=tensions, goal=goal, title=title)
+
     @property
     def kind(self) -> str:
         """End-effector kind: ``"point"``, ``"planar"`` or ``"spatial"`` (rigid bodies)."""
