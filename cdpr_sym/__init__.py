@@ -5,8 +5,9 @@ before it: ``robot`` (the description) → ``linalg`` → ``distribution`` (tens
 ``model`` (CasADi) → ``as_built`` (the real robot's parts) → ``codegen`` (generated C) →
 ``control`` (the laws) → ``results`` (trajectories and their files) → ``closed_loop``
 (simulation) → ``workspace`` → ``certify`` (interval proofs) → ``calibration`` (the geometry
-as built, from measurements) → ``geometry`` (the geometry designed, and proven) → ``sweep``
-→ ``reporting`` → ``export`` → ``studies`` → ``cli``.
+as built, from measurements) → ``geometry`` (the geometry designed, and proven) → ``caspr``
+(robots imported from CASPR's files) → ``sweep`` → ``reporting`` → ``export`` → ``studies``
+→ ``cli``.
 """
 
 import importlib

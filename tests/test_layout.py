@@ -19,7 +19,7 @@ PACKAGE = Path(__file__).parents[1] / "cdpr_sym"
 STAGES = (("errors", "version"), ("checks",), ("robot",), ("linalg",), ("distribution",),
           ("model",), ("as_built",), ("codegen",),
           ("control",), ("results",), ("closed_loop",), ("workspace",), ("certify",),
-          ("calibration",), ("geometry",),
+          ("calibration",), ("geometry",), ("caspr",),
           ("sweep",), ("reporting",),
           ("export",), ("studies",), ("cli",), ("__main__", "__init__"))
 LEVEL = {name: level for level, names in enumerate(STAGES) for name in names}

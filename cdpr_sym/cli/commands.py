@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 from cdpr_sym.cli.calibrate import calibrate_command
 from cdpr_sym.cli.certify import certify_command
 from cdpr_sym.cli.design import design_command
+from cdpr_sym.cli.importing import import_command
 from cdpr_sym.cli.output import Output, quantity, yes_no
 from cdpr_sym.cli.parser import MAX_WORKERS
 from cdpr_sym.cli.paths import check_file, check_folder
@@ -396,4 +397,4 @@ HANDLERS = {"simulate": simulate_command, "study": study_command, "bench": bench
             "workspace": workspace_command, "sweep": sweep_command, "report": report_command,
             "export-c": export_command, "calibrate": calibrate_command,
             "certify": certify_command, "tune": tune_command, "design": design_command,
-            "view": view_command}
+            "import": import_command, "view": view_command}

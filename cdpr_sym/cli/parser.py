@@ -202,6 +202,7 @@ def build_parser() -> argparse.ArgumentParser:
     from cdpr_sym.cli.calibrate import add_parser as add_calibrate
     from cdpr_sym.cli.certify import add_parser as add_certify
     from cdpr_sym.cli.design import add_parser as add_design
+    from cdpr_sym.cli.importing import add_parser as add_import
     from cdpr_sym.cli.tune import add_parser as add_tune
     from cdpr_sym.cli.view import add_parser as add_view
 
@@ -209,5 +210,6 @@ def build_parser() -> argparse.ArgumentParser:
     add_certify(command)
     add_design(command)
     add_tune(command)
+    add_import(command)
     add_view(command)
     return parser

@@ -279,10 +279,12 @@ def _toml_rows(rows: list[list[float]]) -> str:
     return "[\n" + "".join(f"    {_toml_value(row)},\n" for row in rows) + "]"
 
 
-def robot_file_text(robot: Robot, *, comment: str = "") -> str:
+def robot_file_text(robot: Robot, *, comment: str = "", gains: bool = True) -> str:
     """The robot-file TOML of ``robot`` (docs/guide/tour.md, "Robot files"):
     :func:`load_robot` reads it back into an equal robot. ``comment`` (lines of text) heads
-    the file as ``#`` lines."""
+    the file as ``#`` lines. Without ``gains`` the file leaves out ``[case] k`` and ``r_d``,
+    so loading it derives them (:mod:`cdpr_sym.robot.gains`): equal to the robot's only if
+    the robot's are the derived ones."""
     data = robot.as_dict()
     lines = [f"# {line}" for line in comment.splitlines()]
     lines += [f"name = {_toml_value(robot.name)}", f"mass = {_toml_value(robot.mass)}",
@@ -291,8 +293,8 @@ def robot_file_text(robot: Robot, *, comment: str = "") -> str:
               "[tension]", f"min = {_toml_value(robot.t_min)}", f"max = {_toml_value(robot.t_max)}",
               "", "[frame]", f"lower = {_toml_value(data['frame_lower'])}",
               f"upper = {_toml_value(data['frame_upper'])}", "", "[case]"]
-    lines += [f"{key} = {_toml_value(data[field])}" for key, field in
-              (("start", "start"), ("goal", "goal"), ("k", "k"), ("r_d", "r_d"))]
+    lines += [f"{key} = {_toml_value(data[key])}"
+              for key in ("start", "goal", *(("k", "r_d") if gains else ()))]
     if robot.attachments is not None:
         lines += ["", "[body]", f"attachments = {_toml_rows(data['attachments'])}",
                   f"inertia = {_toml_value(data['inertia'])}",
