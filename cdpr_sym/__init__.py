@@ -2,7 +2,8 @@
 
 The package follows the flow of the work, one folder a stage, each importing only the ones
 before it: ``robot`` (the description) → ``linalg`` → ``distribution`` (tensions) →
-``model`` (CasADi) → ``as_built`` (the real robot's parts) → ``codegen`` (generated C) →
+``model`` (CasADi) → ``underactuated`` (the equilibria of fewer cables than coordinates)
+→ ``as_built`` (the real robot's parts) → ``codegen`` (generated C) →
 ``control`` (the laws) → ``results`` (trajectories and their files) → ``closed_loop``
 (simulation) → ``workspace`` → ``certify`` (interval proofs) → ``calibration`` (the geometry
 as built, from measurements) → ``geometry`` (the geometry designed, and proven) → ``caspr``

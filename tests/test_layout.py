@@ -17,7 +17,7 @@ PACKAGE = Path(__file__).parents[1] / "cdpr_sym"
 
 #: Stages from the ground up; a module may import only its own stage and lower ones.
 STAGES = (("errors", "version"), ("checks",), ("robot",), ("linalg",), ("distribution",),
-          ("model",), ("as_built",), ("codegen",),
+          ("model",), ("underactuated",), ("as_built",), ("codegen",),
           ("control",), ("results",), ("closed_loop",), ("workspace",), ("certify",),
           ("calibration",), ("geometry",), ("caspr",),
           ("sweep",), ("reporting",),

@@ -10,7 +10,7 @@ import reference as ref
 
 from cdpr_sym import Plant, Robot, get_simulator, preset, simulate
 from cdpr_sym.cli import main
-from cdpr_sym.closed_loop import run_many, summarise_many
+from cdpr_sym.closed_loop import Case, run_many, summarise_many
 from cdpr_sym.control import CONTROLLERS, DistributedPD, capabilities
 from cdpr_sym.errors import InvalidCase, InvalidRobot
 from cdpr_sym.model import SymbolicModel
@@ -24,11 +24,15 @@ def test_the_redundant_presets_have_more_cables_than_degrees_of_freedom():
     assert preset("aras3").redundancy == 0
 
 
-def test_fewer_cables_than_degrees_of_freedom_is_refused_naming_the_anchors():
+def test_fewer_cables_than_degrees_of_freedom_make_an_underactuated_robot():
+    """Two of aras3's three cables: a valid robot, underactuated, whose case is refused
+    unless start and goal are stable equilibria (cdpr_sym.underactuated)."""
     fields = preset("aras3").as_dict()
     fields["anchors"] = fields["anchors"][:2]
-    with pytest.raises(InvalidRobot, match="anchors"):
-        Robot(**fields)
+    robot = Robot(**fields)
+    assert robot.underactuated and robot.m == 2
+    with pytest.raises(InvalidCase, match=r"^start: .* is not an equilibrium"):
+        Case.of(robot)
 
 
 def test_a_rigid_body_needs_one_attachment_per_cable():
@@ -56,13 +60,15 @@ def test_the_structure_matrix_and_its_rank_measure_match_numpy(name, rng, random
 
 
 SQUARE_ONLY = sorted(name for name, design in CONTROLLERS.items()
-                     if not capabilities(design).any_cables)
+                     if not capabilities(design).any_cables
+                     and capabilities(design).fully_actuated)
 
 
 def test_the_designs_for_redundant_robots_are_pd_td_smooth_ida_winch_nmpc_and_the_paper_l2():
     assert set(CONTROLLERS) - set(SQUARE_ONLY) == {"pd-td", "smooth", "smooth-lp", "l2",
                                                    "ida-winch", "nmpc", "nmpc-sqp",
-                                                   "nmpc-ipopt", "nmpc-of"}
+                                                   "nmpc-ipopt", "nmpc-of", "ida-under",
+                                                   "pd-under"}
 
 
 @pytest.mark.parametrize("name", SQUARE_ONLY)

@@ -147,6 +147,7 @@ class AsBuiltDraw:
 
     def draw(self, rng: np.random.Generator, robot: Robot) -> tuple[float, AsBuilt]:
         """One robot as built: (mass scale, :class:`AsBuilt`)."""
+        check_modelled(robot)
         mass_scale = float(rng.uniform(1 - self.mass_error, 1 + self.mass_error))
         offsets = rng.uniform(-self.anchor_error, self.anchor_error, (robot.m, robot.dimension))
         drive = self.drive(robot)
@@ -180,6 +181,17 @@ RATE_POSES, RATE_HEADROOM = 32, 1.25
 #: The share of the frame's size left out on each side where those poses are drawn (the
 #: sweeps' pair draw keeps the same margin).
 FRAME_MARGIN = 0.05
+
+
+def check_modelled(robot: Robot) -> None:
+    """Refuse, naming ``as_built``, a robot whose build is not modelled: one with fewer
+    cables than degrees of freedom (its m encoder lengths cannot give its n coordinates,
+    and the start held by the drawn plant solves W T = grad V for a W of full row rank)."""
+    if robot.underactuated:
+        raise InvalidCase("as_built", f"{robot.name} has fewer cables than degrees of freedom "
+                          f"(m = {robot.m} < n = {robot.n}): its robot as built is not "
+                          "modelled (m encoder lengths cannot give n coordinates); run it on "
+                          "the ideal plant")
 
 
 def substeps_for(robot: Robot, actuation: Actuation | None) -> int:

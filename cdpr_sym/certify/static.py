@@ -43,6 +43,10 @@ class StaticFeasibility:
                 "wrench w of the box")
 
     def refusal(self, robot: Robot, wrench: bool) -> str:
+        if robot.underactuated:
+            return (f"{robot.name} has fewer cables than degrees of freedom (m = {robot.m} < "
+                    f"n = {robot.n}): it rests only on its equilibrium manifold, which has no "
+                    "volume in the frame to prove; no proof method covers it")
         return f"no proof method covers {robot.name} (m = {robot.m}, n = {robot.n})"
 
     def holds(self, robot: Robot, poses: np.ndarray, half_widths: np.ndarray) -> np.ndarray:

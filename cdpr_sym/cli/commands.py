@@ -75,6 +75,7 @@ def check_as_built_args(args: argparse.Namespace, robot: Robot,
     (``simulate``), also that its draw can be run (:func:`check_draw_runs`; a sweep's
     :class:`~cdpr_sym.sweep.SweepConfig` checks that for its designs)."""
     from cdpr_sym.as_built import load_as_built_draw
+    from cdpr_sym.as_built.draw import check_modelled
     from cdpr_sym.calibration.drawn import check_calibration
 
     if args.as_built is None:
@@ -86,6 +87,7 @@ def check_as_built_args(args: argparse.Namespace, robot: Robot,
         if getattr(args, field, default) != default:
             raise InvalidCase(field, "the as-built draw sets the plant; leave it out")
     draw = load_as_built_draw(args.as_built)
+    check_modelled(robot)
     check_calibration(args.calibration, robot, draw)
     check_seed(args.seed)
     if controller is not None:  # a sweep's configuration checks the draw of its designs
@@ -230,6 +232,12 @@ def check_workspace_args(args: argparse.Namespace) -> tuple[Robot, np.ndarray | 
     from cdpr_sym.studies.workspace import check_grid
 
     robot = with_wrench_box(checked_robot(args.robot), args.force, args.moment)
+    if robot.underactuated:
+        raise InvalidCase("robot", f"{robot.name} has fewer cables than degrees of freedom "
+                          f"(m = {robot.m} < n = {robot.n}): it rests only on its equilibrium "
+                          "manifold, which a grid over the frame misses; `cdpr-sym view "
+                          f"--robot {args.robot} --workspace` draws a sample of its stable "
+                          "equilibria")
     orientation = check_grid(robot, args.resolution, args.orientation)
     check_folder("out", args.out)
     return robot, orientation

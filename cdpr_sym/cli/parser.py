@@ -8,7 +8,7 @@ from pathlib import Path
 from cdpr_sym.cli.robots import add_wrench_options
 from cdpr_sym.closed_loop.case import TRAJECTORY_BUDGET_BYTES
 from cdpr_sym.control import CONTROLLERS, DESCRIPTIONS
-from cdpr_sym.robot import PRESET_NAMES
+from cdpr_sym.robot import PRESET_NAMES, UNDERACTUATED_PRESETS
 from cdpr_sym.studies.bench import MAX_SECONDS
 from cdpr_sym.studies.registry import STUDY_NAMES
 from cdpr_sym.sweep.config import FORMATS, MAX_PAIRS
@@ -20,7 +20,8 @@ MAX_WORKERS = 256
 
 _CONTROLLER_HELP = "controllers:\n" + "\n".join(
     f"  {name:<11} {text}" for name, text in DESCRIPTIONS.items())
-_ROBOT_HELP = f"preset name ({', '.join(PRESET_NAMES)}) or robot TOML file"
+_ROBOT_HELP = (f"preset name ({', '.join(PRESET_NAMES + UNDERACTUATED_PRESETS)}) or robot TOML "
+               "file")
 
 
 class _Parser(argparse.ArgumentParser):

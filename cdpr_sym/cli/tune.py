@@ -75,6 +75,10 @@ def tune_command(args: argparse.Namespace, out: Output) -> int:
     if not (isinstance(args.dt, float) and 0 < args.dt <= 0.1 and math.isfinite(args.dt)):
         raise InvalidCase("dt", f"expected a control period in (0, 0.1] s, got {args.dt!r}")
     robot = checked_robot(args.robot)
+    if robot.underactuated:
+        report = _underactuated_report(robot)
+        out.result(report, _underactuated_lines(report))
+        return 0
     drive = load_as_built_draw(args.as_built).drive(robot)
     if drive is None:
         raise InvalidCase("as_built", "the gains are derived from the winches: the as-built "
@@ -82,3 +86,25 @@ def tune_command(args: argparse.Namespace, out: Output) -> int:
     report = tune_report(robot, drive, args.dt)
     out.result(report, _lines(report))
     return 0
+
+
+def _underactuated_report(robot: Any) -> dict[str, Any]:
+    """``ida-under``'s derived gains and plan (m < n: the only rules that apply)."""
+    from cdpr_sym.control.underactuated import RULE_SAMPLES, derived_design
+
+    design = derived_design(robot)
+    return {"robot": robot.name, "underactuated": True,
+            "ida_under": {"stiffness": design.stiffness, "damping": design.damping,
+                          "plan_s": design.duration, "median_decay_per_s": design.decay_rate,
+                          "rule_equilibria": RULE_SAMPLES + 1}}
+
+
+def _underactuated_lines(report: dict[str, Any]) -> list[str]:
+    design = report["ida_under"]
+    return [f"{report['robot']}: fewer cables than degrees of freedom, ida-under's rules "
+            f"(docs/guide/underactuated.md)",
+            f"ida-under: k {design['stiffness']:.4g} N/m and c {design['damping']:.4g} N s/m per "
+            f"cable (the median slowest decay over {design['rule_equilibria']} equilibria "
+            f"maximised: {design['median_decay_per_s']:.3g} 1/s), plan {design['plan_s']:.3g} s "
+            "(2.5 longest swing periods, within [1 s, half the settle time])",
+            "no winch gains: the robot as built is not modelled for m < n"]

@@ -20,6 +20,9 @@ PICTURE_SUFFIXES = (".png", ".svg", ".pdf")
 #: poses, about 15k and 7k: well under a second in generated C; a denser 3-D cloud hides the
 #: cables).
 WORKSPACE_GRID = {2: 121, 3: 19}
+#: Equilibria drawn for ``--workspace`` with fewer cables than coordinates (each one a
+#: settling solve, about 2 ms).
+EQUILIBRIUM_SAMPLES = 400
 
 
 def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
@@ -86,6 +89,12 @@ def holding_tension(robot: Robot, pose: np.ndarray) -> tuple[np.ndarray, str]:
     in the box (a linear programme), or, where none is in the box, the least-norm one."""
     from cdpr_sym.geometry.sampled import margins_and_tensions, structure_and_gravity
 
+    if robot.underactuated:
+        from cdpr_sym.underactuated import EquilibriumManifold
+
+        found = EquilibriumManifold(robot).classify(pose)
+        return found.tension, ("the equilibrium's, (W^T W)^-1 W^T grad V" if found.holds
+                               else "least squares; the pose is no equilibrium")
     margin, tension = margins_and_tensions(robot, pose[None, :])
     if robot.m == robot.n:
         if not np.isfinite(margin[0]):
@@ -101,8 +110,16 @@ def holding_tension(robot: Robot, pose: np.ndarray) -> tuple[np.ndarray, str]:
 
 def workspace_points(robot: Robot, pose: np.ndarray) -> np.ndarray:
     """The statically feasible poses of a grid over the frame's positions
-    (:data:`WORKSPACE_GRID` points per axis), a body's angles held at ``pose``'s."""
+    (:data:`WORKSPACE_GRID` points per axis), a body's angles held at ``pose``'s; with
+    fewer cables than coordinates, :data:`EQUILIBRIUM_SAMPLES` stable equilibria with
+    their tensions in the box, at whatever angles they rest."""
     from cdpr_sym.workspace import WorkspaceEvaluator
+
+    if robot.underactuated:
+        from cdpr_sym.underactuated import EquilibriumManifold
+
+        return EquilibriumManifold(robot).sample(EQUILIBRIUM_SAMPLES,
+                                                 np.random.default_rng(0))
 
     d = robot.dimension
     axes = [np.linspace(lo, hi, WORKSPACE_GRID[d])
@@ -119,5 +136,6 @@ def draw(robot: Robot, pose: np.ndarray, tensions: np.ndarray, path: Path, *,
 
     ax = new_axes(robot)
     draw_robot(robot, pose=pose, ax=ax, tensions=tensions, goal=robot.goal, points=points,
-               boxes=boxes)
+               boxes=boxes, points_label="stable equilibria (a sample)" if robot.underactuated
+               else "static workspace")
     ax.figure.savefig(path, dpi=dpi, bbox_inches="tight")

@@ -12,6 +12,7 @@ import numpy.typing as npt
 from cdpr_sym.errors import InvalidCase, InvalidRobot
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
+from cdpr_sym.underactuated.equilibrium import EquilibriumManifold, check_equilibrium
 
 
 @dataclasses.dataclass(frozen=True)
@@ -21,7 +22,9 @@ class Case:
     Missing entries default to the robot's case. Start and goal must be regular poses
     (|det W| / prod |w_i| >= ``SINGULAR_DET``), and the goal must lie in the static
     workspace (T_min <= W^{-1} grad V <= T_max; with m > n cables, some tension in the box
-    holding the weight), or no controller can hold the robot there.
+    holding the weight), or no controller can hold the robot there. With m < n cables both
+    must be stable equilibria with their tensions in the box
+    (:mod:`cdpr_sym.underactuated.equilibrium`): the robot rests nowhere else.
     """
 
     start: np.ndarray
@@ -52,6 +55,11 @@ class Case:
         model = model or SymbolicModel(robot)
         for field in ("start", "goal"):
             _check_regular(model, field, getattr(checked, field))
+        if robot.underactuated:  # at rest only on the equilibrium manifold
+            manifold = EquilibriumManifold(checked, model)
+            for field in ("start", "goal"):
+                check_equilibrium(manifold, field, getattr(checked, field))
+            return cls(checked.start, checked.goal, checked.k, checked.r_d)
         tension, held = model.static_distribution_function(checked.goal)
         tau_1 = np.array(tension.full()).ravel()
         if not float(held) > 0.5:

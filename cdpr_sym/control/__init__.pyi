@@ -36,6 +36,7 @@ from .registry import (
     controller_by_name,
     controller_from_options,
 )
+from .underactuated import CablePD, UnderactuatedIdaPbc
 from .winch_level import WinchIdaPbc
 
 __all__ = [
@@ -52,6 +53,7 @@ __all__ = [
     "PD",
     "SQUARE_STEPWISE",
     "BoxDesign",
+    "CablePD",
     "Capabilities",
     "ControlLaw",
     "ControlOutput",
@@ -65,6 +67,7 @@ __all__ = [
     "SaturatedPD",
     "SmoothReference",
     "StatelessLaw",
+    "UnderactuatedIdaPbc",
     "VirtualReferenceIdaPbc",
     "WinchIdaPbc",
     "capabilities",

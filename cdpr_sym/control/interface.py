@@ -75,12 +75,18 @@ class Capabilities:
         The design follows a planned reference whose plan can be infeasible (that of
         :class:`~cdpr_sym.control.planned.SmoothReference`, the design's own or held as its
         ``plan``): it then sets ``FLAG_INFEASIBLE``, on which an exported package stops.
+    underactuated : bool
+        Also runs robots with fewer cables than degrees of freedom (m < n).
+    fully_actuated : bool
+        Runs robots with at least as many cables as degrees of freedom (False: only m < n).
     """
 
     any_cables: bool = False
     sample_period: float | None = None
     reads_drives: bool = False
     planned: bool = False
+    underactuated: bool = False
+    fully_actuated: bool = True
 
     @property
     def sampled(self) -> bool:

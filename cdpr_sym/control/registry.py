@@ -11,6 +11,7 @@ from cdpr_sym.control.interface import Controller, capabilities
 from cdpr_sym.control.nmpc import Nmpc
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.control.tuning import FROM_ROBOT
+from cdpr_sym.control.underactuated import CablePD, UnderactuatedIdaPbc
 from cdpr_sym.control.winch_level import WinchIdaPbc
 from cdpr_sym.errors import InvalidCase, UnknownName
 
@@ -48,6 +49,8 @@ CONTROLLERS: dict[str, Controller] = {
     "nmpc-sqp": Nmpc(solver="sqp"),
     "nmpc-ipopt": Nmpc(solver="ipopt"),
     "nmpc-of": Nmpc(observer_rate=NMPC_OBSERVER_RATE),
+    "ida-under": UnderactuatedIdaPbc(),
+    "pd-under": CablePD(),
 }
 
 
@@ -76,6 +79,11 @@ DESCRIPTIONS = {
     "nmpc-ipopt": "the same NMPC solved to convergence by IPOPT (the reference)",
     "nmpc-of": "nmpc, offset-free: predicts with the force a momentum observer estimates the "
                "model misses (mass error)",
+    "ida-under": "IDA-PBC for fewer cables than degrees of freedom: energy shaped in the cable "
+                 "lengths along a path of stable equilibria, damping through the cables, J_d "
+                 "keeping the box; m < n only",
+    "pd-under": "PD on the cable lengths about the goal's, the goal's tension fed forward, "
+                "from the first sample (no plan, no J_d): the baseline; m < n only",
 }
 
 
@@ -117,7 +125,18 @@ def controller_from_options(name: str, options: dict[str, Any]) -> Controller:
 
 def check_cables(controller: Controller, n: int, m: int) -> None:
     """Raise :class:`InvalidCase` (``controller``) when ``controller`` cannot run a robot of
-    n degrees of freedom on m cables: every design but ``pd-td`` inverts a square W."""
+    n degrees of freedom on m cables: most designs invert a square W, a few take m > n, and
+    only the underactuated ones take m < n (and nothing else)."""
+    underactuated = capabilities(controller).underactuated
+    if m < n and not underactuated:
+        fewer = [name for name, design in CONTROLLERS.items()
+                 if capabilities(design).underactuated]
+        raise InvalidCase("controller", f"{controller.name} needs at least as many cables as "
+                          f"degrees of freedom, got {m} cables for n = {n}; for fewer use "
+                          f"{', '.join(fewer)}")
+    if m >= n and not capabilities(controller).fully_actuated:
+        raise InvalidCase("controller", f"{controller.name} is for fewer cables than degrees "
+                          f"of freedom, got {m} cables for n = {n}")
     if m > n and not capabilities(controller).any_cables:
         redundant = [name for name, design in CONTROLLERS.items()
                      if capabilities(design).any_cables]

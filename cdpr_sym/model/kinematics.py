@@ -149,8 +149,15 @@ def singularity_measure(robot: Robot, W: ca.SX) -> ca.SX:
     semi-definite, so its determinant is the product of its LDL^T pivots
     (:mod:`cdpr_sym.linalg`: a few hundred operations where expanding by minors takes
     thousands); a NaN in W gives a NaN measure, which no threshold test calls singular.
+    With m < n cables (underactuated) it is sqrt(det(V^T V)), in [0, 1] by Hadamard's
+    inequality, 0 exactly where W loses column rank.
     """
     n, m = W.shape
+    if m < n:
+        gram = ca.densify(W.T @ W)
+        scale = 1.0 if robot.kind == "point" else _product(
+            [1.0 / ca.sumsqr(W[:, i]) for i in range(m)])
+        return ca.sqrt(gram_determinant(gram) * scale)
     if m == n:
         if robot.kind == "point":
             return ca.fabs(ca.det(W))

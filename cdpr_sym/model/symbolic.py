@@ -30,6 +30,10 @@ from cdpr_sym.model.geometry_view import geometry_symbols
 from cdpr_sym.model.newton_euler import rigid_acceleration, wrench_acceleration
 from cdpr_sym.robot import Robot
 
+#: With m < n cables, the least-squares tension holds the weight (the pose is an
+#: equilibrium) when the force left over is at most this share of the weight's gradient.
+EQUILIBRIUM_RESIDUAL = 1e-6
+
 
 class SymbolicModel:
     """CasADi expressions and functions of one robot.
@@ -48,7 +52,7 @@ class SymbolicModel:
     def __init__(self, robot: Robot) -> None:
         self.robot = robot
         self.n = robot.n
-        #: Number of cables (m >= n; m > n: W has a null space).
+        #: Number of cables (m > n: W has a null space; m < n: underactuated).
         self.m = robot.m
         self.n_j = robot.n_j
         #: Kinematic expressions of a rigid body, each built once on a symbol.
@@ -208,9 +212,22 @@ class SymbolicModel:
         if self.m > self.n:
             return distribute(AUTO, self.structure_matrix(q), self.grad_potential(q),
                               robot.t_min, robot.t_max)
+        if self.m < self.n:
+            return self._equilibrium_tension(q)
         tau = ca.solve(self.structure_matrix(q), self.grad_potential(q))
         inside = ca.logic_and(ca.mmin(tau) >= robot.t_min, ca.mmax(tau) <= robot.t_max)
         return tau, ca.if_else(inside, 1.0, 0.0)
+
+    def _equilibrium_tension(self, q: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """m < n cables: the least-squares tension (W^T W)^-1 W^T grad V, N, and 1 where it
+        holds the weight (an equilibrium: |W T - grad V| <= :data:`EQUILIBRIUM_RESIDUAL`
+        times |grad V|) inside [T_min, T_max], else 0."""
+        robot = self.robot
+        W, grad_v = self.structure_matrix(q), self.grad_potential(q)
+        tau = ca.solve(ca.densify(W.T @ W), W.T @ grad_v)
+        balanced = ca.norm_2(W @ tau - grad_v) <= EQUILIBRIUM_RESIDUAL * ca.norm_2(grad_v)
+        inside = ca.logic_and(ca.mmin(tau) >= robot.t_min, ca.mmax(tau) <= robot.t_max)
+        return tau, ca.if_else(ca.logic_and(balanced, inside), 1.0, 0.0)
 
     def cable_force(self, q: ca.SX, tau: ca.SX) -> ca.SX:
         """W(q) tau, the cables' generalized force, N (N m for angles), shape (n, 1).
@@ -368,4 +385,6 @@ class SymbolicModel:
         determinant from the LDL^T pivots of W W^T)."""
         if self.m == self.n:
             return ca.det(W)
+        if self.m < self.n:
+            return ca.sqrt(gram_determinant(ca.densify(W.T @ W)))
         return ca.sqrt(gram_determinant(weighted_gram(W)))

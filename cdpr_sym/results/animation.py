@@ -136,11 +136,11 @@ def animate_run(run: Trajectory, robot: Robot | None = None, *, fps: float = 25.
 def run_robot(run: Trajectory, robot: Robot | None) -> Robot:
     """The robot a run is drawn on: ``robot``, else the preset its ``info`` names; checked
     to have the run's coordinates and cables."""
-    from cdpr_sym.robot import PRESET_NAMES, preset
+    from cdpr_sym.robot import PRESET_NAMES, UNDERACTUATED_PRESETS, preset
 
     if robot is None:
         name = run.info.get("robot")
-        if name not in PRESET_NAMES:
+        if name not in PRESET_NAMES + UNDERACTUATED_PRESETS:
             raise InvalidCase("robot", f"this run's robot {name!r} is not a preset; pass the "
                               "Robot it ran on (animate(robot=...))")
         robot = preset(name)

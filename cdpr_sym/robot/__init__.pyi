@@ -8,8 +8,27 @@ from .description import (
     Robot,
     robot_key,
 )
-from .files import PRESET_NAMES, load_robot, preset, resolve_robot, robot_from_dict
+from .files import (
+    PRESET_NAMES,
+    UNDERACTUATED_PRESETS,
+    load_robot,
+    preset,
+    resolve_robot,
+    robot_from_dict,
+)
 from .tension_box import TensionBox
 
-__all__ = ["COORDINATES", "PITCH_LIMIT", "PRESET_NAMES", "WRENCH_FIELDS", "Robot",
-           "TensionBox", "load_robot", "preset", "resolve_robot", "robot_from_dict", "robot_key"]
+__all__ = [
+    "COORDINATES",
+    "PITCH_LIMIT",
+    "PRESET_NAMES",
+    "UNDERACTUATED_PRESETS",
+    "WRENCH_FIELDS",
+    "Robot",
+    "TensionBox",
+    "load_robot",
+    "preset",
+    "resolve_robot",
+    "robot_from_dict",
+    "robot_key",
+]

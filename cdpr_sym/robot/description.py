@@ -68,7 +68,12 @@ MAX_TENSION = 1e7
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Robot:
-    """A cable robot: m >= n cables on an end-effector of n degrees of freedom.
+    """A cable robot: m cables on an end-effector of n degrees of freedom.
+
+    m = n cables make it fully actuated, m > n redundantly actuated, m < n underactuated:
+    then it rests only on its equilibrium manifold (the poses where some tension in the box
+    holds its weight, :mod:`cdpr_sym.underactuated`), and its case's start and goal must be
+    stable equilibria.
 
     Parameters
     ----------
@@ -78,7 +83,7 @@ class Robot:
     anchors : ndarray, shape (m, d)
         Row i is the frame anchor a_i of cable i in the world (d = 2 or 3), m. m = n cables
         make the robot fully actuated; m > n redundantly actuated (W has a null space of
-        internal tension, see :mod:`cdpr_sym.distribution`).
+        internal tension, see :mod:`cdpr_sym.distribution`); m < n underactuated.
     mass : float
         End-effector mass, kg, within :data:`MASS_RANGE`.
     gravity : float
@@ -223,8 +228,14 @@ class Robot:
 
     @property
     def m(self) -> int:
-        """Number of cables (m >= n)."""
+        """Number of cables."""
         return self.anchors.shape[0]
+
+    @property
+    def underactuated(self) -> bool:
+        """Fewer cables than degrees of freedom (m < n): the weight is held only on the
+        equilibrium manifold (:mod:`cdpr_sym.underactuated`)."""
+        return self.m < self.n
 
     @property
     def redundancy(self) -> int:
@@ -315,11 +326,10 @@ class Robot:
 
     def _check_point_body(self) -> None:
         anchors = self.anchors
-        if anchors.shape[1] < 2 or anchors.shape[0] < anchors.shape[1]:
+        if anchors.shape[1] < 2 or anchors.shape[0] < 1:
             raise InvalidRobot(
-                "anchors", f"expected an (m, n) array with m >= n >= 2 for a point mass (one "
-                f"anchor per cable, at least one cable per coordinate), got shape "
-                f"{anchors.shape}")
+                "anchors", f"expected an (m, n) array with m >= 1 and n >= 2 for a point mass "
+                f"(one anchor per cable, m < n: underactuated), got shape {anchors.shape}")
         for field in ("inertia", "center_of_mass"):
             if getattr(self, field) is not None:
                 raise InvalidRobot(f"body.{field}", "a rigid body needs body.attachments; "
@@ -330,12 +340,10 @@ class Robot:
         if d not in (2, 3):
             raise InvalidRobot("anchors", f"expected 2 or 3 coordinates per anchor for a "
                                f"rigid body, got {d}")
-        n = len(COORDINATES["planar" if d == 2 else "spatial", d][0])
         m = self.anchors.shape[0]
-        if m < n:
-            raise InvalidRobot("anchors", f"expected at least {n} anchors (one cable per "
-                               f"degree of freedom of a {'planar' if d == 2 else 'spatial'} "
-                               f"body), got {m}")
+        if m < 1:
+            raise InvalidRobot("anchors", f"expected at least one anchor (one per cable) for "
+                               f"a {'planar' if d == 2 else 'spatial'} body, got none")
         attachments = _float_array("body.attachments", self.attachments, ndim=2)
         if attachments.shape != (m, d):
             raise InvalidRobot("body.attachments", f"expected shape {(m, d)} (one body-frame "

@@ -20,6 +20,10 @@ from cdpr_sym.robot.gains import case_gains
 from cdpr_sym.robot.target import TARGET_FIELDS
 
 PRESET_NAMES = ("aras3", "planar2", "planar3", "spatial6", "planar4", "spatial4", "ipanema8")
+#: Bundled robots with fewer cables than degrees of freedom (:mod:`cdpr_sym.underactuated`):
+#: a planar bar on two cables and a 6-DOF platform on three. Kept apart from
+#: :data:`PRESET_NAMES`, whose robots every design of m >= n cables runs.
+UNDERACTUATED_PRESETS = ("bar2", "tri3")
 
 #: Largest robot file read, bytes (1 MiB; the presets are under 2 KiB). A larger file, or
 #: anything that is not a regular file (a device, a FIFO), is refused before it is read.
@@ -204,7 +208,8 @@ def preset(name: str) -> Robot:
         cables), ``spatial6`` (a suspended 6-DOF platform on six cables), and with more
         cables than degrees of freedom ``planar4`` (a planar point mass on four cables),
         ``spatial4`` (aras3's frame with a fourth cable) and ``ipanema8`` (a 6-DOF
-        platform on eight cables).
+        platform on eight cables); or, with fewer (:data:`UNDERACTUATED_PRESETS`), ``bar2``
+        (a planar bar on two cables) and ``tri3`` (a 6-DOF platform on three).
 
     Returns
     -------
@@ -220,8 +225,9 @@ def preset(name: str) -> Robot:
     >>> preset("aras3").mass
     4.0
     """
-    if name not in PRESET_NAMES:
-        raise UnknownName(f"unknown preset {name!r}; expected one of {', '.join(PRESET_NAMES)}")
+    if name not in PRESET_NAMES + UNDERACTUATED_PRESETS:
+        raise UnknownName(f"unknown preset {name!r}; expected one of "
+                          f"{', '.join(PRESET_NAMES + UNDERACTUATED_PRESETS)}")
     return _bundled(name)
 
 
@@ -255,7 +261,7 @@ def resolve_robot(name_or_path: Robot | str | Path) -> Robot:
     """
     if isinstance(name_or_path, Robot):
         return name_or_path
-    if str(name_or_path) in PRESET_NAMES:
+    if str(name_or_path) in PRESET_NAMES + UNDERACTUATED_PRESETS:
         return preset(str(name_or_path))
     if Path(name_or_path).suffix == ".toml" or Path(name_or_path).exists():
         return load_robot(name_or_path)

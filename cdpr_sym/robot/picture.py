@@ -130,7 +130,7 @@ class RobotPicture:
         if self.robot.kind == "point":
             return []
         faces = scene(self.robot).outline
-        style = {"facecolor": BODY_COLOUR, "edgecolor": "navy", "alpha": 0.35}
+        style = {"facecolor": BODY_COLOUR, "edgecolor": "navy", "alpha": 0.5, "linewidth": 2.0}
         if self.flat:
             from matplotlib.patches import Polygon
 
@@ -193,7 +193,8 @@ def draw_robot(robot: Robot, *, pose: Sequence[float] | np.ndarray | None = None
                ax: Any = None, tensions: Sequence[float] | np.ndarray | None = None,
                goal: Sequence[float] | np.ndarray | None = None,
                points: np.ndarray | None = None, boxes: Sequence[Any] | None = None,
-               title: str | None = None, pyplot: bool = True) -> Any:
+               title: str | None = None, pyplot: bool = True,
+               points_label: str = "static workspace") -> Any:
     """Draw ``robot`` at ``pose`` (default its case's start) and return the Axes.
 
     Parameters
@@ -210,7 +211,8 @@ def draw_robot(robot: Robot, *, pose: Sequence[float] | np.ndarray | None = None
     goal : sequence of float, optional
         A goal pose, drawn as a star at its reference point.
     points : ndarray, shape (k, >= d), optional
-        Feasible poses of a workspace (their positions are drawn).
+        Feasible poses of a workspace (their positions are drawn), labelled
+        ``points_label``.
     boxes : sequence of (lower, upper, verdict), optional
         A certificate's boxes: position corners (m) and the verdict code (1 proven
         feasible, -1 proven infeasible, 0 undecided).
@@ -229,7 +231,7 @@ def draw_robot(robot: Robot, *, pose: Sequence[float] | np.ndarray | None = None
     picture = RobotPicture(robot, ax, tensions=tensions is not None)
     if points is not None and len(points):
         _scatter(ax, np.asarray(points)[:, : robot.dimension], s=3, alpha=0.25,
-                 color=WORKSPACE_COLOUR, label="static workspace", zorder=1)
+                 color=WORKSPACE_COLOUR, label=points_label, zorder=1)
     if boxes:
         draw_boxes(ax, boxes, flat=picture.flat)
     checked = None if tensions is None else _checked_tensions(robot, tensions)

@@ -109,11 +109,15 @@ def checked_pose(robot: Robot, pose: object, field: str = "pose") -> np.ndarray:
 def body_faces(points: np.ndarray) -> tuple[np.ndarray, ...]:
     """The faces of the convex hull of body-frame ``points`` (k, d), each a polygon in
     order around its face: one for a planar body or coplanar attachments, the hull's
-    triangles for a solid; none for fewer than three distinct points in a line."""
+    triangles for a solid, a bar between the two farthest for points in a line; none for
+    a single point."""
     centred = points - points.mean(axis=0)
     _, spread, axes = np.linalg.svd(centred, full_matrices=False)
-    if spread.size < 2 or spread[1] <= FLAT * max(spread[0], 1e-300):
+    if spread.size == 0 or spread[0] <= 0:
         return ()
+    if spread.size < 2 or spread[1] <= FLAT * spread[0]:  # in a line: a bar end to end
+        along = centred @ axes[0]
+        return (points[[int(along.argmin()), int(along.argmax())]],)
     if points.shape[1] == 2 or spread[2] <= FLAT * spread[0]:
         return (_polygon(points, centred @ axes[:2].T),)
     from scipy.spatial import ConvexHull  # a solid platform only

@@ -14,7 +14,7 @@ from cdpr_sym.closed_loop.case import check_controller_period, check_timing
 from cdpr_sym.closed_loop.effects.readout import check_draw_runs
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.robot import PRESET_NAMES, Robot, preset, resolve_robot
+from cdpr_sym.robot import PRESET_NAMES, UNDERACTUATED_PRESETS, Robot, preset, resolve_robot
 from cdpr_sym.workspace import WorkspaceEvaluator, sample_static_workspace
 
 if TYPE_CHECKING:
@@ -162,17 +162,25 @@ def robot_reference(robot: Robot | str | Path) -> tuple[Robot, str]:
     if isinstance(robot, (str, Path)):
         resolved = resolve_robot(robot)
         # a file by its absolute path, so workers and a resume elsewhere find the same file
-        return resolved, (str(robot) if str(robot) in PRESET_NAMES
+        return resolved, (str(robot) if str(robot) in PRESET_NAMES + UNDERACTUATED_PRESETS
                           else str(Path(robot).resolve()))
-    if robot.name in PRESET_NAMES and preset(robot.name).as_dict() == robot.as_dict():
+    if (robot.name in PRESET_NAMES + UNDERACTUATED_PRESETS
+            and preset(robot.name).as_dict() == robot.as_dict()):
         return robot, robot.name
     raise InvalidCase("robot", f"a sweep names its robot by preset name or file, and "
                       f"{robot.name!r} is not an unchanged preset; pass its TOML file instead")
 
 
 def draw_pairs(robot: Robot, config: SweepConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Seeded start and goal poses, each (pairs, n), from the static workspace."""
+    """Seeded start and goal poses, each (pairs, n), from the static workspace; with fewer
+    cables than degrees of freedom, stable equilibria with their tensions in the box
+    (:meth:`~cdpr_sym.underactuated.EquilibriumManifold.sample`)."""
     rng = np.random.default_rng(config.seed)
+    if robot.underactuated:
+        from cdpr_sym.underactuated import EquilibriumManifold
+
+        poses = EquilibriumManifold(robot).sample(2 * config.pairs, rng)
+        return poses[: config.pairs], poses[config.pairs:]
     evaluator = WorkspaceEvaluator(robot)
     poses = sample_static_workspace(robot, 2 * config.pairs, rng, margin=config.margin,
                                     evaluator=evaluator)

@@ -262,9 +262,10 @@ class Nmpc:
         return dataclasses.asdict(self)
 
     def capabilities(self) -> Capabilities:
-        """Any m >= n cables (the optimisation picks every tension), solved every
-        :attr:`period` outside the generated step."""
-        return Capabilities(any_cables=True, sample_period=self.period)
+        """Any number of cables, fewer than the degrees of freedom too (the optimisation
+        picks every tension through the robot's dynamics), solved every :attr:`period`
+        outside the generated step."""
+        return Capabilities(any_cables=True, sample_period=self.period, underactuated=True)
 
     def memory_size(self, model: SymbolicModel) -> int:
         """The last command (m), the planned rate (m) and the sample's flags; with the

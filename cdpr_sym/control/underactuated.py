@@ -1,0 +1,303 @@
+"""``ida-under``: IDA-PBC for underactuated robots (m < n cables), J_d keeping the box.
+
+**Matching, solved in the cable lengths.** The robot is port-Hamiltonian with H = 1/2 p^T
+M^-1 p + V and input matrix G = W(q) (n x m, rank m < n). IDA-PBC seeks a closed loop with
+the energy H_d = 1/2 p^T M_d^-1 p + V_d and interconnection J_2; the law exists iff the
+matching equations hold, with G^perp (n - m rows, G^perp G = 0):
+
+    kinetic:    G^perp { grad_q (p^T M^-1 p) - M_d M^-1 grad_q (p^T M_d^-1 p) + 2 J_2 M_d^-1 p } = 0
+    potential:  G^perp { grad V - M_d M^-1 grad V_d } = 0.
+
+Take M_d = M: the first bracket's two gradients cancel, so the kinetic equation asks
+G^perp J_2 = 0, which every J_2 = W A W^T with A skew (m x m) meets. The potential equation
+asks grad (V_d - V) to lie in the span of W's columns, i.e. of the gradients of the cable
+lengths: every function of the lengths does, so
+
+    V_d(q) = V(q) + phi(l(q)),  phi(l) = T_g^T (l - l_g) + 1/2 k |l - l_g|^2
+
+solves it exactly for all q (l_g the goal's lengths, T_g its equilibrium tension). The law,
+u = (G^T G)^-1 G^T (grad_q H - grad_q H_d + J_2 M^-1 p) - K_v G^T M^-1 p with K_v = c I, is
+
+    T = T_g + k (l - l_g) + c l' - A l',      l' = dl/dt = -W^T dq,
+
+a spring of stiffness k and a damper c on every cable about the goal's lengths, preloaded
+by the goal's tension. Along the closed loop dH_d/dt = -c |l'|^2 <= 0 (A l' is orthogonal
+to l', so the skew term does no work).
+
+**When the goal is a strict minimum of H_d.** grad V_d(q_g) = grad V - W T_g = 0 because
+q_g is an equilibrium held by T_g, and hess V_d(q_g) = S + k J^T J with
+S = hess (V + T_g^T l) (:mod:`cdpr_sym.underactuated.equilibrium`). On the moves that keep
+the cable lengths it is S itself: positive definite exactly when the goal is a *stable*
+equilibrium; on the others k J^T J adds stiffness. So a stable goal with a large enough k
+is a strict minimum (the tests check the eigenvalues). Asymptotic stability then follows by
+LaSalle: l' = 0 for all time makes T constant, and a motion at constant lengths under a
+constant tension is an equilibrium.
+
+**J_d (here A) keeps the box, as the paper intends.** The free term w = -A l' can be any
+vector orthogonal to l' (A = (l' w^T - w l'^T) / |l'|^2); it is bounded by |w| <= c |l'|.
+With T0 the law at A = 0 and d = P (T_mid - T0), P the projection orthogonal to l', the
+step w = a d takes the a of least |a| that puts every tension in [T_min, T_max] (exact
+box along d); where no a does, a = 1, the least-squares choice of the paper (T nearest
+the box's middle), and the step is flagged ``FLAG_INFEASIBLE``. Guaranteed: the energy
+balance for every choice; not guaranteed: the box (no bound on the spring's force far
+from the goal); the runs and the study count it.
+
+**The move.** Starting at rest at one stable equilibrium, the reference moves along the
+manifold: the lengths follow a minimum-jerk path l_ref(t) from l(q_0) to l_g over the plan's
+duration, the reference equilibrium (q_ref, T_ref) held by them is tracked by two Newton
+steps a sample on W(q) T = grad V, l(q) = l_ref from the last one (memory), and the law
+uses (l_ref, l_ref', T_ref) in place of (l_g, 0, T_g). At t = 0 it commands the start's
+own tension (no jump); after the plan it is exactly the law above with the fixed goal.
+
+**Gains and duration from the robot** (:mod:`cdpr_sym.underactuated.linearisation`): k and c
+maximise the median of the linearisation's slowest decay rate over the case goal and 24
+admissible equilibria drawn from seed 0, for a 1 ms loop; the plan lasts 2.5 of the
+longest swing periods over them, so that the move excites little swing (the swing is
+damped only through its coupling with the cables), but at most half the target's settle
+time and at least 1 s. The case gains k, r_d of the step's
+signature are not used.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import casadi as ca
+import numpy as np
+
+from cdpr_sym.checks import positive_number
+from cdpr_sym.control.flags import FLAG_INFEASIBLE
+from cdpr_sym.control.interface import Capabilities, ControlLaw
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SymbolicModel
+from cdpr_sym.robot import Robot, robot_key
+
+#: The control period the gains are derived for, s.
+GAIN_PERIOD = 1e-3
+#: Shortest plan, s.
+SHORTEST_PLAN = 1.0
+#: Plan length in periods of the longest swing over the rule's sample of equilibria...
+PLAN_PERIODS = 2.5
+#: ... but at most this share of the target's settle time, leaving the rest to settle.
+PLAN_SHARE = 0.5
+#: Admissible equilibria the rules sample (drawn from seed 0), beside the case's goal.
+RULE_SAMPLES = 24
+#: Newton steps a sample on the reference equilibrium.
+NEWTON_STEPS = 2
+_UNITS = {"stiffness": "N/m", "damping": "N s/m", "duration": "s"}
+
+
+@dataclasses.dataclass(frozen=True)
+class UnderactuatedDesign:
+    """What ``ida-under`` derives from a robot: cable gains and the plan's duration.
+
+    Attributes
+    ----------
+    stiffness, damping : float
+        k (N/m) and c (N s/m) per cable.
+    duration : float
+        The plan's duration, s.
+    decay_rate : float
+        The linearisation's slowest decay rate at the case goal, 1/s.
+    """
+
+    stiffness: float
+    damping: float
+    duration: float
+    decay_rate: float
+
+
+#: Derived designs by robot description (:func:`~cdpr_sym.robot.robot_key`).
+_DERIVED: dict[str, UnderactuatedDesign] = {}
+
+
+def derived_design(robot: Robot) -> UnderactuatedDesign:
+    """``ida-under``'s gains and plan duration for ``robot`` (module docstring), derived
+    once per robot description (0.5 s)."""
+    key = robot_key(robot)
+    if key not in _DERIVED:
+        _DERIVED[key] = _derive(robot)
+    return _DERIVED[key]
+
+
+def _derive(robot: Robot) -> UnderactuatedDesign:
+    from cdpr_sym.underactuated import EquilibriumManifold
+    from cdpr_sym.underactuated.linearisation import cable_gains, swing_period
+
+    manifold = EquilibriumManifold(robot)
+    sample = np.vstack([robot.goal, manifold.sample(RULE_SAMPLES, np.random.default_rng(0))])
+    gains = cable_gains(robot, sample, GAIN_PERIOD, manifold)
+    longest = max(swing_period(manifold, q) for q in sample)
+    duration = min(PLAN_PERIODS * longest, PLAN_SHARE * robot.design_target.settle_time)
+    return UnderactuatedDesign(float(gains.stiffness), float(gains.damping),
+                               float(max(SHORTEST_PLAN, duration)), gains.decay_rate)
+
+
+@dataclasses.dataclass(frozen=True)
+class UnderactuatedIdaPbc:
+    """IDA-PBC for m < n cables (module docstring): energy shaped in the cable lengths,
+    damping injected along the cables, J_d keeping the tension box.
+
+    Memory: [t, l(q_0) (m), q_ref (n), T_ref (m)].
+
+    Parameters
+    ----------
+    stiffness : float, optional
+        k, N/m per cable; default the robot's rule.
+    damping : float, optional
+        c, N s/m per cable; default the robot's rule.
+    duration : float, optional
+        The plan's duration, s; default the robot's rule.
+    planned : bool
+        Move along the path of equilibria (False: the goal's law from the first sample).
+    box : bool
+        Use J_d to keep the tension box (False: A = 0).
+    """
+
+    name: ClassVar[str] = "ida-under"
+    stiffness: float | None = None
+    damping: float | None = None
+    duration: float | None = None
+    planned: bool = True
+    box: bool = True
+
+    def __post_init__(self) -> None:
+        for field in ("stiffness", "damping", "duration"):
+            value = getattr(self, field)
+            if value is not None:
+                object.__setattr__(self, field, positive_number(field, value, _UNITS[field]))
+
+    def options(self) -> dict[str, Any]:
+        """The overrides given (none: every number derived from the robot) and the
+        switches that differ from this design's defaults."""
+        given = {field: getattr(self, field) for field in ("stiffness", "damping", "duration")
+                 if getattr(self, field) is not None}
+        defaults = type(self)()
+        return given | {field: getattr(self, field) for field in ("planned", "box")
+                        if getattr(self, field) != getattr(defaults, field)}
+
+    def design(self, robot: Robot) -> UnderactuatedDesign:
+        """The gains and plan duration on ``robot``: the rule's, with the overrides."""
+        derived = derived_design(robot)
+        given = {field: getattr(self, field) for field in ("stiffness", "damping", "duration")
+                 if getattr(self, field) is not None}
+        return dataclasses.replace(derived, **given)
+
+    def capabilities(self) -> Capabilities:
+        """Only robots with fewer cables than coordinates."""
+        return Capabilities(underactuated=True, fully_actuated=False)
+
+    def memory_size(self, model: SymbolicModel) -> int:
+        """1 + m + n + m."""
+        return 1 + 2 * model.m + model.n
+
+    def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
+                       r_d: ca.SX) -> ca.SX:
+        """t = 0, the start's lengths, the start as the reference and its tension."""
+        _check(model.robot)
+        return ca.vertcat(0.0, model.cable_lengths(q0), q0, _held_tension(model, q0))
+
+    def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
+             r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
+        """The law of the module docstring at (q, dq); the next memory."""
+        robot = model.robot
+        _check(robot)
+        design = self.design(robot)
+        n, m = model.n, model.m
+        t, l_start = memory[0], memory[1:1 + m]
+        q_ref, t_ref = memory[1 + m:1 + m + n], memory[1 + m + n:]
+        l_goal = model.cable_lengths(q_goal)
+        s = ca.fmin(t / design.duration, 1.0) if self.planned else ca.SX(1.0)
+        shape = 10 * s**3 - 15 * s**4 + 6 * s**5
+        rate = (30 * s**2 - 60 * s**3 + 30 * s**4) / design.duration
+        l_ref = l_start + shape * (l_goal - l_start)
+        l_ref_rate = rate * (l_goal - l_start)
+        for _ in range(NEWTON_STEPS):
+            q_ref, t_ref = _newton_step(model, q_ref, t_ref, l_ref)
+        done = s >= 1.0
+        q_ref = ca.if_else(done, q_goal, q_ref)
+        t_ref = ca.if_else(done, _held_tension(model, q_goal), t_ref)
+        W = model.structure_matrix(q)
+        l_rate = -W.T @ dq
+        relative_rate = l_rate - l_ref_rate
+        t0 = (t_ref + design.stiffness * (model.cable_lengths(q) - l_ref)
+              + design.damping * relative_rate)
+        w, inside = box_step(robot, t0, relative_rate, design.damping if self.box else 0.0)
+        tau = t0 + w
+        j = _interconnection_entries(model, W, relative_rate, w)
+        flags = ca.if_else(inside, 0.0, float(FLAG_INFEASIBLE))
+        law = ControlLaw(tau, ca.SX(1.0), ca.mmin(tau) - robot.t_min, j, flags)
+        return law, ca.vertcat(t + dt, l_start, q_ref, t_ref)
+
+
+def box_step(robot: Robot, t0: ca.SX, rate: ca.SX, bound: float) -> tuple[ca.SX, ca.SX]:
+    """J_d's step w (N) orthogonal to ``rate`` with |w| <= ``bound`` |rate| that puts
+    ``t0 + w`` in the box with least |w| along d = P (T_mid - t0); a = 1 (nearest the
+    middle) where none does. Returns w and 1 where the result is in the box, else 0."""
+    middle = robot.box.middle
+    speed2 = ca.sumsqr(rate)
+    direction = (middle - t0) - rate * ca.dot(rate, middle - t0) / (speed2 + 1e-300)
+    reach = bound * ca.sqrt(speed2) / (ca.norm_2(direction) + 1e-300)
+    lower, upper = -reach, reach
+    for i in range(t0.shape[0]):
+        d = direction[i]
+        low = (robot.t_min - t0[i]) / d
+        high = (robot.t_max - t0[i]) / d
+        moving = ca.fabs(d) > 1e-12
+        lower = ca.if_else(moving, ca.fmax(lower, ca.fmin(low, high)), lower)
+        upper = ca.if_else(moving, ca.fmin(upper, ca.fmax(low, high)), upper)
+    fits = lower <= upper
+    a = ca.if_else(fits, ca.fmin(ca.fmax(0.0, lower), upper), ca.fmin(1.0, reach))
+    w = a * direction
+    result = t0 + w
+    inside = ca.logic_and(ca.mmin(result) >= robot.t_min, ca.mmax(result) <= robot.t_max)
+    return w, inside
+
+
+def _newton_step(model: SymbolicModel, q: ca.SX, tension: ca.SX, lengths: ca.SX
+                 ) -> tuple[ca.SX, ca.SX]:
+    """One Newton step on W(q) T = grad V(q), l(q) = ``lengths`` from (q, T)."""
+    n = model.n
+    x, target = ca.SX.sym("x", n + model.m), ca.SX.sym("l", model.m)
+    qx, tx = x[:n], x[n:]
+    residual = ca.vertcat(model.grad_potential(qx) - model.structure_matrix(qx) @ tx,
+                          model.cable_lengths(qx) - target)
+    newton = ca.Function("newton", [x, target],
+                         [x - ca.solve(ca.jacobian(residual, x), residual)])
+    nxt = newton(ca.vertcat(q, tension), lengths)
+    return nxt[:n], nxt[n:]
+
+
+def _held_tension(model: SymbolicModel, q: ca.SX) -> ca.SX:
+    """(W^T W)^-1 W^T grad V: the tension holding an equilibrium q, N."""
+    W = model.structure_matrix(q)
+    return ca.solve(ca.densify(W.T @ W), W.T @ model.grad_potential(q))
+
+
+def _interconnection_entries(model: SymbolicModel, W: ca.SX, rate: ca.SX, w: ca.SX
+                             ) -> ca.SX:
+    """The free entries of J_2 = W A W^T, A = (rate w^T - w rate^T) / |rate|^2 (so that
+    -A rate = w), in :meth:`SymbolicModel.skew_pairs` order."""
+    A = (rate @ w.T - w @ rate.T) / (ca.sumsqr(rate) + 1e-300)
+    J2 = W @ A @ W.T
+    return ca.vertcat(*[J2[r, c] for r, c in model.skew_pairs()]) if model.n_j else \
+        ca.SX.zeros(0)
+
+
+def _check(robot: Robot) -> None:
+    if not robot.underactuated:
+        raise InvalidCase("controller", f"ida-under is for fewer cables than degrees of "
+                          f"freedom; {robot.name} has m = {robot.m} >= n = {robot.n}")
+
+
+@dataclasses.dataclass(frozen=True)
+class CablePD(UnderactuatedIdaPbc):
+    """The baseline a lab tries first on an underactuated robot: a PD on the actuated
+    coordinates, the cable lengths, about the goal's, with the goal's tension as
+    feed-forward, T = T_g + k (l - l_g) + c l', from the first sample: ``ida-under``'s law
+    without its plan and without J_d (the same gains)."""
+
+    name: ClassVar[str] = "pd-under"
+    planned: bool = False
+    box: bool = False

@@ -1,0 +1,159 @@
+"""The closed loop of ``ida-under`` linearised at an equilibrium, and its gains from the robot.
+
+With the cable-space law T = T* + K (l - l*) + D l' (K = k I, D = c I; see
+:mod:`cdpr_sym.control.underactuated`) about an equilibrium q* held by T*, a small motion
+dq obeys
+
+    M dq'' = -(S + J^T K J) dq - J^T D J dq',    S = hess (V + T*^T l),  J = dl/dq,
+
+(the weight's and the cables' geometric stiffness S, from W T* = -grad (T*^T l); the law
+adds the springs and dampers J^T K J and J^T D J along the cables). Its eigenvalues are
+those of [[0, I], [-M^-1 (S + J^T K J), -M^-1 J^T D J]]. The damping J^T D J has rank m < n:
+the n - m motions that keep every cable length (the swing) are damped only through their
+coupling with the cables, which the stiffness k sets; too stiff a cable decouples the
+swing and leaves it undamped, too soft a cable lets the platform sag.
+
+**The rule for the gains** (:func:`cable_gains`): of k = (m g / L) x 10^(-1 .. 3) and
+c = sqrt(k m) x 10^(-1.5 .. 1) on a 17 x 17 logarithmic grid (L the frame's largest side,
+m the mass; the platform's own scales), the pair whose linearisations at a sample of the
+robot's admissible equilibria have the largest median slowest decay rate
+min(-Re lambda), among those whose fastest mode is at most :data:`BANDWIDTH_SHARE` of the
+sampling rate everywhere (|lambda| dt <= 0.1: the 1 ms sampled loop then behaves as the
+continuous one). One pair for the whole manifold, as the gains are compiled in.
+
+**The swing** (:func:`swing_period`): with the cables held rigid the motions that keep
+every length oscillate at the frequencies of Z^T S Z v = omega^2 Z^T M Z v; a move of
+several such periods excites little of them (a minimum-jerk move's spectrum falls as
+(omega T)^-3), which is why the plan's duration follows the longest.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from cdpr_sym.robot import Robot
+from cdpr_sym.underactuated.equilibrium import EquilibriumManifold
+
+#: Fastest closed-loop mode allowed, |lambda| dt.
+BANDWIDTH_SHARE = 0.1
+#: |Re lambda| / max |lambda| below which a mode counts as undamped at first order.
+UNDAMPED = 1e-9
+#: Grid points per gain of the rule.
+GRID = 17
+#: The quantile of the decay rates over the robot's sample equilibria the rule maximises.
+QUANTILE = 0.5
+
+
+@dataclasses.dataclass(frozen=True)
+class CableGains:
+    """Cable-space gains and the linearisation they give at an equilibrium.
+
+    Attributes
+    ----------
+    stiffness : float
+        k, N/m per cable.
+    damping : float
+        c, N s/m per cable.
+    decay_rate : float
+        min(-Re lambda) of the linearisation, 1/s (> 0: asymptotically stable).
+    fastest : float
+        max |lambda|, rad/s.
+    eigenvalues : ndarray
+        The 2 n eigenvalues, 1/s.
+    """
+
+    stiffness: float
+    damping: float
+    decay_rate: float
+    fastest: float
+    eigenvalues: np.ndarray
+
+
+def closed_loop_matrix(manifold: EquilibriumManifold, q: np.ndarray, stiffness: float,
+                       damping: float) -> np.ndarray:
+    """The 2 n x 2 n state matrix of the linearisation at the equilibrium ``q`` (module
+    docstring), for cable gains k = ``stiffness`` (N/m) and c = ``damping`` (N s/m)."""
+    return _LinearParts.at(manifold, q).matrix(stiffness, damping)
+
+
+@dataclasses.dataclass(frozen=True)
+class _LinearParts:
+    """M^-1 S and M^-1 J^T J at an equilibrium: the state matrix for any gains."""
+
+    stiffness_part: np.ndarray
+    cable_part: np.ndarray
+
+    @classmethod
+    def at(cls, manifold: EquilibriumManifold, q: np.ndarray) -> _LinearParts:
+        found = manifold.classify(q)
+        _, J, _, _, S = (np.array(value) for value in manifold._terms(q, found.tension))
+        M = np.array(manifold.model.functions["mass_matrix"](q))
+        return cls(np.linalg.solve(M, S), np.linalg.solve(M, J.T @ J))
+
+    def matrix(self, stiffness: float, damping: float) -> np.ndarray:
+        n = self.stiffness_part.shape[0]
+        return np.block([[np.zeros((n, n)), np.eye(n)],
+                         [-(self.stiffness_part + stiffness * self.cable_part),
+                          -damping * self.cable_part]])
+
+
+def linearisation(manifold: EquilibriumManifold, q: np.ndarray, stiffness: float,
+                  damping: float) -> CableGains:
+    """The gains' linearisation at ``q``: eigenvalues, slowest decay and fastest mode."""
+    return _gains(_LinearParts.at(manifold, q), stiffness, damping)
+
+
+def _gains(parts: _LinearParts, stiffness: float, damping: float) -> CableGains:
+    eigenvalues = np.linalg.eigvals(parts.matrix(stiffness, damping))
+    fastest = float(np.abs(eigenvalues).max())
+    return CableGains(stiffness, damping, decay_rate(eigenvalues, fastest), fastest,
+                      eigenvalues)
+
+
+def decay_rate(eigenvalues: np.ndarray, fastest: float) -> float:
+    """The slowest decay rate min(-Re lambda), 1/s, over the modes the gains can damp: a
+    mode with Re lambda = 0 to round-off (|Re| <= :data:`UNDAMPED` x the fastest |lambda|)
+    is one no cable acts on at first order for any gain (a point mass's swing out of the
+    plane of its two cables, which a move in that plane never excites); it is left out.
+    0 if every mode is such."""
+    damped = eigenvalues.real[eigenvalues.real < -UNDAMPED * max(fastest, 1e-300)]
+    return float(-damped.max()) if damped.size else 0.0
+
+
+def cable_gains(robot: Robot, equilibria: np.ndarray, dt: float,
+                manifold: EquilibriumManifold | None = None) -> CableGains:
+    """The rule's gains (module docstring) over the ``equilibria`` (k, n) for the period
+    ``dt``: the largest :data:`QUANTILE` quantile of the decay rates over them, the fastest
+    mode of each within the bandwidth. Returned with the linearisation at the first one."""
+    manifold = manifold or EquilibriumManifold(robot)
+    parts = [_LinearParts.at(manifold, q) for q in equilibria]
+    weight = robot.mass * robot.gravity
+    side = float((robot.frame_upper - robot.frame_lower)[: robot.dimension].max())
+    best, best_score = None, -np.inf
+    for stiffness in weight / side * np.logspace(-1, 3, GRID):
+        for damping in np.sqrt(stiffness * robot.mass) * np.logspace(-1.5, 1, GRID):
+            found = [_gains(part, stiffness, damping) for part in parts]
+            if max(item.fastest for item in found) * dt > BANDWIDTH_SHARE:
+                continue
+            score = float(np.quantile([item.decay_rate for item in found], QUANTILE))
+            if score > best_score:
+                best, best_score = found[0], score
+    assert best is not None  # the softest gains are far under the bandwidth
+    return best
+
+
+def swing_period(manifold: EquilibriumManifold, q: np.ndarray) -> float:
+    """The longest period (s) of the open-loop swing at the equilibrium ``q``: the motions
+    that keep every cable length, Z^T S Z v = omega^2 Z^T M Z v (Z a basis of the null
+    space of J = dl/dq), with the cables held rigid."""
+    from scipy.linalg import eigh
+
+    found = manifold.classify(q)
+    _, J, _, _, S = (np.array(value) for value in manifold._terms(q, found.tension))
+    M = np.array(manifold.model.functions["mass_matrix"](q))
+    _, singular, axes = np.linalg.svd(J)
+    Z = axes[int(np.sum(singular > 1e-12 * singular.max())):].T
+    squares = eigh(Z.T @ S @ Z, Z.T @ M @ Z, eigvals_only=True)
+    return float(2 * np.pi / np.sqrt(squares.min())) if squares.min() > 0 else np.inf

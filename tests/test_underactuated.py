@@ -1,0 +1,392 @@
+"""Underactuated robots (m < n): the equilibrium manifold and ``ida-under``, each number
+against an independent numpy computation written here (kinematics, statics, energies and
+the closed loop's linearisation from the robot's raw numbers and finite differences)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.optimize import fsolve
+
+from cdpr_sym import load_robot, simulate
+from cdpr_sym.closed_loop import Case
+from cdpr_sym.control import CONTROLLERS, capabilities
+from cdpr_sym.control.evaluate import law_function
+from cdpr_sym.control.underactuated import UnderactuatedIdaPbc, box_step, derived_design
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.model import SymbolicModel
+from cdpr_sym.underactuated import EquilibriumManifold
+from cdpr_sym.underactuated.linearisation import closed_loop_matrix
+
+ROOT = Path(__file__).parent.parent
+PRESETS = ROOT / "cdpr_sym" / "robot" / "presets"
+BAR2 = PRESETS / "bar2.toml"
+TRI3 = PRESETS / "tri3.toml"
+SWING2 = Path(__file__).parent / "data" / "underactuated" / "swing2.toml"
+
+
+# -- the robot in numpy, from its raw numbers ----------------------------------------------
+
+def _rotation(robot, q: np.ndarray) -> np.ndarray:
+    if robot.kind == "point":
+        return np.eye(robot.dimension)
+    if robot.kind == "planar":
+        c, s = np.cos(q[2]), np.sin(q[2])
+        return np.array([[c, -s], [s, c]])
+    (cr, sr), (cp, sp), (cy, sy) = ((np.cos(a), np.sin(a)) for a in q[3:6])
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def _lengths(robot, q: np.ndarray) -> np.ndarray:
+    d = robot.dimension
+    points = (np.tile(q[:d], (robot.m, 1)) if robot.kind == "point"
+              else q[:d] + robot.attachments @ _rotation(robot, q).T)
+    return np.linalg.norm(robot.anchors - points, axis=1)
+
+
+def _potential(robot, q: np.ndarray) -> float:
+    d = robot.dimension
+    com = q[:d] if robot.kind == "point" else q[:d] + _rotation(robot, q) @ robot.center_of_mass
+    return robot.mass * robot.gravity * com[-1]
+
+
+def _gradient(f, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """Central differences of a scalar or vector function, (outputs, n) for a vector."""
+    columns = [(np.asarray(f(q + h * e)) - np.asarray(f(q - h * e))) / (2 * h)
+               for e in np.eye(len(q))]
+    return np.stack(columns, axis=-1)
+
+
+def _hessian(f, q: np.ndarray, h: float = 1e-4) -> np.ndarray:
+    return _gradient(lambda x: _gradient(f, x, 1e-6), q, h)
+
+
+def _structure(robot, q: np.ndarray) -> np.ndarray:
+    """W = -(dl/dq)^T by finite differences of the numpy lengths."""
+    return -_gradient(lambda x: _lengths(robot, x), q).T
+
+
+@pytest.fixture(scope="module", params=[BAR2, TRI3, SWING2], ids=["bar2", "tri3", "swing2"])
+def robot(request):
+    return load_robot(request.param)
+
+
+@pytest.fixture(scope="module")
+def manifold(robot):
+    return EquilibriumManifold(robot)
+
+
+# -- equilibria -----------------------------------------------------------------------------
+
+def test_sampled_equilibria_hold_the_weight_in_numpy_statics(robot, manifold):
+    """Each sampled equilibrium: numpy's W and grad V have a tension in the box balancing
+    the weight to round-off, the same as the manifold's."""
+    for q in manifold.sample(6, np.random.default_rng(5)):
+        W, grad_v = _structure(robot, q), _gradient(lambda x: _potential(robot, x), q)
+        tension = np.linalg.lstsq(W, grad_v, rcond=None)[0]
+        assert np.linalg.norm(W @ tension - grad_v) <= 1e-6 * np.linalg.norm(grad_v)
+        assert np.all(tension >= robot.t_min) and np.all(tension <= robot.t_max)
+        np.testing.assert_allclose(manifold.classify(q).tension, tension, rtol=1e-6)
+
+
+def test_the_equilibrium_agrees_with_a_numpy_root_finder(robot, manifold):
+    """Held at the cable lengths of a sampled equilibrium, scipy's fsolve on numpy's
+    statics (W(q) T = grad V(q) and l(q) = l*, n + m equations in q and T) started 0.02
+    away finds the same pose and tension."""
+    n = robot.n
+    for q in manifold.sample(4, np.random.default_rng(6)):
+        held = manifold.classify(q)
+        target = _lengths(robot, q)
+
+        def statics(x, target=target):
+            pose, tension = x[:n], x[n:]
+            return np.concatenate([
+                _structure(robot, pose) @ tension
+                - _gradient(lambda y: _potential(robot, y), pose),
+                _lengths(robot, pose) - target])
+
+        guess = np.concatenate([q + 0.02, held.tension * 1.05])
+        found = fsolve(statics, guess, xtol=1e-10)
+        np.testing.assert_allclose(found[:n], q, atol=1e-7)
+        np.testing.assert_allclose(found[n:], held.tension, rtol=1e-6)
+
+
+def test_stability_agrees_with_stiff_elastic_cables(robot, manifold):
+    """Cables as springs of stiffness kappa holding the equilibrium (rest lengths
+    l - T / kappa): the Hessian of V + sum kappa/2 (l - L)^2, by numpy finite differences,
+    is positive definite at a stable equilibrium; along the moves that keep the lengths it
+    is the manifold's reduced stiffness."""
+    kappa = 1e5
+    for q in manifold.sample(3, np.random.default_rng(7)):
+        found = manifold.classify(q)
+        rest = _lengths(robot, q) - found.tension / kappa
+
+        def energy(x, rest=rest):
+            return _potential(robot, x) + 0.5 * kappa * np.sum((_lengths(robot, x) - rest)**2)
+
+        H = _hessian(energy, q)
+        assert np.linalg.eigvalsh(0.5 * (H + H.T)).min() > 0
+        J = -_structure(robot, q).T
+        Z = np.linalg.svd(J)[2][robot.m:].T
+        reduced = np.linalg.eigvalsh(Z.T @ (0.5 * (H + H.T)) @ Z)
+        np.testing.assert_allclose(reduced, found.stiffness, rtol=2e-3)
+
+
+def test_an_inverted_bar_rests_nowhere_stable():
+    """bar2 with its centre of mass 0.3 m above its attachments: its symmetric
+    equilibrium holds the weight but is unstable, and the case is refused naming it."""
+    bar = load_robot(BAR2)
+    inverted = bar.with_case(center_of_mass=[0.0, 0.6], start=[0.0, 1.0, 0.0],
+                             goal=[0.0, 1.2, 0.0])
+    found = EquilibriumManifold(inverted).classify(inverted.start)
+    assert found.holds and not found.stable and found.stiffness.min() < 0
+    with pytest.raises(InvalidCase, match=r"start: .* is an unstable equilibrium"):
+        Case.of(inverted)
+
+
+def test_a_pose_that_is_no_equilibrium_is_refused_with_the_one_it_settles_at():
+    bar = load_robot(BAR2)
+    with pytest.raises(InvalidCase) as refused:
+        Case.of(bar, goal=[0.3, 1.2, 0.0])
+    message = str(refused.value)
+    assert message.startswith("goal: [0.3, 1.2, 0.0] is not an equilibrium")
+    settled = [float(v) for v in message.split("settles at [")[1].split("]")[0].split(", ")]
+    Case.of(bar, goal=settled)  # the pose it names, as printed, is admissible
+
+
+# -- designs --------------------------------------------------------------------------------
+
+def test_every_other_design_refuses_fewer_cables_in_one_line():
+    bar = load_robot(BAR2)
+    for name in ("smooth", "l2", "ida-winch", "pd-td"):
+        with pytest.raises(InvalidCase, match=r"controller: .* needs at least as many cables "
+                                              r"as degrees of freedom.*use .*ida-under"):
+            simulate(bar, name, duration=0.1)
+    with pytest.raises(InvalidCase, match="ida-under is for fewer cables"):
+        simulate("aras3", "ida-under", duration=0.1)
+    fewer = [name for name, design in CONTROLLERS.items()
+             if capabilities(design).underactuated]
+    assert "ida-under" in fewer and "smooth" not in fewer
+
+
+def _law(robot):
+    model = SymbolicModel(robot)
+    return model, law_function(model, CONTROLLERS["ida-under"])
+
+
+def _v_d(robot, design, goal, goal_tension):
+    """V_d = V + T_g^T (l - l_g) + k/2 |l - l_g|^2, in numpy."""
+    goal_lengths = _lengths(robot, goal)
+
+    def v_d(q):
+        stretch = _lengths(robot, q) - goal_lengths
+        return (_potential(robot, q) + goal_tension @ stretch
+                + 0.5 * design.stiffness * stretch @ stretch)
+    return v_d
+
+
+@pytest.mark.parametrize("path", [BAR2, TRI3], ids=["bar2", "tri3"])
+def test_the_matching_equations_hold_and_the_law_is_ida_pbcs(path):
+    """After the plan, at random states: (i) grad(V - V_d) lies in the span of W (the
+    potential matching, numpy); (ii) J_2 (the law's j) meets G^perp J_2 = 0 (the kinetic
+    matching with M_d = M); (iii) the law is u = (W^T W)^-1 W^T (grad V - grad V_d +
+    J_2 dq) - c W^T dq, all evaluated in numpy."""
+    robot = load_robot(path)
+    design = derived_design(robot)
+    _, law = _law(robot)
+    goal = robot.goal
+    W_goal = _structure(robot, goal)
+    goal_tension = np.linalg.lstsq(W_goal, _gradient(lambda x: _potential(robot, x), goal),
+                                   rcond=None)[0]
+    v_d = _v_d(robot, design, goal, goal_tension)
+    rng = np.random.default_rng(11)
+    memory = np.concatenate([[10 * design.duration], _lengths(robot, robot.start), goal,
+                             goal_tension])
+    for _ in range(6):
+        q = goal + rng.uniform(-0.05, 0.05, robot.n)
+        dq = rng.uniform(-0.3, 0.3, robot.n)
+        out = law(q=q, dq=dq, q_goal=goal, k=np.ones(robot.n), r_d=np.ones(robot.n),
+                  memory=memory, dt=1e-3)
+        tau, j = np.array(out["tau"]).ravel(), np.array(out["j"]).ravel()
+        W = _structure(robot, q)
+        left_null = np.linalg.svd(W)[0][:, robot.m:]
+        shaped = _gradient(lambda x: _potential(robot, x), q) - _gradient(v_d, q)
+        assert np.abs(left_null.T @ shaped).max() <= 1e-6 * np.abs(shaped).max()
+        J2 = np.zeros((robot.n, robot.n))
+        J2[np.triu_indices(robot.n, 1)] = j
+        J2 -= J2.T
+        assert np.abs(left_null.T @ J2).max() <= 1e-9 * max(np.abs(J2).max(), 1.0)
+        expected = (np.linalg.solve(W.T @ W, W.T @ (shaped + J2 @ dq))
+                    - design.damping * W.T @ dq)
+        np.testing.assert_allclose(tau, expected, rtol=1e-5, atol=1e-6 * robot.t_max)
+
+
+def test_h_d_never_increases_after_the_plan():
+    """bar2 from its start to its goal: after the plan H_d = T + V_d (numpy, with M from
+    the model) decreases to the goal; a 1 ms sampled loop may add round-off only."""
+    robot = load_robot(BAR2)
+    design = derived_design(robot)
+    run = simulate(robot, "ida-under", duration=design.duration + 3.0)
+    model = SymbolicModel(robot)
+    goal_tension = EquilibriumManifold(robot).classify(robot.goal).tension
+    v_d = _v_d(robot, design, robot.goal, goal_tension)
+    after = np.flatnonzero(run.t >= design.duration)[::10]
+    energy = np.array([0.5 * run.dq[i] @ np.array(model.functions["mass_matrix"](run.q[i]))
+                       @ run.dq[i] + v_d(run.q[i]) for i in after])
+    rises = np.diff(energy)
+    assert rises.max() <= 1e-6 * (energy[0] - energy[-1])
+    assert energy[-1] < energy[0]
+    assert run.metrics()["final_error"] < 1e-3
+
+
+@pytest.mark.parametrize("path", [BAR2, TRI3], ids=["bar2", "tri3"])
+def test_the_goal_is_a_strict_minimum_and_the_linearisation_is_stable(path):
+    """hess V_d at the goal (numpy finite differences) is positive definite, and the
+    linearised closed loop built here from the model's forward dynamics and the law by
+    finite differences has the eigenvalues of ``closed_loop_matrix``, all in the left
+    half plane."""
+    robot = load_robot(path)
+    design = derived_design(robot)
+    manifold = EquilibriumManifold(robot)
+    goal_tension = manifold.classify(robot.goal).tension
+    hessian = _hessian(_v_d(robot, design, robot.goal, goal_tension), robot.goal)
+    assert np.linalg.eigvalsh(0.5 * (hessian + hessian.T)).min() > 0
+    model, law = _law(robot)
+    acceleration = model.functions["acceleration"]
+    memory = np.concatenate([[10 * design.duration], _lengths(robot, robot.start), robot.goal,
+                             goal_tension])
+    n = robot.n
+
+    def field(x):
+        q, dq = x[:n], x[n:]
+        tau = np.array(law(q=q, dq=dq, q_goal=robot.goal, k=np.ones(n), r_d=np.ones(n),
+                           memory=memory, dt=1e-3)["tau"]).ravel()
+        return np.concatenate([dq, np.array(acceleration(q, dq, tau)).ravel()])
+
+    A = _gradient(field, np.concatenate([robot.goal, np.zeros(n)]), 1e-7)
+    ours = np.sort_complex(np.linalg.eigvals(A))
+    theirs = np.sort_complex(np.linalg.eigvals(closed_loop_matrix(
+        manifold, robot.goal, design.stiffness, design.damping)))
+    np.testing.assert_allclose(ours, theirs, rtol=1e-4, atol=1e-5)
+    assert ours.real.max() < 0
+
+
+def test_the_box_step_is_orthogonal_to_the_rate_and_least():
+    """J_d's step: orthogonal to the cable rate, within c |l'|, and where a step along d
+    reaches the box, the tension lands on it (a = the smallest)."""
+    import casadi as ca
+
+    robot = load_robot(BAR2)
+    t0, rate = ca.SX.sym("t0", 2), ca.SX.sym("rate", 2)
+    w, inside = box_step(robot, t0, rate, 10.0)
+    step = ca.Function("step", [t0, rate], [w, inside])
+    for tension, speed in (([0.5, 30.0], [0.2, -0.4]), ([65.0, 30.0], [1.0, 1.0]),
+                           ([30.0, 30.0], [0.3, 0.1])):
+        w_value, ok = (np.array(v).ravel() for v in step(tension, speed))
+        assert abs(w_value @ speed) <= 1e-12 * max(np.abs(w_value).max(), 1)
+        assert np.linalg.norm(w_value) <= 10.0 * np.linalg.norm(speed) * (1 + 1e-12)
+        result = np.array(tension) + w_value
+        if ok[0] > 0.5:
+            assert np.all(result >= robot.t_min - 1e-9) and np.all(result <= robot.t_max + 1e-9)
+        if np.all((np.array(tension) >= robot.t_min) & (np.array(tension) <= robot.t_max)):
+            assert np.abs(w_value).max() == 0  # inside already: no step
+
+
+@pytest.mark.parametrize("path", [BAR2, TRI3], ids=["bar2", "tri3"])
+def test_the_robots_own_case_settles_in_the_box(path):
+    robot = load_robot(path)
+    run = simulate(robot, "ida-under", duration=8.0)
+    metrics = run.metrics()
+    assert metrics["tension_feasible"] and run.stop_reason is None
+    assert metrics["settle_time"] is not None and metrics["settle_time"] <= 5.0
+    assert metrics["max_tension_step"] <= 1.0
+
+
+def test_overrides_are_checked_and_kept():
+    with pytest.raises(InvalidCase, match="stiffness"):
+        UnderactuatedIdaPbc(stiffness=-1.0)
+    design = UnderactuatedIdaPbc(duration=2.0).design(load_robot(BAR2))
+    assert design.duration == 2.0
+
+
+# -- the rest of the toolkit on m < n -------------------------------------------------------
+
+def test_drawn_robots_are_underactuated_with_admissible_cases():
+    from cdpr_sym.underactuated.zoo import KINDS, underactuated_zoo
+
+    robots = underactuated_zoo(3, 6)
+    assert [robot.name.rsplit("_", 1)[1] for robot in robots] == [*KINDS, *KINDS]
+    for robot in robots:
+        assert robot.underactuated
+        Case.of(robot)  # start and goal are admissible equilibria
+    assert [r.as_dict() for r in underactuated_zoo(3, 6)] == [r.as_dict() for r in robots]
+
+
+def test_a_sweep_draws_its_pairs_on_the_manifold():
+    from cdpr_sym.sweep import SweepConfig
+    from cdpr_sym.sweep.config import draw_pairs
+
+    robot = load_robot(BAR2)
+    config = SweepConfig(robot="bar2", controllers=("ida-under",), pairs=5, seed=2)
+    starts, goals = draw_pairs(robot, config)
+    manifold = EquilibriumManifold(robot)
+    for pose in (*starts, *goals):
+        assert manifold.classify(pose).admissible(robot)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["workspace", "--robot", "bar2"], "robot: bar2 has fewer cables than degrees of freedom"),
+    (["certify", "workspace", "--robot", "tri3"], "tri3 has fewer cables than degrees"),
+    (["simulate", "--robot", "bar2", "--controller", "ida-under", "--as-built", "default"],
+     "as_built: bar2 has fewer cables than degrees of freedom"),
+    (["simulate", "--robot", "bar2", "--controller", "smooth"],
+     "controller: smooth needs at least as many cables"),
+])
+def test_what_m_lt_n_cannot_do_is_refused_in_one_line(tmp_path, capsys, argv, words):
+    from cdpr_sym.cli import main
+
+    status = main([*argv, *(["--out", str(tmp_path / "out")] if argv[0] != "simulate"
+                            else [])])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and words in err
+
+
+def test_view_and_tune_show_an_underactuated_robot(tmp_path, capsys):
+    import json
+
+    from cdpr_sym.cli import main
+
+    assert main(["view", "--robot", "bar2", "--workspace", "--out", str(tmp_path / "b.png"),
+                 "--json"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    robot = load_robot(BAR2)
+    W = _structure(robot, robot.start)
+    expected = np.linalg.lstsq(W, _gradient(lambda x: _potential(robot, x), robot.start),
+                               rcond=None)[0]
+    np.testing.assert_allclose(record["tensions"], expected, rtol=1e-6)
+    assert record["workspace_poses"] > 100 and (tmp_path / "b.png").stat().st_size > 10_000
+    assert main(["tune", "--robot", "bar2", "--json"]) == 0
+    tuned = json.loads(capsys.readouterr().out)["ida_under"]
+    assert tuned == {**tuned, "stiffness": derived_design(robot).stiffness}
+
+
+def test_the_rule_leaves_out_the_swing_no_cable_acts_on():
+    """A point on two cables: its swing out of the cables' plane has Re lambda = 0 for any
+    gains (no cable acts on it at first order); the rule's decay rate is that of the other
+    modes, and the gains it picks damp them."""
+    from cdpr_sym.underactuated.linearisation import linearisation
+
+    robot = load_robot(SWING2)
+    manifold = EquilibriumManifold(robot)
+    for gains in ((10.0, 1.0), (1000.0, 50.0)):
+        eigenvalues = linearisation(manifold, robot.goal, *gains).eigenvalues
+        assert np.sum(np.abs(eigenvalues.real) < 1e-9 * np.abs(eigenvalues).max()) == 2
+    design = derived_design(robot)
+    rest = linearisation(manifold, robot.goal, design.stiffness, design.damping).eigenvalues
+    damped = rest[np.abs(rest.real) >= 1e-9 * np.abs(rest).max()]
+    assert design.decay_rate > 1.0 and np.isclose(-damped.real.max(), design.decay_rate)
