@@ -7,7 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 [ -x .venv/bin/cdpr-sym ] || { echo "first: python3 -m venv .venv && .venv/bin/pip install -e ." >&2; exit 2; }
 mkdir -p docs/_static/robots
-for robot in aras3 planar2 planar3 spatial6 planar4 spatial4 ipanema8; do
+for robot in aras3 planar2 planar3 spatial6 planar4 spatial4 ipanema8 bar2 tri3; do
     .venv/bin/cdpr-sym view --robot "$robot" --workspace --dpi 80 -q \
         --out "docs/_static/robots/$robot.png"
 done

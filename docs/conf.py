@@ -60,6 +60,7 @@ REPORTS = {
     "calibration": "report.md",
     "zoo": "report.md",
     "geometry": "report.md",
+    "underactuated": "report.md",
     "mutation": "report.md",
 }
 

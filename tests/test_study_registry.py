@@ -20,7 +20,7 @@ from cdpr_sym.studies.registry import STUDY_NAMES, study_by_name
 
 #: The studies the README documents, in its order.
 DOCUMENTED = ("paper", "compare", "designs", "rigid", "redundant", "robustness",
-              "calibration", "zoo", "geometry")
+              "calibration", "zoo", "geometry", "underactuated")
 
 
 def test_the_registry_holds_the_documented_studies_each_under_its_own_name():

@@ -19,7 +19,8 @@ _MODULES = {"paper": "cdpr_sym.studies.paper", "compare": "cdpr_sym.studies.comp
             "redundant": "cdpr_sym.studies.redundant",
             "robustness": "cdpr_sym.studies.robustness",
             "calibration": "cdpr_sym.studies.calibration", "zoo": "cdpr_sym.studies.zoo",
-            "geometry": "cdpr_sym.studies.geometry"}
+            "geometry": "cdpr_sym.studies.geometry",
+            "underactuated": "cdpr_sym.studies.underactuated"}
 #: The registered studies' names.
 STUDY_NAMES = tuple(_MODULES)
 
