@@ -122,3 +122,40 @@ def test_simulate_animate_writes_the_gif_and_refuses_bad_formats_first(tmp_path,
     status = main(["simulate", "--robot", "planar2", "--animate", str(tmp_path / "a.avi")])
     assert status == 2
     assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_a_controller_that_reads_the_drives_has_no_read_pose():
+    """ida-winch reads the winches, not the pose: its as-built run keeps no q_read (it
+    would otherwise stay at the start's reading for the whole run)."""
+    from cdpr_sym.as_built.draw import load_as_built_draw
+    from cdpr_sym.calibration.drawn import drawn_robot
+    from cdpr_sym.closed_loop import get_simulator
+    from cdpr_sym.control import controller_by_name
+
+    robot = preset("aras3")
+    drawn = drawn_robot(robot, load_as_built_draw("default"), 0, 0, "none")
+    simulator = get_simulator(drawn.model, controller_by_name("ida-winch"),
+                              as_built=drawn.plant.as_built.structure())
+    run = simulator.run(robot.start, robot.goal, robot.k, robot.r_d, duration=0.2, dt=1e-3,
+                        plant=drawn.plant)
+    assert run.q_read is None
+
+
+@pytest.mark.slow
+def test_a_long_html_animation_keeps_every_frame_and_too_many_frames_are_refused(tmp_path):
+    run = simulate("aras3", "smooth", duration=10.0)
+    animation = run.animate(fps=25)  # 251 frames: over matplotlib's 20 MB embed limit
+    path = tmp_path / "run.html"
+    animation.save(path, dpi=50)
+    assert path.read_text().count("data:image/png;base64") == len(animation.steps) == 251
+    with pytest.raises(InvalidCase, match=r"fps: 1001 frames .* at most 600"):
+        run.animate(fps=100)
+
+
+def test_the_cables_are_coloured_against_the_runs_own_box():
+    robot = preset("planar3").with_case(t_min=5.0, t_max=34.0)
+    run = simulate(robot, "smooth", duration=0.3)
+    with pytest.raises(InvalidCase, match=r"robot: this run's tension box \[5, 34\] N"):
+        run.animate()
+    norm = run.animate(robot).picture.colour_map.norm
+    assert (norm.vmin, norm.vmax) == (5.0, 34.0)

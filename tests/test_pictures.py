@@ -215,3 +215,62 @@ def test_view_refuses_a_certificate_of_another_robot(tmp_path, capsys):
     assert main(["view", "--robot", "planar2", "--certificate", str(folder), "--out",
                  str(tmp_path / "p.png")]) == 2
     assert "of robot 'aras3', not 'planar2'" in capsys.readouterr().err
+
+
+def test_outlines_of_a_bar_a_plate_and_a_solid():
+    """Collinear attachments: a bar between the two farthest; coplanar: one polygon, the
+    hull in order; a cube's corners: 12 triangles, each on one of its faces."""
+    (bar,) = body_faces(np.array([[-0.25, 0.0], [0.25, 0.0], [0.1, 0.0]]))
+    assert sorted(bar[:, 0].tolist()) == [-0.25, 0.25]
+    hexagon = preset("spatial6").attachments
+    (plate,) = body_faces(hexagon)
+    assert len(plate) == 6 and {tuple(p) for p in plate} == {tuple(p) for p in hexagon}
+    cube = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float)
+    faces = body_faces(cube)
+    assert len(faces) == 12
+    for face in faces:  # every triangle lies on a face of the cube (one coordinate fixed)
+        assert any(np.ptp(face[:, axis]) == 0 for axis in range(3))
+
+
+def test_a_pose_outside_the_frame_stays_in_view_and_an_anchor_pose_is_refused(tmp_path,
+                                                                                capsys):
+    ax = draw_robot(preset("planar2"), pose=[5.0, 5.0], pyplot=False)
+    assert ax.get_xlim()[1] >= 5.0 and ax.get_ylim()[1] >= 5.0
+    status = main(["view", "--robot", "planar4", "--pose", "-2", "0", "--out",
+                   str(tmp_path / "a.png"), "--json"])
+    captured = capsys.readouterr()
+    assert status == 2 and captured.err.count("\n") == 1 and "pose: the structure matrix W" \
+        in captured.err
+    assert main(["view", "--robot", "planar4", "--pose", "5", "5", "--out",
+                 str(tmp_path / "far" / "b.png"), "--json"]) == 0  # the folder is made
+    record = json.loads(capsys.readouterr().out)
+    assert record["tension_rule"].startswith("none in the box")
+    assert min(record["tensions"]) < 0 and (tmp_path / "far" / "b.png").is_file()
+
+
+def test_a_certificate_of_another_orientation_and_a_fifo_are_refused(tmp_path, capsys):
+    import os
+
+    folder = tmp_path / "certificate"
+    folder.mkdir()
+    (folder / "certificate.json").write_text(json.dumps({"robot": "planar3",
+                                                         "orientation": [0.0]}))
+    (folder / "boxes.csv").write_text("lower_x,lower_z,upper_x,upper_z,verdict\n"
+                                      "-0.5,0.5,0.5,1.5,feasible\n")
+    out = str(tmp_path / "p.png")
+    assert main(["view", "--robot", "planar3", "--pose", "0", "1", "0", "--certificate",
+                 str(folder), "--out", out, "-q"]) == 0
+    assert main(["view", "--robot", "planar3", "--pose", "0", "1", "0.2", "--certificate",
+                 str(folder), "--out", out]) == 2
+    assert "proven at the orientation [0.0]" in capsys.readouterr().err
+    fifo = tmp_path / "fifo.png"
+    os.mkfifo(fifo)
+    assert main(["view", "--robot", "planar3", "--out", str(fifo)]) == 2
+    assert "not a regular file" in capsys.readouterr().err
+
+
+def test_axes_of_the_wrong_kind_are_refused():
+    with pytest.raises(InvalidCase, match="ax: aras3 is drawn on 3-D"):
+        preset("aras3").draw(ax=Figure().add_subplot())
+    with pytest.raises(InvalidCase, match="ax: planar2 is drawn on 2-D"):
+        preset("planar2").draw(ax=Figure().add_subplot(projection="3d"))

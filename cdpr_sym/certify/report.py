@@ -183,7 +183,8 @@ def figure(certificate: WorkspaceCertificate, path: Path) -> None:
 VERDICT_CODES = {"feasible": 1, "infeasible": -1, "undecided": 0}
 
 
-def read_boxes(folder: Path, robot: Any) -> list[tuple[np.ndarray, np.ndarray, int]]:
+def read_boxes(folder: Path, robot: Any, pose: np.ndarray | None = None
+               ) -> list[tuple[np.ndarray, np.ndarray, int]]:
     """The boxes of the certificate ``folder/boxes.csv`` (:meth:`WorkspaceCertificate.
     write_csv`) as (lower, upper, verdict code) over ``robot``'s position coordinates, m.
 
@@ -191,8 +192,8 @@ def read_boxes(folder: Path, robot: Any) -> list[tuple[np.ndarray, np.ndarray, i
     ------
     InvalidCase
         Field ``certificate``: no such certificate, not one of ``robot`` (its
-        certificate.json names another robot, or its boxes have other coordinates), or a
-        malformed row.
+        certificate.json names another robot, or its boxes have other coordinates), proven
+        at another orientation than ``pose``'s (a rigid body), or a malformed row.
     """
     from cdpr_sym.errors import InvalidCase
 
@@ -203,14 +204,20 @@ def read_boxes(folder: Path, robot: Any) -> list[tuple[np.ndarray, np.ndarray, i
                           "boxes.csv and certificate.json, as `cdpr-sym certify workspace "
                           "--out DIR` writes)")
     try:
-        named = json.loads(record.read_text()).get("robot")
+        content = json.loads(record.read_text())
+        named = content.get("robot")
     except (ValueError, UnicodeDecodeError, AttributeError):
         raise InvalidCase("certificate", f"{record} is not a certificate's JSON") from None
     if named != robot.name:
         raise InvalidCase("certificate", f"the certificate in {folder} is of robot "
                           f"{named!r}, not {robot.name!r}")
+    if pose is not None:
+        _check_orientation(content, np.asarray(pose, dtype=float)[robot.dimension:], folder)
     names = list(robot.coordinate_names[: robot.dimension])
-    lines = table.read_text().splitlines()
+    try:
+        lines = table.read_text().splitlines()
+    except UnicodeDecodeError:
+        raise InvalidCase("certificate", f"{table} is not a text file") from None
     expected = [f"lower_{n}" for n in names] + [f"upper_{n}" for n in names] + ["verdict"]
     if not lines or lines[0].split(",")[: len(expected)] != expected:
         raise InvalidCase("certificate", f"{table} does not start with the columns "
@@ -221,8 +228,31 @@ def read_boxes(folder: Path, robot: Any) -> list[tuple[np.ndarray, np.ndarray, i
         try:
             corners = np.array(cells[: 2 * d], dtype=float)
             code = VERDICT_CODES[cells[2 * d]]
+            if not (np.all(np.isfinite(corners)) and np.all(corners[:d] <= corners[d:])):
+                raise ValueError
         except (ValueError, KeyError, IndexError):
             raise InvalidCase("certificate", f"{table} line {number} is not a box "
                               f"({line[:60]!r})") from None
         boxes.append((corners[:d], corners[d:], code))
     return boxes
+
+
+def _check_orientation(content: dict[str, Any], angles: np.ndarray, folder: Path) -> None:
+    """Refuse a picture at ``angles`` (rad) of a certificate proven at another fixed
+    orientation, or over a range that does not hold them."""
+    from cdpr_sym.errors import InvalidCase
+
+    if not angles.size:
+        return
+    fixed, span = content.get("orientation"), content.get("orientation_range")
+    if span is not None:
+        lower, upper = (np.asarray(corner, dtype=float) for corner in span)
+        if np.all(angles >= lower) and np.all(angles <= upper):
+            return
+        held = f"over the range {lower.tolist()} to {upper.tolist()}"
+    elif fixed is not None and np.allclose(angles, fixed, rtol=0, atol=1e-9):
+        return
+    else:
+        held = f"at the orientation {fixed}"
+    raise InvalidCase("certificate", f"the certificate in {folder} was proven {held} rad; the "
+                      f"pose drawn has the angles {angles.tolist()}: draw it at one it proves")

@@ -111,10 +111,11 @@ def check_simulate_args(args: argparse.Namespace) -> SimulateInput:
     case = Case.of(robot, start=args.start, goal=args.goal, k=args.k, r_d=args.r_d)
     save = save_path(args.save, field="save") if args.save is not None else None
     if args.animate is not None:
-        from cdpr_sym.results.animation import animation_writer
+        from cdpr_sym.results.animation import animation_writer, frame_steps
 
         animation_writer(args.animate)
         check_file("animate", args.animate)
+        frame_steps(round(args.duration / args.dt) + 1, args.dt, fps=args.fps, speed=1.0)
     draw = check_as_built_args(args, robot, controller, case.start)
     return SimulateInput(robot, controller, case, plant, save, draw)
 
@@ -174,7 +175,7 @@ def simulate_command(args: argparse.Namespace, out: Output) -> int:
     if saved:
         lines.append(f"  trajectory           {saved}")
     if args.animate is not None:
-        run.animate(robot).save(args.animate)
+        run.animate(robot, fps=args.fps).save(args.animate)
         lines.append(f"  animation            {args.animate}")
     out.result({**m, **drawn, "robot": robot.name, "controller": args.controller,
                 "saved": str(saved) if saved else None,

@@ -70,8 +70,8 @@ def _comment(summary: dict) -> str:
     case = summary["case"]
     return "\n".join([
         f"{summary['robot']}: imported by cdpr-sym import caspr from",
-        f"  {summary['source']['bodies']} and {summary['source']['cables']} "
-        f"(cable set {summary['cable_set']!r}).",
+        f"  {_printable(summary['source']['bodies'])} and "
+        f"{_printable(summary['source']['cables'])} (cable set {summary['cable_set']!r}).",
         f"Conversion: {summary['conversion']}.",
         "Gravity 9.81 m/s^2 along -z (CASPR's constant); the tension box is CASPR's "
         "force_min..force_max.",
@@ -81,6 +81,12 @@ def _comment(summary: dict) -> str:
         f"Goal: {case['goal_rule']}.",
         "The case's gains k and r_d are left out: loading derives them from the robot.",
     ])
+
+
+def _printable(path: str) -> str:
+    """A path as a comment line may hold it: printable as it is, else its repr (a control
+    character in a file name would otherwise end the comment, or break the TOML)."""
+    return path if path.isprintable() else repr(path)
 
 
 def _vector(values: list[float]) -> str:

@@ -116,6 +116,9 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--animate", type=Path, metavar="FILE",
                      help="write an animation of the run: .gif or .html (matplotlib alone), "
                      ".mp4 (needs ffmpeg); cables coloured by tension against the box")
+    sim.add_argument("--fps", type=float, default=25.0,
+                     help="with --animate: frames per second, the run shown in real time "
+                     "(at most 600 frames)")
     _as_built_options(sim, "the draw")
 
     study = command("study", "run a study and write its report", progress=True)

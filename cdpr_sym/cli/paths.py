@@ -36,12 +36,15 @@ def check_folder(field: str, folder: Path) -> None:
 
 
 def check_file(field: str, path: Path) -> None:
-    """Refuse, before any work, a file that cannot be written: a folder by that name, or a
-    folder to hold it that cannot be made or written (proved by writing and removing a probe
+    """Refuse, before any work, a file that cannot be written: a folder by that name, a
+    device, FIFO or socket by that name, or a folder to hold it that cannot be made or
+    written (proved by writing and removing a probe
     file there; a missing folder is made and removed again, as :func:`check_folder` does)."""
     path = Path(path)
     if path.is_dir():
         raise InvalidCase(field, f"expected a file, got the folder {path}")
+    if path.exists() and not path.is_file():
+        raise InvalidCase(field, f"{path} is not a regular file (a device, FIFO or socket)")
     folder = path.parent
     check_folder(field, folder)
     if not folder.exists():

@@ -16,6 +16,8 @@ from cdpr_sym.robot import Robot
 
 #: The picture formats matplotlib writes without anything else installed.
 PICTURE_SUFFIXES = (".png", ".svg", ".pdf")
+#: Highest resolution of a picture, dots per inch (a 7-inch figure: 8,400 pixels wide).
+MAX_DPI = 1200.0
 #: Grid points per position axis of ``--workspace``: 2-D and 3-D robots (121^2 and 19^3
 #: poses, about 15k and 7k: well under a second in generated C; a denser 3-D cloud hides the
 #: cables).
@@ -54,7 +56,9 @@ def view_command(args: argparse.Namespace, out: Output) -> int:
 
     robot = checked_robot(args.robot)
     pose = checked_pose(robot, robot.start if args.pose is None else args.pose)
-    positive_number("dpi", args.dpi, "dots per inch")
+    check_regular(robot, pose)
+    if positive_number("dpi", args.dpi, "dots per inch") > MAX_DPI:
+        raise InvalidCase("dpi", f"expected at most {MAX_DPI:g} dots per inch, got {args.dpi:g}")
     if args.out.suffix.lower() not in PICTURE_SUFFIXES:
         raise InvalidCase("out", f"expected a picture file ({', '.join(PICTURE_SUFFIXES)}), "
                           f"got {args.out}")
@@ -62,7 +66,7 @@ def view_command(args: argparse.Namespace, out: Output) -> int:
     if args.certificate is not None:
         from cdpr_sym.certify.report import read_boxes
 
-        boxes = read_boxes(args.certificate, robot)
+        boxes = read_boxes(args.certificate, robot, pose)
     check_file("out", args.out)
     tensions, rule = holding_tension(robot, pose)
     points = workspace_points(robot, pose) if args.workspace else None
@@ -97,15 +101,24 @@ def holding_tension(robot: Robot, pose: np.ndarray) -> tuple[np.ndarray, str]:
                                else "least squares; the pose is no equilibrium")
     margin, tension = margins_and_tensions(robot, pose[None, :])
     if robot.m == robot.n:
-        if not np.isfinite(margin[0]):
-            raise InvalidCase("pose", f"W is singular at {pose.tolist()}: no tension holds "
-                              f"{robot.name} there")
         return tension[0], "W^-1 grad V"
     if np.all(np.isfinite(tension[0])):
-        return tension[0], "the largest margin in the box"
+        return tension[0], ("the largest margin in the box" if margin[0] >= 0 else
+                            "none in the box; the one of largest (negative) margin")
     W, gravity = structure_and_gravity(robot, pose[None, :])
     least = np.linalg.lstsq(W[0], gravity[0], rcond=None)[0]
     return least, "none in the box; the least-norm tension"
+
+
+def check_regular(robot: Robot, pose: np.ndarray) -> None:
+    """Refuse, naming ``pose``, a pose where W is singular (on an anchor, or its cables in
+    a line): no tension is defined there."""
+    from cdpr_sym.model import SINGULAR_DET, SymbolicModel
+
+    measure = float(SymbolicModel(robot).singularity_function(pose)[1])
+    if not measure >= SINGULAR_DET:
+        raise InvalidCase("pose", f"the structure matrix W is singular at {pose.tolist()} "
+                          f"(|det W| / prod |w_i| = {measure:.2e}): no tension is defined there")
 
 
 def workspace_points(robot: Robot, pose: np.ndarray) -> np.ndarray:
@@ -135,6 +148,7 @@ def draw(robot: Robot, pose: np.ndarray, tensions: np.ndarray, path: Path, *,
     from cdpr_sym.robot.picture import draw_robot, new_axes
 
     ax = new_axes(robot)
+    path.parent.mkdir(parents=True, exist_ok=True)
     draw_robot(robot, pose=pose, ax=ax, tensions=tensions, goal=robot.goal, points=points,
                boxes=boxes, points_label="stable equilibria (a sample)" if robot.underactuated
                else "static workspace")

@@ -470,7 +470,9 @@ class Simulator:
                           integrator="rk4-sampled", backend=self.backend,
                           **({} if solver_record is None else {"solver": solver_record}),
                           _described=self._described),
-            memory=x["memory"], q_read=x.get("q_read"),
+            memory=x["memory"],
+            # the pose read: only a controller that reads the pose updates it
+            q_read=None if capabilities(self.controller).reads_drives else x.get("q_read"),
             static_tension=(self._static_tension(states[0, : self.robot.n])
                             if static_tension is None else static_tension),
             **log)

@@ -18,6 +18,10 @@ import numpy as np
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot
 
+#: Most poses in one linear programme of :func:`_lp_margins` (the geometry design's 343 or
+#: 361 samples stay in one).
+LP_CHUNK = 512
+
 
 def structure_and_gravity(robot: Robot, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """W at each pose (poses, n, m) and grad V (poses, n)."""
@@ -54,9 +58,20 @@ def margins_and_tensions(robot: Robot, poses: np.ndarray) -> tuple[np.ndarray, n
 
 def _lp_margins(W: np.ndarray, gravity: np.ndarray, lo: float, hi: float
                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Each pose's max t: W T = f, lo + t <= T <= hi - t, as one block-diagonal linear
-    programme (maximising the sum of the t's: the poses share no variable, so each t
-    reaches its own maximum) solved by HiGHS; -inf and NaN where a pose has no tension."""
+    """Each pose's max t: W T = f, lo + t <= T <= hi - t, as block-diagonal linear
+    programmes of at most :data:`LP_CHUNK` poses (maximising the sum of the t's: the poses
+    share no variable, so each t reaches its own maximum) solved by HiGHS; -inf and NaN
+    where a pose has no tension. One programme's time grows faster than its poses (4,096
+    poses of 32 cables took 6 minutes), hence the chunks."""
+    parts = [_lp_block(W[start:start + LP_CHUNK], gravity[start:start + LP_CHUNK], lo, hi)
+             for start in range(0, len(W), LP_CHUNK)]
+    return (np.concatenate([margins for margins, _ in parts]),
+            np.concatenate([tensions for _, tensions in parts]))
+
+
+def _lp_block(W: np.ndarray, gravity: np.ndarray, lo: float, hi: float
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_lp_margins` of one block of poses, as one linear programme."""
     from scipy.optimize import linprog
     from scipy.sparse import block_diag, csr_matrix, hstack, identity, kron, vstack
 

@@ -31,6 +31,12 @@ if TYPE_CHECKING:
 
 #: The files an animation is written to, and what writes each.
 ANIMATION_SUFFIXES = {".gif": "pillow", ".mp4": "ffmpeg", ".html": "html"}
+#: Most frames an animation may have: a writer holds them all (a GIF of 1,000 frames took
+#: 2 GB); a longer run asks for a lower ``fps`` or a higher ``speed``.
+MAX_FRAMES = 600
+#: MB of frames a JavaScript player may embed (matplotlib's own limit, 20 MB, cut the
+#: default 10 s run at 6 s without an error); :data:`MAX_FRAMES` bounds what it holds.
+EMBED_LIMIT_MB = 400.0
 
 
 class RunAnimation(FuncAnimation):
@@ -70,8 +76,16 @@ class RunAnimation(FuncAnimation):
         return [*artists, self.clock]
 
     def _repr_html_(self) -> str:
-        """A notebook shows the animation as JavaScript whatever ``animation.html`` says."""
-        return self.to_jshtml()
+        """A notebook shows the animation as JavaScript whatever ``animation.html`` says,
+        every frame embedded (:data:`EMBED_LIMIT_MB`)."""
+        return self.javascript()
+
+    def javascript(self, fps: float | None = None) -> str:
+        """The JavaScript player of the animation (HTML), with every frame."""
+        import matplotlib as mpl
+
+        with mpl.rc_context({"animation.embed_limit": EMBED_LIMIT_MB}):
+            return self.to_jshtml(fps=fps)
 
     def save(self, filename: str | Path, *args: Any, **kwargs: Any) -> None:  # type: ignore[override]
         """Write the animation to ``filename``: ``.gif`` (Pillow), ``.html`` (JavaScript)
@@ -87,8 +101,9 @@ class RunAnimation(FuncAnimation):
             return
         path = Path(filename)
         writer = animation_writer(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
         if writer == "html":
-            path.write_text(self.to_jshtml(fps=kwargs.get("fps", self.fps)))
+            path.write_text(self.javascript(fps=kwargs.get("fps", self.fps)))
             return
         kwargs.setdefault("fps", self.fps)
         super().save(path, *args, writer=writer, **kwargs)
@@ -122,6 +137,10 @@ def frame_steps(samples: int, dt: float, *, fps: float, speed: float) -> np.ndar
     steps = np.arange(0, samples, stride)
     if steps[-1] != samples - 1:
         steps = np.append(steps, samples - 1)
+    if len(steps) > MAX_FRAMES:
+        raise InvalidCase("fps", f"{len(steps)} frames ({samples * dt:.3g} s of run at {fps:g} "
+                          f"frames per second, {speed:g} times real time); at most "
+                          f"{MAX_FRAMES}: ask for a lower fps or a higher speed")
     return steps
 
 
@@ -134,8 +153,8 @@ def animate_run(run: Trajectory, robot: Robot | None = None, *, fps: float = 25.
 
 
 def run_robot(run: Trajectory, robot: Robot | None) -> Robot:
-    """The robot a run is drawn on: ``robot``, else the preset its ``info`` names; checked
-    to have the run's coordinates and cables."""
+    """The robot a run is drawn on: ``robot``, else the preset its ``info`` names (with the
+    run's own tension box); checked to have the run's coordinates and cables."""
     from cdpr_sym.robot import PRESET_NAMES, UNDERACTUATED_PRESETS, preset
 
     if robot is None:
@@ -144,10 +163,16 @@ def run_robot(run: Trajectory, robot: Robot | None) -> Robot:
             raise InvalidCase("robot", f"this run's robot {name!r} is not a preset; pass the "
                               "Robot it ran on (animate(robot=...))")
         robot = preset(name)
+        if (robot.t_min, robot.t_max) != (run.t_min, run.t_max):
+            raise InvalidCase("robot", f"this run's tension box [{run.t_min:g}, {run.t_max:g}] "
+                              f"N is not the preset {name}'s: pass the Robot it ran on "
+                              "(animate(robot=...))")
     if robot.n != run.q.shape[1] or robot.m != run.tau.shape[1]:
         raise InvalidCase("robot", f"{robot.name} has n = {robot.n} and m = {robot.m}; the "
                           f"run has {run.q.shape[1]} coordinates and {run.tau.shape[1]} "
                           "cables")
+    if (robot.t_min, robot.t_max) != (run.t_min, run.t_max):  # coloured against the run's box
+        robot = robot.with_case(t_min=run.t_min, t_max=run.t_max)
     return robot
 
 

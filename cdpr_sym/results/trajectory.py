@@ -61,7 +61,8 @@ class Trajectory:
         true tension in the cables at t[k], on which the run is judged.
     q_read : ndarray, shape (N + 1, n), optional
         Runs on an as-built plant whose controller reads the pose from the encoders: the
-        pose it read at t[k] (m; rad), beside the true pose ``q``.
+        pose it read at t[k] (m; rad), beside the true pose ``q``. None for a controller
+        that reads the drives (it reads no pose).
     """
 
     t: np.ndarray

@@ -59,6 +59,12 @@ class RobotPicture:
     def __init__(self, robot: Robot, ax: Any, *, tensions: bool = True) -> None:
         self.robot, self.ax, self.coloured = robot, ax, tensions
         self.flat = robot.dimension == 2
+        if self.flat == (getattr(ax, "name", "") == "3d"):
+            from cdpr_sym.errors import InvalidCase
+
+            wanted = "2-D" if self.flat else "3-D (projection='3d')"
+            raise InvalidCase("ax", f"{robot.name} is drawn on {wanted} axes, got "
+                              f"{getattr(ax, 'name', type(ax).__name__)} axes")
         self._frame()
         self.anchors = _scatter(ax, robot.anchors, marker="^", s=60, color=ANCHOR_COLOUR,
                                 zorder=5, label="anchors")
@@ -138,6 +144,8 @@ class RobotPicture:
                     for face in faces]
         from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
+        if len(faces) > 1:  # a solid's hull triangles: no edges across its flat faces
+            style["edgecolor"] = "none"
         plate = Poly3DCollection(list(faces), **style)
         self.ax.add_collection3d(plate)
         return [plate]
@@ -239,10 +247,13 @@ def draw_robot(robot: Robot, *, pose: Sequence[float] | np.ndarray | None = None
     if checked is not None:
         _label_out_of_box(robot, ax, scene(robot, pose), checked, flat=picture.flat)
         picture.colour_bar()
+    shown = [scene(robot, pose).attachments]
     if goal is not None:
         target = scene(robot, checked_pose(robot, goal, "goal")).reference
         _scatter(ax, target[None, :], marker="*", s=160, color=GOAL_COLOUR, zorder=8,
                  label="goal")
+        shown.append(target[None, :])
+    _limits(ax, robot, np.vstack(shown))  # a pose outside the frame stays in view
     ax.set_title(title if title is not None else
                  f"{robot.name} at ({', '.join(f'{v:.3g}' for v in pose)})")
     legend(ax)
@@ -251,7 +262,7 @@ def draw_robot(robot: Robot, *, pose: Sequence[float] | np.ndarray | None = None
 
 def legend(ax: Any) -> None:
     """The legend under the axes, out of the robot's way."""
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=4, fontsize="small",
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=4, fontsize="small",
               frameon=False)
 
 
@@ -307,10 +318,12 @@ def _label_out_of_box(robot: Robot, ax: Any, parts: Scene, tensions: np.ndarray,
             ax.text(*middle, text, color=OUT_OF_BOX_COLOUR, fontsize="small")
 
 
-def _limits(ax: Any, robot: Robot) -> None:
-    """Axes spanning the anchors and the frame (5 % margin), equal scales, labelled."""
+def _limits(ax: Any, robot: Robot, extra: np.ndarray | None = None) -> None:
+    """Axes spanning the anchors, the frame and the ``extra`` points (5 % margin), equal
+    scales, labelled."""
     d = robot.dimension
-    points = np.vstack([robot.anchors, robot.frame_lower[:d], robot.frame_upper[:d]])
+    points = np.vstack([robot.anchors, robot.frame_lower[:d], robot.frame_upper[:d],
+                        *([] if extra is None else [np.asarray(extra)[:, :d]])])
     low, high = points.min(axis=0), points.max(axis=0)
     pad = 0.05 * max(float((high - low).max()), 1e-9)
     low, high = low - pad, high + pad
