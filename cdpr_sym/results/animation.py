@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 from matplotlib.animation import FuncAnimation
@@ -26,8 +26,19 @@ from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
 from cdpr_sym.robot.picture import RobotPicture, legend, new_axes
 
-if TYPE_CHECKING:
-    from cdpr_sym.results.trajectory import Trajectory
+
+class Trajectory(Protocol):
+    """What an animation reads of a run (a :class:`cdpr_sym.results.Trajectory` has it all;
+    named here so that the run, which animates itself, is not imported back)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    tau: np.ndarray
+    q_goal: np.ndarray
+    q_read: np.ndarray | None
+    t_min: float
+    t_max: float
+    info: dict[str, Any]
 
 #: The files an animation is written to, and what writes each.
 ANIMATION_SUFFIXES = {".gif": "pillow", ".mp4": "ffmpeg", ".html": "html"}

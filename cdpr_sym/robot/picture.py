@@ -27,8 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from cdpr_sym.robot.description import Robot
-from cdpr_sym.robot.scene import Scene, checked_pose, scene
+from cdpr_sym.robot.scene import Robot, Scene, checked_pose, scene
 
 #: Colours of the picture.
 FRAME_COLOUR, ANCHOR_COLOUR, BODY_COLOUR = "0.55", "black", "tab:blue"

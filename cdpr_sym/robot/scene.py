@@ -13,11 +13,42 @@ plane when they are coplanar, else the hull's triangles. A point mass has none.
 from __future__ import annotations
 
 import dataclasses
+from typing import Protocol
 
 import numpy as np
 
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.robot.description import Robot
+
+
+class Robot(Protocol):
+    """What a picture reads of a robot (a :class:`cdpr_sym.robot.Robot` has it all; named
+    here so that the description, which draws itself, is not imported back)."""
+
+    name: str
+    anchors: np.ndarray
+    attachments: np.ndarray | None
+    center_of_mass: np.ndarray | None
+    start: np.ndarray
+    goal: np.ndarray
+    frame_lower: np.ndarray
+    frame_upper: np.ndarray
+    t_min: float
+    t_max: float
+
+    @property
+    def kind(self) -> str: ...
+
+    @property
+    def dimension(self) -> int: ...
+
+    @property
+    def m(self) -> int: ...
+
+    @property
+    def n(self) -> int: ...
+
+    @property
+    def coordinate_names(self) -> tuple[str, ...]: ...
 
 #: Relative size under which a spread of points has no extent in a direction (its singular
 #: value over the largest one): coplanar attachments, a plate of no thickness.
