@@ -396,6 +396,7 @@ def test_every_controller_and_preset_builds_strict_and_reproduces_simulation(tmp
                for controller in CONTROLLERS
                if not capabilities(CONTROLLERS[controller]).sampled
                and not capabilities(CONTROLLERS[controller]).reads_drives
+               and capabilities(CONTROLLERS[controller]).fully_actuated
                and (robot != "spatial6" or controller in SPATIAL_STRICT)}
     objects = {}
     for key, result in results.items():

@@ -207,9 +207,12 @@ def test_the_matching_equations_hold_and_the_law_is_ida_pbcs(path):
     rng = np.random.default_rng(11)
     memory = np.concatenate([[10 * design.duration], _lengths(robot, robot.start), goal,
                              goal_tension])
-    for _ in range(6):
+    with_j, states = 0, 0
+    while with_j < 3 or states < 6:  # some states where J_d acts (the box needs it)
+        states += 1
+        assert states < 400
         q = goal + rng.uniform(-0.05, 0.05, robot.n)
-        dq = rng.uniform(-0.3, 0.3, robot.n)
+        dq = rng.uniform(-1.0, 1.0, robot.n) * (3.0 if states % 2 else 0.3)
         out = law(q=q, dq=dq, q_goal=goal, k=np.ones(robot.n), r_d=np.ones(robot.n),
                   memory=memory, dt=1e-3)
         tau, j = np.array(out["tau"]).ravel(), np.array(out["j"]).ravel()
@@ -224,6 +227,7 @@ def test_the_matching_equations_hold_and_the_law_is_ida_pbcs(path):
         expected = (np.linalg.solve(W.T @ W, W.T @ (shaped + J2 @ dq))
                     - design.damping * W.T @ dq)
         np.testing.assert_allclose(tau, expected, rtol=1e-5, atol=1e-6 * robot.t_max)
+        with_j += np.abs(J2).max() > 1e-6
 
 
 def test_h_d_never_increases_after_the_plan():
@@ -277,24 +281,63 @@ def test_the_goal_is_a_strict_minimum_and_the_linearisation_is_stable(path):
 
 
 def test_the_box_step_is_orthogonal_to_the_rate_and_least():
-    """J_d's step: orthogonal to the cable rate, within c |l'|, and where a step along d
-    reaches the box, the tension lands on it (a = the smallest)."""
+    """J_d's step: orthogonal to the cable rate, within c |l'|; nothing inside the box or at
+    rest; from outside, the least step along d lands on the box's boundary."""
     import casadi as ca
 
     robot = load_robot(BAR2)
     t0, rate = ca.SX.sym("t0", 2), ca.SX.sym("rate", 2)
     w, inside = box_step(robot, t0, rate, 10.0)
     step = ca.Function("step", [t0, rate], [w, inside])
-    for tension, speed in (([0.5, 30.0], [0.2, -0.4]), ([65.0, 30.0], [1.0, 1.0]),
-                           ([30.0, 30.0], [0.3, 0.1])):
+
+    def run(tension, speed):
         w_value, ok = (np.array(v).ravel() for v in step(tension, speed))
+        return w_value, ok[0] > 0.5
+
+    landed = 0
+    for tension, speed in (([0.5, 30.0], [0.2, -0.4]), ([65.0, 30.0], [1.0, 1.0]),
+                           ([0.2, 61.0], [-2.0, -1.0]), ([62.0, 40.0], [-1.0, 2.0])):
+        w_value, ok = run(tension, speed)
         assert abs(w_value @ speed) <= 1e-12 * max(np.abs(w_value).max(), 1)
         assert np.linalg.norm(w_value) <= 10.0 * np.linalg.norm(speed) * (1 + 1e-12)
         result = np.array(tension) + w_value
-        if ok[0] > 0.5:
+        if ok:
             assert np.all(result >= robot.t_min - 1e-9) and np.all(result <= robot.t_max + 1e-9)
-        if np.all((np.array(tension) >= robot.t_min) & (np.array(tension) <= robot.t_max)):
-            assert np.abs(w_value).max() == 0  # inside already: no step
+            on_bound = np.isclose(result, robot.t_min, atol=1e-9) | np.isclose(
+                result, robot.t_max, atol=1e-9)
+            assert on_bound.any()  # the least step stops on the box
+            landed += 1
+    assert landed >= 2
+    assert np.abs(run([30.0, 30.0], [0.3, 0.1])[0]).max() == 0  # inside: no step
+    w_value, ok = run([0.5, 30.0], [0.0, 0.0])  # at rest no skew term acts
+    assert np.abs(w_value).max() == 0 and not ok
+
+
+def test_j_d_keeps_a_tension_the_law_alone_leaves_outside_the_box():
+    """At states of bar2 where the spring and damper alone command a tension outside the
+    box, ida-under's J_d brings it inside on some; the law without J_d (box=False) does
+    not."""
+    robot = load_robot(BAR2)
+    model = SymbolicModel(robot)
+    with_box = law_function(model, CONTROLLERS["ida-under"])
+    without = law_function(model, UnderactuatedIdaPbc(box=False))
+    design = derived_design(robot)
+    goal_tension = EquilibriumManifold(robot).classify(robot.goal).tension
+    memory = np.concatenate([[10 * design.duration], _lengths(robot, robot.start),
+                             robot.goal, goal_tension])
+    rng = np.random.default_rng(4)
+    rescued = 0
+    for _ in range(200):
+        q = robot.goal + rng.uniform(-0.05, 0.05, robot.n)
+        dq = rng.uniform(-3.0, 3.0, robot.n)
+        args = {"q": q, "dq": dq, "q_goal": robot.goal, "k": np.ones(3), "r_d": np.ones(3),
+                "memory": memory, "dt": 1e-3}
+        bare = np.array(without(**args)["tau"]).ravel()
+        kept = np.array(with_box(**args)["tau"]).ravel()
+        outside = np.any(bare < robot.t_min) or np.any(bare > robot.t_max)
+        if outside and robot.t_min <= kept.min() and kept.max() <= robot.t_max:
+            rescued += 1
+    assert rescued >= 5
 
 
 @pytest.mark.parametrize("path", [BAR2, TRI3], ids=["bar2", "tri3"])
@@ -390,3 +433,30 @@ def test_the_rule_leaves_out_the_swing_no_cable_acts_on():
     rest = linearisation(manifold, robot.goal, design.stiffness, design.damping).eigenvalues
     damped = rest[np.abs(rest.real) >= 1e-9 * np.abs(rest).max()]
     assert design.decay_rate > 1.0 and np.isclose(-damped.real.max(), design.decay_rate)
+
+
+def test_a_growing_mode_counts_against_the_gains_and_a_robot_without_stable_gains_is_refused():
+    from cdpr_sym.underactuated.linearisation import decay_rate
+
+    assert decay_rate(np.array([-1 + 2j, -1 - 2j, 0.5, -3.0]), 3.0) == -0.5
+    assert decay_rate(np.array([-1 + 2j, -1 - 2j, 1e-17, -3.0]), 3.0) == 1.0
+    light = load_robot(BAR2).with_case(inertia=1e-4, name="bar2light")
+    with pytest.raises(InvalidCase, match="robot: no cable gains of the rule hold bar2light"):
+        derived_design(light)
+
+
+def test_an_equilibrium_needing_tensions_outside_the_box_is_named_so():
+    """bar2 at rest needs 12.6 N in each cable: with a box up to 10 N the start is refused
+    for its tensions, not called unstable."""
+    narrow = load_robot(BAR2).with_case(t_max=10.0, goal=[0.0, 1.0, 0.0])
+    with pytest.raises(InvalidCase, match=r"start: \[0.0, 1.0, 0.0\] needs tensions "
+                                          r"\[12.56.*\] N outside \[1, 10\] N"):
+        Case.of(narrow)
+
+
+def test_nmpc_runs_fewer_cables_with_the_least_squares_pseudo_inverse():
+    """nmpc-of's offset and the NMPC fallback map a force to tensions by W^+: with m < n
+    it is (W^T W)^-1 W^T (W W^T is singular), so bar2's run stays finite and settles."""
+    run = simulate(load_robot(BAR2), "nmpc-of", duration=4.0)
+    assert np.all(np.isfinite(run.tau)) and run.stop_reason is None
+    assert run.metrics()["final_error"] < 0.01

@@ -100,9 +100,9 @@ def _stiffness(value: float) -> float:
 
 
 def _robot(name: str) -> Robot:
-    from cdpr_sym.cli.robots import checked_robot
+    from cdpr_sym.cli.robots import checked_robot, fully_actuated
 
-    return checked_robot(name)
+    return fully_actuated(checked_robot(name), "calibrate")
 
 
 def calibrate_command(args: argparse.Namespace, out: Output) -> int:

@@ -54,11 +54,11 @@ def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
 
 def design_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.checks import positive_number
-    from cdpr_sym.cli.robots import checked_robot, split_corners
+    from cdpr_sym.cli.robots import checked_robot, fully_actuated, split_corners
     from cdpr_sym.geometry.design import design_geometry
     from cdpr_sym.robot.files import robot_file_text
 
-    robot = checked_robot(args.robot)
+    robot = fully_actuated(checked_robot(args.robot), "design geometry")
     task = split_corners("task", args.task, robot.dimension)
     within = split_corners("within", args.within, robot.dimension)
     positive_number("time_limit", args.time_limit, "s")

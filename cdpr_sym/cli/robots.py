@@ -17,6 +17,16 @@ def checked_robot(name_or_path: str) -> Robot:
     return robot
 
 
+def fully_actuated(robot: Robot, command: str) -> Robot:
+    """``robot``, unless it has fewer cables than degrees of freedom, which ``command``
+    does not model: refused in one line naming ``robot``."""
+    if robot.underactuated:
+        raise InvalidCase("robot", f"{robot.name} has fewer cables than degrees of freedom "
+                          f"(m = {robot.m} < n = {robot.n}); {command} models robots with at "
+                          "least as many")
+    return robot
+
+
 def with_wrench_box(robot: Robot, force: list[float] | None, moment: list[float] | None
                     ) -> Robot:
     """``robot`` with the external wrench box of ``--force`` and ``--moment`` (each

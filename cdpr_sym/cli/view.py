@@ -25,6 +25,8 @@ WORKSPACE_GRID = {2: 121, 3: 19}
 #: Equilibria drawn for ``--workspace`` with fewer cables than coordinates (each one a
 #: settling solve, about 2 ms).
 EQUILIBRIUM_SAMPLES = 400
+#: Most settling solves ``--workspace`` spends on them (about 4 s); it draws what it found.
+EQUILIBRIUM_DRAWS = 2000
 
 
 def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
@@ -131,8 +133,8 @@ def workspace_points(robot: Robot, pose: np.ndarray) -> np.ndarray:
     if robot.underactuated:
         from cdpr_sym.underactuated import EquilibriumManifold
 
-        return EquilibriumManifold(robot).sample(EQUILIBRIUM_SAMPLES,
-                                                 np.random.default_rng(0))
+        return EquilibriumManifold(robot).sample(EQUILIBRIUM_SAMPLES, np.random.default_rng(0),
+                                                 draws=EQUILIBRIUM_DRAWS, partial=True)
 
     d = robot.dimension
     axes = [np.linspace(lo, hi, WORKSPACE_GRID[d])

@@ -29,9 +29,13 @@ q_g is an equilibrium held by T_g, and hess V_d(q_g) = S + k J^T J with
 S = hess (V + T_g^T l) (:mod:`cdpr_sym.underactuated.equilibrium`). On the moves that keep
 the cable lengths it is S itself: positive definite exactly when the goal is a *stable*
 equilibrium; on the others k J^T J adds stiffness. So a stable goal with a large enough k
-is a strict minimum (the tests check the eigenvalues). Asymptotic stability then follows by
-LaSalle: l' = 0 for all time makes T constant, and a motion at constant lengths under a
-constant tension is an equilibrium.
+is a strict minimum (the tests check the eigenvalues), so the goal is Lyapunov stable. By
+LaSalle motions converge to the largest invariant set in {l' = 0}, which need not be the
+goal alone (a point on one cable circles at constant length and tension; a point on two
+cables swinging out of their plane is undamped at first order): local asymptotic stability
+is claimed only where the linearisation at the goal has every eigenvalue in the open left
+half plane, as the study reports per robot. The energy balance is the commanded tension's
+(a cable below zero would have to push).
 
 **J_d (here A) keeps the box, as the paper intends.** The free term w = -A l' can be any
 vector orthogonal to l' (A = (l' w^T - w l'^T) / |l'|^2); it is bounded by |w| <= c |l'|.
@@ -48,10 +52,15 @@ duration, the reference equilibrium (q_ref, T_ref) held by them is tracked by tw
 steps a sample on W(q) T = grad V, l(q) = l_ref from the last one (memory), and the law
 uses (l_ref, l_ref', T_ref) in place of (l_g, 0, T_g). At t = 0 it commands the start's
 own tension (no jump); after the plan it is exactly the law above with the fixed goal.
+A Newton step that diverges keeps the last reference, and a reference that diverged or
+needs a tension outside the box is flagged ``FLAG_INFEASIBLE``: nothing checks before a
+run that the straight path in cable lengths stays on stable, held equilibria (with four
+cables or more on a 6-DOF platform it often does not).
 
 **Gains and duration from the robot** (:mod:`cdpr_sym.underactuated.linearisation`): k and c
-maximise the median of the linearisation's slowest decay rate over the case goal and 24
-admissible equilibria drawn from seed 0, for a 1 ms loop; the plan lasts 2.5 of the
+maximise the median of the linearisation's slowest decay rate over the case goal and start
+and up to 24 admissible equilibria drawn from seed 0 (every mode stable at each), for a
+1 ms loop; the plan lasts 2.5 of the
 longest swing periods over them, so that the move excites little swing (the swing is
 damped only through its coupling with the cables), but at most half the target's settle
 time and at least 1 s. The case gains k, r_d of the step's
@@ -81,8 +90,10 @@ SHORTEST_PLAN = 1.0
 PLAN_PERIODS = 2.5
 #: ... but at most this share of the target's settle time, leaving the rest to settle.
 PLAN_SHARE = 0.5
-#: Admissible equilibria the rules sample (drawn from seed 0), beside the case's goal.
-RULE_SAMPLES = 24
+#: Admissible equilibria the rules sample (drawn from seed 0), beside the case's goal and
+#: start, and the most draws spent on them (a robot whose admissible equilibria are few
+#: gets the rules of those found).
+RULE_SAMPLES, RULE_DRAWS = 24, 1000
 #: Newton steps a sample on the reference equilibrium.
 NEWTON_STEPS = 2
 _UNITS = {"stiffness": "N/m", "damping": "N s/m", "duration": "s"}
@@ -100,12 +111,15 @@ class UnderactuatedDesign:
         The plan's duration, s.
     decay_rate : float
         The linearisation's slowest decay rate at the case goal, 1/s.
+    median_decay_rate : float
+        Its median over the rule's equilibria (what the rule maximises), 1/s.
     """
 
     stiffness: float
     damping: float
     duration: float
     decay_rate: float
+    median_decay_rate: float
 
 
 #: Derived designs by robot description (:func:`~cdpr_sym.robot.robot_key`).
@@ -123,15 +137,19 @@ def derived_design(robot: Robot) -> UnderactuatedDesign:
 
 def _derive(robot: Robot) -> UnderactuatedDesign:
     from cdpr_sym.underactuated import EquilibriumManifold
-    from cdpr_sym.underactuated.linearisation import cable_gains, swing_period
+    from cdpr_sym.underactuated.linearisation import cable_gains, linearisation, swing_period
 
     manifold = EquilibriumManifold(robot)
-    sample = np.vstack([robot.goal, manifold.sample(RULE_SAMPLES, np.random.default_rng(0))])
+    drawn = manifold.sample(RULE_SAMPLES, np.random.default_rng(0), draws=RULE_DRAWS,
+                            partial=True)
+    sample = np.vstack([robot.goal, robot.start, drawn])
     gains = cable_gains(robot, sample, GAIN_PERIOD, manifold)
     longest = max(swing_period(manifold, q) for q in sample)
     duration = min(PLAN_PERIODS * longest, PLAN_SHARE * robot.design_target.settle_time)
+    median = float(np.median([linearisation(manifold, q, gains.stiffness,
+                                            gains.damping).decay_rate for q in sample]))
     return UnderactuatedDesign(float(gains.stiffness), float(gains.damping),
-                               float(max(SHORTEST_PLAN, duration)), gains.decay_rate)
+                               float(max(SHORTEST_PLAN, duration)), gains.decay_rate, median)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -213,8 +231,13 @@ class UnderactuatedIdaPbc:
         rate = (30 * s**2 - 60 * s**3 + 30 * s**4) / design.duration
         l_ref = l_start + shape * (l_goal - l_start)
         l_ref_rate = rate * (l_goal - l_start)
+        q_last, t_last = q_ref, t_ref
         for _ in range(NEWTON_STEPS):
             q_ref, t_ref = _newton_step(model, q_ref, t_ref, l_ref)
+        # a step that diverges (a singular or far reference) keeps the last reference
+        finite = ca.mmax(ca.fabs(ca.vertcat(q_ref, t_ref))) < 1e150
+        q_ref = ca.if_else(finite, q_ref, q_last)
+        t_ref = ca.if_else(finite, t_ref, t_last)
         done = s >= 1.0
         q_ref = ca.if_else(done, q_goal, q_ref)
         t_ref = ca.if_else(done, _held_tension(model, q_goal), t_ref)
@@ -226,7 +249,11 @@ class UnderactuatedIdaPbc:
         w, inside = box_step(robot, t0, relative_rate, design.damping if self.box else 0.0)
         tau = t0 + w
         j = _interconnection_entries(model, W, relative_rate, w)
-        flags = ca.if_else(inside, 0.0, float(FLAG_INFEASIBLE))
+        # flagged: the tension left outside the box, or a reference the path cannot hold
+        # (diverged, or needing a tension outside the box)
+        held = ca.logic_and(finite, ca.logic_and(ca.mmin(t_ref) >= robot.t_min,
+                                                 ca.mmax(t_ref) <= robot.t_max))
+        flags = ca.if_else(ca.logic_and(inside, held), 0.0, float(FLAG_INFEASIBLE))
         law = ControlLaw(tau, ca.SX(1.0), ca.mmin(tau) - robot.t_min, j, flags)
         return law, ca.vertcat(t + dt, l_start, q_ref, t_ref)
 

@@ -57,6 +57,9 @@ def bench_controllers(robot: Robot, *, duration: float = 5.0, dt: float = 1e-3,
     for name, controller in CONTROLLERS.items():
         if robot.m > robot.n and not capabilities(controller).any_cables:
             continue  # it inverts W: refused on a robot with more cables than DOF
+        caps = capabilities(controller)
+        if not (caps.underactuated if robot.underactuated else caps.fully_actuated):
+            continue  # refused on this robot's cable count
         if capabilities(controller).sampled:
             continue  # NMPC: its cost is per solve (python -m benchmarks.nmpc)
         simulator = get_simulator(robot, controller, build_options=build_options)

@@ -79,7 +79,7 @@ def design_numbers(robot: Robot) -> dict[str, Any]:
     hessian = S + design.stiffness * J.T @ J
     linear = linearisation(manifold, robot.goal, design.stiffness, design.damping)
     return {"stiffness": design.stiffness, "damping": design.damping,
-            "duration": design.duration, "median_decay": design.decay_rate,
+            "duration": design.duration, "median_decay": design.median_decay_rate,
             "hessian_min": float(np.linalg.eigvalsh(hessian).min()),
             "reduced_stiffness_min": float(goal.stiffness.min()),
             "largest_real_part": float(linear.eigenvalues.real.max())}
@@ -105,6 +105,17 @@ def own_case(robot: Robot) -> dict[str, Any]:
                        "stop_reason": metrics["stop_reason"],
                        "meets_target": meets_target(row, target, dt=DT)}
     return out
+
+
+def without_steps(rows: list[dict[str, Any]], settle_time: float) -> float | None:
+    """The share of ``rows`` that keep every tension in the box and settle by
+    ``settle_time`` (s), the tension steps not judged: what a design does apart from how
+    it starts (a PD to the goal jumps at t = 0)."""
+    if not rows:
+        return None
+    met = [bool(row.get("tension_feasible")) and row.get("settle_time") is not None
+           and float(row["settle_time"]) <= settle_time for row in rows]
+    return float(np.mean(met))
 
 
 def _pairs(design: str, pairs: int) -> int:
@@ -186,6 +197,8 @@ class UnderactuatedStudy(Study):
                 summary = summarise_sweep(table_rows, meta)[design]
                 shares[design] = {key: summary.get(key) for key in (
                     "runs", "meets_target", "median_settle_s", "stopped_or_failed")}
+                shares[design]["without_steps"] = without_steps(
+                    table_rows, robot.design_target.settle_time)
             sides = (robot.frame_upper - robot.frame_lower)[: robot.dimension]
             rows[name] = {**record, "kind": robot.kind, "n": robot.n, "m": robot.m,
                           "mass_kg": robot.mass, "frame_m": float(sides.max()),

@@ -168,33 +168,39 @@ class EquilibriumManifold:
                                  lbx=frame[0], ubx=frame[1])
         return self.classify(np.array(solution["x"]).ravel())
 
-    def sample(self, count: int, rng: np.random.Generator, *, margin: float = 0.0
-               ) -> np.ndarray:
+    def sample(self, count: int, rng: np.random.Generator, *, margin: float = 0.0,
+               draws: int | None = None, partial: bool = False) -> np.ndarray:
         """``count`` admissible equilibria (tensions in the box shrunk by ``margin``, N),
         inside the frame shrunk by 5 % of its size: poses drawn uniformly, each settled on
         its own cable lengths (all kept taut) and kept when admissible, shape (count, n).
 
+        ``draws`` (default :data:`DRAWS_PER_SAMPLE` per pose asked for) bounds the draws;
+        with ``partial`` the equilibria found by then are returned, however few.
+
         Raises
         ------
         InvalidCase
-            Field ``robot``: fewer found than asked for in :data:`DRAWS_PER_SAMPLE` draws
-            each.
+            Field ``robot``: fewer found than asked for within the draws (not ``partial``).
         """
         robot = self.robot
         size = robot.frame_upper - robot.frame_lower
         low, high = robot.frame_lower + 0.05 * size, robot.frame_upper - 0.05 * size
         found: list[np.ndarray] = []
-        for _ in range(DRAWS_PER_SAMPLE * count):
+        seen: set[tuple[float, ...]] = set()  # each equilibrium once (to 1 um, 1 urad)
+        budget = DRAWS_PER_SAMPLE * count if draws is None else draws
+        for _ in range(budget):
             if len(found) == count:
-                return np.array(found)
+                break
             settled = self.settle(rng.uniform(low, high), taut=True)
+            key = tuple(np.round(settled.q, 6))
             inside = np.all(settled.q >= low) and np.all(settled.q <= high)
-            if inside and settled.admissible(robot, margin) and not any(
-                    np.allclose(settled.q, other, atol=1e-6) for other in found):
+            if inside and key not in seen and settled.admissible(robot, margin):
+                seen.add(key)
                 found.append(settled.q)
-        raise InvalidCase("robot", f"found {len(found)} stable equilibria of {robot.name} with "
-                          f"tensions in the box in {DRAWS_PER_SAMPLE * count} draws; asked "
-                          f"for {count}")
+        if len(found) < count and not partial:
+            raise InvalidCase("robot", f"found {len(found)} stable equilibria of {robot.name} "
+                              f"with tensions in the box in {budget} draws; asked for {count}")
+        return np.array(found).reshape(len(found), robot.n)
 
 
 def reduced_stiffness(J: np.ndarray, S: np.ndarray) -> np.ndarray:
@@ -215,13 +221,16 @@ def check_equilibrium(manifold: EquilibriumManifold, field: str, q: np.ndarray) 
         return found
     why = ("is not an equilibrium (the cables cannot hold it at rest: "
            f"{found.residual:.2e} of the weight unbalanced)" if not found.holds
-           else "is an unstable equilibrium" if not found.stable
            else f"needs tensions {_rounded(found.tension)} N outside [{robot.t_min:g}, "
-                f"{robot.t_max:g}] N")
+                f"{robot.t_max:g}] N" if not found.in_box(robot)
+           else "is an unstable equilibrium")
     settled = manifold.settle(q)
-    nearest = (f"held at its cable lengths it settles at {_rounded(settled.q)} (tensions "
-               f"{_rounded(settled.tension)} N"
-               + ("" if settled.admissible(robot) else ", not admissible either") + ")")
+    if np.allclose(settled.q, q, rtol=0, atol=1e-9 * max(1.0, float(np.abs(q).max()))):
+        nearest = "no stable equilibrium holds its cable lengths near it"
+    else:
+        nearest = (f"held at its cable lengths it settles at {_rounded(settled.q)} (tensions "
+                   f"{_rounded(settled.tension)} N"
+                   + ("" if settled.admissible(robot) else ", not admissible either") + ")")
     raise InvalidCase(field, f"{_rounded(q)} {why}; {robot.name} has fewer cables "
                       f"than coordinates and rests only at stable equilibria; {nearest}")
 

@@ -17,9 +17,10 @@ swing and leaves it undamped, too soft a cable lets the platform sag.
 c = sqrt(k m) x 10^(-1.5 .. 1) on a 17 x 17 logarithmic grid (L the frame's largest side,
 m the mass; the platform's own scales), the pair whose linearisations at a sample of the
 robot's admissible equilibria have the largest median slowest decay rate
-min(-Re lambda), among those whose fastest mode is at most :data:`BANDWIDTH_SHARE` of the
-sampling rate everywhere (|lambda| dt <= 0.1: the 1 ms sampled loop then behaves as the
-continuous one). One pair for the whole manifold, as the gains are compiled in.
+min(-Re lambda), among those that leave no mode growing at any of them and whose fastest
+mode is at most :data:`BANDWIDTH_SHARE` of the sampling rate everywhere (|lambda| dt <= 0.1:
+the 1 ms sampled loop then behaves as the continuous one). One pair for the whole
+manifold, as the gains are compiled in; none on the grid: the robot is refused.
 
 **The swing** (:func:`swing_period`): with the cables held rigid the motions that keep
 every length oscillate at the frequencies of Z^T S Z v = omega^2 Z^T M Z v; a move of
@@ -33,6 +34,7 @@ import dataclasses
 
 import numpy as np
 
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
 from cdpr_sym.underactuated.equilibrium import EquilibriumManifold
 
@@ -57,7 +59,8 @@ class CableGains:
     damping : float
         c, N s/m per cable.
     decay_rate : float
-        min(-Re lambda) of the linearisation, 1/s (> 0: asymptotically stable).
+        :func:`decay_rate` of the linearisation, 1/s: > 0, every mode the cables act on
+        decays; < 0, a mode grows (unstable).
     fastest : float
         max |lambda|, rad/s.
     eigenvalues : ndarray
@@ -117,16 +120,28 @@ def decay_rate(eigenvalues: np.ndarray, fastest: float) -> float:
     mode with Re lambda = 0 to round-off (|Re| <= :data:`UNDAMPED` x the fastest |lambda|)
     is one no cable acts on at first order for any gain (a point mass's swing out of the
     plane of its two cables, which a move in that plane never excites); it is left out.
-    0 if every mode is such."""
-    damped = eigenvalues.real[eigenvalues.real < -UNDAMPED * max(fastest, 1e-300)]
+    0 if every mode is such; negative (-max Re lambda) where a mode grows: the loop is
+    unstable there."""
+    tolerance = UNDAMPED * max(fastest, 1e-300)
+    if eigenvalues.real.max() > tolerance:
+        return float(-eigenvalues.real.max())
+    damped = eigenvalues.real[eigenvalues.real < -tolerance]
     return float(-damped.max()) if damped.size else 0.0
 
 
 def cable_gains(robot: Robot, equilibria: np.ndarray, dt: float,
                 manifold: EquilibriumManifold | None = None) -> CableGains:
     """The rule's gains (module docstring) over the ``equilibria`` (k, n) for the period
-    ``dt``: the largest :data:`QUANTILE` quantile of the decay rates over them, the fastest
-    mode of each within the bandwidth. Returned with the linearisation at the first one."""
+    ``dt``: the largest :data:`QUANTILE` quantile of the decay rates over them, among the
+    gains that leave no mode growing at any of them and keep the fastest mode of each within
+    the bandwidth. Returned with the linearisation at the first one.
+
+    Raises
+    ------
+    InvalidCase
+        Field ``robot``: no gains of the grid are stable and within the bandwidth at every
+        equilibrium (a body too light for its 1 ms loop, or goals the cables cannot hold).
+    """
     manifold = manifold or EquilibriumManifold(robot)
     parts = [_LinearParts.at(manifold, q) for q in equilibria]
     weight = robot.mass * robot.gravity
@@ -137,10 +152,17 @@ def cable_gains(robot: Robot, equilibria: np.ndarray, dt: float,
             found = [_gains(part, stiffness, damping) for part in parts]
             if max(item.fastest for item in found) * dt > BANDWIDTH_SHARE:
                 continue
-            score = float(np.quantile([item.decay_rate for item in found], QUANTILE))
+            rates = [item.decay_rate for item in found]
+            if min(rates) < 0:  # some mode grows at some equilibrium
+                continue
+            score = float(np.quantile(rates, QUANTILE))
             if score > best_score:
                 best, best_score = found[0], score
-    assert best is not None  # the softest gains are far under the bandwidth
+    if best is None:
+        raise InvalidCase("robot", f"no cable gains of the rule hold {robot.name} stable at "
+                          f"all of {len(parts)} equilibria within a {1e3 * dt:g} ms loop's "
+                          f"bandwidth (|lambda| dt <= {BANDWIDTH_SHARE}): its body is too "
+                          "light for the loop, or its goals too weakly held")
     return best
 
 

@@ -348,7 +348,7 @@ class NmpcProblem:
         whose generalized force is ``d`` (N, N m for angles) at the pose q."""
         q, d = ca.SX.sym("q", self.n), ca.SX.sym("d", self.n)
         W = self.model.structure_matrix(q)
-        return ca.Function("nmpc_offset", [q, d], [W.T @ ca.solve(W @ W.T, d)],
+        return ca.Function("nmpc_offset", [q, d], [pseudo_inverse_times(W, d)],
                            ["q", "d"], ["offset"])
 
     # -- the safe command -------------------------------------------------------------
@@ -360,9 +360,19 @@ class NmpcProblem:
         q, dq = ca.SX.sym("q", n), ca.SX.sym("dq", n)
         tau, r_d = ca.SX.sym("tau", self.m), ca.SX.sym("r_d", n)
         W = model.structure_matrix(q)
-        damping = W.T @ ca.solve(W @ W.T, -r_d * dq)
+        damping = pseudo_inverse_times(W, -r_d * dq)
         target, _ = clip_to_box(model, model.static_tension(q) + damping)
         limit = self.tuning.max_rate
         rate = ca.fmin(ca.fmax((target - tau) / self.design.period, -limit), limit)
         return ca.Function("nmpc_fallback", [q, dq, tau, r_d], [rate],
                            ["q", "dq", "tau", "r_d"], ["rate"])
+
+
+def pseudo_inverse_times(W: ca.SX, force: ca.SX) -> ca.SX:
+    """W^+ ``force``: W^T (W W^T)^-1 f (the least-norm tension, m >= n, W of full row rank),
+    or with fewer cables than coordinates (W of full column rank) (W^T W)^-1 W^T f, the
+    tension whose force is nearest f (N)."""
+    n, m = W.shape
+    if m < n:
+        return ca.solve(ca.densify(W.T @ W), W.T @ force)
+    return W.T @ ca.solve(W @ W.T, force)
