@@ -182,6 +182,7 @@ def test_plant_encoder_offsets_must_fit_the_robot():
 ZOO_ROBOTS = Path(__file__).parents[1] / "reports" / "zoo" / "robots"
 
 
+@pytest.mark.slow
 def test_the_default_draw_integrates_a_light_robots_winches_with_the_substeps_they_need():
     # a 0.27 kg robot whose scaled drums weigh 16 g on their cables: at 1 kHz its cables
     # and drums move at up to ~5,000 1/s, more than two RK4 substeps can follow

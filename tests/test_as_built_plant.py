@@ -263,6 +263,7 @@ def test_too_few_substeps_are_refused_before_anything_is_built(aras3, monkeypatc
                  plant=Plant(as_built=AsBuilt(actuation=Actuation())))
 
 
+@pytest.mark.slow
 def test_an_unreadable_redundant_robot_is_told_what_runs_on_it(capsys):
     """ipanema8 as built (8 cables, 6 DOF), read by a design of the pose: the refusal names
     a wider consistency bound and ida-winch, which reads the drives and runs m > n robots

@@ -311,6 +311,7 @@ def test_the_redundant_report_is_rebuilt_from_its_files_alone(capsys, tmp_path):
     assert (folder / "report.md").read_text() == (committed / "report.md").read_text()
 
 
+@pytest.mark.slow
 def test_smooth_lp_starts_a_redundant_robot_at_its_static_tension(build_options):
     """ipanema8 (m = n + 2): smooth-lp's command, distributed in the box shrunk by its
     guard, differs from the static tension the plant holds at rest (the default

@@ -454,6 +454,7 @@ def test_an_equilibrium_needing_tensions_outside_the_box_is_named_so():
         Case.of(narrow)
 
 
+@pytest.mark.slow
 def test_nmpc_runs_fewer_cables_with_the_least_squares_pseudo_inverse():
     """nmpc-of's offset and the NMPC fallback map a force to tensions by W^+: with m < n
     it is (W^T W)^-1 W^T (W W^T is singular), so bar2's run stays finite and settles."""
