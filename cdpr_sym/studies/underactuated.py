@@ -42,7 +42,7 @@ DRAWN = 6
 DESIGNS = ("ida-under", "pd-under", "nmpc")
 NMPC_PAIRS = 10
 DURATION, DT = 10.0, 1e-3
-#: The issue's targets: share of pairs meeting the target, planar bar and 3-cable platform.
+#: The targets: share of pairs meeting the target, planar bar and 3-cable platform.
 GOALS = {"bar": 0.90, "tri": 0.80}
 ROBOTS_DIR = "robots"
 
