@@ -469,9 +469,10 @@ def test_the_exported_package_of_ida_under_builds_and_runs_as_python(tmp_path):
     ends where CasADi's virtual machine (a reference independent of the generated C) does."""
     import re
 
+    from tools import cmake_build, run
+
     from cdpr_sym import BuildOptions
     from cdpr_sym.export import export_c
-    from tools import cmake_build, run
 
     robot = load_robot(BAR2)
     result = export_c(robot, "ida-under", tmp_path / "package")
