@@ -274,3 +274,21 @@ def test_axes_of_the_wrong_kind_are_refused():
         preset("aras3").draw(ax=Figure().add_subplot())
     with pytest.raises(InvalidCase, match="ax: planar2 is drawn on 2-D"):
         preset("planar2").draw(ax=Figure().add_subplot(projection="3d"))
+
+
+def test_the_written_picture_shows_red_only_where_a_cable_leaves_the_box(tmp_path, capsys):
+    """The PNG view writes: no pixel of the out-of-box red while every cable holds the
+    robot in the box (planar2 at its start); many when both cables would have to push
+    (the point above its anchors)."""
+    def red_pixels(pose: list[str]) -> int:
+        out = tmp_path / f"{'_'.join(pose)}.png"
+        assert main(["view", "--robot", "planar2", "--pose", *pose, "--dpi", "60",
+                     "--out", str(out), "-q"]) == 0
+        with Image.open(out) as picture:
+            rgb = np.asarray(picture.convert("RGB")) / 255.0
+        red = np.asarray(to_rgba(OUT_OF_BOX_COLOUR)[:3])
+        return int(np.sum(np.all(np.abs(rgb - red) < COLOUR_TOLERANCE, axis=2)))
+
+    start = preset("planar2").start
+    assert red_pixels([str(v) for v in start]) == 0
+    assert red_pixels(["0.0", "2.5"]) > 100
