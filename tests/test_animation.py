@@ -21,6 +21,20 @@ def planar_run():
     return simulate("planar3", "smooth", duration=1.0)
 
 
+def _as_built_run(robot, controller: str):
+    """0.2 s of ``controller`` on ``robot`` as built (the default draw, seed 0, pair 0)."""
+    from cdpr_sym.as_built.draw import load_as_built_draw
+    from cdpr_sym.calibration.drawn import drawn_robot
+    from cdpr_sym.closed_loop import get_simulator
+    from cdpr_sym.control import controller_by_name
+
+    drawn = drawn_robot(robot, load_as_built_draw("default"), 0, 0, "none")
+    simulator = get_simulator(drawn.model, controller_by_name(controller),
+                              as_built=drawn.plant.as_built.structure())
+    return simulator.run(robot.start, robot.goal, robot.k, robot.r_d, duration=0.2, dt=1e-3,
+                         plant=drawn.plant)
+
+
 def test_the_frames_are_every_stride_samples_and_the_last():
     """0.5 s per wall-clock second at 20 fps with dt = 1 ms: a frame every 25 samples."""
     steps = frame_steps(1001, 1e-3, fps=20, speed=0.5)
@@ -69,17 +83,8 @@ def test_a_notebook_and_an_html_file_get_the_javascript_player(planar_run, tmp_p
 def test_an_as_built_run_shows_the_pose_the_controller_read(tmp_path):
     """smooth reads the pose from the encoders as built: the ghost is at q_read, which is
     kept with the run (and through save and load)."""
-    from cdpr_sym.as_built.draw import load_as_built_draw
-    from cdpr_sym.calibration.drawn import drawn_robot
-    from cdpr_sym.closed_loop import get_simulator
-    from cdpr_sym.control import controller_by_name
-
     robot = preset("aras3")
-    drawn = drawn_robot(robot, load_as_built_draw("default"), 0, 0, "none")
-    simulator = get_simulator(drawn.model, controller_by_name("smooth"),
-                              as_built=drawn.plant.as_built.structure())
-    run = simulator.run(robot.start, robot.goal, robot.k, robot.r_d, duration=0.2, dt=1e-3,
-                        plant=drawn.plant)
+    run = _as_built_run(robot, "smooth")
     assert run.q_read is not None and run.q_read.shape == run.q.shape
     assert not np.array_equal(run.q_read, run.q)
     animation = run.animate(robot, fps=25)
@@ -127,17 +132,7 @@ def test_simulate_animate_writes_the_gif_and_refuses_bad_formats_first(tmp_path,
 def test_a_controller_that_reads_the_drives_has_no_read_pose():
     """ida-winch reads the winches, not the pose: its as-built run keeps no q_read (it
     would otherwise stay at the start's reading for the whole run)."""
-    from cdpr_sym.as_built.draw import load_as_built_draw
-    from cdpr_sym.calibration.drawn import drawn_robot
-    from cdpr_sym.closed_loop import get_simulator
-    from cdpr_sym.control import controller_by_name
-
-    robot = preset("aras3")
-    drawn = drawn_robot(robot, load_as_built_draw("default"), 0, 0, "none")
-    simulator = get_simulator(drawn.model, controller_by_name("ida-winch"),
-                              as_built=drawn.plant.as_built.structure())
-    run = simulator.run(robot.start, robot.goal, robot.k, robot.r_d, duration=0.2, dt=1e-3,
-                        plant=drawn.plant)
+    run = _as_built_run(preset("aras3"), "ida-winch")
     assert run.q_read is None
 
 

@@ -54,11 +54,13 @@ def view_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.checks import positive_number
     from cdpr_sym.cli.paths import check_file
     from cdpr_sym.cli.robots import checked_robot
+    from cdpr_sym.closed_loop.case import check_regular
+    from cdpr_sym.model import SymbolicModel
     from cdpr_sym.robot.scene import checked_pose
 
     robot = checked_robot(args.robot)
     pose = checked_pose(robot, robot.start if args.pose is None else args.pose)
-    check_regular(robot, pose)
+    check_regular(SymbolicModel(robot), "pose", pose)
     if positive_number("dpi", args.dpi, "dots per inch") > MAX_DPI:
         raise InvalidCase("dpi", f"expected at most {MAX_DPI:g} dots per inch, got {args.dpi:g}")
     if args.out.suffix.lower() not in PICTURE_SUFFIXES:
@@ -110,17 +112,6 @@ def holding_tension(robot: Robot, pose: np.ndarray) -> tuple[np.ndarray, str]:
     W, gravity = structure_and_gravity(robot, pose[None, :])
     least = np.linalg.lstsq(W[0], gravity[0], rcond=None)[0]
     return least, "none in the box; the least-norm tension"
-
-
-def check_regular(robot: Robot, pose: np.ndarray) -> None:
-    """Refuse, naming ``pose``, a pose where W is singular (on an anchor, or its cables in
-    a line): no tension is defined there."""
-    from cdpr_sym.model import SINGULAR_DET, SymbolicModel
-
-    measure = float(SymbolicModel(robot).singularity_function(pose)[1])
-    if not measure >= SINGULAR_DET:
-        raise InvalidCase("pose", f"the structure matrix W is singular at {pose.tolist()} "
-                          f"(|det W| / prod |w_i| = {measure:.2e}): no tension is defined there")
 
 
 def workspace_points(robot: Robot, pose: np.ndarray) -> np.ndarray:

@@ -54,7 +54,7 @@ class Case:
             raise InvalidCase(bad.field, str(bad).split(": ", 1)[1]) from None
         model = model or SymbolicModel(robot)
         for field in ("start", "goal"):
-            _check_regular(model, field, getattr(checked, field))
+            check_regular(model, field, getattr(checked, field))
         if robot.underactuated:  # at rest only on the equilibrium manifold
             manifold = EquilibriumManifold(checked, model)
             for field in ("start", "goal"):
@@ -73,7 +73,7 @@ class Case:
         return cls(checked.start, checked.goal, checked.k, checked.r_d)
 
 
-def _check_regular(model: SymbolicModel, field: str, q: np.ndarray) -> None:
+def check_regular(model: SymbolicModel, field: str, q: np.ndarray) -> None:
     """Refuse a pose where W is singular (also NaN: an attachment on its anchor)."""
     measure = float(model.singularity_function(q)[1])
     if not measure >= SINGULAR_DET:

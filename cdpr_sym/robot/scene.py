@@ -150,21 +150,15 @@ def body_faces(points: np.ndarray) -> tuple[np.ndarray, ...]:
         along = centred @ axes[0]
         return (points[[int(along.argmin()), int(along.argmax())]],)
     if points.shape[1] == 2 or spread[2] <= FLAT * spread[0]:
-        return (_polygon(points, centred @ axes[:2].T),)
+        return (points[_hull_order(centred @ axes[:2].T)],)
     from scipy.spatial import ConvexHull  # a solid platform only
 
     return tuple(points[simplex] for simplex in ConvexHull(points).simplices)
 
 
-def _polygon(points: np.ndarray, in_plane: np.ndarray) -> np.ndarray:
-    """The convex hull of coplanar ``points`` as a polygon, in order around it (gift
-    wrapping on their in-plane coordinates ``in_plane`` (k, 2))."""
-    order = _hull_order(in_plane)
-    return points[order]
-
-
 def _hull_order(xy: np.ndarray) -> list[int]:
-    """Indices of the convex hull of 2-D points, counter-clockwise (monotone chain)."""
+    """Indices of the convex hull of 2-D points (coplanar points in coordinates of their
+    plane), counter-clockwise (monotone chain)."""
     order = sorted(range(len(xy)), key=lambda i: (xy[i, 0], xy[i, 1]))
 
     def cross(o: int, a: int, b: int) -> float:

@@ -28,12 +28,12 @@ import numpy as np
 
 from cdpr_sym.errors import CdprError
 from cdpr_sym.reporting.text import render_report
-from cdpr_sym.results.judging import meets_target
 from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import UNDERACTUATED_PRESETS, Robot, load_robot, preset
 from cdpr_sym.robot.files import robot_file_text
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyOptions, StudyRequest
 from cdpr_sym.studies.outline import SUMMARY_FILE, read_study, study_sweep, write_study
+from cdpr_sym.studies.zoo import DT, DURATION, own_case
 from cdpr_sym.sweep import SweepConfig
 from cdpr_sym.sweep.tables import load_sweep_table, summarise_sweep
 
@@ -41,7 +41,6 @@ from cdpr_sym.sweep.tables import load_sweep_table, summarise_sweep
 DRAWN = 6
 DESIGNS = ("ida-under", "pd-under", "nmpc")
 NMPC_PAIRS = 10
-DURATION, DT = 10.0, 1e-3
 #: The targets: share of pairs meeting the target, planar bar and 3-cable platform.
 GOALS = {"bar": 0.90, "tri": 0.80}
 ROBOTS_DIR = "robots"
@@ -83,28 +82,6 @@ def design_numbers(robot: Robot) -> dict[str, Any]:
             "hessian_min": float(np.linalg.eigvalsh(hessian).min()),
             "reduced_stiffness_min": float(goal.stiffness.min()),
             "largest_real_part": float(linear.eigenvalues.real.max())}
-
-
-def own_case(robot: Robot) -> dict[str, Any]:
-    """Each design on ``robot``'s own case, ideal plant: settle time, final error and
-    whether the target is met."""
-    from cdpr_sym.closed_loop import simulate
-
-    target = robot.design_target
-    out: dict[str, Any] = {}
-    for design in DESIGNS:
-        try:
-            run = simulate(robot, design, duration=DURATION, dt=DT)
-        except CdprError as refused:
-            out[design] = {"refused": str(refused)}
-            continue
-        metrics = run.metrics(settle_band=target.error)
-        row = {**metrics, "status": "ok" if metrics["stop_reason"] is None else "stopped"}
-        out[design] = {"settle_time": metrics["settle_time"],
-                       "final_error": metrics["final_error"],
-                       "stop_reason": metrics["stop_reason"],
-                       "meets_target": meets_target(row, target, dt=DT)}
-    return out
 
 
 def without_steps(rows: list[dict[str, Any]], settle_time: float) -> float | None:
@@ -164,7 +141,8 @@ class UnderactuatedStudy(Study):
                                 progress=request.progress)
                 except CdprError as refusal:
                     refused[design] = str(refusal)
-            robots[name] = {"design": design_numbers(robot), "own_case": own_case(robot),
+            robots[name] = {"design": design_numbers(robot),
+                            "own_case": own_case(robot, DESIGNS),
                             "refused": refused,
                             "as_built": _as_built_refusal(source, pairs, seed)}
         write_study(folder, "underactuated", None, pairs=pairs, seed=seed,
