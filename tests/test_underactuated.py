@@ -389,12 +389,17 @@ def test_a_sweep_draws_its_pairs_on_the_manifold():
      "as_built: bar2 has fewer cables than degrees of freedom"),
     (["simulate", "--robot", "bar2", "--controller", "smooth"],
      "controller: smooth needs at least as many cables"),
+    (["calibrate", "--robot", "bar2", "--plan"], "robot: bar2 has fewer cables than degrees"),
+    (["design", "geometry", "--robot", "bar2", "--task", "0", "0.5", "0.3", "1"],
+     "robot: bar2 has fewer cables than degrees"),
 ])
 def test_what_m_lt_n_cannot_do_is_refused_in_one_line(tmp_path, capsys, argv, words):
     from cdpr_sym.cli import main
 
-    status = main([*argv, *(["--out", str(tmp_path / "out")] if argv[0] != "simulate"
-                            else [])])
+    out = {"simulate": [], "calibrate": ["--out", str(tmp_path / "c.toml")],
+           "design": ["--out", str(tmp_path / "d.toml")]}.get(argv[0],
+                                                             ["--out", str(tmp_path / "out")])
+    status = main([*argv, *out])
     err = capsys.readouterr().err
     assert status == 2 and err.count("\n") == 1 and words in err
 
