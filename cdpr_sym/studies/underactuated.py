@@ -9,6 +9,8 @@ every scale), their files written to ``robots/``. Per robot:
   stability numbers at its case goal: the least eigenvalue of hess V_d (> 0: a strict
   minimum of H_d) and the linearised closed loop's largest real part (< 0: asymptotically
   stable);
+* the case goal's region of attraction, a sublevel set of H_d estimated and proven by
+  interval arithmetic (:mod:`~cdpr_sym.underactuated.attraction`);
 * each design's run on the robot's own case;
 * sweeps of the pairs (stable equilibria with tensions in the box, drawn on the manifold)
   on the ideal plant: ``ida-under`` and the baseline ``pd-under`` on every pair, ``nmpc`` on
@@ -84,6 +86,24 @@ def design_numbers(robot: Robot) -> dict[str, Any]:
             "largest_real_part": float(linear.eigenvalues.real.max())}
 
 
+def attraction_numbers(robot: Robot) -> dict[str, Any]:
+    """The case goal's region of attraction (:mod:`~cdpr_sym.underactuated.attraction`):
+    the level estimated and proven, the face limiting it, the proof's size and time, and
+    whether the case start at rest lies in it."""
+    from cdpr_sym.control.underactuated import derived_design
+    from cdpr_sym.underactuated import EquilibriumManifold
+    from cdpr_sym.underactuated.attraction import region_of_attraction
+
+    region = region_of_attraction(EquilibriumManifold(robot), robot.goal,
+                                  derived_design(robot).stiffness)
+    return {"estimate": region.estimate.level, "limiting": region.estimate.limiting,
+            "proven": region.proven_level, "verdict": region.proof.verdict.word,
+            "rounds": len(region.proofs), "boxes": sum(p.boxes for p in region.proofs),
+            "seconds": sum(p.seconds for p in region.proofs),
+            "open_share": region.proof.open_share,
+            "start_inside": bool(region.inside_at_rest(robot.start)[0])}
+
+
 def without_steps(rows: list[dict[str, Any]], settle_time: float) -> float | None:
     """The share of ``rows`` that keep every tension in the box and settle by
     ``settle_time`` (s), the tension steps not judged: what a design does apart from how
@@ -142,6 +162,7 @@ class UnderactuatedStudy(Study):
                 except CdprError as refusal:
                     refused[design] = str(refusal)
             robots[name] = {"design": design_numbers(robot),
+                            "attraction": attraction_numbers(robot),
                             "own_case": own_case(robot, DESIGNS),
                             "refused": refused,
                             "as_built": _as_built_refusal(source, pairs, seed)}

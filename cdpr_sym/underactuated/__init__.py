@@ -1,5 +1,6 @@
 """Underactuated robots (fewer cables than coordinates, m < n): the equilibrium manifold
-they rest on and its stability (:mod:`~cdpr_sym.underactuated.equilibrium`).
+they rest on and its stability (:mod:`~cdpr_sym.underactuated.equilibrium`), and the
+region of attraction of a goal (:mod:`~cdpr_sym.underactuated.attraction`).
 """
 
 import lazy_loader
