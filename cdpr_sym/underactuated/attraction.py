@@ -305,7 +305,7 @@ def estimate_level(problem: AttractionProblem, goal: np.ndarray, stiffness: floa
 def _face_name(robot, index: int, side: str) -> str:
     if index < robot.m:
         return f"cable {index + 1} at T_{'min' if side == 'lower' else 'max'}"
-    return f"frame {side} q[{index - robot.m}]"
+    return f"frame {side} {robot.coordinate_names[index - robot.m]}"
 
 
 def _poses_in_region(problem: AttractionProblem, parameters: np.ndarray, low: np.ndarray,
