@@ -490,3 +490,101 @@ def test_the_exported_package_of_ida_under_builds_and_runs_as_python(tmp_path):
     np.testing.assert_allclose(printed["final_q"], reference.q[-1], rtol=0, atol=1e-9)
     np.testing.assert_allclose(printed["tension_min_N"], reference.tau.min(), rtol=1e-9)
     assert printed["final_error"][0] < 1e-4
+
+
+def _exact_statics(robot, pose: np.ndarray, tension: np.ndarray) -> np.ndarray:
+    """W(q) T - grad V(q) written out for a point or a planar body: cable i pulls along
+    its unit vector u_i from its attachment to its anchor, with moment (R b_i) x u_i."""
+    d = robot.dimension
+    rotation = _rotation(robot, pose)
+    force = np.zeros(robot.n)
+    for anchor, attachment, pull in zip(robot.anchors, (
+            np.zeros((robot.m, d)) if robot.kind == "point" else robot.attachments),
+            tension, strict=True):
+        arm = rotation @ attachment
+        unit = anchor - pose[:d] - arm
+        unit /= np.linalg.norm(unit)
+        force[:d] += pull * unit
+        if robot.kind == "planar":
+            force[2] += pull * (arm[0] * unit[1] - arm[1] * unit[0])
+    weight = np.zeros(robot.n)
+    weight[d - 1] = robot.mass * robot.gravity
+    if robot.kind == "planar":  # d/dtheta of m g (R c)_z
+        weight[2] = robot.mass * robot.gravity * (rotation @ np.array(
+            [[0.0, -1.0], [1.0, 0.0]]) @ robot.center_of_mass)[1]
+    return force - weight
+
+
+def _mass_and_coriolis(robot, pose: np.ndarray, rate: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """M(q) and C(q, q') q' from the kinetic energy 1/2 m |v_G|^2 + 1/2 I theta'^2,
+    v_G = p' + R' c theta' (Lagrange's equations by hand): the position rows carry
+    m R'' c theta'^2 = -m R c theta'^2, the angle's row nothing."""
+    if robot.kind == "point":
+        return robot.mass * np.eye(robot.n), np.zeros(robot.n)
+    rotation = _rotation(robot, pose)
+    lever = rotation @ np.array([[0.0, -1.0], [1.0, 0.0]]) @ robot.center_of_mass  # R' c
+    mass = np.zeros((3, 3))
+    mass[:2, :2] = robot.mass * np.eye(2)
+    mass[:2, 2] = mass[2, :2] = robot.mass * lever
+    inertia = float(np.asarray(robot.inertia).reshape(-1)[-1])  # about the centre of mass
+    mass[2, 2] = inertia + robot.mass * robot.center_of_mass @ robot.center_of_mass
+    coriolis = np.zeros(3)
+    coriolis[:2] = -robot.mass * (rotation @ robot.center_of_mass) * rate[2] ** 2
+    return mass, coriolis
+
+
+@pytest.mark.parametrize("path", [BAR2, SWING2], ids=["bar2", "swing2"])
+@pytest.mark.parametrize("share", [0.3, 0.5])
+def test_the_plan_feeds_forward_the_tension_that_accelerates_the_path(path, share):
+    """Mid-plan, the robot exactly on its reference equilibrium and moving with it, the law
+    commands T_ref + (W^T W)^-1 W^T (M q_ref'' + C q_ref'): the reference path q_ref(t)
+    here is Newton's method on statics written out in numpy at the minimum-jerk lengths,
+    differentiated by a fourth-order stencil, and M and C come from Lagrange's equations
+    by hand. At half the plan the lengths' acceleration is zero, so only the path's
+    curvature and the Coriolis force are left (a law without them fails there)."""
+    robot = load_robot(path)
+    design = derived_design(robot)
+    _, law = _law(robot)
+    l_start, l_goal = _lengths(robot, robot.start), _lengths(robot, robot.goal)
+    start_tension = EquilibriumManifold(robot).classify(robot.start).tension
+    n = robot.n
+
+    def reference(time: float) -> np.ndarray:
+        s = time / design.duration
+        target = l_start + (10 * s**3 - 15 * s**4 + 6 * s**5) * (l_goal - l_start)
+        guess = reference.last
+
+        def statics(x):
+            return np.concatenate([_exact_statics(robot, x[:n], x[n:]),
+                                   _lengths(robot, x[:n]) - target])
+
+        found = guess.copy()
+        for _ in range(30):  # Newton with a central-difference Jacobian
+            residual = statics(found)
+            if np.abs(residual).max() < 1e-12:
+                break
+            found = found - np.linalg.solve(_gradient(statics, found, 1e-7), residual)
+        assert np.abs(statics(found)).max() < 1e-11
+        reference.last = found
+        return found
+
+    reference.last = np.concatenate([robot.start, start_tension])
+    t, h = share * design.duration, 1e-2
+    for time in np.linspace(0.0, t - 2 * h, 20):  # follow the path from the start
+        reference(time)
+    path_points = [reference(t + k * h) for k in (-2, -1, 0, 1, 2)]
+    poses = np.array([x[:n] for x in path_points])
+    q_ref, t_ref = path_points[2][:n], path_points[2][n:]
+    rate = (poses[0] - 8 * poses[1] + 8 * poses[3] - poses[4]) / (12 * h)
+    accel = (-poses[0] + 16 * poses[1] - 30 * poses[2] + 16 * poses[3] - poses[4]) / (12 * h**2)
+    mass, coriolis = _mass_and_coriolis(robot, q_ref, rate)
+    W = _structure(robot, q_ref)
+    expected = t_ref + np.linalg.solve(W.T @ W, W.T @ (mass @ accel + coriolis))
+    memory = np.concatenate([[t], l_start, q_ref, t_ref])
+    out = law(q=q_ref, dq=rate, q_goal=robot.goal, k=np.ones(n), r_d=np.ones(n),
+              memory=memory, dt=1e-3)
+    inertial = expected - t_ref
+    assert np.abs(inertial).max() > 0.05 * robot.t_min  # the feed-forward matters here
+    np.testing.assert_allclose(np.array(out["tau"]).ravel(), expected, rtol=0,
+                               atol=1e-3 * np.abs(inertial).max())

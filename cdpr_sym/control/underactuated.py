@@ -50,8 +50,16 @@ from the goal); the runs and the study count it.
 manifold: the lengths follow a minimum-jerk path l_ref(t) from l(q_0) to l_g over the plan's
 duration, the reference equilibrium (q_ref, T_ref) held by them is tracked by two Newton
 steps a sample on W(q) T = grad V, l(q) = l_ref from the last one (memory), and the law
-uses (l_ref, l_ref', T_ref) in place of (l_g, 0, T_g). At t = 0 it commands the start's
-own tension (no jump); after the plan it is exactly the law above with the fixed goal.
+uses (l_ref, l_ref', T_ref + T_a) in place of (l_g, 0, T_g), where T_a is the tension that
+accelerates the robot along the path: x = (q_ref, T_ref) solves F(x, l) = 0, so
+x' = S l_ref' with S = (dF/dx)^-1 (0, I) and x'' = S l_ref'' + (dS/dx x') l_ref', and
+T_a = (W^T W)^-1 W^T (M q_ref'' + C(q_ref, q_ref') q_ref'), least squares at the reference
+(with n - m more coordinates than cables the path of equilibria is not a motion of the
+robot exactly; the cables supply what they can of it). Without it the soft cable springs
+the rules choose let the body lag its reference: tri3 ended its 2.5 s plan 7.3 cm from the
+goal on one pair, 3.0 cm with it. At t = 0 it commands the start's own tension (no jump:
+a minimum-jerk path starts at rest with zero acceleration); after the plan it is exactly
+the law above with the fixed goal.
 A Newton step that diverges keeps the last reference, and a reference that diverged or
 needs a tension outside the box is flagged ``FLAG_INFEASIBLE``: nothing checks before a
 run that the straight path in cable lengths stays on stable, held equilibria (with four
@@ -171,6 +179,8 @@ class UnderactuatedIdaPbc:
         Move along the path of equilibria (False: the goal's law from the first sample).
     box : bool
         Use J_d to keep the tension box (False: A = 0).
+    feed_forward : bool
+        Add the tension that accelerates the robot along the path (module docstring).
     """
 
     name: ClassVar[str] = "ida-under"
@@ -179,6 +189,7 @@ class UnderactuatedIdaPbc:
     duration: float | None = None
     planned: bool = True
     box: bool = True
+    feed_forward: bool = True
 
     def __post_init__(self) -> None:
         for field in ("stiffness", "damping", "duration"):
@@ -192,7 +203,8 @@ class UnderactuatedIdaPbc:
         given = {field: getattr(self, field) for field in ("stiffness", "damping", "duration")
                  if getattr(self, field) is not None}
         defaults = type(self)()
-        return given | {field: getattr(self, field) for field in ("planned", "box")
+        return given | {field: getattr(self, field) for field in ("planned", "box",
+                                                                  "feed_forward")
                         if getattr(self, field) != getattr(defaults, field)}
 
     def design(self, robot: Robot) -> UnderactuatedDesign:
@@ -231,6 +243,8 @@ class UnderactuatedIdaPbc:
         rate = (30 * s**2 - 60 * s**3 + 30 * s**4) / design.duration
         l_ref = l_start + shape * (l_goal - l_start)
         l_ref_rate = rate * (l_goal - l_start)
+        l_ref_accel = (60 * s - 180 * s**2 + 120 * s**3) / design.duration**2 * (
+            l_goal - l_start)
         q_last, t_last = q_ref, t_ref
         for _ in range(NEWTON_STEPS):
             q_ref, t_ref = _newton_step(model, q_ref, t_ref, l_ref)
@@ -238,13 +252,20 @@ class UnderactuatedIdaPbc:
         finite = ca.mmax(ca.fabs(ca.vertcat(q_ref, t_ref))) < 1e150
         q_ref = ca.if_else(finite, q_ref, q_last)
         t_ref = ca.if_else(finite, t_ref, t_last)
+        if self.feed_forward:
+            t_ref_moving = t_ref + _inertial_tension(model, q_ref, t_ref, l_ref_rate,
+                                                     l_ref_accel)
+            t_ref_moving = ca.if_else(finite, t_ref_moving, t_ref)
+        else:
+            t_ref_moving = t_ref
         done = s >= 1.0
         q_ref = ca.if_else(done, q_goal, q_ref)
         t_ref = ca.if_else(done, _held_tension(model, q_goal), t_ref)
+        t_ref_moving = ca.if_else(done, t_ref, t_ref_moving)
         W = model.structure_matrix(q)
         l_rate = -W.T @ dq
         relative_rate = l_rate - l_ref_rate
-        t0 = (t_ref + design.stiffness * (model.cable_lengths(q) - l_ref)
+        t0 = (t_ref_moving + design.stiffness * (model.cable_lengths(q) - l_ref)
               + design.damping * relative_rate)
         w, inside = box_step(robot, t0, relative_rate, design.damping if self.box else 0.0)
         tau = t0 + w
@@ -294,6 +315,30 @@ def _newton_step(model: SymbolicModel, q: ca.SX, tension: ca.SX, lengths: ca.SX
                          [x - ca.solve(ca.jacobian(residual, x), residual)])
     nxt = newton(ca.vertcat(q, tension), lengths)
     return nxt[:n], nxt[n:]
+
+
+def _inertial_tension(model: SymbolicModel, q: ca.SX, tension: ca.SX, l_rate: ca.SX,
+                      l_accel: ca.SX) -> ca.SX:
+    """The tension (N) that accelerates the robot along the path of equilibria, beyond the
+    tension T holding it. The reference equilibrium x = (q, T) solves
+    F(x, l) = (grad V - W T, l(q) - l) = 0, so x' = S l' with S = (dF/dx)^-1 (0, I) (the
+    implicit function theorem) and x'' = S l'' + (dS/dx x') l'; the cables supply
+    M q'' + C(q, q') q' in the least-squares sense, (W^T W)^-1 W^T (M q'' + C q')."""
+    n, m = model.n, model.m
+    x, rate, accel = ca.SX.sym("x", n + m), ca.SX.sym("l_rate", m), ca.SX.sym("l_accel", m)
+    qx, tx = x[:n], x[n:]
+    residual = ca.vertcat(model.grad_potential(qx) - model.structure_matrix(qx) @ tx,
+                          model.cable_lengths(qx))
+    sensitivity = ca.solve(ca.jacobian(residual, x), ca.vertcat(ca.SX.zeros(n, m),
+                                                                 ca.SX.eye(m)))
+    velocity = sensitivity @ rate
+    acceleration = sensitivity @ accel + ca.jtimes(velocity, x, velocity)
+    force = (model.mass_matrix(qx) @ acceleration[:n]
+             + model.coriolis_force(qx, velocity[:n]))
+    W = model.structure_matrix(qx)
+    inertial = ca.Function("inertial_tension", [x, rate, accel],
+                           [ca.solve(ca.densify(W.T @ W), W.T @ force)])
+    return inertial(ca.vertcat(q, tension), l_rate, l_accel)
 
 
 def _held_tension(model: SymbolicModel, q: ca.SX) -> ca.SX:
