@@ -4,6 +4,7 @@ the closed loop's linearisation from the robot's raw numbers and finite differen
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -385,8 +386,8 @@ def test_a_sweep_draws_its_pairs_on_the_manifold():
 @pytest.mark.parametrize("argv, words", [
     (["workspace", "--robot", "bar2"], "robot: bar2 has fewer cables than degrees of freedom"),
     (["certify", "workspace", "--robot", "tri3"], "tri3 has fewer cables than degrees"),
-    (["simulate", "--robot", "bar2", "--controller", "ida-under", "--as-built", "default"],
-     "as_built: bar2 has fewer cables than degrees of freedom"),
+    (["simulate", "--robot", "bar2", "--controller", "ida-under", "--as-built", "ENCODERS"],
+     "sensing: bar2 has fewer cables than degrees of freedom"),
     (["simulate", "--robot", "bar2", "--controller", "smooth"],
      "controller: smooth needs at least as many cables"),
     (["calibrate", "--robot", "bar2", "--plan"], "robot: bar2 has fewer cables than degrees"),
@@ -399,7 +400,9 @@ def test_what_m_lt_n_cannot_do_is_refused_in_one_line(tmp_path, capsys, argv, wo
     out = {"simulate": [], "calibrate": ["--out", str(tmp_path / "c.toml")],
            "design": ["--out", str(tmp_path / "d.toml")]}.get(argv[0],
                                                              ["--out", str(tmp_path / "out")])
-    status = main([*argv, *out])
+    encoders = tmp_path / "encoders.toml"
+    encoders.write_text("[sensing]\nresolution = 1e-5\n")
+    status = main([str(encoders) if word == "ENCODERS" else word for word in argv] + out)
     err = capsys.readouterr().err
     assert status == 2 and err.count("\n") == 1 and words in err
 
@@ -588,3 +591,41 @@ def test_the_plan_feeds_forward_the_tension_that_accelerates_the_path(path, shar
     assert np.abs(inertial).max() > 0.05 * robot.t_min  # the feed-forward matters here
     np.testing.assert_allclose(np.array(out["tau"]).ravel(), expected, rtol=0,
                                atol=1e-3 * np.abs(inertial).max())
+
+
+def test_the_default_build_of_an_underactuated_robot_senses_its_pose_and_runs(capsys):
+    """``--as-built default`` on bar2: winches and elastic cables, no encoders (the pose is
+    sensed), the run judged on the true tensions; the draw's true static tension at the
+    start is the least-squares one at its own anchors and mass (numpy)."""
+    from cdpr_sym.as_built import load_as_built_draw
+    from cdpr_sym.calibration.drawn import drawn_robot
+    from cdpr_sym.cli import main
+    from cdpr_sym.closed_loop.simulator import get_simulator
+    from cdpr_sym.control import controller_by_name
+
+    status = main(["simulate", "--robot", "bar2", "--controller", "ida-under", "--as-built",
+                   "default", "--duration", "1", "--json"])
+    assert status == 0
+    robot = load_robot(BAR2)
+    draw = load_as_built_draw("default")
+    assert draw.encoders(robot) is None and draw.drive(robot) is not None
+    drawn = drawn_robot(robot, draw, 0, 0, "none")
+    simulator = get_simulator(drawn.model, controller_by_name("ida-under"),
+                              as_built=drawn.plant.as_built.structure())
+    tension = simulator.true_static_tension(robot.start, drawn.plant)
+    true = dataclasses.replace(robot, anchors=robot.anchors + drawn.plant.as_built.anchor_offsets)
+    W = _structure(true, robot.start)
+    weight = drawn.plant.mass_scale * _gradient(lambda x: _potential(robot, x), robot.start)
+    np.testing.assert_allclose(tension, np.linalg.lstsq(W, weight, rcond=None)[0], rtol=1e-6)
+
+
+def test_the_drive_rates_of_an_underactuated_build_are_taken_at_its_equilibria():
+    """The substeps' rate poses of an m < n robot are admissible equilibria (a grid of
+    held poses has none: W T = grad V has no solution off the manifold)."""
+    from cdpr_sym.as_built.draw import RATE_POSES, _held_poses
+
+    robot = load_robot(BAR2)
+    manifold = EquilibriumManifold(robot)
+    poses = _held_poses(robot, manifold.model)
+    assert 0 < len(poses) <= RATE_POSES
+    assert all(manifold.classify(q).admissible(robot) for q in poses)

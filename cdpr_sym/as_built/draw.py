@@ -58,6 +58,8 @@ class FromRobot:
     :class:`Sensing`."""
 
     fields: tuple[tuple[str, Any], ...] = ()
+    #: Written in a file (a table, however few its fields), not the default's.
+    stated: bool = False
 
     def actuation(self, robot: Robot) -> Actuation:
         from cdpr_sym.as_built.hardware import scaled_actuation
@@ -140,14 +142,18 @@ class AsBuiltDraw:
 
     def encoders(self, robot: Robot) -> Sensing | None:
         """The encoders of ``robot``'s draws (scaled from its winches where the draw states
-        none)."""
+        none). A robot with fewer cables than coordinates gets none unless a file states
+        them: its m encoder lengths cannot give its n coordinates, so its build is taken to
+        sense its pose directly (a camera or motion capture, modelled as exact)."""
         if isinstance(self.sensing, FromRobot):
+            if robot.underactuated and not self.sensing.stated:
+                return None
             return self.sensing.sensing(robot, self.drive(robot))
         return self.sensing
 
     def draw(self, rng: np.random.Generator, robot: Robot) -> tuple[float, AsBuilt]:
         """One robot as built: (mass scale, :class:`AsBuilt`)."""
-        check_modelled(robot)
+        check_modelled(robot, self)
         mass_scale = float(rng.uniform(1 - self.mass_error, 1 + self.mass_error))
         offsets = rng.uniform(-self.anchor_error, self.anchor_error, (robot.m, robot.dimension))
         drive = self.drive(robot)
@@ -183,15 +189,15 @@ RATE_POSES, RATE_HEADROOM = 32, 1.25
 FRAME_MARGIN = 0.05
 
 
-def check_modelled(robot: Robot) -> None:
-    """Refuse, naming ``as_built``, a robot whose build is not modelled: one with fewer
-    cables than degrees of freedom (its m encoder lengths cannot give its n coordinates,
-    and the start held by the drawn plant solves W T = grad V for a W of full row rank)."""
-    if robot.underactuated:
-        raise InvalidCase("as_built", f"{robot.name} has fewer cables than degrees of freedom "
-                          f"(m = {robot.m} < n = {robot.n}): its robot as built is not "
-                          "modelled (m encoder lengths cannot give n coordinates); run it on "
-                          "the ideal plant")
+def check_modelled(robot: Robot, draw: AsBuiltDraw | None = None) -> None:
+    """Refuse, naming ``sensing``, a build that cannot be modelled: encoders on a robot
+    with fewer cables than degrees of freedom (its m encoder lengths cannot give its n
+    coordinates; the default build of such a robot senses its pose instead)."""
+    if robot.underactuated and draw is not None and draw.encoders(robot) is not None:
+        raise InvalidCase("sensing", f"{robot.name} has fewer cables than degrees of freedom "
+                          f"(m = {robot.m} < n = {robot.n}): its m encoder lengths cannot "
+                          "give its n coordinates; leave [sensing] out (the pose is then "
+                          "sensed directly, as by a camera)")
 
 
 def substeps_for(robot: Robot, actuation: Actuation | None) -> int:
@@ -231,8 +237,13 @@ def _substeps_for(robot: Robot, actuation: Actuation) -> int:
 def _held_poses(robot: Robot, model: Any) -> np.ndarray:
     """Up to :data:`RATE_POSES` poses of the frame shrunk by :data:`FRAME_MARGIN` of its
     size on each side (uniform, seeded) that the model holds at rest with tensions in the
-    box: where runs start and end (sweeps draw their pairs there)."""
+    box: where runs start and end (sweeps draw their pairs there); for fewer cables than
+    coordinates, admissible equilibria (seeded)."""
     rng = np.random.default_rng(0)
+    if robot.underactuated:  # at rest only on its equilibrium manifold
+        from cdpr_sym.underactuated import EquilibriumManifold
+
+        return EquilibriumManifold(robot, model).sample(RATE_POSES, rng, partial=True)
     lower = np.asarray(robot.frame_lower, dtype=float)
     upper = np.asarray(robot.frame_upper, dtype=float)
     inset = FRAME_MARGIN * (upper - lower)
@@ -282,7 +293,7 @@ def as_built_draw_from_dict(data: dict[str, Any], source: str = "<dict>") -> AsB
             raise InvalidCase(f"{table}.{wrong.field}", wrong.message) from None
         except TypeError as wrong:
             raise InvalidCase(table, f"{wrong} in {source}") from None
-        parts[table] = FromRobot(tuple(sorted(fields.items())))
+        parts[table] = FromRobot(tuple(sorted(fields.items())), stated=True)
     if not isinstance(parts.get("delay", 1), int) or parts.get("delay", 1) > MAX_DELAY:
         raise InvalidCase("delay", f"expected a whole number of periods in 0..{MAX_DELAY}")
     return AsBuiltDraw(**parts)

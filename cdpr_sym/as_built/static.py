@@ -11,8 +11,9 @@ from cdpr_sym.model import SymbolicModel
 
 def true_static_function(model: SymbolicModel) -> ca.Function:
     """(q, mass_scale, anchor_offsets (m d)) -> (tension (m), N; held): the plant's static
-    tension, W_true^{-1} (s grad V) (m > n: the default distribution's), and 1 where it lies
-    in [T_min, T_max] and holds the weight, else 0 (as
+    tension, W_true^{-1} (s grad V) (m > n: the default distribution's; m < n: the least
+    squares (W^T W)^-1 W^T s grad V, the plant's mismatch left to act), and 1 where it lies
+    in [T_min, T_max] (m >= n: and holds the weight), else 0 (as
     :meth:`SymbolicModel.static_distribution`)."""
     robot = model.robot
     q, scale = ca.SX.sym("q", model.n), ca.SX.sym("mass_scale")
@@ -21,6 +22,10 @@ def true_static_function(model: SymbolicModel) -> ca.Function:
     W, weight = -jacobian.T, scale * model.grad_potential(q)
     if model.m > model.n:
         tension, held = distribute(AUTO, W, weight, robot.t_min, robot.t_max)
+    elif model.m < model.n:  # the least-squares tension: the model's start is held so
+        tension = ca.solve(ca.densify(W.T @ W), W.T @ weight)
+        held = ca.if_else(ca.logic_and(ca.mmin(tension) >= robot.t_min,
+                                       ca.mmax(tension) <= robot.t_max), 1.0, 0.0)
     else:
         tension = ca.solve(W, weight)
         held = ca.if_else(ca.logic_and(ca.mmin(tension) >= robot.t_min,

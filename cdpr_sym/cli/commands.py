@@ -87,7 +87,7 @@ def check_as_built_args(args: argparse.Namespace, robot: Robot,
         if getattr(args, field, default) != default:
             raise InvalidCase(field, "the as-built draw sets the plant; leave it out")
     draw = load_as_built_draw(args.as_built)
-    check_modelled(robot)
+    check_modelled(robot, draw)
     check_calibration(args.calibration, robot, draw)
     check_seed(args.seed)
     if controller is not None:  # a sweep's configuration checks the draw of its designs

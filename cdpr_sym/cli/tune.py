@@ -111,4 +111,4 @@ def _underactuated_lines(report: dict[str, Any]) -> list[str]:
             f"maximised: {design['median_decay_per_s']:.3g} 1/s; at the case goal "
             f"{design['goal_decay_per_s']:.3g} 1/s), plan {design['plan_s']:.3g} s "
             "(2.5 longest swing periods, within [1 s, half the settle time])",
-            "no winch gains: the robot as built is not modelled for m < n"]
+            "no winch gains: as built, the law's tension is the winches' command (m < n)"]
