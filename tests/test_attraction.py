@@ -1,4 +1,4 @@
-"""The region of attraction of ``ida-under``'s goal law (cdpr_sym.underactuated.attraction),
+"""The region of attraction of ``ida-under``'s goal law (cdpr_sym.certify.attraction),
 checked against numpy written here from the robots' raw numbers: the proven sublevel set
 against uniform sampling, the proof against a level it must refuse, and the claim itself
 (motions from rest in the set stay in D and in the frame, H_d never rising) against runs
@@ -12,6 +12,13 @@ import numpy as np
 import pytest
 
 from cdpr_sym import load_robot
+from cdpr_sym.certify.attraction import (
+    PROOF_SHARE,
+    AttractionProblem,
+    estimate_level,
+    prove_level,
+    region_of_attraction,
+)
 from cdpr_sym.certify.verdict import Verdict
 from cdpr_sym.closed_loop import Plant
 from cdpr_sym.closed_loop.simulator import Simulator
@@ -19,13 +26,6 @@ from cdpr_sym.control import CONTROLLERS
 from cdpr_sym.control.underactuated import derived_design
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.underactuated import EquilibriumManifold
-from cdpr_sym.underactuated.attraction import (
-    PROOF_SHARE,
-    AttractionProblem,
-    estimate_level,
-    prove_level,
-    region_of_attraction,
-)
 
 PRESETS = Path(__file__).parent.parent / "cdpr_sym" / "robot" / "presets"
 SWING2 = Path(__file__).parent / "data" / "underactuated" / "swing2.toml"

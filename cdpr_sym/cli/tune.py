@@ -98,7 +98,8 @@ def _underactuated_report(robot: Any) -> dict[str, Any]:
                           "plan_s": design.duration,
                           "median_decay_per_s": design.median_decay_rate,
                           "goal_decay_per_s": design.decay_rate,
-                          "rule_equilibria_at_most": RULE_SAMPLES + 2}}
+                          "rule_equilibria_at_most": RULE_SAMPLES + 2,
+                          "integral": design.integral}}
 
 
 def _underactuated_lines(report: dict[str, Any]) -> list[str]:
@@ -111,4 +112,8 @@ def _underactuated_lines(report: dict[str, Any]) -> list[str]:
             f"maximised: {design['median_decay_per_s']:.3g} 1/s; at the case goal "
             f"{design['goal_decay_per_s']:.3g} 1/s), plan {design['plan_s']:.3g} s "
             "(2.5 longest swing periods, within [1 s, half the settle time])",
+            ("ida-under-i: no integral gain of its rule is stable on this robot"
+             if design["integral"] is None else
+             f"ida-under-i: k_i {design['integral']:.4g} N/(m s) per cable (the extended "
+             "linearisation's median slowest decay maximised)"),
             "no winch gains: as built, the law's tension is the winches' command (m < n)"]

@@ -36,7 +36,7 @@ from .registry import (
     controller_by_name,
     controller_from_options,
 )
-from .underactuated import CablePD, UnderactuatedIdaPbc
+from .underactuated import CablePD, UnderactuatedIdaPbc, UnderactuatedIdaPbcIntegral
 from .winch_level import WinchIdaPbc
 
 __all__ = [
@@ -68,6 +68,7 @@ __all__ = [
     "SmoothReference",
     "StatelessLaw",
     "UnderactuatedIdaPbc",
+    "UnderactuatedIdaPbcIntegral",
     "VirtualReferenceIdaPbc",
     "WinchIdaPbc",
     "capabilities",

@@ -11,7 +11,7 @@ from cdpr_sym.control.interface import Controller, capabilities
 from cdpr_sym.control.nmpc import Nmpc
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.control.tuning import FROM_ROBOT
-from cdpr_sym.control.underactuated import CablePD, UnderactuatedIdaPbc
+from cdpr_sym.control.underactuated import CablePD, UnderactuatedIdaPbc, UnderactuatedIdaPbcIntegral
 from cdpr_sym.control.winch_level import WinchIdaPbc
 from cdpr_sym.errors import InvalidCase, UnknownName
 
@@ -50,6 +50,7 @@ CONTROLLERS: dict[str, Controller] = {
     "nmpc-ipopt": Nmpc(solver="ipopt"),
     "nmpc-of": Nmpc(observer_rate=NMPC_OBSERVER_RATE),
     "ida-under": UnderactuatedIdaPbc(),
+    "ida-under-i": UnderactuatedIdaPbcIntegral(),
     "pd-under": CablePD(),
 }
 
@@ -82,6 +83,8 @@ DESCRIPTIONS = {
     "ida-under": "IDA-PBC for fewer cables than degrees of freedom: energy shaped in the cable "
                  "lengths along a path of stable equilibria, damping through the cables, J_d "
                  "keeping the box; m < n only",
+    "ida-under-i": "ida-under with integral action on the cable lengths (k_i from the robot by "
+                   "its extended linearisation), for the robot as built; m < n only",
     "pd-under": "PD on the cable lengths about the goal's, the goal's tension fed forward, "
                 "from the first sample (no plan, no J_d): the baseline; m < n only",
 }

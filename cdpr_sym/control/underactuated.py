@@ -121,6 +121,10 @@ class UnderactuatedDesign:
         The linearisation's slowest decay rate at the case goal, 1/s.
     median_decay_rate : float
         Its median over the rule's equilibria (what the rule maximises), 1/s.
+    integral : float or None
+        k_i, N/(m s): the integral gain on the cable lengths' errors that ``ida-under-i``
+        uses (its own rule, over the same equilibria); None where no gain of the rule is
+        stable.
     """
 
     stiffness: float
@@ -128,6 +132,7 @@ class UnderactuatedDesign:
     duration: float
     decay_rate: float
     median_decay_rate: float
+    integral: float | None = None
 
 
 #: Derived designs by robot description (:func:`~cdpr_sym.robot.robot_key`).
@@ -145,7 +150,12 @@ def derived_design(robot: Robot) -> UnderactuatedDesign:
 
 def _derive(robot: Robot) -> UnderactuatedDesign:
     from cdpr_sym.underactuated import EquilibriumManifold
-    from cdpr_sym.underactuated.linearisation import cable_gains, linearisation, swing_period
+    from cdpr_sym.underactuated.linearisation import (
+        cable_gains,
+        integral_gain,
+        linearisation,
+        swing_period,
+    )
 
     manifold = EquilibriumManifold(robot)
     drawn = manifold.sample(RULE_SAMPLES, np.random.default_rng(0), draws=RULE_DRAWS,
@@ -156,8 +166,15 @@ def _derive(robot: Robot) -> UnderactuatedDesign:
     duration = min(PLAN_PERIODS * longest, PLAN_SHARE * robot.design_target.settle_time)
     median = float(np.median([linearisation(manifold, q, gains.stiffness,
                                             gains.damping).decay_rate for q in sample]))
+    try:
+        integral: float | None = float(integral_gain(robot, sample, gains.stiffness,
+                                                     gains.damping, GAIN_PERIOD,
+                                                     manifold).integral)
+    except InvalidCase:  # ida-under-i is refused on this robot, ida-under is not
+        integral = None
     return UnderactuatedDesign(float(gains.stiffness), float(gains.damping),
-                               float(max(SHORTEST_PLAN, duration)), gains.decay_rate, median)
+                               float(max(SHORTEST_PLAN, duration)), gains.decay_rate, median,
+                               integral)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -181,6 +198,8 @@ class UnderactuatedIdaPbc:
         Use J_d to keep the tension box (False: A = 0).
     feed_forward : bool
         Add the tension that accelerates the robot along the path (module docstring).
+    integral : bool
+        Add k_i times the integral of the cable lengths' errors (``ida-under-i``).
     """
 
     name: ClassVar[str] = "ida-under"
@@ -190,6 +209,7 @@ class UnderactuatedIdaPbc:
     planned: bool = True
     box: bool = True
     feed_forward: bool = True
+    integral: bool = False
 
     def __post_init__(self) -> None:
         for field in ("stiffness", "damping", "duration"):
@@ -204,7 +224,7 @@ class UnderactuatedIdaPbc:
                  if getattr(self, field) is not None}
         defaults = type(self)()
         return given | {field: getattr(self, field) for field in ("planned", "box",
-                                                                  "feed_forward")
+                                                                  "feed_forward", "integral")
                         if getattr(self, field) != getattr(defaults, field)}
 
     def design(self, robot: Robot) -> UnderactuatedDesign:
@@ -219,14 +239,16 @@ class UnderactuatedIdaPbc:
         return Capabilities(underactuated=True, fully_actuated=False)
 
     def memory_size(self, model: SymbolicModel) -> int:
-        """1 + m + n + m."""
-        return 1 + 2 * model.m + model.n
+        """1 + m + n + m (+ m, the integrals)."""
+        return 1 + (3 if self.integral else 2) * model.m + model.n
 
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
         """t = 0, the start's lengths, the start as the reference and its tension."""
         _check(model.robot)
-        return ca.vertcat(0.0, model.cable_lengths(q0), q0, _held_tension(model, q0))
+        integrals = ca.SX.zeros(model.m if self.integral else 0)
+        return ca.vertcat(0.0, model.cable_lengths(q0), q0, _held_tension(model, q0),
+                          integrals)
 
     def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
              r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
@@ -236,7 +258,8 @@ class UnderactuatedIdaPbc:
         design = self.design(robot)
         n, m = model.n, model.m
         t, l_start = memory[0], memory[1:1 + m]
-        q_ref, t_ref = memory[1 + m:1 + m + n], memory[1 + m + n:]
+        q_ref, t_ref = memory[1 + m:1 + m + n], memory[1 + m + n:1 + 2 * m + n]
+        integrals = memory[1 + 2 * m + n:]
         l_goal = model.cable_lengths(q_goal)
         s = ca.fmin(t / design.duration, 1.0) if self.planned else ca.SX(1.0)
         shape = 10 * s**3 - 15 * s**4 + 6 * s**5
@@ -265,8 +288,10 @@ class UnderactuatedIdaPbc:
         W = model.structure_matrix(q)
         l_rate = -W.T @ dq
         relative_rate = l_rate - l_ref_rate
-        t0 = (t_ref_moving + design.stiffness * (model.cable_lengths(q) - l_ref)
-              + design.damping * relative_rate)
+        length_error = model.cable_lengths(q) - l_ref
+        t0 = (t_ref_moving + design.stiffness * length_error + design.damping * relative_rate)
+        if self.integral:
+            t0 = t0 + _integral_gain(robot, design) * integrals
         w, inside = box_step(robot, t0, relative_rate, design.damping if self.box else 0.0)
         tau = t0 + w
         j = _interconnection_entries(model, W, relative_rate, w)
@@ -276,7 +301,9 @@ class UnderactuatedIdaPbc:
                                                  ca.mmax(t_ref) <= robot.t_max))
         flags = ca.if_else(ca.logic_and(inside, held), 0.0, float(FLAG_INFEASIBLE))
         law = ControlLaw(tau, ca.SX(1.0), ca.mmin(tau) - robot.t_min, j, flags)
-        return law, ca.vertcat(t + dt, l_start, q_ref, t_ref)
+        if self.integral:  # held while the tension leaves the box (no wind-up)
+            integrals = ca.if_else(inside, integrals + dt * length_error, integrals)
+        return law, ca.vertcat(t + dt, l_start, q_ref, t_ref, integrals)
 
 
 def box_step(robot: Robot, t0: ca.SX, rate: ca.SX, bound: float) -> tuple[ca.SX, ca.SX]:
@@ -357,6 +384,13 @@ def _interconnection_entries(model: SymbolicModel, W: ca.SX, rate: ca.SX, w: ca.
         ca.SX.zeros(0)
 
 
+def _integral_gain(robot: Robot, design: UnderactuatedDesign) -> float:
+    if design.integral is None:
+        raise InvalidCase("controller", f"no integral gain of ida-under-i's rule keeps "
+                          f"{robot.name} stable at its rule's equilibria; use ida-under")
+    return design.integral
+
+
 def _check(robot: Robot) -> None:
     if not robot.underactuated:
         raise InvalidCase("controller", f"ida-under is for fewer cables than degrees of "
@@ -373,3 +407,18 @@ class CablePD(UnderactuatedIdaPbc):
     name: ClassVar[str] = "pd-under"
     planned: bool = False
     box: bool = False
+
+
+@dataclasses.dataclass(frozen=True)
+class UnderactuatedIdaPbcIntegral(UnderactuatedIdaPbc):
+    """``ida-under`` with integral action on the cable lengths, for the robot as built: the
+    law adds k_i z, z the integral of l - l_ref (held while the tension leaves the box), so
+    a mass or anchor error that the springs alone would take up as a sag of
+    (its force) / k is driven out of the lengths. k_i comes from the robot by the rule of
+    :func:`~cdpr_sym.underactuated.linearisation.integral_gain` (the extended
+    linearisation's median slowest decay maximised, no mode growing at any rule
+    equilibrium). The energy argument of ``ida-under`` holds for each frozen integral, not
+    while it moves: with it, stability is the extended linearisation's (local)."""
+
+    name: ClassVar[str] = "ida-under-i"
+    integral: bool = True

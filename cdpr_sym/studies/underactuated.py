@@ -10,12 +10,14 @@ every scale), their files written to ``robots/``. Per robot:
   minimum of H_d) and the linearised closed loop's largest real part (< 0: asymptotically
   stable);
 * the case goal's region of attraction, a sublevel set of H_d estimated and proven by
-  interval arithmetic (:mod:`~cdpr_sym.underactuated.attraction`);
+  interval arithmetic (:mod:`~cdpr_sym.certify.attraction`);
 * each design's run on the robot's own case;
 * sweeps of the pairs (stable equilibria with tensions in the box, drawn on the manifold)
-  on the ideal plant: ``ida-under`` and the baseline ``pd-under`` on every pair, ``nmpc`` on
-  at most :data:`NMPC_PAIRS` (a second or more of solving per run second); the robot as
-  built is refused for m < n, and the refusal is recorded.
+  on the ideal plant: ``ida-under``, ``ida-under-i`` and the baseline ``pd-under`` on every
+  pair, ``nmpc`` on at most :data:`NMPC_PAIRS` (a second or more of solving per run
+  second); and as built (``--as-built default``: winches, elastic cables, anchor and mass
+  errors, the pose sensed) :data:`AS_BUILT_DESIGNS` on every pair, judged on the pairs the
+  true plant holds.
 
 A pair meets the robot's target (settled within 1 cm, norm over every coordinate so
 0.01 rad for angles, by 5 s; tensions in the box for t > 0; steps within the target's).
@@ -35,13 +37,15 @@ from cdpr_sym.robot import UNDERACTUATED_PRESETS, Robot, load_robot, preset
 from cdpr_sym.robot.files import robot_file_text
 from cdpr_sym.studies.interface import REPORT_FILE, Study, StudyOptions, StudyRequest
 from cdpr_sym.studies.outline import SUMMARY_FILE, read_study, study_sweep, write_study
-from cdpr_sym.studies.zoo import DT, DURATION, own_case
+from cdpr_sym.studies.zoo import DT, DURATION, best_share, own_case
 from cdpr_sym.sweep import SweepConfig
 from cdpr_sym.sweep.tables import load_sweep_table, summarise_sweep
 
 #: Robots drawn beside the presets.
 DRAWN = 6
-DESIGNS = ("ida-under", "pd-under", "nmpc")
+DESIGNS = ("ida-under", "ida-under-i", "pd-under", "nmpc")
+#: The designs run on the robot as built (``--as-built default``), on every pair.
+AS_BUILT_DESIGNS = ("ida-under", "ida-under-i", "pd-under")
 NMPC_PAIRS = 10
 #: The targets: share of pairs meeting the target, planar bar and 3-cable platform.
 GOALS = {"bar": 0.90, "tri": 0.80}
@@ -87,12 +91,12 @@ def design_numbers(robot: Robot) -> dict[str, Any]:
 
 
 def attraction_numbers(robot: Robot) -> dict[str, Any]:
-    """The case goal's region of attraction (:mod:`~cdpr_sym.underactuated.attraction`):
+    """The case goal's region of attraction (:mod:`~cdpr_sym.certify.attraction`):
     the level estimated and proven, the face limiting it, the proof's size and time, and
     whether the case start at rest lies in it."""
+    from cdpr_sym.certify.attraction import region_of_attraction
     from cdpr_sym.control.underactuated import derived_design
     from cdpr_sym.underactuated import EquilibriumManifold
-    from cdpr_sym.underactuated.attraction import region_of_attraction
 
     region = region_of_attraction(EquilibriumManifold(robot), robot.goal,
                                   derived_design(robot).stiffness)
@@ -119,17 +123,24 @@ def _pairs(design: str, pairs: int) -> int:
     return min(pairs, NMPC_PAIRS) if design == "nmpc" else pairs
 
 
-def _table(folder: Path, robot: str, design: str) -> Path:
-    return folder / "runs" / robot / f"ideal_{design}.csv"
+def _table(folder: Path, robot: str, design: str, plant: str = "ideal") -> Path:
+    return folder / "runs" / robot / f"{plant}_{design}.csv"
 
 
-def _as_built_refusal(source: str, pairs: int, seed: int) -> str | None:
-    """The one-line refusal of the robot as built (None if it were accepted)."""
+def _sweep(folder: Path, name: str, source: str, design: str, plant: str,
+           request: StudyRequest) -> str | None:
+    """One design's sweep of one robot on ``plant`` (ideal, or as built by default) into
+    its table; the one-line refusal instead, if refused."""
+    table = _table(folder, name, design, plant)
+    table.parent.mkdir(parents=True, exist_ok=True)
     try:
-        SweepConfig(robot=source, controllers=("ida-under",), pairs=pairs, seed=seed,
-                    duration=DURATION, dt=DT, as_built="default")
-    except CdprError as refused:
-        return str(refused)
+        study_sweep(SweepConfig(robot=source, controllers=(design,),
+                                pairs=_pairs(design, request.pairs), seed=request.seed,
+                                duration=DURATION, dt=DT,
+                                as_built="default" if plant == "as_built" else None),
+                    table, progress=request.progress)
+    except CdprError as refusal:
+        return str(refusal)
     return None
 
 
@@ -150,22 +161,18 @@ class UnderactuatedStudy(Study):
         robots: dict[str, Any] = {}
         for name, source in sources.items():
             robot = preset(name) if name in UNDERACTUATED_PRESETS else load_robot(source)
-            refused = {}
+            refused, refused_as_built = {}, {}
             for design in DESIGNS:
-                table = _table(folder, name, design)
-                table.parent.mkdir(parents=True, exist_ok=True)
-                try:
-                    study_sweep(SweepConfig(robot=source, controllers=(design,),
-                                            pairs=_pairs(design, pairs), seed=seed,
-                                            duration=DURATION, dt=DT), table,
-                                progress=request.progress)
-                except CdprError as refusal:
-                    refused[design] = str(refusal)
+                if (why := _sweep(folder, name, source, design, "ideal", request)) is not None:
+                    refused[design] = why
+            for design in AS_BUILT_DESIGNS:
+                why = _sweep(folder, name, source, design, "as_built", request)
+                if why is not None:
+                    refused_as_built[design] = why
             robots[name] = {"design": design_numbers(robot),
                             "attraction": attraction_numbers(robot),
                             "own_case": own_case(robot, DESIGNS),
-                            "refused": refused,
-                            "as_built": _as_built_refusal(source, pairs, seed)}
+                            "refused": refused, "refused_as_built": refused_as_built}
         write_study(folder, "underactuated", None, pairs=pairs, seed=seed,
                     nmpc_pairs=_pairs("nmpc", pairs), robots=robots,
                     sources={name: (source if name in UNDERACTUATED_PRESETS
@@ -174,8 +181,11 @@ class UnderactuatedStudy(Study):
 
     def run_files(self, folder: Path) -> list[Path]:
         study = read_study(folder)
-        return [_table(folder, name, design) for name, robot in study["robots"].items()
-                for design in DESIGNS if design not in robot["refused"]]
+        return ([_table(folder, name, design) for name, robot in study["robots"].items()
+                 for design in DESIGNS if design not in robot["refused"]]
+                + [_table(folder, name, design, "as_built")
+                   for name, robot in study["robots"].items()
+                   for design in AS_BUILT_DESIGNS if design not in robot["refused_as_built"]])
 
     def aggregate_files(self, folder: Path) -> list[Path]:
         return [folder / SUMMARY_FILE]
@@ -198,15 +208,28 @@ class UnderactuatedStudy(Study):
                     "runs", "meets_target", "median_settle_s", "stopped_or_failed")}
                 shares[design]["without_steps"] = without_steps(
                     table_rows, robot.design_target.settle_time)
+            as_built = {}
+            for design in AS_BUILT_DESIGNS:
+                if design in record["refused_as_built"]:
+                    as_built[design] = {"refused": record["refused_as_built"][design]}
+                    continue
+                table = load_sweep_table(_table(folder, name, design, "as_built"),
+                                         pairs=study["pairs"], seed=study["seed"])
+                held = sum(bool(row.get("held")) for row in table[0])
+                as_built[design] = {"meets_target": best_share({design: table},
+                                                               held_only=True),
+                                    "runs": held, "pairs": len(table[0])}
             sides = (robot.frame_upper - robot.frame_lower)[: robot.dimension]
             rows[name] = {**record, "kind": robot.kind, "n": robot.n, "m": robot.m,
                           "mass_kg": robot.mass, "frame_m": float(sides.max()),
                           "box_n": [robot.t_min, robot.t_max], "shares": shares,
+                          "as_built_shares": as_built,
                           "target": robot.design_target.describe(DT)}
         write_json(folder / SUMMARY_FILE, {"robots": rows, "pairs": study["pairs"],
                                            "seed": study["seed"],
                                            "nmpc_pairs": study["nmpc_pairs"],
-                                           "sources": study["sources"], "goals": GOALS})
+                                           "sources": study["sources"], "goals": GOALS,
+                                           "as_built_designs": AS_BUILT_DESIGNS})
 
     def render(self, folder: Path) -> dict[str, Any]:
         summary = read_json(folder / SUMMARY_FILE)
@@ -221,7 +244,12 @@ class UnderactuatedStudy(Study):
             shares = ", ".join(
                 f"{design} {100 * share['meets_target']:.1f} %" if "meets_target" in share
                 else f"{design} refused" for design, share in robot["shares"].items())
-            lines.append(f"{name:<18} m = {robot['m']}, n = {robot['n']}: {shares}")
+            built = ", ".join(
+                f"{design} {100 * share['meets_target']:.1f} %"
+                if share.get("meets_target") is not None else f"{design} –"
+                for design, share in robot["as_built_shares"].items())
+            lines.append(f"{name:<18} m = {robot['m']}, n = {robot['n']}: {shares}; as built "
+                         f"{built}")
         return lines
 
 

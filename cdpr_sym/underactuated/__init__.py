@@ -1,6 +1,6 @@
 """Underactuated robots (fewer cables than coordinates, m < n): the equilibrium manifold
-they rest on and its stability (:mod:`~cdpr_sym.underactuated.equilibrium`), and the
-region of attraction of a goal (:mod:`~cdpr_sym.underactuated.attraction`).
+they rest on and its stability (:mod:`~cdpr_sym.underactuated.equilibrium`); the
+region of attraction of a goal is proven in :mod:`~cdpr_sym.certify.attraction`.
 """
 
 import lazy_loader

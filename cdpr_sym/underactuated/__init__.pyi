@@ -1,14 +1,6 @@
 # The names this package exports, read by type checkers and by lazy_loader at import
 # time: each is imported from its module on first use (see __init__.py).
 
-from .attraction import RegionOfAttraction, region_of_attraction
 from .equilibrium import Equilibrium, EquilibriumManifold, check_equilibrium, reduced_stiffness
 
-__all__ = [
-    "Equilibrium",
-    "EquilibriumManifold",
-    "RegionOfAttraction",
-    "check_equilibrium",
-    "reduced_stiffness",
-    "region_of_attraction",
-]
+__all__ = ["Equilibrium", "EquilibriumManifold", "check_equilibrium", "reduced_stiffness"]

@@ -64,7 +64,9 @@ class CableGains:
     fastest : float
         max |lambda|, rad/s.
     eigenvalues : ndarray
-        The 2 n eigenvalues, 1/s.
+        The 2 n eigenvalues (2 n + m with an integral), 1/s.
+    integral : float
+        k_i, N/(m s) (0: none).
     """
 
     stiffness: float
@@ -72,44 +74,57 @@ class CableGains:
     decay_rate: float
     fastest: float
     eigenvalues: np.ndarray
+    integral: float = 0.0
 
 
 def closed_loop_matrix(manifold: EquilibriumManifold, q: np.ndarray, stiffness: float,
-                       damping: float) -> np.ndarray:
+                       damping: float, integral: float = 0.0) -> np.ndarray:
     """The 2 n x 2 n state matrix of the linearisation at the equilibrium ``q`` (module
-    docstring), for cable gains k = ``stiffness`` (N/m) and c = ``damping`` (N s/m)."""
-    return _LinearParts.at(manifold, q).matrix(stiffness, damping)
+    docstring), for cable gains k = ``stiffness`` (N/m) and c = ``damping`` (N s/m); with
+    an ``integral`` gain k_i (N/(m s)), the 2 n + m one whose last m states are the
+    integrals z of the length errors (z' = J dq, the law adding k_i z)."""
+    return _LinearParts.at(manifold, q).matrix(stiffness, damping, integral)
 
 
 @dataclasses.dataclass(frozen=True)
 class _LinearParts:
-    """M^-1 S and M^-1 J^T J at an equilibrium: the state matrix for any gains."""
+    """M^-1 S, M^-1 J^T J, M^-1 J^T and J at an equilibrium: the state matrix for any
+    gains."""
 
     stiffness_part: np.ndarray
     cable_part: np.ndarray
+    pull_part: np.ndarray
+    jacobian: np.ndarray
 
     @classmethod
     def at(cls, manifold: EquilibriumManifold, q: np.ndarray) -> _LinearParts:
         found = manifold.classify(q)
         _, J, _, _, S = (np.array(value) for value in manifold._terms(q, found.tension))
         M = np.array(manifold.model.functions["mass_matrix"](q))
-        return cls(np.linalg.solve(M, S), np.linalg.solve(M, J.T @ J))
+        return cls(np.linalg.solve(M, S), np.linalg.solve(M, J.T @ J), np.linalg.solve(M, J.T),
+                   J)
 
-    def matrix(self, stiffness: float, damping: float) -> np.ndarray:
+    def matrix(self, stiffness: float, damping: float, integral: float = 0.0) -> np.ndarray:
         n = self.stiffness_part.shape[0]
-        return np.block([[np.zeros((n, n)), np.eye(n)],
-                         [-(self.stiffness_part + stiffness * self.cable_part),
-                          -damping * self.cable_part]])
+        plain = np.block([[np.zeros((n, n)), np.eye(n)],
+                          [-(self.stiffness_part + stiffness * self.cable_part),
+                           -damping * self.cable_part]])
+        if not integral:
+            return plain
+        m = self.jacobian.shape[0]
+        return np.block([[plain, np.vstack([np.zeros((n, m)), -integral * self.pull_part])],
+                         [self.jacobian, np.zeros((m, n)), np.zeros((m, m))]])
 
 
 def linearisation(manifold: EquilibriumManifold, q: np.ndarray, stiffness: float,
-                  damping: float) -> CableGains:
+                  damping: float, integral: float = 0.0) -> CableGains:
     """The gains' linearisation at ``q``: eigenvalues, slowest decay and fastest mode."""
-    return _gains(_LinearParts.at(manifold, q), stiffness, damping)
+    return _gains(_LinearParts.at(manifold, q), stiffness, damping, integral)
 
 
-def _gains(parts: _LinearParts, stiffness: float, damping: float) -> CableGains:
-    eigenvalues = np.linalg.eigvals(parts.matrix(stiffness, damping))
+def _gains(parts: _LinearParts, stiffness: float, damping: float,
+           integral: float = 0.0) -> CableGains:
+    eigenvalues = np.linalg.eigvals(parts.matrix(stiffness, damping, integral))
     fastest = float(np.abs(eigenvalues).max())
     return CableGains(stiffness, damping, decay_rate(eigenvalues, fastest), fastest,
                       eigenvalues)
@@ -179,3 +194,44 @@ def swing_period(manifold: EquilibriumManifold, q: np.ndarray) -> float:
     Z = axes[int(np.sum(singular > 1e-12 * singular.max())):].T
     squares = eigh(Z.T @ S @ Z, Z.T @ M @ Z, eigvals_only=True)
     return float(2 * np.pi / np.sqrt(squares.min())) if squares.min() > 0 else np.inf
+
+
+#: Integral gains the rule tries, as shares of k times the plain loop's median decay rate.
+INTEGRAL_SHARES = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
+
+
+def integral_gain(robot: Robot, equilibria: np.ndarray, stiffness: float, damping: float,
+                  dt: float, manifold: EquilibriumManifold | None = None) -> CableGains:
+    """The integral gain k_i (N/(m s)) on the cable lengths' errors for the cable gains
+    k, c: of k_i = share x k x (the plain loop's median slowest decay over ``equilibria``),
+    share in :data:`INTEGRAL_SHARES`, the one whose extended linearisations (the integral
+    states included) have the largest median slowest decay, among those with no mode
+    growing at any equilibrium and every mode within the bandwidth. Returned as the
+    linearisation at the first equilibrium, its ``damping`` field holding c and the
+    integral gain in ``integral``.
+
+    Raises
+    ------
+    InvalidCase
+        Field ``robot``: no share keeps every extended linearisation stable.
+    """
+    manifold = manifold or EquilibriumManifold(robot)
+    parts = [_LinearParts.at(manifold, q) for q in equilibria]
+    plain = float(np.quantile([_gains(part, stiffness, damping).decay_rate for part in parts],
+                              QUANTILE))
+    best, best_score, best_gain = None, -np.inf, 0.0
+    for share in INTEGRAL_SHARES:
+        gain = share * stiffness * plain
+        found = [_gains(part, stiffness, damping, gain) for part in parts]
+        if max(item.fastest for item in found) * dt > BANDWIDTH_SHARE:
+            continue
+        rates = [item.decay_rate for item in found]
+        if min(rates) <= 0:  # a growing mode, or an integral no cable moves
+            continue
+        score = float(np.quantile(rates, QUANTILE))
+        if score > best_score:
+            best, best_score, best_gain = found[0], score, gain
+    if best is None:
+        raise InvalidCase("robot", f"no integral gain of the rule keeps {robot.name} stable "
+                          f"at all of {len(parts)} equilibria")
+    return dataclasses.replace(best, integral=best_gain)
