@@ -472,9 +472,11 @@ def test_nmpc_runs_fewer_cables_with_the_least_squares_pseudo_inverse():
 
 
 @pytest.mark.slow
-def test_the_exported_package_of_ida_under_builds_and_runs_as_python(tmp_path):
-    """export-c of ida-under on bar2: CMake builds it (gcc), and its example's closed loop
-    ends where CasADi's virtual machine (a reference independent of the generated C) does."""
+@pytest.mark.parametrize("design", ["ida-under", "ida-under-i"])
+def test_the_exported_package_of_ida_under_builds_and_runs_as_python(tmp_path, design):
+    """export-c of ida-under (and ida-under-i) on bar2: CMake builds it (gcc), and its
+    example's closed loop ends where CasADi's virtual machine (a reference independent of
+    the generated C) does."""
     import re
 
     from tools import cmake_build, run
@@ -483,12 +485,12 @@ def test_the_exported_package_of_ida_under_builds_and_runs_as_python(tmp_path):
     from cdpr_sym.export import export_c
 
     robot = load_robot(BAR2)
-    result = export_c(robot, "ida-under", tmp_path / "package")
+    result = export_c(robot, design, tmp_path / "package")
     build = cmake_build(result.out_dir, tmp_path / "build")
     text = run([build / "example"])
     printed = {line.split()[0]: np.array(line.split()[1:], dtype=float)
                for line in text.splitlines() if re.match(r"(final|tension)_", line)}
-    reference = simulate(robot, "ida-under", duration=10.0,
+    reference = simulate(robot, design, duration=10.0,
                          build_options=BuildOptions(backend="casadi"))
     np.testing.assert_allclose(printed["final_q"], reference.q[-1], rtol=0, atol=1e-9)
     np.testing.assert_allclose(printed["tension_min_N"], reference.tau.min(), rtol=1e-9)
