@@ -635,11 +635,15 @@ def test_the_drive_rates_of_an_underactuated_build_are_taken_at_its_equilibria()
 
 @pytest.mark.parametrize("path", [BAR2, TRI3], ids=["bar2", "tri3"])
 def test_ida_under_i_s_extended_linearisation_is_the_law_s_and_is_stable(path):
-    """The closed loop of ``ida-under-i`` after its plan, (q, dq, z) with z the integrals,
-    linearised here by finite differences of the model's forward dynamics, of its law
-    (z read from its memory) and of the integrals' update (z' = (z_next - z) / dt from the
-    law's next memory), has the eigenvalues of ``closed_loop_matrix`` with the rule's k_i,
-    all in the left half plane; the law adds k_i z (numpy slope)."""
+    """The closed loop of ``ida-under-i`` after its plan, (q, dq, z, y) with z the
+    integrals and y the filtered command the cables carry, linearised here by finite
+    differences of the model's forward dynamics (driven by y), of its law (z and y read from
+    its memory) and of the memory's update (z' = (z_next - z) / dt, y' likewise), has the
+    eigenvalues of ``closed_loop_matrix`` with the rule's k_i and filter rate, all in the
+    left half plane; the law's slope in z is k_i and its command moves a (1/s) dt of the
+    way to the unfiltered law."""
+    from cdpr_sym.control.underactuated import filter_rate
+
     robot = load_robot(path)
     design = derived_design(robot)
     assert design.integral is not None and design.integral > 0
@@ -652,26 +656,30 @@ def test_ida_under_i_s_extended_linearisation_is_the_law_s_and_is_stable(path):
     head = np.concatenate([[10 * design.duration], _lengths(robot, robot.start), robot.goal,
                            goal_tension])
 
-    def field(x):
-        q, dq, z = x[:n], x[n:2 * n], x[2 * n:]
+    def step(q, dq, z, y):
         out = law(q=q, dq=dq, q_goal=robot.goal, k=np.ones(n), r_d=np.ones(n),
-                  memory=np.concatenate([head, z]), dt=dt)
-        tau = np.array(out["tau"]).ravel()
-        z_next = np.array(out["memory_next"]).ravel()[-m:]
-        return np.concatenate([dq, np.array(acceleration(q, dq, tau)).ravel(),
-                               (z_next - z) / dt])
+                  memory=np.concatenate([head, z, y]), dt=dt)
+        return np.array(out["memory_next"]).ravel()[-2 * m:]
 
-    at_goal = np.concatenate([robot.goal, np.zeros(n + m)])
+    def field(x):
+        q, dq, z, y = x[:n], x[n:2 * n], x[2 * n:2 * n + m], x[2 * n + m:]
+        following = step(q, dq, z, goal_tension + y)
+        return np.concatenate([dq, np.array(acceleration(q, dq, goal_tension + y)).ravel(),
+                               (following[:m] - z) / dt,
+                               (following[m:] - goal_tension - y) / dt])
+
+    at_goal = np.concatenate([robot.goal, np.zeros(n + 2 * m)])
     A = _gradient(field, at_goal, 1e-7)
+    rate = filter_rate(robot)
     ours = np.sort_complex(np.linalg.eigvals(A))
     theirs = np.sort_complex(np.linalg.eigvals(closed_loop_matrix(
-        manifold, robot.goal, design.stiffness, design.damping, design.integral)))
-    np.testing.assert_allclose(ours, theirs, rtol=1e-4, atol=1e-5)
+        manifold, robot.goal, design.stiffness, design.damping, design.integral, rate)))
+    np.testing.assert_allclose(ours, theirs, rtol=1e-4, atol=1e-4)
     assert ours.real.max() < 0
-    slope = _gradient(lambda z: np.array(law(
-        q=robot.goal, dq=np.zeros(n), q_goal=robot.goal, k=np.ones(n), r_d=np.ones(n),
-        memory=np.concatenate([head, z]), dt=dt)["tau"]).ravel(), np.zeros(m), 1e-6)
-    np.testing.assert_allclose(slope, design.integral * np.eye(m), rtol=1e-6, atol=1e-6)
+    slope = _gradient(lambda z: step(robot.goal, np.zeros(n), z, goal_tension)[m:],
+                      np.zeros(m), 1e-6)
+    np.testing.assert_allclose(slope, rate * dt * design.integral * np.eye(m), rtol=1e-6,
+                               atol=1e-6)
 
 
 @pytest.mark.slow

@@ -167,9 +167,9 @@ def _derive(robot: Robot) -> UnderactuatedDesign:
     median = float(np.median([linearisation(manifold, q, gains.stiffness,
                                             gains.damping).decay_rate for q in sample]))
     try:
-        integral: float | None = float(integral_gain(robot, sample, gains.stiffness,
-                                                     gains.damping, GAIN_PERIOD,
-                                                     manifold).integral)
+        integral: float | None = float(integral_gain(
+            robot, sample, gains.stiffness, gains.damping, GAIN_PERIOD, manifold,
+            filter_rate(robot)).integral)
     except InvalidCase:  # ida-under-i is refused on this robot, ida-under is not
         integral = None
     return UnderactuatedDesign(float(gains.stiffness), float(gains.damping),
@@ -200,6 +200,8 @@ class UnderactuatedIdaPbc:
         Add the tension that accelerates the robot along the path (module docstring).
     integral : bool
         Add k_i times the integral of the cable lengths' errors (``ida-under-i``).
+    filtered : bool
+        Low-pass the command for winches (:func:`filter_rate`, ``ida-under-i``).
     """
 
     name: ClassVar[str] = "ida-under"
@@ -210,6 +212,7 @@ class UnderactuatedIdaPbc:
     box: bool = True
     feed_forward: bool = True
     integral: bool = False
+    filtered: bool = False
 
     def __post_init__(self) -> None:
         for field in ("stiffness", "damping", "duration"):
@@ -223,8 +226,8 @@ class UnderactuatedIdaPbc:
         given = {field: getattr(self, field) for field in ("stiffness", "damping", "duration")
                  if getattr(self, field) is not None}
         defaults = type(self)()
-        return given | {field: getattr(self, field) for field in ("planned", "box",
-                                                                  "feed_forward", "integral")
+        return given | {field: getattr(self, field) for field in (
+            "planned", "box", "feed_forward", "integral", "filtered")
                         if getattr(self, field) != getattr(defaults, field)}
 
     def design(self, robot: Robot) -> UnderactuatedDesign:
@@ -240,15 +243,17 @@ class UnderactuatedIdaPbc:
 
     def memory_size(self, model: SymbolicModel) -> int:
         """1 + m + n + m (+ m, the integrals)."""
-        return 1 + (3 if self.integral else 2) * model.m + model.n
+        return (1 + (3 if self.integral else 2) * model.m + model.n
+                + (model.m if self.filtered else 0))
 
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
         """t = 0, the start's lengths, the start as the reference and its tension."""
         _check(model.robot)
         integrals = ca.SX.zeros(model.m if self.integral else 0)
-        return ca.vertcat(0.0, model.cable_lengths(q0), q0, _held_tension(model, q0),
-                          integrals)
+        held = _held_tension(model, q0)
+        return ca.vertcat(0.0, model.cable_lengths(q0), q0, held, integrals,
+                          held if self.filtered else ca.SX.zeros(0))
 
     def step(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
              r_d: ca.SX, memory: ca.SX, dt: ca.SX) -> tuple[ControlLaw, ca.SX]:
@@ -259,7 +264,8 @@ class UnderactuatedIdaPbc:
         n, m = model.n, model.m
         t, l_start = memory[0], memory[1:1 + m]
         q_ref, t_ref = memory[1 + m:1 + m + n], memory[1 + m + n:1 + 2 * m + n]
-        integrals = memory[1 + 2 * m + n:]
+        integrals = memory[1 + 2 * m + n:1 + 2 * m + n + (m if self.integral else 0)]
+        last_command = memory[1 + 2 * m + n + (m if self.integral else 0):]
         l_goal = model.cable_lengths(q_goal)
         s = ca.fmin(t / design.duration, 1.0) if self.planned else ca.SX(1.0)
         shape = 10 * s**3 - 15 * s**4 + 6 * s**5
@@ -294,6 +300,8 @@ class UnderactuatedIdaPbc:
             t0 = t0 + _integral_gain(robot, design) * integrals
         w, inside = box_step(robot, t0, relative_rate, design.damping if self.box else 0.0)
         tau = t0 + w
+        if self.filtered:  # the winches get the law low-passed below their own mode
+            tau = last_command + filter_rate(robot) * dt * (tau - last_command)
         j = _interconnection_entries(model, W, relative_rate, w)
         # flagged: the tension left outside the box, or a reference the path cannot hold
         # (diverged, or needing a tension outside the box)
@@ -303,7 +311,8 @@ class UnderactuatedIdaPbc:
         law = ControlLaw(tau, ca.SX(1.0), ca.mmin(tau) - robot.t_min, j, flags)
         if self.integral:  # held while the tension leaves the box (no wind-up)
             integrals = ca.if_else(inside, integrals + dt * length_error, integrals)
-        return law, ca.vertcat(t + dt, l_start, q_ref, t_ref, integrals)
+        return law, ca.vertcat(t + dt, l_start, q_ref, t_ref, integrals,
+                               tau if self.filtered else ca.SX.zeros(0))
 
 
 def box_step(robot: Robot, t0: ca.SX, rate: ca.SX, bound: float) -> tuple[ca.SX, ca.SX]:
@@ -384,6 +393,19 @@ def _interconnection_entries(model: SymbolicModel, W: ca.SX, rate: ca.SX, w: ca.
         ca.SX.zeros(0)
 
 
+def filter_rate(robot: Robot) -> float:
+    """``ida-under-i``'s command filter, 1/s: the rate a = (1 - exp(-2 pi f_c dt)) / dt of
+    a first-order low-pass sampled at the 1 ms loop, f_c the command corner of the robot's
+    default winches (:func:`~cdpr_sym.control.tuning.command_corner`: half their
+    drum-cable mode, at most the loop's share): the law's damping otherwise excites the
+    winches' lightly damped mode through the loop's delay."""
+    from cdpr_sym.as_built.hardware import scaled_actuation
+    from cdpr_sym.control.tuning import command_corner
+
+    corner = command_corner(robot, scaled_actuation(robot), GAIN_PERIOD)
+    return float((1 - np.exp(-2 * np.pi * corner * GAIN_PERIOD)) / GAIN_PERIOD)
+
+
 def _integral_gain(robot: Robot, design: UnderactuatedDesign) -> float:
     if design.integral is None:
         raise InvalidCase("controller", f"no integral gain of ida-under-i's rule keeps "
@@ -411,10 +433,12 @@ class CablePD(UnderactuatedIdaPbc):
 
 @dataclasses.dataclass(frozen=True)
 class UnderactuatedIdaPbcIntegral(UnderactuatedIdaPbc):
-    """``ida-under`` with integral action on the cable lengths, for the robot as built: the
-    law adds k_i z, z the integral of l - l_ref (held while the tension leaves the box), so
-    a mass or anchor error that the springs alone would take up as a sag of
-    (its force) / k is driven out of the lengths. k_i comes from the robot by the rule of
+    """``ida-under`` with integral action on the cable lengths and a command filter, for the
+    robot as built: the law adds k_i z, z the integral of l - l_ref (held while the tension
+    leaves the box), so a mass or anchor error that the springs alone would take up as a
+    sag of (its force) / k is driven out of the lengths; and the command is low-passed at
+    :func:`filter_rate` (the winches' mode is otherwise excited: on tri3 as built 8 of 20
+    pairs left the frame without it, none with it). k_i comes from the robot by the rule of
     :func:`~cdpr_sym.underactuated.linearisation.integral_gain` (the extended
     linearisation's median slowest decay maximised, no mode growing at any rule
     equilibrium). The energy argument of ``ida-under`` holds for each frozen integral, not
@@ -422,3 +446,4 @@ class UnderactuatedIdaPbcIntegral(UnderactuatedIdaPbc):
 
     name: ClassVar[str] = "ida-under-i"
     integral: bool = True
+    filtered: bool = True

@@ -78,12 +78,15 @@ class CableGains:
 
 
 def closed_loop_matrix(manifold: EquilibriumManifold, q: np.ndarray, stiffness: float,
-                       damping: float, integral: float = 0.0) -> np.ndarray:
+                       damping: float, integral: float = 0.0,
+                       filter_rate: float = 0.0) -> np.ndarray:
     """The 2 n x 2 n state matrix of the linearisation at the equilibrium ``q`` (module
     docstring), for cable gains k = ``stiffness`` (N/m) and c = ``damping`` (N s/m); with
     an ``integral`` gain k_i (N/(m s)), the 2 n + m one whose last m states are the
-    integrals z of the length errors (z' = J dq, the law adding k_i z)."""
-    return _LinearParts.at(manifold, q).matrix(stiffness, damping, integral)
+    integrals z of the length errors (z' = J dq, the law adding k_i z); with a
+    ``filter_rate`` a (1/s) too, the 2 n + 2 m one whose last m states are the tensions y
+    the cables carry, y' = a (law - y) (``ida-under-i``'s command filter)."""
+    return _LinearParts.at(manifold, q).matrix(stiffness, damping, integral, filter_rate)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,16 +107,26 @@ class _LinearParts:
         return cls(np.linalg.solve(M, S), np.linalg.solve(M, J.T @ J), np.linalg.solve(M, J.T),
                    J)
 
-    def matrix(self, stiffness: float, damping: float, integral: float = 0.0) -> np.ndarray:
+    def matrix(self, stiffness: float, damping: float, integral: float = 0.0,
+               filter_rate: float = 0.0) -> np.ndarray:
         n = self.stiffness_part.shape[0]
         plain = np.block([[np.zeros((n, n)), np.eye(n)],
                           [-(self.stiffness_part + stiffness * self.cable_part),
                            -damping * self.cable_part]])
         if not integral:
             return plain
-        m = self.jacobian.shape[0]
-        return np.block([[plain, np.vstack([np.zeros((n, m)), -integral * self.pull_part])],
-                         [self.jacobian, np.zeros((m, n)), np.zeros((m, m))]])
+        m, J = self.jacobian.shape[0], self.jacobian
+        if not filter_rate:
+            return np.block([[plain, np.vstack([np.zeros((n, m)), -integral * self.pull_part])],
+                             [J, np.zeros((m, n)), np.zeros((m, m))]])
+        # states (dq, dq', z, y): the cables carry the filtered tension y, which follows
+        # the law's k J dq + c J dq' + k_i z at the filter's rate a
+        a, zeros = filter_rate, np.zeros
+        return np.block([
+            [zeros((n, n)), np.eye(n), zeros((n, m)), zeros((n, m))],
+            [-self.stiffness_part, zeros((n, n)), zeros((n, m)), -self.pull_part],
+            [J, zeros((m, n)), zeros((m, m)), zeros((m, m))],
+            [a * stiffness * J, a * damping * J, a * integral * np.eye(m), -a * np.eye(m)]])
 
 
 def linearisation(manifold: EquilibriumManifold, q: np.ndarray, stiffness: float,
@@ -123,8 +136,8 @@ def linearisation(manifold: EquilibriumManifold, q: np.ndarray, stiffness: float
 
 
 def _gains(parts: _LinearParts, stiffness: float, damping: float,
-           integral: float = 0.0) -> CableGains:
-    eigenvalues = np.linalg.eigvals(parts.matrix(stiffness, damping, integral))
+           integral: float = 0.0, filter_rate: float = 0.0) -> CableGains:
+    eigenvalues = np.linalg.eigvals(parts.matrix(stiffness, damping, integral, filter_rate))
     fastest = float(np.abs(eigenvalues).max())
     return CableGains(stiffness, damping, decay_rate(eigenvalues, fastest), fastest,
                       eigenvalues)
@@ -201,14 +214,16 @@ INTEGRAL_SHARES = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
 
 
 def integral_gain(robot: Robot, equilibria: np.ndarray, stiffness: float, damping: float,
-                  dt: float, manifold: EquilibriumManifold | None = None) -> CableGains:
+                  dt: float, manifold: EquilibriumManifold | None = None,
+                  filter_rate: float = 0.0) -> CableGains:
     """The integral gain k_i (N/(m s)) on the cable lengths' errors for the cable gains
     k, c: of k_i = share x k x (the plain loop's median slowest decay over ``equilibria``),
     share in :data:`INTEGRAL_SHARES`, the one whose extended linearisations (the integral
-    states included) have the largest median slowest decay, among those with no mode
-    growing at any equilibrium and every mode within the bandwidth. Returned as the
-    linearisation at the first equilibrium, its ``damping`` field holding c and the
-    integral gain in ``integral``.
+    states included, and the command filter's at ``filter_rate``, 1/s) have the largest
+    median slowest decay, among those with no mode growing at any equilibrium (the filter
+    included) and every mode of the law within the bandwidth (the filter's own pole left
+    out: it is a sampled filter's). Returned as the linearisation at the first
+    equilibrium, with the integral gain in ``integral``.
 
     Raises
     ------
@@ -222,9 +237,10 @@ def integral_gain(robot: Robot, equilibria: np.ndarray, stiffness: float, dampin
     best, best_score, best_gain = None, -np.inf, 0.0
     for share in INTEGRAL_SHARES:
         gain = share * stiffness * plain
-        found = [_gains(part, stiffness, damping, gain) for part in parts]
-        if max(item.fastest for item in found) * dt > BANDWIDTH_SHARE:
-            continue
+        unfiltered = [_gains(part, stiffness, damping, gain) for part in parts]
+        if max(item.fastest for item in unfiltered) * dt > BANDWIDTH_SHARE:
+            continue  # the law's own modes (the filter's pole is the sampled filter's)
+        found = [_gains(part, stiffness, damping, gain, filter_rate) for part in parts]
         rates = [item.decay_rate for item in found]
         if min(rates) <= 0:  # a growing mode, or an integral no cable moves
             continue
