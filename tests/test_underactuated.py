@@ -341,7 +341,8 @@ def test_j_d_keeps_a_tension_the_law_alone_leaves_outside_the_box():
     assert rescued >= 5
 
 
-@pytest.mark.parametrize("path", [BAR2, TRI3], ids=["bar2", "tri3"])
+@pytest.mark.parametrize("path", [BAR2, pytest.param(TRI3, marks=pytest.mark.slow)],
+                         ids=["bar2", "tri3"])
 def test_the_robots_own_case_settles_in_the_box(path):
     robot = load_robot(path)
     run = simulate(robot, "ida-under", duration=8.0)
