@@ -72,7 +72,8 @@ class FromRobot:
         return _replaced("sensing", scaled_sensing(robot, actuation), self.fields)
 
     def as_dict(self) -> dict[str, Any]:
-        return {"from_robot": True, **dict(self.fields)}
+        return {"from_robot": True, **({"stated": True} if self.stated else {}),
+                **dict(self.fields)}
 
 
 def _replaced(table: str, base: Any, fields: tuple[tuple[str, Any], ...]) -> Any:

@@ -1,4 +1,5 @@
-"""A region of attraction of ``ida-under``'s goal law, estimated and then proven.
+"""A sublevel set of H_d that ``ida-under``'s goal law never leaves (its region-of-attraction
+estimate), estimated and then proven.
 
 After its plan ``ida-under`` applies the fixed law T = T_g + k (l - l_g) + c l' - A l'
 (:mod:`cdpr_sym.control.underactuated`; ``pd-under`` applies it from the first sample).
@@ -14,18 +15,24 @@ function of the cable's own length, D is the set where each length lies in
 
     [l_g,i + (T_min - T_g,i) / k,  l_g,i + (T_max - T_g,i) / k].
 
-**The level.** Let v* = V_d(q_g) + c with c below c* = min over the boundary of D of
-V_d - V_d(q_g). Then every pose inside the frame with V_d(q) <= v* lies in D, off the
-frame's faces, so the component Omega of {(q, p) : H_d <= v*} holding the goal at rest
-lies over D (V_d <= H_d). Omega is positively invariant: H_d never increases, and leaving
-Omega would need a pose on D's boundary or the frame's, where V_d > v* >= H_d. So a motion
-that starts in Omega (at rest: a pose with V_d <= v*) **stays inside the frame, with every
-cable's rest tension in the box, for all time**, and its energy H_d decays while any cable
-moves. What is not claimed: convergence to the goal from all of Omega (LaSalle gives
-convergence to the largest invariant set in {l' = 0}; the goal is asymptotically stable
-only where the linearisation shows it, :mod:`~cdpr_sym.underactuated.linearisation`), and
-tensions in the box *in motion* (the damping c l' adds to the rest tension; J_d's step,
-bounded by c |l'|, moves it back where it can).
+**The level.** Let v* = V_d(q_g) + c. What the proof below establishes is: every pose
+inside the frame with V_d(q) <= v* lies in D, and none lies on the frame's faces. Then the
+set Omega = {(q, p) : q in the frame, H_d(q, p) <= v*} lies over D (V_d <= H_d), and it is
+positively invariant: H_d never increases, and a motion leaving Omega would have to cross
+the frame's faces, where V_d > v* >= H_d. So a motion that starts in Omega (at rest: a pose
+with V_d <= v*) **stays inside the frame, with every cable's rest tension in the box, for
+all time**, and its energy H_d decays while any cable moves. (c below c* = min over D's
+boundary of V_d - V_d(q_g) gives this for the goal's connected component only; the proof
+checks the stronger statement over the whole frame, so a separate low basin outside D
+makes it fail, never pass.) The claim is the continuous-time closed loop's on the ideal
+plant (the energy balance is the commanded tension's); the 1 ms sampled loop is not
+covered (its zero-order hold adds terms of order dt; the tests' runs stay in the set). It
+is the region-of-attraction estimate of energy methods, and it estimates *invariance*: not
+claimed are convergence to the goal from all of Omega (LaSalle gives convergence to the
+largest invariant set in {l' = 0}; the goal is asymptotically stable only where the
+linearisation shows it, :mod:`~cdpr_sym.underactuated.linearisation`), and tensions in the
+box *in motion* (the damping c l' adds to the rest tension; J_d's step, bounded by c |l'|,
+moves it back where it can).
 
 **The estimate** (:func:`estimate_level`): c* found by IPOPT, minimising V_d on each face
 of D (a cable at either end of its interval, a coordinate at either end of the frame)
@@ -67,8 +74,10 @@ STARTS = 8
 PROOF_SHARE = 0.9
 #: Rounds of lowering the level after a counterexample.
 ROUNDS = 4
-#: The proof's default time limit, s, and the most boxes it holds at once.
-TIME_LIMIT, MOST_BOXES = 60.0, 2_000_000
+#: The proof's default time limit, s, and the most boxes it holds at once (the box budget,
+#: not the clock, is meant to end a proof that does not close: its verdict then does not
+#: depend on the machine).
+TIME_LIMIT, MOST_BOXES = 600.0, 2_000_000
 #: Boxes evaluated in one call of the generated interval code.
 CHUNK = 65_536
 
@@ -320,9 +329,12 @@ def _poses_in_region(problem: AttractionProblem, parameters: np.ndarray, low: np
 
 def prove_level(problem: AttractionProblem, estimate: LevelEstimate, level: float, *,
                 time_limit: float = TIME_LIMIT, most_boxes: int = MOST_BOXES) -> LevelProof:
-    """The branch-and-bound of the module docstring at v* = V_d(q_g) + ``level`` (J)."""
+    """The branch-and-bound of the module docstring at v* = V_d(q_g) + ``level`` (J); a
+    level <= 0 (a set without the goal's neighbourhood) is UNDECIDED without a search."""
     robot = problem.manifold.robot
     started = time.perf_counter()
+    if not level > 0:
+        return LevelProof(level, Verdict.UNDECIDED, 0, 1.0, 0.0)
     parameters = estimate.parameters
     v_star = float(problem.evaluate(estimate.goal, parameters)[0][0]) + level
     frame_lo, frame_hi = robot.frame_lower.astype(float), robot.frame_upper.astype(float)
@@ -398,4 +410,6 @@ def region_of_attraction(manifold: EquilibriumManifold, goal: np.ndarray, stiffn
             break
         found = float(problem.evaluate(proof.counterexample, parameters)[0][0]) - at_goal
         level = PROOF_SHARE * min(found, level)
+        if level <= 0:  # a basin below the goal's level outside D: no level to prove
+            break
     return RegionOfAttraction(estimate, tuple(proofs), problem)

@@ -182,7 +182,9 @@ class UnderactuatedIdaPbc:
     """IDA-PBC for m < n cables (module docstring): energy shaped in the cable lengths,
     damping injected along the cables, J_d keeping the tension box.
 
-    Memory: [t, l(q_0) (m), q_ref (n), T_ref (m)].
+    Memory: [t, l(q_0) (m), q_ref (n), T_ref (m)], then with ``integral`` the integrals z
+    (m) and with ``filtered`` the last command (m). The J_d entries logged are those of
+    the box step before the filter.
 
     Parameters
     ----------
@@ -242,13 +244,14 @@ class UnderactuatedIdaPbc:
         return Capabilities(underactuated=True, fully_actuated=False)
 
     def memory_size(self, model: SymbolicModel) -> int:
-        """1 + m + n + m (+ m, the integrals)."""
+        """1 + m + n + m, + m with the integrals, + m with the filter."""
         return (1 + (3 if self.integral else 2) * model.m + model.n
                 + (model.m if self.filtered else 0))
 
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
-        """t = 0, the start's lengths, the start as the reference and its tension."""
+        """t = 0, the start's lengths, the start as the reference and its tension (and the
+        integrals at 0, the filter at that tension)."""
         _check(model.robot)
         integrals = ca.SX.zeros(model.m if self.integral else 0)
         held = _held_tension(model, q0)
@@ -281,10 +284,10 @@ class UnderactuatedIdaPbc:
         finite = ca.mmax(ca.fabs(ca.vertcat(q_ref, t_ref))) < 1e150
         q_ref = ca.if_else(finite, q_ref, q_last)
         t_ref = ca.if_else(finite, t_ref, t_last)
-        if self.feed_forward:
-            t_ref_moving = t_ref + _inertial_tension(model, q_ref, t_ref, l_ref_rate,
-                                                     l_ref_accel)
-            t_ref_moving = ca.if_else(finite, t_ref_moving, t_ref)
+        if self.feed_forward:  # a singular reference (NaN) gets none
+            inertial = _inertial_tension(model, q_ref, t_ref, l_ref_rate, l_ref_accel)
+            usable = ca.logic_and(finite, ca.mmax(ca.fabs(inertial)) < 1e150)
+            t_ref_moving = ca.if_else(usable, t_ref + inertial, t_ref)
         else:
             t_ref_moving = t_ref
         done = s >= 1.0
@@ -301,7 +304,8 @@ class UnderactuatedIdaPbc:
         w, inside = box_step(robot, t0, relative_rate, design.damping if self.box else 0.0)
         tau = t0 + w
         if self.filtered:  # the winches get the law low-passed below their own mode
-            tau = last_command + filter_rate(robot) * dt * (tau - last_command)
+            tau = last_command + (1 - ca.exp(-2 * np.pi * command_corner_hz(robot) * dt)) * (
+                tau - last_command)
         j = _interconnection_entries(model, W, relative_rate, w)
         # flagged: the tension left outside the box, or a reference the path cannot hold
         # (diverged, or needing a tension outside the box)
@@ -393,17 +397,22 @@ def _interconnection_entries(model: SymbolicModel, W: ca.SX, rate: ca.SX, w: ca.
         ca.SX.zeros(0)
 
 
-def filter_rate(robot: Robot) -> float:
-    """``ida-under-i``'s command filter, 1/s: the rate a = (1 - exp(-2 pi f_c dt)) / dt of
-    a first-order low-pass sampled at the 1 ms loop, f_c the command corner of the robot's
+def command_corner_hz(robot: Robot) -> float:
+    """``ida-under-i``'s command filter corner f_c, Hz: the command corner of the robot's
     default winches (:func:`~cdpr_sym.control.tuning.command_corner`: half their
-    drum-cable mode, at most the loop's share): the law's damping otherwise excites the
-    winches' lightly damped mode through the loop's delay."""
+    drum-cable mode, at most the 1 ms loop's share): the law's damping otherwise excites
+    the winches' lightly damped mode through the loop's delay."""
     from cdpr_sym.as_built.hardware import scaled_actuation
     from cdpr_sym.control.tuning import command_corner
 
-    corner = command_corner(robot, scaled_actuation(robot), GAIN_PERIOD)
-    return float((1 - np.exp(-2 * np.pi * corner * GAIN_PERIOD)) / GAIN_PERIOD)
+    return float(command_corner(robot, scaled_actuation(robot), GAIN_PERIOD))
+
+
+def filter_rate(robot: Robot, dt: float = GAIN_PERIOD) -> float:
+    """The command filter as a rate, 1/s: a = (1 - exp(-2 pi f_c dt)) / dt, what the
+    first-order low-pass sampled every ``dt`` s moves per second (the extended
+    linearisation's)."""
+    return float((1 - np.exp(-2 * np.pi * command_corner_hz(robot) * dt)) / dt)
 
 
 def _integral_gain(robot: Robot, design: UnderactuatedDesign) -> float:

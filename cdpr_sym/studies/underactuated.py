@@ -9,8 +9,8 @@ every scale), their files written to ``robots/``. Per robot:
   stability numbers at its case goal: the least eigenvalue of hess V_d (> 0: a strict
   minimum of H_d) and the linearised closed loop's largest real part (< 0: asymptotically
   stable);
-* the case goal's region of attraction, a sublevel set of H_d estimated and proven by
-  interval arithmetic (:mod:`~cdpr_sym.certify.attraction`);
+* the case goal's region-of-attraction estimate, a sublevel set of H_d no motion
+  leaves, proven by interval arithmetic (:mod:`~cdpr_sym.certify.attraction`);
 * each design's run on the robot's own case;
 * sweeps of the pairs (stable equilibria with tensions in the box, drawn on the manifold)
   on the ideal plant: ``ida-under``, ``ida-under-i`` and the baseline ``pd-under`` on every
@@ -91,7 +91,7 @@ def design_numbers(robot: Robot) -> dict[str, Any]:
 
 
 def attraction_numbers(robot: Robot) -> dict[str, Any]:
-    """The case goal's region of attraction (:mod:`~cdpr_sym.certify.attraction`):
+    """The case goal's invariant sublevel set of H_d (:mod:`~cdpr_sym.certify.attraction`):
     the level estimated and proven, the face limiting it, the proof's size and time, and
     whether the case start at rest lies in it."""
     from cdpr_sym.certify.attraction import region_of_attraction

@@ -210,7 +210,7 @@ def swing_period(manifold: EquilibriumManifold, q: np.ndarray) -> float:
 
 
 #: Integral gains the rule tries, as shares of k times the plain loop's median decay rate.
-INTEGRAL_SHARES = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
+INTEGRAL_SHARES = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0)
 
 
 def integral_gain(robot: Robot, equilibria: np.ndarray, stiffness: float, damping: float,
