@@ -385,7 +385,6 @@ def test_a_sweep_draws_its_pairs_on_the_manifold():
 
 
 @pytest.mark.parametrize("argv, words", [
-    (["workspace", "--robot", "bar2"], "robot: bar2 has fewer cables than degrees of freedom"),
     (["certify", "workspace", "--robot", "tri3"], "tri3 has fewer cables than degrees"),
     (["simulate", "--robot", "bar2", "--controller", "ida-under", "--as-built", "ENCODERS"],
      "sensing: bar2 has fewer cables than degrees of freedom"),
@@ -705,3 +704,83 @@ def test_ida_under_i_drives_out_the_sag_a_mass_error_leaves():
         errors[name] = run.metrics()["final_error"]
     assert errors["ida-under"] > 0.02
     assert errors["ida-under-i"] < 0.01
+
+
+def _brute_force_holds(robot, position: np.ndarray) -> bool:
+    """Whether some angle holds bar2 at rest at ``position`` with its tensions in the box,
+    stably, by brute force in numpy: the equilibria at a fixed position of a planar body on
+    two cables are the roots of det [W | grad V] (theta), found on a grid of the frame's
+    angles (1,000 points: none exactly at 0, a symmetric pose's root) and refined
+    by bisection; each is kept when its least-squares
+    tension lies in the box and the Lagrangian's Hessian is positive on the moves that
+    keep both lengths (finite differences)."""
+    def det(theta):
+        q = np.array([*position, theta])
+        grad = _gradient(lambda x: _potential(robot, x), q)
+        return np.linalg.det(np.column_stack([_structure(robot, q), grad]))
+
+    angles = np.linspace(robot.frame_lower[2], robot.frame_upper[2], 1000)
+    values = np.array([det(theta) for theta in angles])
+    for i in np.flatnonzero(np.sign(values[:-1]) * np.sign(values[1:]) < 0):
+        low, high = angles[i], angles[i + 1]
+        for _ in range(50):
+            middle = 0.5 * (low + high)
+            low, high = (middle, high) if np.sign(det(middle)) == np.sign(det(low)) else (
+                low, middle)
+        q = np.array([*position, 0.5 * (low + high)])
+        W = _structure(robot, q)
+        grad = _gradient(lambda x: _potential(robot, x), q)
+        tension = np.linalg.lstsq(W, grad, rcond=None)[0]
+        if tension.min() < robot.t_min or tension.max() > robot.t_max:
+            continue
+        lagrangian = _hessian(lambda x, t=tension: _potential(robot, x) + t @ _lengths(robot, x),
+                              q)
+        keep = np.linalg.svd(W.T)[2][robot.m:].T  # moves that keep both lengths
+        if np.linalg.eigvalsh(keep.T @ (0.5 * (lagrangian + lagrangian.T)) @ keep).min() > 0:
+            return True
+    return False
+
+
+@pytest.mark.slow
+def test_the_positions_holding_a_stable_equilibrium_agree_with_a_brute_force_search():
+    """bar2 on a 6 x 6 grid of positions over its frame: the position map (Newton from three
+    angles) holds exactly the positions a brute-force scan of the angle finds an admissible
+    equilibrium at, and some of each kind."""
+    from cdpr_sym.underactuated.positions import position_map
+
+    robot = load_robot(BAR2)
+    axes = [np.linspace(lo + 0.01, hi - 0.01, 6)
+            for lo, hi in zip(robot.frame_lower[:2], robot.frame_upper[:2], strict=True)]
+    positions = np.array(np.meshgrid(*axes, indexing="ij")).reshape(2, -1).T
+    found = position_map(EquilibriumManifold(robot), positions)
+    expected = np.array([_brute_force_holds(robot, p) for p in positions])
+    assert expected.any() and not expected.all()
+    np.testing.assert_array_equal(found.held, expected)
+    # the same bar with its centre of mass above its attachments: its equilibria hold the
+    # weight, unstably; brute force and the map hold the same (fewer) positions
+    inverted = robot.with_case(center_of_mass=[0.0, 0.6], start=[0.0, 1.0, 0.0],
+                               goal=[0.0, 1.2, 0.0])
+    upside = position_map(EquilibriumManifold(inverted), positions)
+    np.testing.assert_array_equal(
+        upside.held, np.array([_brute_force_holds(inverted, p) for p in positions]))
+    assert upside.held.sum() < found.held.sum()
+    for q in found.poses[found.held]:
+        np.testing.assert_allclose(
+            _structure(robot, q) @ np.linalg.lstsq(_structure(robot, q), _gradient(
+                lambda x: _potential(robot, x), q), rcond=None)[0],
+            _gradient(lambda x: _potential(robot, x), q), atol=1e-6)
+
+
+def test_the_workspace_of_an_underactuated_robot_is_its_positions_at_rest(tmp_path, capsys):
+    """`cdpr-sym workspace` on bar2 maps the positions holding a stable equilibrium (a PNG
+    and a report); a point on two cables in space is refused in one line."""
+    from cdpr_sym.cli import main
+
+    assert main(["workspace", "--robot", "bar2", "--resolution", "12", "--out",
+                 str(tmp_path / "w")]) == 0
+    assert (tmp_path / "w" / "workspace_equilibria.png").read_bytes()[:4] == b"\x89PNG"
+    assert "stable equilibrium" in (tmp_path / "w" / "workspace.md").read_text()
+    capsys.readouterr()
+    assert main(["workspace", "--robot", str(SWING2), "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "robot: swing2 has 2 cables for 3 position" in err

@@ -234,12 +234,21 @@ def check_workspace_args(args: argparse.Namespace) -> tuple[Robot, np.ndarray | 
 
     robot = with_wrench_box(checked_robot(args.robot), args.force, args.moment)
     if robot.underactuated:
-        raise InvalidCase("robot", f"{robot.name} has fewer cables than degrees of freedom "
-                          f"(m = {robot.m} < n = {robot.n}): it rests only on its equilibrium "
-                          "manifold, which a grid over the frame misses; `cdpr-sym view "
-                          f"--robot {args.robot} --workspace` draws a sample of its stable "
-                          "equilibria")
-    orientation = check_grid(robot, args.resolution, args.orientation)
+        from cdpr_sym.studies.workspace import equilibrium_resolution
+        from cdpr_sym.underactuated.positions import check_position_map
+
+        check_position_map(robot)
+        for field in ("orientation", "force", "moment"):
+            if getattr(args, field, None) is not None:
+                raise InvalidCase(field, f"{robot.name} has fewer cables than degrees of "
+                                  "freedom: its orientation at a position is where it rests, "
+                                  "and no wrench box is mapped for it; leave it out")
+        args.resolution = equilibrium_resolution(robot, args.resolution)
+        check_grid(robot, args.resolution, None)
+    else:
+        args.resolution = 61 if args.resolution is None else args.resolution
+    orientation = None if robot.underactuated else check_grid(robot, args.resolution,
+                                                              args.orientation)
     check_folder("out", args.out)
     return robot, orientation
 
@@ -248,6 +257,18 @@ def workspace_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.studies.workspace import run_workspace_study
 
     robot, orientation = check_workspace_args(args)
+    if robot.underactuated:
+        from cdpr_sym.studies.workspace import run_equilibrium_workspace
+
+        summary = run_equilibrium_workspace(robot, args.out, resolution=args.resolution)
+        lines = [f"{summary['points']} positions in {summary['seconds']:.3f} s; holding a "
+                 f"stable equilibrium with tensions in the box: "
+                 f"{100 * summary['held_share']:.1f} %"]
+        for row in summary["by_height"][:: max(1, len(summary["by_height"]) // 10)]:
+            lines.append(f"  z = {row['height_m']:6.3f} m  held {100 * row['held_share']:5.1f} %")
+        lines.append(f"report: {args.out / 'workspace.md'}")
+        out.result(summary, lines)
+        return 0
     summary = run_workspace_study(robot, args.out, resolution=args.resolution,
                                   orientation=orientation)
     lines = [f"{summary['points']} poses in {summary['seconds']:.3f} s "

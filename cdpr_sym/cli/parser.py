@@ -136,9 +136,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     workspace = command("workspace", "map the static and wrench-feasible workspaces")
     workspace.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
-    workspace.add_argument("--resolution", type=int, default=61,
+    workspace.add_argument("--resolution", type=int,
                            help=f"grid points per axis (>= 2; at most {MAX_GRID_POSES:,} "
-                           "poses in all)")
+                           "poses in all; default 61, for fewer cables than coordinates "
+                           "64 positions per axis in a plane and 16 in space)")
     workspace.add_argument("--orientation", nargs="+", type=float, metavar="RAD",
                            help="angles held fixed for a rigid body (default: the goal's)")
     add_wrench_options(workspace)

@@ -246,3 +246,94 @@ def _markdown(summary: dict[str, Any], figures: list[str], robot: Robot) -> str:
               f"{100 * row['closure_share']:.1f} % |" for row in summary["by_height"]]
     lines += ["", *[f"![{name}]({name})\n" for name in figures]]
     return "\n".join(lines)
+
+
+#: Positions a grid of an underactuated robot holds at most by default (each a Newton
+#: solve from several orientations): the per-axis resolution is floor(this^(1/d)).
+EQUILIBRIUM_POSITIONS = 4096
+
+
+def equilibrium_resolution(robot: Robot, resolution: int | None) -> int:
+    """Grid points per axis for an underactuated robot's position map: ``resolution`` when
+    given, else floor(:data:`EQUILIBRIUM_POSITIONS` ** (1/d)) (64 planar, 16 spatial)."""
+    if resolution is not None:
+        return resolution
+    return int(np.floor(EQUILIBRIUM_POSITIONS ** (1 / robot.dimension) + 1e-9))
+
+
+def run_equilibrium_workspace(robot: Robot, out_dir: Path, *, resolution: int
+                              ) -> dict[str, Any]:
+    """The static workspace of stable equilibria of an underactuated robot
+    (:mod:`cdpr_sym.underactuated.positions`) on a grid of ``resolution`` positions per
+    axis: ``workspace.md``, ``workspace.json`` and a figure."""
+    from cdpr_sym.underactuated import EquilibriumManifold
+    from cdpr_sym.underactuated.positions import check_position_map, position_map
+
+    check_position_map(robot)
+    d = robot.dimension
+    axes = [np.linspace(lo, hi, resolution)
+            for lo, hi in zip(robot.frame_lower[:d], robot.frame_upper[:d], strict=True)]
+    positions = np.array(np.meshgrid(*axes, indexing="ij")).reshape(d, -1).T
+    out_dir.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    found = position_map(EquilibriumManifold(robot), positions)
+    seconds = time.perf_counter() - start
+    held = found.held.reshape(tuple(len(a) for a in axes))
+    margins = found.margins.reshape(held.shape)
+    other = tuple(range(d - 1))
+    summary = {"robot": robot.name, "underactuated": True, "points": len(positions),
+               "seconds": seconds, "held_share": float(held.mean()),
+               "least_margin_n": float(np.nanmin(margins)) if held.any() else None,
+               "by_height": [{"height_m": float(h), "held_share": float(share)}
+                             for h, share in zip(axes[-1], held.mean(axis=other),
+                                                 strict=True)]}
+    write_json(out_dir / "workspace.json", {k: v for k, v in summary.items()
+                                            if k != "seconds"})
+    figure = _equilibrium_figure(robot, axes, margins, out_dir)
+    (out_dir / "workspace.md").write_text(_equilibrium_markdown(summary, figure))
+    return summary
+
+
+def _equilibrium_figure(robot: Robot, axes: list[np.ndarray], margins: np.ndarray,
+                        out_dir: Path) -> str:
+    """Positions holding a stable equilibrium, coloured by its least tension margin (N):
+    the x-z plane, or x-y slices at four heights."""
+    name = "workspace_equilibria.png"
+    if robot.dimension == 2:
+        panels = [(axes[0], axes[1], margins, "x [m]", "z [m]", "positions at rest")]
+    else:
+        levels = np.linspace(0, len(axes[2]) - 1, 6).round().astype(int)[1:-1]
+        panels = [(axes[0], axes[1], margins[:, :, level], "x [m]", "y [m]",
+                   f"z = {axes[2][level]:.2f} m") for level in levels]
+    fig = Figure(figsize=(3.8 * len(panels) + 1.0, 4.2))
+    grid = fig.subplots(1, len(panels), squeeze=False)
+    top = float(np.nanmax(margins)) if np.isfinite(margins).any() else 1.0
+    for ax, (first, second, values, xlabel, ylabel, title) in zip(grid[0], panels,
+                                                                   strict=True):
+        image = ax.pcolormesh(first, second, values.T, cmap="viridis", vmin=0, vmax=top,
+                              shading="nearest")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.set_title(title, fontsize=9)
+        ax.set_aspect("equal")
+    fig.colorbar(image, ax=grid[0].tolist(), label="least tension margin [N]")
+    fig.suptitle("positions holding a stable equilibrium with tensions in the box "
+                 "(white: none found)", fontsize=8)
+    fig.savefig(out_dir / name, dpi=110)
+    return name
+
+
+def _equilibrium_markdown(summary: dict[str, Any], figure: str) -> str:
+    lines = [f"# Static workspace of stable equilibria of `{summary['robot']}`", "",
+             f"{summary['robot']} has fewer cables than coordinates: it rests only where its "
+             "weight lies in the span of its cables. Of the grid's "
+             f"{summary['points']} positions, {100 * summary['held_share']:.1f} % hold a "
+             "stable equilibrium with every tension in the box (Newton's method on "
+             "W(p, theta) T = grad V from several orientations per position, each solution "
+             "classified: stable, tensions in the box, inside the frame; a position without "
+             "one is 'none found', see docs/guide/underactuated.md).", "",
+             "| height [m] | holding a stable equilibrium |", "|---|---|"]
+    lines += [f"| {row['height_m']:.3f} | {100 * row['held_share']:.1f} % |"
+              for row in summary["by_height"]]
+    lines += ["", f"![{figure}]({figure})", ""]
+    return "\n".join(lines)
