@@ -80,4 +80,4 @@ def test_an_unknown_controller_lists_every_registered_name():
     assert str(raised.value) == ("unknown controller 'nope'; expected one of pd, pd-sat, l2, "
                                  "l2-minnorm, linf, box, smooth, ida-ref, ida-ref-obs, "
                                  "smooth-lp, pd-td, ida-winch, nmpc, nmpc-sqp, nmpc-ipopt, "
-                                 "nmpc-of, ida-under, pd-under")
+                                 "nmpc-of, ida-under, ida-under-i, pd-under")

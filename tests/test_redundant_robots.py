@@ -68,7 +68,7 @@ def test_the_designs_for_redundant_robots_are_pd_td_smooth_ida_winch_nmpc_and_th
     assert set(CONTROLLERS) - set(SQUARE_ONLY) == {"pd-td", "smooth", "smooth-lp", "l2",
                                                    "ida-winch", "nmpc", "nmpc-sqp",
                                                    "nmpc-ipopt", "nmpc-of", "ida-under",
-                                                   "pd-under"}
+                                                   "ida-under-i", "pd-under"}
 
 
 @pytest.mark.parametrize("name", SQUARE_ONLY)

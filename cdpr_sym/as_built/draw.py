@@ -58,8 +58,9 @@ class FromRobot:
     :class:`Sensing`."""
 
     fields: tuple[tuple[str, Any], ...] = ()
-    #: Written in a file (a table, however few its fields), not the default's.
-    stated: bool = False
+    #: Written in a file (a table, however few its fields), not the default's; equal
+    #: hardware compares equal whichever way it was given.
+    stated: bool = dataclasses.field(default=False, compare=False)
 
     def actuation(self, robot: Robot) -> Actuation:
         from cdpr_sym.as_built.hardware import scaled_actuation

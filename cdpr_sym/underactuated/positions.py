@@ -30,6 +30,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot import Robot
 from cdpr_sym.underactuated.equilibrium import RESIDUAL, EquilibriumManifold
 
 #: Starting orientations per rotational coordinate (spread over the frame's range).
@@ -61,7 +62,7 @@ class PositionMap:
     margins: np.ndarray
 
 
-def check_position_map(robot) -> None:
+def check_position_map(robot: Robot) -> None:
     """Refuse, naming ``robot``, a robot whose equilibria a grid of positions misses:
     fewer cables than position coordinates."""
     if robot.m < robot.dimension:
@@ -72,7 +73,7 @@ def check_position_map(robot) -> None:
                           "stable equilibria")
 
 
-def orientation_starts(robot) -> np.ndarray:
+def orientation_starts(robot: Robot) -> np.ndarray:
     """The starting orientations: :data:`STARTS_PER_ANGLE` per rotational coordinate over
     the frame's range (its interior), every combination, shape (s, n - d)."""
     d = robot.dimension
