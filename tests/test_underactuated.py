@@ -731,6 +731,8 @@ def _brute_force_holds(robot, position: np.ndarray) -> bool:
         W = _structure(robot, q)
         grad = _gradient(lambda x: _potential(robot, x), q)
         tension = np.linalg.lstsq(W, grad, rcond=None)[0]
+        if np.linalg.norm(W @ tension - grad) > 1e-6 * np.linalg.norm(grad):
+            continue  # a root of the determinant where W is singular holds nothing
         if tension.min() < robot.t_min or tension.max() > robot.t_max:
             continue
         lagrangian = _hessian(lambda x, t=tension: _potential(robot, x) + t @ _lengths(robot, x),
@@ -784,3 +786,11 @@ def test_the_workspace_of_an_underactuated_robot_is_its_positions_at_rest(tmp_pa
     assert main(["workspace", "--robot", str(SWING2), "--out", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "robot: swing2 has 2 cables for 3 position" in err
+    assert f"--robot {SWING2} --workspace" in err  # the hint names the robot as given
+    four = Path(__file__).parent / "data" / "underactuated" / "tri4.toml"
+    assert main(["workspace", "--robot", str(four), "--out", str(tmp_path / "f")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "4 cables for 3 position coordinates" in err
+    assert main(["workspace", "--robot", "tri3", "--resolution", "50", "--out",
+                 str(tmp_path / "t")]) == 2
+    assert "resolution: 50 per axis is 125,000 positions" in capsys.readouterr().err

@@ -234,10 +234,10 @@ def check_workspace_args(args: argparse.Namespace) -> tuple[Robot, np.ndarray | 
 
     robot = with_wrench_box(checked_robot(args.robot), args.force, args.moment)
     if robot.underactuated:
-        from cdpr_sym.studies.workspace import equilibrium_resolution
+        from cdpr_sym.studies.workspace import MOST_EQUILIBRIUM_POSITIONS, equilibrium_resolution
         from cdpr_sym.underactuated.positions import check_position_map
 
-        check_position_map(robot)
+        check_position_map(robot, args.robot)
         for field in ("orientation", "force", "moment"):
             if getattr(args, field, None) is not None:
                 raise InvalidCase(field, f"{robot.name} has fewer cables than degrees of "
@@ -245,6 +245,11 @@ def check_workspace_args(args: argparse.Namespace) -> tuple[Robot, np.ndarray | 
                                   "and no wrench box is mapped for it; leave it out")
         args.resolution = equilibrium_resolution(robot, args.resolution)
         check_grid(robot, args.resolution, None)
+        if args.resolution ** robot.dimension > MOST_EQUILIBRIUM_POSITIONS:
+            raise InvalidCase("resolution", f"{args.resolution} per axis is "
+                              f"{args.resolution ** robot.dimension:,} positions, each a Newton "
+                              f"solve; at most {MOST_EQUILIBRIUM_POSITIONS:,} for fewer cables "
+                              "than degrees of freedom")
     else:
         args.resolution = 61 if args.resolution is None else args.resolution
     orientation = None if robot.underactuated else check_grid(robot, args.resolution,

@@ -281,12 +281,12 @@ class UnderactuatedIdaPbc:
         for _ in range(NEWTON_STEPS):
             q_ref, t_ref = _newton_step(model, q_ref, t_ref, l_ref)
         # a step that diverges (a singular or far reference) keeps the last reference
-        finite = ca.mmax(ca.fabs(ca.vertcat(q_ref, t_ref))) < 1e150
+        finite = _finite(ca.vertcat(q_ref, t_ref))
         q_ref = ca.if_else(finite, q_ref, q_last)
         t_ref = ca.if_else(finite, t_ref, t_last)
         if self.feed_forward:  # a singular reference (NaN) gets none
             inertial = _inertial_tension(model, q_ref, t_ref, l_ref_rate, l_ref_accel)
-            usable = ca.logic_and(finite, ca.mmax(ca.fabs(inertial)) < 1e150)
+            usable = ca.logic_and(finite, _finite(inertial))
             t_ref_moving = ca.if_else(usable, t_ref + inertial, t_ref)
         else:
             t_ref_moving = t_ref
@@ -355,6 +355,12 @@ def _newton_step(model: SymbolicModel, q: ca.SX, tension: ca.SX, lengths: ca.SX
                          [x - ca.solve(ca.jacobian(residual, x), residual)])
     nxt = newton(ca.vertcat(q, tension), lengths)
     return nxt[:n], nxt[n:]
+
+
+def _finite(values: ca.SX) -> ca.SX:
+    """1 where every entry is finite and below 1e150 in size (a sum: NaN propagates through
+    it, where mmax would skip it), else 0."""
+    return ca.sum1(ca.fabs(values)) < 1e150
 
 
 def _inertial_tension(model: SymbolicModel, q: ca.SX, tension: ca.SX, l_rate: ca.SX,

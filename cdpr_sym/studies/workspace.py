@@ -251,6 +251,9 @@ def _markdown(summary: dict[str, Any], figures: list[str], robot: Robot) -> str:
 #: Positions a grid of an underactuated robot holds at most by default (each a Newton
 #: solve from several orientations): the per-axis resolution is floor(this^(1/d)).
 EQUILIBRIUM_POSITIONS = 4096
+#: Positions such a grid holds at most (a Newton solve each: 0.5 ms in a plane, 6 ms in
+#: space; 65,536 take about half a minute and six and a half minutes).
+MOST_EQUILIBRIUM_POSITIONS = 65_536
 
 
 def equilibrium_resolution(robot: Robot, resolution: int | None) -> int:

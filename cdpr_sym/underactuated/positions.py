@@ -18,7 +18,9 @@ found", not "none exists" (the tests compare with a brute-force search on bar2).
 
 A robot with fewer cables than position coordinates (a point on two cables in space) rests
 only on a set of lower dimension than the positions (the vertical plane of its two
-anchors): a grid of positions misses it, and :func:`check_position_map` refuses it.
+anchors): a grid of positions misses it. One with more (a 6-DOF platform on four or five
+cables) holds a family of equilibria at each position. :func:`check_position_map` refuses
+both.
 """
 
 from __future__ import annotations
@@ -62,15 +64,22 @@ class PositionMap:
     margins: np.ndarray
 
 
-def check_position_map(robot: Robot) -> None:
-    """Refuse, naming ``robot``, a robot whose equilibria a grid of positions misses:
-    fewer cables than position coordinates."""
-    if robot.m < robot.dimension:
+def check_position_map(robot: Robot, source: str | None = None) -> None:
+    """Refuse, naming ``robot``, a robot this map does not cover: one whose cables are not
+    as many as its position coordinates. With fewer (a point on two cables in space) it
+    rests only on a lower-dimensional set of positions, which a grid misses; with more (a
+    6-DOF platform on four or five cables) each position holds a family of equilibria, not
+    the square system solved here. ``source`` is how the user named the robot (for the
+    hint)."""
+    if robot.m != robot.dimension:
+        why = ("it rests only on a lower-dimensional set of positions (its anchors' plane), "
+               "which a grid misses" if robot.m < robot.dimension else
+               "each position holds a family of equilibria, which this map does not solve "
+               "for")
         raise InvalidCase("robot", f"{robot.name} has {robot.m} cables for {robot.dimension} "
-                          "position coordinates: it rests only on a lower-dimensional set "
-                          "of positions (its anchors' plane), which a grid misses; `cdpr-sym "
-                          f"view --robot {robot.name} --workspace` draws a sample of its "
-                          "stable equilibria")
+                          f"position coordinates: {why}; `cdpr-sym view --robot "
+                          f"{source or robot.name} --workspace` draws a sample of its stable "
+                          "equilibria")
 
 
 def orientation_starts(robot: Robot) -> np.ndarray:
