@@ -386,6 +386,8 @@ def test_a_sweep_draws_its_pairs_on_the_manifold():
 
 @pytest.mark.parametrize("argv, words", [
     (["certify", "workspace", "--robot", "tri3"], "tri3 has fewer cables than degrees"),
+    (["certify", "workspace", "--robot", "bar2", "--region", "0", "0.5", "0.3", "1"],
+     "region: bar2 has fewer cables than degrees of freedom"),
     (["simulate", "--robot", "bar2", "--controller", "ida-under", "--as-built", "ENCODERS"],
      "sensing: bar2 has fewer cables than degrees of freedom"),
     (["simulate", "--robot", "bar2", "--controller", "smooth"],
@@ -794,3 +796,28 @@ def test_the_workspace_of_an_underactuated_robot_is_its_positions_at_rest(tmp_pa
     assert main(["workspace", "--robot", "tri3", "--resolution", "50", "--out",
                  str(tmp_path / "t")]) == 2
     assert "resolution: 50 per axis is 125,000 positions" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_the_certified_positions_at_rest_agree_with_a_brute_force_search():
+    """`certify workspace` of bar2 (boxes down to 0.1 m): 12 positions drawn in its proven
+    boxes each hold an admissible equilibrium by the numpy brute force, 12 drawn in its
+    disproven boxes none; the bar upside down (every equilibrium unstable) gets no proven
+    box, where a proof that skipped stability would prove most of the frame."""
+    from cdpr_sym.certify.equilibria import certify_equilibria
+    from cdpr_sym.certify.verdict import Verdict
+
+    robot = load_robot(BAR2)
+    certificate = certify_equilibria(robot, min_width=0.1, time_limit=120.0)
+    rng = np.random.default_rng(5)
+    for verdict, expected in ((Verdict.PROVEN, True), (Verdict.DISPROVEN, False)):
+        boxes = np.flatnonzero(certificate.verdicts == verdict)
+        assert len(boxes) > 0
+        for index in rng.choice(boxes, 12):
+            position = rng.uniform(certificate.lower[index], certificate.upper[index])
+            assert _brute_force_holds(robot, position) is expected
+    inverted = robot.with_case(center_of_mass=[0.0, 0.6], start=[0.0, 1.0, 0.0],
+                               goal=[0.0, 1.2, 0.0])
+    upside = certify_equilibria(inverted, min_width=0.1, time_limit=120.0)
+    assert upside.share(Verdict.PROVEN) == 0.0
+    assert upside.share(Verdict.DISPROVEN) > 0.5

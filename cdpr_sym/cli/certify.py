@@ -128,6 +128,8 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     from cdpr_sym.certify.workspace import certify_workspace
     from cdpr_sym.cli.robots import with_wrench_box
 
+    if robot.underactuated:
+        return _equilibria(args, robot, out)
     robot = with_wrench_box(robot, args.force, args.moment)
     half_widths = robot.wrench_half_widths if np.any(robot.wrench_half_widths) else None
 
@@ -165,6 +167,52 @@ def _workspace(args: argparse.Namespace, robot, out: Output) -> int:
     if check is not None:
         wrong = check["disagreements_feasible"] + check["disagreements_infeasible"]
         lines.append(f"sampled check: {check['samples']:,} poses, {wrong} disagreements")
+    lines.append(f"written: {args.out}")
+    out.result(content, lines)
+    return 0
+
+
+def _equilibria(args: argparse.Namespace, robot, out: Output) -> int:
+    """``certify workspace`` of a planar body on two cables: its static workspace of stable
+    equilibria (:mod:`cdpr_sym.certify.equilibria`); other options refused first."""
+    from cdpr_sym.certify.equilibria import (
+        MIN_WIDTH,
+        certify_equilibria,
+        check_certifiable,
+        sampled_check,
+        write_certificate,
+    )
+
+    check_certifiable(robot)
+    for field, given in (("orientation", args.orientation is not None
+                          or args.orientation_step is not None),
+                         ("force", args.force is not None or args.moment is not None),
+                         ("property", args.property != _default_property()),
+                         ("anchor_tolerance", bool(args.anchor_tolerance)),
+                         ("region", args.region is not None), ("until", args.until is not None)):
+        if given:
+            raise InvalidCase(field, f"{robot.name} has fewer cables than degrees of freedom: "
+                              "its certificate is of its positions at rest over the frame; "
+                              "leave this option out")
+    samples = 2000 if args.samples is None else args.samples
+    if isinstance(samples, bool) or not 0 <= samples <= MAX_SAMPLES:
+        raise InvalidCase("samples", f"expected 0 to {MAX_SAMPLES:,} positions, got {samples}")
+    min_width = MIN_WIDTH if args.min_width is None else args.min_width
+    if not (isinstance(min_width, float | int) and 0 < min_width < np.inf):
+        raise InvalidCase("min_width", f"expected a positive width in m, got {min_width}")
+    certificate = certify_equilibria(robot, min_width=min_width, time_limit=args.time_limit)
+    check = (sampled_check(certificate, samples, np.random.default_rng(args.seed))
+             if samples else None)
+    content = write_certificate(certificate, args.out, check)
+    lines = [f"{robot.name}: positions holding a stable equilibrium with tensions in the box: "
+             f"{100 * content['proven_share']:.2f} % proven, "
+             f"{100 * content['disproven_share']:.2f} % proven not to, "
+             f"{100 * content['undecided_share']:.2f} % undecided, in "
+             f"{content['seconds']:.1f} s, {content['boxes']:,} boxes"
+             f"{_stopped(certificate.stopped, args)}"]
+    if check is not None:
+        wrong = check["disagreements_proven"] + check["disagreements_disproven"]
+        lines.append(f"sampled check: {check['samples']:,} positions, {wrong} disagreements")
     lines.append(f"written: {args.out}")
     out.result(content, lines)
     return 0
