@@ -35,6 +35,8 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
+from pathlib import Path
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -255,15 +257,13 @@ def sampled_check(certificate: EquilibriumCertificate, samples: int,
             "disagreements_disproven": int(np.sum((verdict == Verdict.DISPROVEN) & held))}
 
 
-def write_certificate(certificate: EquilibriumCertificate, out, check: dict | None
-                      ) -> dict:
+def write_certificate(certificate: EquilibriumCertificate, out: Path,
+                      check: dict[str, int] | None) -> dict[str, Any]:
     """boxes.csv, certificate.json and workspace.png in ``out``; returns the summary."""
     import json
-    from pathlib import Path
 
     from matplotlib.figure import Figure
 
-    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     words = {int(v): v.word for v in Verdict}
     with open(out / "boxes.csv", "w", encoding="utf-8") as table:
