@@ -46,7 +46,8 @@ class StaticFeasibility:
         if robot.underactuated:
             return (f"{robot.name} has fewer cables than degrees of freedom (m = {robot.m} < "
                     f"n = {robot.n}): it rests only on its equilibrium manifold, which has no "
-                    "volume in the frame to prove; no proof method covers it")
+                    "volume in the frame to prove; its positions at rest are proven by "
+                    "cdpr_sym.certify.equilibria (a planar body on two cables)")
         return f"no proof method covers {robot.name} (m = {robot.m}, n = {robot.n})"
 
     def holds(self, robot: Robot, poses: np.ndarray, half_widths: np.ndarray) -> np.ndarray:
