@@ -123,17 +123,25 @@ class EquilibriumTerms:
         #: (x, z, theta) -> (g, T_1, T_2, s).
         self.values = ca.Function("equilibrium_terms", [q], [ca.vertcat(
             balance, tension, move.T @ stiffness @ move)])
+        #: (x, z, theta) -> g alone (what the pieces' edges need).
+        self.balance = ca.Function("equilibrium_balance", [q], [balance])
 
     @functools.cached_property
     def enclosures(self) -> CompiledIntervalFunction:
         return CompiledIntervalFunction(self.values, centred=True)
 
-    def enclose(self, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The terms' enclosures over boxes (k, 3) of (x, z, theta): (lo, hi), (4, k)."""
+    @functools.cached_property
+    def balance_enclosures(self) -> CompiledIntervalFunction:
+        return CompiledIntervalFunction(self.balance, centred=True)
+
+    def enclose(self, lower: np.ndarray, upper: np.ndarray, *, balance_only: bool = False
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """The terms' enclosures over boxes (k, 3) of (x, z, theta): (lo, hi), (4, k), or
+        g's alone, (1, k)."""
+        function = self.balance_enclosures if balance_only else self.enclosures
         lows, highs = [], []
         for first in range(0, len(lower), CHUNK):
-            (lo, hi), = self.enclosures((lower[first:first + CHUNK].T,
-                                          upper[first:first + CHUNK].T))
+            (lo, hi), = function((lower[first:first + CHUNK].T, upper[first:first + CHUNK].T))
             lows.append(lo)
             highs.append(hi)
         return np.hstack(lows), np.hstack(highs)
@@ -149,17 +157,18 @@ def verdicts(terms: EquilibriumTerms, lower: np.ndarray, upper: np.ndarray) -> n
     low = np.column_stack([lower[box], edges[pieces]])
     high = np.column_stack([upper[box], edges[pieces + 1]])
     lo, hi = terms.enclose(low, high)
-    # g at each piece's ends, over the positions
-    at = np.column_stack([lower[box], edges[pieces]]), np.column_stack([upper[box],
-                                                                         edges[pieces]])
-    end_lo, end_hi = terms.enclose(*at)
-    nxt = np.column_stack([lower[box], edges[pieces + 1]]), np.column_stack(
-        [upper[box], edges[pieces + 1]])
-    next_lo, next_hi = terms.enclose(*nxt)
+    # g at every edge of the pieces, over the positions (each edge once)
+    on_edge = np.repeat(np.arange(k), ANGLE_PIECES + 1)
+    angle = np.tile(edges, k)
+    edge_lo, edge_hi = terms.enclose(np.column_stack([lower[on_edge], angle]),
+                                     np.column_stack([upper[on_edge], angle]),
+                                     balance_only=True)
+    edge_lo, edge_hi = (values.reshape(k, ANGLE_PIECES + 1) for values in (edge_lo[0],
+                                                                             edge_hi[0]))
     in_box = (np.all(lo[1:3] >= robot.t_min, axis=0) & np.all(hi[1:3] <= robot.t_max, axis=0))
     good = (in_box & (lo[3] > 0)).reshape(k, ANGLE_PIECES)
-    left = _sign(end_lo[0], end_hi[0]).reshape(k, ANGLE_PIECES)
-    right = _sign(next_lo[0], next_hi[0]).reshape(k, ANGLE_PIECES)
+    edge_sign = _sign(edge_lo, edge_hi)
+    left, right = edge_sign[:, :-1], edge_sign[:, 1:]
     proven = _crossing_in_a_good_run(good, left, right)
     no_root = (lo[0] > 0) | (hi[0] < 0)
     out_of_box = np.any((hi[1:3] < robot.t_min) | (lo[1:3] > robot.t_max), axis=0)
