@@ -25,6 +25,16 @@ PIVOT_FLOOR = 1e-30
 PIVOT_FLOOR_ABSOLUTE = 1e-300
 
 
+def pseudo_inverse_times(W: ca.SX, force: ca.SX) -> ca.SX:
+    """W^+ ``force``: W^T (W W^T)^-1 f (the least-norm tension, m >= n, W of full row rank),
+    or with fewer cables than coordinates (W of full column rank) (W^T W)^-1 W^T f, the
+    tension whose force is nearest f (N)."""
+    n, m = W.shape
+    if m < n:
+        return ca.solve(ca.densify(W.T @ W), W.T @ force)
+    return W.T @ ca.solve(W @ W.T, force)
+
+
 def ldl_factors(G: ca.SX) -> tuple[list[list[ca.SX]], list[ca.SX], ca.SX]:
     """The factors of G = L D L^T for a symmetric positive semi-definite G (n x n).
 

@@ -6,6 +6,7 @@ import casadi as ca
 
 from cdpr_sym.as_built.geometry import true_geometry_function
 from cdpr_sym.distribution import AUTO, distribute
+from cdpr_sym.linalg import pseudo_inverse_times
 from cdpr_sym.model import SymbolicModel
 
 
@@ -23,7 +24,7 @@ def true_static_function(model: SymbolicModel) -> ca.Function:
     if model.m > model.n:
         tension, held = distribute(AUTO, W, weight, robot.t_min, robot.t_max)
     elif model.m < model.n:  # the least-squares tension: the model's start is held so
-        tension = ca.solve(ca.densify(W.T @ W), W.T @ weight)
+        tension = pseudo_inverse_times(W, weight)
         held = ca.if_else(ca.logic_and(ca.mmin(tension) >= robot.t_min,
                                        ca.mmax(tension) <= robot.t_max), 1.0, 0.0)
     else:

@@ -87,6 +87,7 @@ from cdpr_sym.checks import positive_number
 from cdpr_sym.control.flags import FLAG_INFEASIBLE
 from cdpr_sym.control.interface import Capabilities, ControlLaw
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.linalg import pseudo_inverse_times
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot, robot_key
 
@@ -254,7 +255,7 @@ class UnderactuatedIdaPbc:
         integrals at 0, the filter at that tension)."""
         _check(model.robot)
         integrals = ca.SX.zeros(model.m if self.integral else 0)
-        held = _held_tension(model, q0)
+        held = model.static_tension(q0)
         return ca.vertcat(0.0, model.cable_lengths(q0), q0, held, integrals,
                           held if self.filtered else ca.SX.zeros(0))
 
@@ -292,7 +293,7 @@ class UnderactuatedIdaPbc:
             t_ref_moving = t_ref
         done = s >= 1.0
         q_ref = ca.if_else(done, q_goal, q_ref)
-        t_ref = ca.if_else(done, _held_tension(model, q_goal), t_ref)
+        t_ref = ca.if_else(done, model.static_tension(q_goal), t_ref)
         t_ref_moving = ca.if_else(done, t_ref, t_ref_moving)
         W = model.structure_matrix(q)
         l_rate = -W.T @ dq
@@ -383,14 +384,8 @@ def _inertial_tension(model: SymbolicModel, q: ca.SX, tension: ca.SX, l_rate: ca
              + model.coriolis_force(qx, velocity[:n]))
     W = model.structure_matrix(qx)
     inertial = ca.Function("inertial_tension", [x, rate, accel],
-                           [ca.solve(ca.densify(W.T @ W), W.T @ force)])
+                           [pseudo_inverse_times(W, force)])
     return inertial(ca.vertcat(q, tension), l_rate, l_accel)
-
-
-def _held_tension(model: SymbolicModel, q: ca.SX) -> ca.SX:
-    """(W^T W)^-1 W^T grad V: the tension holding an equilibrium q, N."""
-    W = model.structure_matrix(q)
-    return ca.solve(ca.densify(W.T @ W), W.T @ model.grad_potential(q))
 
 
 def _interconnection_entries(model: SymbolicModel, W: ca.SX, rate: ca.SX, w: ca.SX

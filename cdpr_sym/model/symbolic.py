@@ -23,7 +23,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.distribution import AUTO, distribute
-from cdpr_sym.linalg import gram_determinant, weighted_gram
+from cdpr_sym.linalg import gram_determinant, pseudo_inverse_times, weighted_gram
 from cdpr_sym.model import kinematics
 from cdpr_sym.model.cable_wrench import cable_wrench, generalized_cable_force
 from cdpr_sym.model.geometry_view import geometry_symbols
@@ -224,7 +224,7 @@ class SymbolicModel:
         times |grad V|) inside [T_min, T_max], else 0."""
         robot = self.robot
         W, grad_v = self.structure_matrix(q), self.grad_potential(q)
-        tau = ca.solve(ca.densify(W.T @ W), W.T @ grad_v)
+        tau = pseudo_inverse_times(W, grad_v)
         balanced = ca.norm_2(W @ tau - grad_v) <= EQUILIBRIUM_RESIDUAL * ca.norm_2(grad_v)
         inside = ca.logic_and(ca.mmin(tau) >= robot.t_min, ca.mmax(tau) <= robot.t_max)
         return tau, ca.if_else(ca.logic_and(balanced, inside), 1.0, 0.0)

@@ -140,10 +140,6 @@ def position_map(manifold: EquilibriumManifold, positions: np.ndarray) -> Positi
 def _least_squares(manifold: EquilibriumManifold, positions: np.ndarray, theta: np.ndarray
                    ) -> np.ndarray:
     """(W^T W)^-1 W^T grad V at each (position, theta), shape (k, m)."""
-    model, robot = manifold.model, manifold.robot
-    q = ca.SX.sym("q", robot.n)
-    W = model.structure_matrix(q)
-    tension = ca.Function("ls", [q], [ca.solve(ca.densify(W.T @ W),
-                                                W.T @ model.grad_potential(q))])
     poses = np.hstack([positions, np.tile(theta, (len(positions), 1))])
-    return np.array(tension.map(len(poses))(poses.T)).T
+    tension = manifold.model.static_distribution_function.map(len(poses))(poses.T)[0]
+    return np.array(tension).T

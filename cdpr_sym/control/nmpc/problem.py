@@ -24,6 +24,7 @@ import numpy as np
 from cdpr_sym.control.nmpc.design import Nmpc
 from cdpr_sym.control.parts import clip_to_box
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.linalg import pseudo_inverse_times
 from cdpr_sym.model import SymbolicModel, rk4
 
 #: |A v - c| and bound violations up to this (m, m/s, N) still count as solved.
@@ -366,13 +367,3 @@ class NmpcProblem:
         rate = ca.fmin(ca.fmax((target - tau) / self.design.period, -limit), limit)
         return ca.Function("nmpc_fallback", [q, dq, tau, r_d], [rate],
                            ["q", "dq", "tau", "r_d"], ["rate"])
-
-
-def pseudo_inverse_times(W: ca.SX, force: ca.SX) -> ca.SX:
-    """W^+ ``force``: W^T (W W^T)^-1 f (the least-norm tension, m >= n, W of full row rank),
-    or with fewer cables than coordinates (W of full column rank) (W^T W)^-1 W^T f, the
-    tension whose force is nearest f (N)."""
-    n, m = W.shape
-    if m < n:
-        return ca.solve(ca.densify(W.T @ W), W.T @ force)
-    return W.T @ ca.solve(W @ W.T, force)
