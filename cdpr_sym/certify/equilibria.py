@@ -41,7 +41,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.certify.boxes import bisect
+from cdpr_sym.certify.boxes import bisect, check_min_width
+from cdpr_sym.certify.budget import check_time_limit
 from cdpr_sym.certify.interval_c import CompiledIntervalFunction
 from cdpr_sym.certify.verdict import Verdict
 from cdpr_sym.errors import InvalidCase
@@ -110,7 +111,7 @@ class EquilibriumTerms:
         model = SymbolicModel(robot)
         q = ca.SX.sym("q", 3)
         W, grad = model.structure_matrix(q), model.grad_potential(q)
-        tension = ca.solve(ca.densify(W.T @ W), W.T @ grad)
+        tension = model.static_tension(q)
         lengths = model.cable_lengths(q)
         J = ca.jacobian(lengths, q)
         move = ca.vertcat(J[0, 1] * J[1, 2] - J[0, 2] * J[1, 1],
@@ -207,7 +208,16 @@ def _crossing_in_a_good_run(good: np.ndarray, left: np.ndarray, right: np.ndarra
 
 def certify_equilibria(robot: Robot, *, min_width: float = MIN_WIDTH,
                        time_limit: float = TIME_LIMIT) -> EquilibriumCertificate:
-    """The branch-and-bound of the module docstring over the frame's positions."""
+    """The branch-and-bound of the module docstring over the frame's positions.
+
+    Raises
+    ------
+    InvalidCase
+        ``min_width`` outside [MIN_BOX_WIDTH, the frame's widest side], ``time_limit`` not
+        positive, or a robot this proof does not cover (:func:`check_certifiable`).
+    """
+    check_min_width(min_width, float(np.max(robot.frame_upper[:2] - robot.frame_lower[:2])))
+    time_limit = check_time_limit(time_limit)
     terms = EquilibriumTerms(robot)
     started = time.perf_counter()
     axes = [np.linspace(lo, hi, FIRST_GRID + 1) for lo, hi in

@@ -197,10 +197,9 @@ def _equilibria(args: argparse.Namespace, robot, out: Output) -> int:
     samples = 2000 if args.samples is None else args.samples
     if isinstance(samples, bool) or not 0 <= samples <= MAX_SAMPLES:
         raise InvalidCase("samples", f"expected 0 to {MAX_SAMPLES:,} positions, got {samples}")
-    min_width = MIN_WIDTH if args.min_width is None else args.min_width
-    if not (isinstance(min_width, float | int) and 0 < min_width < np.inf):
-        raise InvalidCase("min_width", f"expected a positive width in m, got {min_width}")
-    certificate = certify_equilibria(robot, min_width=min_width, time_limit=args.time_limit)
+    certificate = certify_equilibria(
+        robot, min_width=MIN_WIDTH if args.min_width is None else args.min_width,
+        time_limit=args.time_limit)
     check = (sampled_check(certificate, samples, np.random.default_rng(args.seed))
              if samples else None)
     content = write_certificate(certificate, args.out, check)
