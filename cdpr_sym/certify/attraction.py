@@ -373,14 +373,19 @@ def _settle(problem: AttractionProblem, parameters: np.ndarray, estimate: LevelE
         in_region = (np.all(out_lo[1:].T >= estimate.lengths_lower, axis=1)
                      & np.all(out_hi[1:].T <= estimate.lengths_upper, axis=1))
         settled[part] = above | (in_region & ~on_face)
-        # a point of the sublevel set outside D or on a face disproves the level
-        probe = np.clip(0.5 * (lo + hi), frame_lo, frame_hi)
-        probe = np.where(lo <= frame_lo, frame_lo, np.where(hi >= frame_hi, frame_hi, probe))
+        # a point of the sublevel set outside D or on a face disproves the level (probed in
+        # the boxes left open only)
+        open_boxes = np.flatnonzero(~settled[part])
+        if not len(open_boxes):
+            continue
+        lo, hi, on_face = lo[open_boxes], hi[open_boxes], on_face[open_boxes]
+        probe = np.where(lo <= frame_lo, frame_lo, np.where(hi >= frame_hi, frame_hi,
+                                                             0.5 * (lo + hi)))
         probe = np.where(on_face[:, None], probe, 0.5 * (lo + hi))
         values, lengths = problem.evaluate(probe, parameters)
         outside = ~np.all((lengths >= estimate.lengths_lower)
                           & (lengths <= estimate.lengths_upper), axis=1)
-        bad = ~settled[part] & (values <= v_star) & (outside | on_face)
+        bad = (values <= v_star) & (outside | on_face)
         if bad.any():
             return settled, probe[np.flatnonzero(bad)[0]]
     return settled, None
