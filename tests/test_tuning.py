@@ -207,6 +207,8 @@ def test_tune_prints_the_rules_and_refuses_a_bad_period(capsys):
     assert main(["tune", "--robot", "aras3", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["command_corner_hz"] == pytest.approx(25.0)
+    assert report["loop"]["feedback_stages"] == 4 and report["loop"]["integral_share"] == 1.0
+    assert report["loop"]["least_damping"] >= 0.02
     assert report["case"]["source"] == "the robot file"
     assert set(report["rules"]) >= {"mode_share", "platform_share", "damping_ratio"}
     # the plan's and nmpc's rate bounds under aras3's 1 N per ms, and nmpc's horizon

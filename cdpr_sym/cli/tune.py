@@ -21,7 +21,8 @@ def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
     parser = command("tune", "show the gains and the hardware derived from a robot: the "
                      "winches of its default build, the command path's corner, ida-winch's "
                      "gains and the case's tracking gains, each with its rule, and the "
-                     "platform's modes on the motor springs at start and goal")
+                     "platform's modes on the motor springs at start and goal, and the "
+                     "sampled loop's least damped mode")
     parser.add_argument("--robot", default="aras3", help="a preset or a robot file")
     parser.add_argument("--as-built", default="default", metavar="SPEC",
                         help="the winches: 'default' (the robot's default build) or an "
@@ -31,6 +32,7 @@ def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
 
 def _lines(report: dict[str, Any]) -> list[str]:
     hardware, winch, case = report["hardware"], report["ida_winch"], report["case"]
+    loop = report["loop"]
     limit = hardware["torque_limit_Nm"]
     lines = [
         f"{report['robot']} at dt = {report['dt']:g} s",
@@ -45,7 +47,11 @@ def _lines(report: dict[str, Any]) -> list[str]:
         f"{1 / report['platform_share']:.3g} unless the fastest mode's cap at f_c / 6 "
         f"binds: see the modes below), k_d "
         f"{winch['damping']:.4g} N s/m (zeta 0.45), k_i {winch['integral']:.4g} N/(m s) "
-        f"(corner a twentieth of the mode), filter {winch['feedback_cutoff']:.3g} Hz x 4",
+        f"(corner a twentieth of the mode, times {loop['integral_share']:.3g}: k_d w_s^2 / 2 "
+        f"at most, w_s the slowest mode with the cables' geometric stiffness, "
+        f"{loop['slowest_mode_hz']:.3g} Hz), filter {winch['feedback_cutoff']:.3g} Hz x "
+        f"{loop['feedback_stages']} (the most stages, at most 4, whose sampled loop damps "
+        f"every mode by 0.02)",
         f"case gains ({case['source']}): k {np.round(case['k'], 4).tolist()}, r_d "
         f"{np.round(case['r_d'], 4).tolist()}",
         f"plan (smooth, smooth-lp, ida-winch): tension rate at most "
@@ -57,7 +63,10 @@ def _lines(report: dict[str, Any]) -> list[str]:
     for name, modes in report["modes"].items():
         text = ", ".join(f"{mode['frequency_hz']:.3g} Hz (zeta {mode['damping_ratio']:.2f})"
                          for mode in modes)
-        lines.append(f"ida-winch's platform modes at the {name}: {text}")
+        lines.append(f"ida-winch's platform modes on the motor springs at the {name}: {text}")
+    lines.append(f"ida-winch's sampled loop (ideal plant, linearised at start and goal): least "
+                 f"damped mode {loop['least_damped_hz']:.3g} Hz, zeta "
+                 f"{loop['least_damping']:.3g}")
     return lines
 
 

@@ -66,7 +66,7 @@ import numpy as np
 from cdpr_sym.as_built.hardware import longest_cable
 from cdpr_sym.as_built.spec import Actuation
 from cdpr_sym.robot import Robot
-from cdpr_sym.robot.gains import CASE_DAMPING, CASE_SHARE, SAMPLE_SHARE
+from cdpr_sym.robot.gains import CASE_DAMPING, CASE_SHARE, DEFAULT_DT, SAMPLE_SHARE
 from cdpr_sym.robot.target import STEP_FLOOR, STEP_PERIOD
 
 #: An option's value that asks for the robot's rule.
@@ -100,6 +100,9 @@ FAST_SHARE = 1 / 6
 FAST_DAMPING_RATIO = 0.65
 #: The integral's corner as a share of the platform's mode.
 INTEGRAL_SHARE = 1 / 20
+#: The damper's damping on the slowest mode at least this multiple of the integral's
+#: negative damping there (k_d omega_s^2 >= INTEGRAL_HEADROOM k_i).
+INTEGRAL_HEADROOM = 2.0
 
 
 def drum_cable_mode(robot: Robot, drive: Actuation) -> float:
@@ -157,7 +160,18 @@ def winch_gains(robot: Robot, drive: Actuation, dt: Any, *, model: Any = None
                 ) -> WinchGains:
     """``ida-winch``'s gains by the module's rules, for ``robot`` driven by ``drive``
     (its winches, as the controller models them) sampled every ``dt`` s (a number or a
-    CasADi symbol); ``model`` its SymbolicModel, built when not given."""
+    CasADi symbol); ``model`` its SymbolicModel, built when not given. The integral's share
+    (:func:`integral_share_kept`) is worked out at ``dt`` when it is a number, else at the
+    toolkit's 1 kHz."""
+    corner, stiffness, damping, integral = _nominal_gains(robot, drive, dt, model)
+    rule_dt = DEFAULT_DT if isinstance(dt, (ca.SX, ca.MX)) else float(dt)
+    return WinchGains(stiffness=stiffness, damping=damping,
+                      integral=integral * integral_share_kept(robot, drive, rule_dt, model),
+                      feedback_cutoff=corner)
+
+
+def _nominal_gains(robot: Robot, drive: Actuation, dt: Any, model: Any) -> tuple[Any, ...]:
+    """(f_c, k_p, k_d, k_i) by the rules above, k_i before its share is checked."""
     corner = command_corner(robot, drive, dt)
     lam = fastest_direction(robot, model)
     omega = 2 * math.pi * platform_share(robot) * corner
@@ -168,8 +182,58 @@ def winch_gains(robot: Robot, drive: Actuation, dt: Any, *, model: Any = None
     root = stiffness**0.5
     damping = _smaller(2 * DAMPING_RATIO * math.sqrt(robot.mass) * root,
                        2 * FAST_DAMPING_RATIO / math.sqrt(lam) * root)
-    return WinchGains(stiffness=stiffness, damping=damping,
-                      integral=stiffness * omega * INTEGRAL_SHARE, feedback_cutoff=corner)
+    return corner, stiffness, damping, stiffness * omega * INTEGRAL_SHARE
+
+
+def slowest_mode(robot: Robot, stiffness: float, model: Any = None) -> float:
+    """omega_s, rad/s: the slowest undamped mode of the platform on motor springs of
+    ``stiffness`` (N/m) at the case's start and goal, the smaller: the square root of the
+    least eigenvalue of M^-1 (k_p W W^T + K_g), K_g = grad^2 (V + T_s . l) the stiffness the
+    weight and the static tension T_s (:meth:`SymbolicModel.static_tension`) give through
+    the geometry (M q'' = W T - grad V with W = -(dl/dq)^T, T held at T_s). For a point mass
+    K_g is positive semi-definite (taut cables pulling on a point); for a body held on short
+    attachment arms it can be large or negative: ipanema8's slowest mode is 0.21 Hz against
+    0.05 Hz on the motor springs alone. 0 where the least eigenvalue is not positive."""
+    from cdpr_sym.model import SymbolicModel
+
+    model = model if model is not None else SymbolicModel(robot)
+    slowest = math.inf
+    for q in (robot.start, robot.goal):
+        geometric, mass = platform_stiffness(model, np.asarray(q, dtype=float))
+        W = np.array(model.functions["structure_matrix"](q))
+        eigenvalues = np.linalg.eigvals(np.linalg.solve(mass, stiffness * W @ W.T
+                                                        + geometric)).real
+        slowest = min(slowest, math.sqrt(max(float(eigenvalues.min()), 0.0)))
+    return slowest
+
+
+def platform_stiffness(model: Any, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(K_g, M) at the pose q (numpy): grad^2 (V + T_s . l), N/m (N m/rad on angles), with
+    T_s the static tension at q held fixed, and the mass matrix."""
+    symbol = ca.SX.sym("q", model.n)
+    held = np.array(ca.Function("T_s", [symbol], [model.static_tension(symbol)])(q)).ravel()
+    energy = model.potential(symbol) + ca.dot(ca.DM(held), model.cable_lengths(symbol))
+    hessian = ca.Function("K_g", [symbol], [ca.hessian(energy, symbol)[0]])
+    return np.array(hessian(q)), np.array(model.functions["mass_matrix"](q))
+
+
+def integral_share_kept(robot: Robot, drive: Actuation, dt: float, model: Any = None
+                        ) -> float:
+    """The share of the integral rule's k_i kept, in (0, 1]: at most
+    k_d omega_s^2 / (INTEGRAL_HEADROOM k_i), omega_s the slowest mode
+    (:func:`slowest_mode`), with the rule's k_p, k_d and k_i at the period ``dt`` (s).
+
+    An integral k_i on a length error acts on a mode of angular frequency omega as a
+    negative damping k_i / omega^2 beside the damper's k_d (the same cables carry both, so
+    the ratio holds mode by mode); below omega = sqrt(k_i / k_d) it wins and the mode grows.
+    The rule's k_i, a twentieth of the nominal mode's corner, assumes the slowest mode is the
+    nominal one; a body whose rotations ride on the cables' geometric stiffness can be far
+    slower (ipanema8: 0.21 Hz, where k_i = 325 N/(m s) against k_d omega_s^2 = 182 made its
+    linearised loop unstable at the goal). The other presets keep their k_i (the ratio
+    k_d omega_s^2 / k_i is 2.5 or more on them)."""
+    _, stiffness, damping, integral = _nominal_gains(robot, drive, dt, model)
+    omega = slowest_mode(robot, stiffness, model)
+    return min(1.0, damping * omega**2 / (INTEGRAL_HEADROOM * integral))
 
 
 def _larger(a: Any, b: Any) -> Any:

@@ -66,8 +66,29 @@ def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
                  "derived_k": derived_k.tolist(), "derived_r_d": derived_r_d.tolist()},
         "modes": {name: linearised_modes(robot, model, winch.stiffness, winch.damping, q)
                   for name, q in (("start", robot.start), ("goal", robot.goal))},
+        "loop": _loop_numbers(robot, model, WinchIdaPbc(drive=drive), winch, drive, dt),
         "rules": tuning.rules(),
     }
+
+
+def _loop_numbers(robot: Robot, model: Any, design: Any, winch: Any, drive: Actuation,
+                  dt: float) -> dict[str, Any]:
+    """``ida-winch``'s feedback stages, its integral's share and slowest mode (the rules of
+    :meth:`WinchIdaPbc.stages_for` and :func:`~cdpr_sym.control.tuning.integral_share_kept`)
+    and its linearised sampled loop's least damped mode on the ideal plant at start and
+    goal (:mod:`cdpr_sym.control.sampled_loop`) at ``dt``."""
+    from cdpr_sym.control import tuning
+    from cdpr_sym.control.sampled_loop import least_damping
+
+    stages = design.stages_for(robot, model)
+    modes = least_damping(design, model, (robot.start, robot.goal), dt,
+                          carried=design.carried_size(model), ignored_at_one=robot.m - robot.n)
+    return {"feedback_stages": stages,
+            "integral_share": tuning.integral_share_kept(robot, drive, dt, model),
+            "slowest_mode_hz": tuning.slowest_mode(robot, winch.stiffness, model)
+            / (2 * math.pi),
+            "least_damping": modes.least_damping,
+            "least_damped_hz": modes.least_damped_frequency}
 
 
 def _nmpc_numbers(robot: Robot, model: Any, design: Any) -> dict[str, Any]:

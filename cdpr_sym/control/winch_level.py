@@ -79,7 +79,9 @@ the integral of the length error and the feedback filter's stages.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+import weakref
 from typing import Any, ClassVar
 
 import casadi as ca
@@ -101,6 +103,13 @@ from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
 from cdpr_sym.robot.gains import DEFAULT_DT
+
+#: The feedback filter's stages at most, and the least damping ratio the rule asks of every
+#: mode of the linearised sampled loop (:meth:`WinchIdaPbc.stages_for`).
+MOST_STAGES = 4
+MIN_LOOP_DAMPING = 0.02
+#: The stages found per robot (weakly keyed: a robot's entry goes with it) and options.
+_STAGES_FOUND: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 #: Periods of the platform's mode on the motor springs a planned move lasts at least
 #: (:meth:`WinchIdaPbc.paced_plan`).
@@ -177,8 +186,10 @@ class WinchIdaPbc:
         negative damping (docs/winch_ida_pbc.md, assumption 3). "robot" (default): half the
         lowest drum-cable mode, at most a fortieth of the sample rate (25 Hz on the paper's
         robot at 1 kHz).
-    feedback_stages : int
-        Stages of that filter, 1 to 8.
+    feedback_stages : int or "robot"
+        Stages of that filter, 1 to 8. "robot" (default): :meth:`stages_for`, the most
+        stages (at most 4) whose linearised sampled loop damps every mode by at least
+        MIN_LOOP_DAMPING at the case's start and goal.
     plan : SmoothReference
         The planner of the reference (duration, margin).
     """
@@ -188,7 +199,7 @@ class WinchIdaPbc:
     integral: float | None = None
     rate_cutoff: float = 500.0
     feedback_cutoff: float | str | None = FROM_ROBOT
-    feedback_stages: int = 4
+    feedback_stages: int | str = FROM_ROBOT
     drive: Actuation | None = None
     plan: SmoothReference = SmoothReference()  # noqa: RUF009 - frozen, as above
     name: ClassVar[str] = "ida-winch"
@@ -212,9 +223,10 @@ class WinchIdaPbc:
             object.__setattr__(self, "feedback_cutoff", positive_number(
                 "feedback_cutoff", self.feedback_cutoff, "Hz"))
         stages = self.feedback_stages
-        if isinstance(stages, bool) or not isinstance(stages, int) or not 1 <= stages <= 8:
-            raise InvalidCase("feedback_stages", f"expected a whole number in 1..8, "
-                              f"got {stages!r}")
+        if stages != FROM_ROBOT and (isinstance(stages, bool) or not isinstance(stages, int)
+                                     or not 1 <= stages <= 8):
+            raise InvalidCase("feedback_stages", f"expected a whole number in 1..8 or "
+                              f"'robot', got {stages!r}")
 
     def check_period(self, robot_mass: float, dt: float) -> None:
         """Raise :class:`InvalidCase` (``stiffness``, ``damping``) for gains no loop sampled
@@ -272,15 +284,61 @@ class WinchIdaPbc:
         integral acts on the platform's lengths only); reads the winches; follows ``plan``."""
         return Capabilities(any_cables=True, reads_drives=True, planned=True)
 
-    def _stages(self) -> int:
-        """The feedback filter's stages (0 without the filter)."""
-        return self.feedback_stages if self.feedback_cutoff is not None else 0
+    def _stages(self, model: SymbolicModel) -> int:
+        """The feedback filter's stages on ``model``'s robot (0 without the filter)."""
+        if self.feedback_cutoff is None:
+            return 0
+        return self.stages_for(model.robot, model)
+
+    def stages_for(self, robot: Robot, model: SymbolicModel | None = None) -> int:
+        """The feedback filter's stages on ``robot``: ``feedback_stages``, or by the rule
+        (``feedback_stages="robot"``): the most stages N <= MOST_STAGES whose linearised
+        sampled loop on the ideal plant (:mod:`cdpr_sym.control.sampled_loop`, this law with
+        N stages, at the toolkit's 1 kHz) damps every mode by at least MIN_LOOP_DAMPING at
+        the case's start and goal; where no N does (a mode the encoders barely see, which no
+        filter damps: ipanema8's slow rotations, 0.0004-0.0008), the most N with no growing
+        mode; MOST_STAGES where every N has one.
+
+        Why: each stage lags a mode at f by atan(f / f_c). A body held on short arms under
+        large tensions has rotation modes the cables' geometric stiffness sets, far faster
+        than the motor springs give (a 173 kg platform on 8 cables with 2.3 cm arms: 18 Hz
+        against f_c = 25 Hz); there the four stages' lag turns the damper into negative
+        damping and the mode grows (that robot left its frame on the ideal plant; with one
+        stage it settles). Computed once per robot and options (1-6 s on a 6-DOF robot)."""
+        if self.feedback_stages != FROM_ROBOT:
+            return int(self.feedback_stages)
+        key = json.dumps(self.options(), sort_keys=True, default=str)
+        known = _STAGES_FOUND.setdefault(robot, {})
+        if key not in known:
+            known[key] = self._stages_by_rule(robot, model or SymbolicModel(robot))
+        return known[key]
+
+    def _stages_by_rule(self, robot: Robot, model: SymbolicModel) -> int:
+        """:meth:`stages_for`'s rule, worked out."""
+        from cdpr_sym.control.sampled_loop import least_damping
+
+        poses = (robot.start, robot.goal)
+        found = {}
+        for stages in range(MOST_STAGES, 0, -1):
+            trial = dataclasses.replace(self, feedback_stages=stages)
+            found[stages] = least_damping(
+                trial, model, poses, DEFAULT_DT, carried=trial.carried_size(model),
+                ignored_at_one=model.m - model.n).least_damping
+            if found[stages] >= MIN_LOOP_DAMPING:
+                return stages
+        steady = [stages for stages, damping in found.items() if damping >= 0]
+        return max(steady) if steady else MOST_STAGES
+
+    def carried_size(self, model: SymbolicModel) -> int:
+        """How many of the memory's leading entries the step only carries: the plan and
+        the encoders' zero misfit (the rest moves with the platform)."""
+        return self._kept_from(model) + model.m
 
     def memory_size(self, model: SymbolicModel) -> int:
         """[t, q_start (n), T, margin], with m >= n + 2 cables the plan's preferred
         tensions at start and goal (2 m), then per cable the encoders' zero misfit, the last
         reading, the filtered rate, the integral and the feedback filter's stages."""
-        return self._kept_from(model) + (4 + self._stages()) * model.m
+        return self._kept_from(model) + (4 + self._stages(model)) * model.m
 
     @staticmethod
     def _kept_from(model: SymbolicModel) -> int:
@@ -297,7 +355,7 @@ class WinchIdaPbc:
         ends = plan.ends_for(model, q0, q_goal)
         return ca.vertcat(plan.initial_memory(model, q0, q_goal, k, r_d, ends=ends),
                           ca.SX.zeros(0) if ends is None else ends,
-                          ca.SX.zeros((4 + self._stages()) * model.m))
+                          ca.SX.zeros((4 + self._stages(model)) * model.m))
 
     def paced_plan(self, robot: Robot) -> SmoothReference:
         """The plan with the durations of its list that last at least MOVE_PERIODS periods
@@ -419,7 +477,8 @@ class WinchIdaPbc:
         drive = self.drive_of(robot)
         stiffness, damping, integral, cutoff = self.gains(robot, dt, model)
         feedback, stages = self.filtered(stiffness * error + damping * error_rate
-                                         + integral * integrated_kept, stages_kept, dt, cutoff)
+                                         + integral * integrated_kept, stages_kept, dt, cutoff,
+                                         self._stages(model))
         if drives.rigid:  # the tension is the command: no drum to pull through
             clipped, saturated = clip_to_box(model, tension_r + feedback)
         else:
@@ -498,17 +557,17 @@ class WinchIdaPbc:
         jacobian = model.jacobian_ja(q_r)
         return jacobian @ ca.solve(jacobian.T @ jacobian, jacobian.T @ error)
 
-    def filtered(self, feedback: ca.SX, stages: ca.SX, dt: ca.SX, cutoff: Any
+    def filtered(self, feedback: ca.SX, stages: ca.SX, dt: ca.SX, cutoff: Any, count: int
                  ) -> tuple[ca.SX, ca.SX]:
-        """``feedback`` (N) through the filter's first-order stages of corner ``cutoff``
-        (Hz), each discretised exactly for a held input; returns the output and the stages'
-        next values (unchanged without the filter)."""
+        """``feedback`` (N) through ``count`` first-order stages of corner ``cutoff`` (Hz),
+        each discretised exactly for a held input; returns the output and the stages' next
+        values (unchanged without the filter)."""
         if cutoff is None:
             return feedback, stages
         m = feedback.shape[0]
         gain = 1 - ca.exp(-2 * math.pi * cutoff * dt)
         signal, updated = feedback, []
-        for index in range(self.feedback_stages):
+        for index in range(count):
             past = stages[index * m: (index + 1) * m]
             signal = past + gain * (signal - past)
             updated.append(signal)
