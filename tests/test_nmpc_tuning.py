@@ -142,14 +142,10 @@ def _own_case(robot, build_options):
 @pytest.mark.parametrize("robot", [
     pytest.param(lambda: zoo(1, 12)[1], id="363kg-point3"),   # left the frame at 4.5 s
     pytest.param(lambda: zoo(1, 12)[0], id="39kg-point2"),    # settled at 4.95 s
-    # known shortfall: with angles weighed as positions (Q = 1.1e4 on its 0.085 m move,
-    # a 0.3 s horizon) every QP of this planar body's case fails from the first sample
-    # and nmpc holds the start (0.51 m and rad off after 10 s); it settled in 3.0 s with
-    # the angles weighed by their own move. Strict: a fix makes this test fail until the
-    # mark goes
-    pytest.param(lambda: zoo(1, 12)[10], id="9kg-planar3",
-                 marks=pytest.mark.xfail(strict=True, reason="nmpc's QP fails on this "
-                                         "planar body's case with the angle weights")),
+    # every qrqp solve of this planar body's case failed the check from the first sample
+    # and nmpc held the start (0.51 m and rad off after 10 s); DAQP, the last resort,
+    # solves those QPs
+    pytest.param(lambda: zoo(1, 12)[10], id="9kg-planar3"),
     pytest.param(lambda: load_robot(DATA / "heavy8.toml"), id="91kg-spatial8"),
 ])
 def test_nmpc_settles_its_own_case_inside_the_frame(robot, build_options):

@@ -60,11 +60,11 @@ class SampledSolver:
         self.design = design
         #: The design's problem (``problem``, if given, is the same one built earlier).
         self.problem = NmpcProblem(model, design) if problem is None else problem
-        self._lower, self._upper = self.problem.bounds()
         fallback = self.problem.fallback_function()
         self._goal_tension = model.functions["static_tension"]
         #: The real-time iterations, tried in turn until one passes the check: the QP in
-        #: scaled variables, then unscaled (see :meth:`NmpcProblem.rti_function`).
+        #: scaled variables, then unscaled, then by DAQP (see
+        #: :meth:`NmpcProblem.rti_function`).
         self._rti: list[Any] = []
         self._nlp: ca.Function | None = None
         #: Samples whose first real-time iteration failed the check and a retry passed.
@@ -77,6 +77,8 @@ class SampledSolver:
                 self._rti = [native.casadi_function(f.name()) for f in functions]
             else:
                 self._rti = functions
+            if design.last_resort is not None:  # in CasADi's virtual machine
+                self._rti.append(self.problem.rti_function(True, qp=design.last_resort))
         else:
             self._nlp = self.problem.nlp_solver()
         self._fallback = fallback
@@ -99,10 +101,12 @@ class SampledSolver:
                     return solution
             return None
         problem = self.problem
+        lower, upper = problem.prediction_bounds(np.asarray(z0, dtype=float),
+                                                 np.asarray(q_goal, dtype=float))
         result = self._nlp(x0=guess, lam_x0=multipliers[: problem.size],
                            lam_g0=multipliers[problem.size:],
                            p=np.r_[z0, q_goal, tau_goal, offset],
-                           lbx=self._lower, ubx=self._upper, lbg=0, ubg=0)
+                           lbx=lower, ubx=upper, lbg=0, ubg=0)
         v = np.array(result["x"]).ravel()
         residual = float(np.max(np.abs(np.array(result["g"]))))
         duals = np.r_[np.array(result["lam_x"]).ravel(), np.array(result["lam_g"]).ravel()]

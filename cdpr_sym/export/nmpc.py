@@ -11,11 +11,15 @@ scaled iteration, its result checked (finite, in the bounds, the linearised dyna
 else the safe command, flagged; then the shifted warm start of the next sample.
 
 Only the real-time iteration is exported: ``sqp`` and ``ipopt`` need CasADi's ``nlpsol`` at
-run time.
+run time. Nor is the design's last resort (``Nmpc.last_resort``, DAQP): its generated calls
+need DAQP's library, which the package does not ship, so the package is the design with
+``last_resort=None`` (:func:`exported_design`; its manifest records the options it packaged),
+and falls back to the safe command where the simulated default would try DAQP.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import casadi as ca
@@ -40,6 +44,11 @@ def check_exportable(design: Nmpc) -> None:
     if design.observer_rate is not None:
         raise InvalidCase("observer_rate", "export-c packages NMPC without the offset-free "
                           "observer (nmpc, not nmpc-of): its estimate is not exported yet")
+
+
+def exported_design(design: Nmpc) -> Nmpc:
+    """The design a package implements: ``design`` without its last resort."""
+    return dataclasses.replace(design, last_resort=None)
 
 
 def solver_functions(model: SymbolicModel, design: Nmpc, prefix: str) -> list[ca.Function]:

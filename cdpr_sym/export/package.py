@@ -49,7 +49,7 @@ from cdpr_sym.codegen.names import MAX_IDENTIFIER
 from cdpr_sym.control import Controller, capabilities, check_cables, controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export.description import describe
-from cdpr_sym.export.nmpc import check_exportable
+from cdpr_sym.export.nmpc import check_exportable, exported_design
 from cdpr_sym.export.render import render_package
 from cdpr_sym.robot import Robot, resolve_robot
 from cdpr_sym.version import __version__
@@ -182,6 +182,7 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     sampled = capabilities(controller).sampled
     if sampled:
         check_exportable(controller)
+        controller = exported_design(controller)
     if capabilities(controller).reads_drives:
         raise InvalidCase("controller", f"{controller.name} reads the winch encoders; export-c "
                           "packages laws of the state (q, dq) and would feed it the "

@@ -53,6 +53,9 @@ MAX_INTERVALS = 200
 #: 20 a 50 Hz design already predicts in 1 ms steps, as fine as the control step.
 MAX_SUBSTEPS = 20
 
+#: The QP solvers a real-time iteration may retry with when ``qrqp`` fails (or none).
+LAST_RESORTS = ("daqp", None)
+
 #: The options whose default, ``"robot"``, asks for the robot's rule (:meth:`Nmpc.tuned`).
 DERIVED = ("horizon", "position_weight", "velocity_weight", "rate_weight", "max_rate")
 
@@ -146,17 +149,22 @@ class Nmpc:
         settled in 4.4 s). Not the default until that is understood.
     substeps : int
         RK4 steps per sample interval in the prediction (1 to :data:`MAX_SUBSTEPS`).
+    last_resort : "daqp" or None
+        With the real-time iteration: where both of ``qrqp``'s solves of a sample fail the
+        check, the same QP solved by DAQP in CasADi's virtual machine before the safe command
+        ("daqp", the default), or straight to the safe command (None: what an exported
+        package does, which has no DAQP; see
+        :meth:`~cdpr_sym.control.nmpc.NmpcProblem.rti_function`).
 
     Notes
     -----
     A result counts only if it is finite, inside its bounds and meets the linearised
     dynamics to 1e-6, whatever the solver reports: CasADi's ``qrqp`` can report success
     on a point outside the bounds, so the real-time iteration solves its QP with the rates
-    scaled to [-1, 1] and retries unscaled when that result fails the check. A sample
-    whose solves all fail falls back to a safe command: gravity compensation plus damping
-    R_d at the current state, clipped to the box, approached at ``max_rate``; that
-    sample's steps carry
-    :data:`~cdpr_sym.control.flags.FLAG_INFEASIBLE`.
+    scaled to [-1, 1] and retries unscaled when that result fails the check, then with
+    ``last_resort``. A sample whose solves all fail falls back to a safe command: gravity
+    compensation plus damping R_d at the current state, clipped to the box, approached at
+    ``max_rate``; that sample's steps carry :data:`~cdpr_sym.control.flags.FLAG_INFEASIBLE`.
     """
 
     rate: float = 50.0
@@ -170,6 +178,7 @@ class Nmpc:
     max_rate: float | str = 800.0
     substeps: int = 2
     observer_rate: float | None = None
+    last_resort: str | None = "daqp"
 
     name: ClassVar[str] = "nmpc"
 
@@ -188,6 +197,9 @@ class Nmpc:
         if not math.isfinite(1.0 / self.rate):  # a subnormal rate: an endless period
             raise InvalidCase("rate", f"expected a rate whose period 1/rate is finite, got "
                               f"{self.rate!r}")
+        if self.last_resort not in LAST_RESORTS:
+            raise InvalidCase("last_resort", f"expected 'daqp' or None, got "
+                              f"{self.last_resort!r}")
         if self.solver not in SOLVERS:
             raise InvalidCase("solver", f"expected one of {', '.join(SOLVERS)}, got "
                               f"{self.solver!r}")
