@@ -36,7 +36,7 @@ def test_batch_parameters_equal_each_runs_own(aras3, rng, build_options):
     simulator = get_simulator(aras3, CONTROLLERS["pd"], build_options=build_options)
     starts, goals = _poses(aras3, rng, 5), _poses(aras3, rng, 5)
     plant = Plant(mass_scale=1.2, slack=True)
-    _, p = _inputs(simulator, starts, goals, aras3.k, aras3.r_d, 2e-3, plant)
+    _, p = _inputs(simulator, starts, goals, aras3.k, aras3.r_d, 2e-3, [plant] * 5)
     alone = np.array([simulator.parameters(g, aras3.k, aras3.r_d, 2e-3, plant)
                       for g in goals])
     assert np.array_equal(p, alone)

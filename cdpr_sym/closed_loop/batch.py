@@ -148,7 +148,8 @@ def _batch_or_none(simulator: Simulator, build_options: BuildOptions, lanes: int
 
 
 def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndarray,
-             r_d: np.ndarray, *, duration: float, dt: float, plant: Plant = Plant(),
+             r_d: np.ndarray, *, duration: float, dt: float,
+             plant: Plant | Sequence[Plant] = Plant(),
              build_options: BuildOptions = BuildOptions(), lanes: int | None = None
              ) -> list[Trajectory]:
     """Simulate every (start, goal) pair with the same gains, plant and timing.
@@ -169,7 +170,9 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
         Gain diagonals, N/m and N s/m.
     duration, dt : float
         Simulated time and control period, s.
-    plant : Plant
+    plant : Plant or sequence of Plant
+        The plant of every run, or of each run: as-built plants (each run its own draw,
+        the same structure) may differ from run to run, the ideal plant may not.
     build_options : BuildOptions
         Cache folder and compiler of the batched library.
     lanes : int, optional
@@ -186,23 +189,25 @@ def run_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndar
         does not match the simulator, a bad ``lanes``.
     """
     check_lanes(lanes)
-    starts, goals, n_steps = _checked(simulator, starts, goals, duration, dt, plant)
+    starts, goals, plants, n_steps = _checked(simulator, starts, goals, duration, dt, plant)
     batch = batch_rollout(simulator, build_options, lanes)
     if batch is None:
-        return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=plant)
-                for s, g in zip(starts, goals, strict=True)]
+        return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=one)
+                for s, g, one in zip(starts, goals, plants, strict=True)]
     out: list[Trajectory] = []
     for first in range(0, len(starts), RUNS_PER_CALL):
         block = slice(first, first + RUNS_PER_CALL)
         states, logs, _ = batch(*_inputs(simulator, starts[block], goals[block], k, r_d, dt,
-                                         plant), n_steps)
-        out.extend(simulator.trajectory(states[i], logs[i], n_steps, dt, goal, k, r_d, plant)
-                   for i, goal in enumerate(goals[block]))
+                                         plants[block]), n_steps)
+        out.extend(simulator.trajectory(states[i], logs[i], n_steps, dt, goal, k, r_d, one)
+                   for i, (goal, one) in enumerate(zip(goals[block], plants[block],
+                                                       strict=True)))
     return out
 
 
 def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: np.ndarray,
-                   r_d: np.ndarray, *, duration: float, dt: float, plant: Plant = Plant(),
+                   r_d: np.ndarray, *, duration: float, dt: float,
+                   plant: Plant | Sequence[Plant] = Plant(),
                    build_options: BuildOptions = BuildOptions(), lanes: int | None = None,
                    settle_band: float = SETTLE_TOLERANCE) -> list[RunSummary]:
     """``[run.summary(settle_band=settle_band) for run in run_many(...)]`` without storing
@@ -215,14 +220,14 @@ def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: n
     errors as :func:`run_many`.
     """
     check_lanes(lanes)
-    starts, goals, n_steps = _checked(simulator, starts, goals, duration, dt, plant)
+    starts, goals, plants, n_steps = _checked(simulator, starts, goals, duration, dt, plant)
     batch = batch_rollout(simulator, build_options, lanes)
     if batch is None:
-        return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=plant).summary(
-            settle_band=settle_band) for s, g in zip(starts, goals, strict=True)]
+        return [simulator.run(s, g, k, r_d, duration=duration, dt=dt, plant=one).summary(
+            settle_band=settle_band) for s, g, one in zip(starts, goals, plants, strict=True)]
     if not len(starts):
         return []
-    rows = batch.summaries(*_inputs(simulator, starts, goals, k, r_d, dt, plant), n_steps,
+    rows = batch.summaries(*_inputs(simulator, starts, goals, k, r_d, dt, plants), n_steps,
                            settle_band)
     robot = simulator.robot
     return run_summaries(rows, simulator.layout, goals, dt,
@@ -231,26 +236,42 @@ def summarise_many(simulator: Simulator, starts: Sequence, goals: Sequence, k: n
 
 
 def _inputs(simulator: Simulator, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,
-            r_d: np.ndarray, dt: float, plant: Plant) -> tuple[np.ndarray, np.ndarray]:
+            r_d: np.ndarray, dt: float, plants: list[Plant]) -> tuple[np.ndarray, np.ndarray]:
     """The runs' initial states x0 (runs, x size) and parameters p (runs, p size), equal
     row by row to ``simulator.initial_state`` and ``simulator.parameters`` of each run
-    (the ideal plant: :func:`_checked` refuses an as-built one)."""
+    with its plant of ``plants``: on the ideal (or rate-limited) plant, all the same,
+    made at once; as built, each run's own (:meth:`Simulator.prepared`, its checks
+    included)."""
+    if plants and plants[0].as_built is not None:
+        prepared = [simulator.prepared(start, goal, k, r_d, dt, one)
+                    for start, goal, one in zip(starts, goals, plants, strict=True)]
+        size_x, size_p = simulator.layout.x.size, simulator.layout.p.size
+        return (np.array([x0 for x0, _ in prepared]).reshape(-1, size_x),
+                np.array([p for _, p in prepared]).reshape(-1, size_p))
     x0 = simulator.initial_states(starts, goals, k, r_d)
-    p = np.tile(simulator.parameters(goals[0], k, r_d, dt, plant), (len(goals), 1))
+    p = np.tile(simulator.parameters(goals[0], k, r_d, dt, plants[0]), (len(goals), 1))
     p[:, simulator.layout.p.slice("q_goal")] = goals  # the only field that differs by run
     return x0, p
 
 
 def _checked(simulator: Simulator, starts: Sequence, goals: Sequence, duration: float,
-             dt: float, plant: Plant) -> tuple[np.ndarray, np.ndarray, int]:
-    """Starts and goals as (runs, n) arrays and the number of steps, checked."""
+             dt: float, plant: Plant | Sequence[Plant]
+             ) -> tuple[np.ndarray, np.ndarray, list[Plant], int]:
+    """Starts and goals as (runs, n) arrays, the plant of each run and the number of steps,
+    checked: one plant for every run, or one per run, all of the simulator's kind."""
     starts, goals = np.atleast_2d(starts).astype(float), np.atleast_2d(goals).astype(float)
     if starts.shape != goals.shape or starts.shape[1:] != (simulator.robot.n,):
         raise InvalidCase("starts", f"expected starts and goals of shape (runs, "
                           f"{simulator.robot.n}), got {starts.shape} and {goals.shape}")
-    simulator.check_plant(plant)
-    if plant.as_built is not None:
-        raise InvalidCase("plant", "batched runs simulate the ideal plant; run an as-built "
-                          "plant with simulate() or Simulator.run")
+    plants = [plant] * len(starts) if isinstance(plant, Plant) else list(plant)
+    if len(plants) != len(starts) or not all(isinstance(one, Plant) for one in plants):
+        raise InvalidCase("plant", f"expected a Plant or one Plant per run ({len(starts)}), "
+                          f"got {len(plants)} items")
+    for one in {id(one): one for one in plants}.values():  # each distinct object once
+        simulator.check_plant(one)
+    if plants and plants[0].as_built is None and any(one is not plants[0]
+                                                     and one != plants[0] for one in plants):
+        raise InvalidCase("plant", "the ideal plant is one for all runs; only as-built "
+                          "plants (their draws) may differ from run to run")
     n_steps = check_timing(duration, dt, values_per_step=simulator.values_per_step)
-    return starts, goals, n_steps
+    return starts, goals, plants, n_steps

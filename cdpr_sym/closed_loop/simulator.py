@@ -401,15 +401,24 @@ class Simulator:
         :func:`~cdpr_sym.closed_loop.case.trajectory_budget` bytes."""
         self.check_plant(plant)
         n_steps = check_timing(duration, dt, values_per_step=self.values_per_step)
+        states, logs, static, taken, record = self._rollout_with_static_tension(
+            *self.prepared(start, goal, k, r_d, dt, plant, dq0=dq0), n_steps)
+        return self.trajectory(states, logs, n_steps, dt, goal, k, r_d, plant,
+                               static_tension=static, taken=taken, solver_record=record)
+
+    def prepared(self, start: np.ndarray, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray,
+                 dt: float, plant: Plant, *, dq0: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """(x0, p): the initial state and the parameters of one run (as :meth:`run` starts
+        it), after the checks an as-built plant needs before it runs (RK4 can follow its
+        cables and drums at ``dt``; its encoders can read the start). ``plant`` is checked
+        by the caller (:meth:`check_plant`)."""
         if plant.as_built is not None:
             check_integrable(self.model, plant.as_built.actuation, dt, plant.as_built.substeps,
                              (start, goal))
             self._check_readable(start, plant)
-        states, logs, static, taken, record = self._rollout_with_static_tension(
-            self.initial_state(start, goal, k, r_d, dq0=dq0, plant=plant),
-            self.parameters(goal, k, r_d, dt, plant), n_steps)
-        return self.trajectory(states, logs, n_steps, dt, goal, k, r_d, plant,
-                               static_tension=static, taken=taken, solver_record=record)
+        return (self.initial_state(start, goal, k, r_d, dq0=dq0, plant=plant),
+                self.parameters(goal, k, r_d, dt, plant))
 
     def check_plant(self, plant: Plant) -> None:
         """Raise :class:`InvalidCase` (``plant``) when ``plant`` is of another kind than the

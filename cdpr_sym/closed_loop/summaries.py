@@ -33,6 +33,12 @@ def summary_fields(layout: StepLayout) -> Fields:
                    ("flag_counts", len(FLAG_NAMES)), ("fallback", 1)))
 
 
+def judged_tension(layout: StepLayout) -> str:
+    """The log field a run's tensions are judged on: the cables' true tension where the
+    plant logs it (as built), else the command."""
+    return "tension" if "tension" in layout.log.names else "tau"
+
+
 def summary_source(layout: StepLayout, step: str, lanes: int) -> str:
     """C source of ``summarise_lanes`` over the vectorised step ``step``."""
     fields = summary_fields(layout)
@@ -40,7 +46,8 @@ def summary_source(layout: StepLayout, step: str, lanes: int) -> str:
                   n=layout.n, m=layout.cables, n_x=layout.x.size, n_p=layout.p.size,
                   n_log=layout.log.size,
                   n_s=fields.size, offsets=fields.offsets(), status=layout.status_index,
-                  goal=layout.p.offset("q_goal"), tau=layout.log.offset("tau"),
+                  goal=layout.p.offset("q_goal"),
+                  tau=layout.log.offset(judged_tension(layout)),
                   alpha=layout.log.offset("alpha"), flags=layout.log.offset("flags"),
                   flag_bits=list(FLAG_NAMES), fallback_mask=FALLBACK_FLAGS)
 

@@ -120,19 +120,68 @@ def run_as_built(robot: Robot, draw: AsBuiltDraw, config: SweepConfig, pair: int
         drawn = drawn_robot(robot, draw, config.seed, pair, config.calibration)
         simulator = get_simulator(drawn.model, controller_by_name(controller_name),
                                   as_built=drawn.plant.as_built.structure())
-        held = all(simulator.true_static_held(q, drawn.plant) for q in (start, goal))
-        read_error = float(np.linalg.norm(simulator.read_offset(goal, drawn.plant)))
+        checked = _as_built_checks(simulator, drawn.plant, start, goal)
         run = simulator.run(start, goal, robot.k, robot.r_d, duration=config.duration,
                             dt=config.dt, plant=drawn.plant)
     except _RUN_FAILURES as failure:
         return _error_row(failure)
-    record = drawn.record
+    return _as_built_row(run, robot, drawn.record, checked)
+
+
+def run_as_built_group(robot: Robot, draw: AsBuiltDraw, config: SweepConfig,
+                       pairs: Sequence[int], controller_name: str, starts: np.ndarray,
+                       goals: np.ndarray) -> list[dict[str, Any]]:
+    """The rows of :func:`run_as_built` for many pairs of one controller, the same row for
+    row: uncalibrated, every pair's robot as built is the nominal model's controller on
+    its own drawn plant, so the runs advance together in compiled lanes, each with its
+    plant's parameters (:func:`~cdpr_sym.closed_loop.summarise_many`); calibrated pairs
+    (each its own model) and a group that fails as a whole run one by one, so only a
+    failing pair's row reports its error."""
+    def one_by_one() -> list[dict[str, Any]]:
+        return [run_as_built(robot, draw, config, pair, controller_name, start, goal)
+                for pair, start, goal in zip(pairs, starts, goals, strict=True)]
+
+    if config.calibration != "none" or len(pairs) < 2:
+        return one_by_one()
+    from cdpr_sym.calibration.drawn import drawn_robot
+
+    try:
+        drawn = [drawn_robot(robot, draw, config.seed, pair) for pair in pairs]
+        structure = drawn[0].plant.as_built.structure()
+        if any(one.plant.as_built.structure() != structure or one.model is not robot
+               for one in drawn):
+            return one_by_one()
+        simulator = get_simulator(robot, controller_by_name(controller_name),
+                                  as_built=structure)
+        checked = [_as_built_checks(simulator, one.plant, start, goal)
+                   for one, start, goal in zip(drawn, starts, goals, strict=True)]
+        summaries = summarise_many(simulator, starts, goals, robot.k, robot.r_d,
+                                   duration=config.duration, dt=config.dt,
+                                   plant=[one.plant for one in drawn],
+                                   settle_band=robot.design_target.error)
+    except _RUN_FAILURES:
+        return one_by_one()
+    return [_as_built_row(summary, robot, one.record, check)
+            for summary, one, check in zip(summaries, drawn, checked, strict=True)]
+
+
+def _as_built_checks(simulator: Any, plant: Plant, start: np.ndarray, goal: np.ndarray
+                     ) -> tuple[bool, float]:
+    """(held, read_error) of a run as built: whether the true static tension holds the
+    robot in the box at start and goal, and how far the encoders read the goal, m."""
+    held = all(simulator.true_static_held(q, plant) for q in (start, goal))
+    return held, float(np.linalg.norm(simulator.read_offset(goal, plant)))
+
+
+def _as_built_row(run: Trajectory | RunSummary, robot: Robot, record: dict[str, Any],
+                  checked: tuple[bool, float]) -> dict[str, Any]:
+    """An as-built run's row: its metrics, ``held``, ``read_error`` and the draw."""
     axes = ("x", "y", "z") if robot.dimension == 3 else ("x", "z")
     offsets = {f"anchor_offset_{i + 1}_{axis}": value
                for i, row in enumerate(record["anchor_offsets"])
                for axis, value in zip(axes, row, strict=True)}
     extra = {key: record[key] for key in CALIBRATION_COLUMNS if key in record}
-    return {**_row(run, robot), "held": held, "read_error": read_error,
+    return {**_row(run, robot), "held": checked[0], "read_error": checked[1],
             "mass_scale": record["mass_scale"], **offsets, **extra}
 
 
@@ -172,17 +221,16 @@ def _run_rows(job: SweepJob, runs: Runs) -> list[dict[str, Any]]:
     """The metric rows of ``runs`` in their order, each controller's runs advanced together
     (on the job's robot: no file is read here)."""
     config, robot = job.config, job.robot
-    if job.draw is not None:
-        return [run_as_built(robot, job.draw, config, pair, name, start, goal)
-                for pair, name, start, goal in zip(runs.pairs.tolist(),
-                                                   runs.controllers.tolist(), runs.starts,
-                                                   runs.goals, strict=True)]
     rows: list[dict[str, Any]] = [{} for _ in range(len(runs))]
     for name in dict.fromkeys(runs.controllers.tolist()):
         indices = np.flatnonzero(runs.controllers == name)
-        group = run_group(robot, name, runs.starts[indices], runs.goals[indices],
-                          duration=config.duration, dt=config.dt,
-                          mass_scale=config.mass_scale)
+        if job.draw is not None:
+            group = run_as_built_group(robot, job.draw, config, runs.pairs[indices].tolist(),
+                                       name, runs.starts[indices], runs.goals[indices])
+        else:
+            group = run_group(robot, name, runs.starts[indices], runs.goals[indices],
+                              duration=config.duration, dt=config.dt,
+                              mass_scale=config.mass_scale)
         for index, row in zip(indices.tolist(), group, strict=True):
             rows[index] = row
     return rows

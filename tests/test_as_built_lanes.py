@@ -1,0 +1,98 @@
+"""Robots as built in compiled lanes: each run its own drawn plant, the runs advanced together.
+
+The reference is :meth:`Simulator.run`, one run at a time (its own compiled rollout, a
+different C loop from the lanes'): ``summarise_many`` and ``run_many`` with one as-built
+plant per run give the same metrics and trajectories bit for bit, on 2, 4 and the host's
+lanes (every operation is rounded as written, so the lane count cannot change a bit); the
+sweep's as-built rows are the same whether its pairs run together or one by one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cdpr_sym.as_built import DEFAULT_DRAW
+from cdpr_sym.calibration.drawn import drawn_robot
+from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.closed_loop.batch import run_many, summarise_many
+from cdpr_sym.control import controller_by_name
+from cdpr_sym.errors import InvalidCase
+from cdpr_sym.robot import preset
+from cdpr_sym.sweep.config import SweepConfig, draw_pairs
+from cdpr_sym.sweep.runner import run_as_built, run_as_built_group
+
+PAIRS = 5
+DURATION = 3.0
+
+
+@pytest.fixture(scope="module")
+def drawn():
+    robot = preset("aras3")
+    config = SweepConfig(robot="aras3", controllers=("ida-winch",), pairs=PAIRS, seed=0,
+                         duration=DURATION, as_built="default")
+    starts, goals = draw_pairs(robot, config)
+    plants = [drawn_robot(robot, DEFAULT_DRAW, 0, pair).plant for pair in range(PAIRS)]
+    return robot, config, starts, goals, plants
+
+
+def _simulator(robot, design, plants, build_options):
+    return get_simulator(robot, controller_by_name(design), build_options=build_options,
+                         as_built=plants[0].as_built.structure())
+
+
+@pytest.mark.parametrize("design", ["ida-winch", "smooth-lp"])
+@pytest.mark.parametrize("lanes", [2, 4, None])
+def test_as_built_lanes_equal_runs_one_by_one(drawn, design, lanes, build_options):
+    robot, _, starts, goals, plants = drawn
+    simulator = _simulator(robot, design, plants, build_options)
+    band = robot.design_target.error
+    alone = [simulator.run(start, goal, robot.k, robot.r_d, duration=DURATION, dt=1e-3,
+                           plant=plant).summary(settle_band=band)
+             for start, goal, plant in zip(starts, goals, plants, strict=True)]
+    together = summarise_many(simulator, starts, goals, robot.k, robot.r_d,
+                              duration=DURATION, dt=1e-3, plant=plants,
+                              build_options=build_options, lanes=lanes, settle_band=band)
+    assert [run.metrics() for run in together] == [run.metrics() for run in alone]
+    # the draws differ, and so do the runs: a plant mixed up between lanes would show
+    assert len({run.metrics()["final_error"] for run in alone}) == PAIRS
+
+
+def test_as_built_trajectories_in_lanes_equal_runs(drawn, build_options):
+    robot, _, starts, goals, plants = drawn
+    simulator = _simulator(robot, "ida-winch", plants, build_options)
+    together = run_many(simulator, starts[:3], goals[:3], robot.k, robot.r_d,
+                        duration=1.0, dt=1e-3, plant=plants[:3], build_options=build_options,
+                        lanes=2)
+    for start, goal, plant, run in zip(starts, goals, plants, together, strict=False):
+        alone = simulator.run(start, goal, robot.k, robot.r_d, duration=1.0, dt=1e-3,
+                              plant=plant)
+        np.testing.assert_array_equal(run.q, alone.q)
+        np.testing.assert_array_equal(run.tau, alone.tau)   # the true tensions, judged
+        np.testing.assert_array_equal(run.command, alone.command)
+
+
+def test_the_sweeps_as_built_rows_are_the_same_together_and_alone(drawn):
+    robot, config, starts, goals, _ = drawn
+    pairs = list(range(PAIRS))
+    together = run_as_built_group(robot, DEFAULT_DRAW, config, pairs, "ida-winch", starts,
+                                  goals)
+    alone = [run_as_built(robot, DEFAULT_DRAW, config, pair, "ida-winch", start, goal)
+             for pair, start, goal in zip(pairs, starts, goals, strict=True)]
+    assert together == alone
+    assert all(row["status"] == "ok" for row in together)
+
+
+def test_plants_per_run_are_checked(drawn, build_options):
+    robot, _, starts, goals, plants = drawn
+    simulator = _simulator(robot, "ida-winch", plants, build_options)
+    with pytest.raises(InvalidCase, match="plant"):
+        summarise_many(simulator, starts, goals, robot.k, robot.r_d, duration=0.1, dt=1e-3,
+                       plant=plants[:2])
+    ideal = get_simulator(robot, controller_by_name("pd"), build_options=build_options)
+    with pytest.raises(InvalidCase, match="ideal plant is one"):
+        summarise_many(ideal, starts[:2], goals[:2], robot.k, robot.r_d, duration=0.1,
+                       dt=1e-3, plant=[Plant(), Plant(mass_scale=1.1)])
+    with pytest.raises(InvalidCase, match="plant"):  # an ideal plant on an as-built step
+        summarise_many(simulator, starts[:2], goals[:2], robot.k, robot.r_d, duration=0.1,
+                       dt=1e-3, plant=[Plant(), Plant()])
