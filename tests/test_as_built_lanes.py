@@ -96,3 +96,24 @@ def test_plants_per_run_are_checked(drawn, build_options):
     with pytest.raises(InvalidCase, match="plant"):  # an ideal plant on an as-built step
         summarise_many(simulator, starts[:2], goals[:2], robot.k, robot.r_d, duration=0.1,
                        dt=1e-3, plant=[Plant(), Plant()])
+
+
+@pytest.mark.slow  # ipanema8's as-built step, compiled twice (alone and in lanes)
+def test_an_as_built_stop_of_its_own_reads_the_same_in_lanes(build_options):
+    """A stop only an as-built plant has (``lost_pose``: forward kinematics cannot read the
+    encoders) reads the same in lanes as alone: ipanema8 with ``smooth-lp`` on the
+    robustness study's winches, sensing and delay loses its pose at once."""
+    from cdpr_sym.as_built import AsBuilt, Sensing
+    from cdpr_sym.studies.robustness import winch_drive
+
+    robot = preset("ipanema8")
+    plant = Plant(as_built=AsBuilt(actuation=winch_drive(robot), sensing=Sensing(), delay=1))
+    simulator = get_simulator(robot, controller_by_name("smooth-lp"),
+                              build_options=build_options, as_built=plant.as_built.structure())
+    alone = simulator.run(robot.start, robot.goal, robot.k, robot.r_d, duration=0.05,
+                          dt=1e-3, plant=plant).summary()
+    assert alone.stop_reason == "lost_pose"
+    together = summarise_many(simulator, [robot.start] * 2, [robot.goal] * 2, robot.k,
+                              robot.r_d, duration=0.05, dt=1e-3, plant=[plant, plant],
+                              build_options=build_options, lanes=2)
+    assert [run.metrics() for run in together] == [alone.metrics()] * 2

@@ -15,7 +15,7 @@ import functools
 import numpy as np
 
 from cdpr_sym.closed_loop.layout import Fields, StepLayout
-from cdpr_sym.closed_loop.step import STOP_REASONS
+from cdpr_sym.closed_loop.step import ALL_STOP_REASONS
 from cdpr_sym.codegen import render
 from cdpr_sym.control.flags import FALLBACK_FLAGS, FLAG_NAMES
 from cdpr_sym.results.summary import RunSummary, errors
@@ -81,7 +81,7 @@ def run_summaries(rows: np.ndarray, layout: StepLayout, goals: np.ndarray, dt: f
         settle_time=None if no_settle else settle_time, final_error=error,
         total_variation=variation, max_step=step,
         flag_counts=dict(zip(names, flag_counts, strict=True)),
-        fallback_steps=int(fallback), stop_reason=STOP_REASONS[code] if code else None,
+        fallback_steps=int(fallback), stop_reason=ALL_STOP_REASONS[code] if code else None,
         duration=n_commands * dt, start_jump=jump if n_commands else None,
         t_min=t_min, t_max=t_max)
         for (n_commands, code, no_settle, settle_time, error, jump, flag_counts, low, high,
