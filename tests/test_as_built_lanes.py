@@ -9,17 +9,20 @@ sweep's as-built rows are the same whether its pairs run together or one by one.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 
 from cdpr_sym.as_built import DEFAULT_DRAW
 from cdpr_sym.calibration.drawn import drawn_robot
 from cdpr_sym.closed_loop import Plant, get_simulator
-from cdpr_sym.closed_loop.batch import run_many, summarise_many
+from cdpr_sym.closed_loop.batch import batch_rollout, run_many, summarise_many
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import preset
 from cdpr_sym.sweep.config import SweepConfig, draw_pairs
+from cdpr_sym.sweep import runner
 from cdpr_sym.sweep.runner import run_as_built, run_as_built_group
 
 PAIRS = 5
@@ -72,15 +75,25 @@ def test_as_built_trajectories_in_lanes_equal_runs(drawn, build_options):
         np.testing.assert_array_equal(run.command, alone.command)
 
 
-def test_the_sweeps_as_built_rows_are_the_same_together_and_alone(drawn):
-    robot, config, starts, goals, _ = drawn
+def test_the_sweeps_as_built_rows_are_the_same_together_and_alone(drawn, monkeypatch):
+    robot, config, starts, goals, plants = drawn
     pairs = list(range(PAIRS))
-    together = run_as_built_group(robot, DEFAULT_DRAW, config, pairs, "ida-winch", starts,
-                                  goals)
+    simulator = get_simulator(robot, controller_by_name("ida-winch"),
+                              as_built=plants[0].as_built.structure())
+    assert batch_rollout(simulator) is not None  # lanes exist here (a C compiler)
+    with monkeypatch.context() as patched:  # the group must not fall back to runs alone
+        patched.setattr(runner, "run_as_built", _no_single_runs)
+        # an equal robot, another object (a worker's unpickled job holds one)
+        together = run_as_built_group(copy.deepcopy(robot), DEFAULT_DRAW, config, pairs,
+                                      "ida-winch", starts, goals)
     alone = [run_as_built(robot, DEFAULT_DRAW, config, pair, "ida-winch", start, goal)
              for pair, start, goal in zip(pairs, starts, goals, strict=True)]
     assert together == alone
     assert all(row["status"] == "ok" for row in together)
+
+
+def _no_single_runs(*args, **kwargs):
+    raise AssertionError("an as-built group ran its pairs one by one")
 
 
 def test_plants_per_run_are_checked(drawn, build_options):

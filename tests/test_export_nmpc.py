@@ -220,3 +220,15 @@ def test_a_design_the_package_cannot_feed_is_refused_in_one_line(controller, fie
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"cdpr-sym: error: {field}:"), err
     assert not out.exists()
+
+
+def test_the_export_says_its_nmpc_has_no_last_resort(tmp_path, capsys):
+    """The package is the design without DAQP: the command says so beside its files, and a
+    package of a law that is no NMPC says nothing."""
+    assert main(["export-c", "--robot", "aras3", "--controller", "nmpc", "--out",
+                 str(tmp_path / "nmpc"), "--json"]) == 0
+    notes = json.loads(capsys.readouterr().out)["notes"]
+    assert len(notes) == 1 and "last_resort=None" in notes[0]
+    assert main(["export-c", "--robot", "aras3", "--controller", "pd", "--out",
+                 str(tmp_path / "pd"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["notes"] == []

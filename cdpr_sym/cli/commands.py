@@ -405,8 +405,13 @@ def export_command(args: argparse.Namespace, out: Output) -> int:
             raise InvalidCase(option, "applies to --from-encoders packages only")
     result = export_c(robot, args.controller, args.out, prefix=args.prefix,
                       overwrite=args.force)
-    out.result({"prefix": result.prefix, "files": [str(path) for path in result.paths]},
-               [str(path) for path in result.paths])
+    notes = []
+    if result.nmpc_source is not None:  # the package is the design without its last resort
+        notes = ["note: the package's NMPC has no DAQP last resort (last_resort=None, as its "
+                 "manifest records): where both qrqp solves of a sample fail it commands the "
+                 "safe rate, where the simulated default would try DAQP"]
+    out.result({"prefix": result.prefix, "files": [str(path) for path in result.paths],
+                "notes": notes}, [str(path) for path in result.paths] + notes)
     return 0
 
 

@@ -38,6 +38,7 @@ from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.plant_kind import PlantKind
 from cdpr_sym.closed_loop.step import chunk_function, plant_layout, step_function
 from cdpr_sym.closed_loop.stops import ALL_STOP_REASONS
+from cdpr_sym.closed_loop.summaries import judged_tension
 from cdpr_sym.codegen import (
     BuildOptions,
     CompiledLibrary,
@@ -468,7 +469,7 @@ class Simulator:
         # of a run's Python time
         x = self.layout.x.split(states[: last + 1])
         log = self.layout.split_log(logs[:last])
-        if "tension" in self.layout.log.names:  # judged on the cables' true tension
+        if judged_tension(self.layout) == "tension":  # judged on the cables' true tension
             log["command"] = log["tau"]
             log["tau"] = self.layout.log.split(logs[:last])["tension"]
         return Trajectory(

@@ -16,8 +16,9 @@ The closed loop is x' = A x with A = [[Phi + Gamma dT/dz, Gamma dT/dm], [dm'/dz,
 (z = (q, dq)). Its eigenvalues z_i give the loop's modes, s_i = ln(z_i) / dt, each with the
 damping ratio -Re(s_i) / |s_i|: a negative one is a mode that grows. Left out of A: the
 memory the step only carries (the plan, the encoders' zero misfit), whose eigenvalue 1 says
-nothing about the motion. The test compares A with the simulator's own step (RK4 and the
-whole nonlinear pipeline) differentiated at the same point.
+nothing about the motion. The test compares A's eigenvalues with those of a loop written
+out by hand in numpy for a point mass (its law from its statement, its plant from the
+cables' geometric stiffness T / l (I - u u^T)), and its predictions with runs.
 
 Assumptions: the plant is the ideal one (rigid cables, the command applied): the drum-cable
 modes of a robot as built are not in A, nor friction, and the RK4 step of the simulator is
@@ -33,6 +34,7 @@ import casadi as ca
 import numpy as np
 import scipy.linalg
 
+from cdpr_sym.control.flags import FLAG_SATURATED
 from cdpr_sym.control.interface import Controller, step_with_drives
 from cdpr_sym.model import SymbolicModel
 
@@ -65,7 +67,11 @@ def loop_matrices(controller: Controller, model: SymbolicModel, poses: Any, dt: 
     """A for each pose of ``poses``: the linearised closed loop of ``controller`` on the
     ideal plant at rest there (see the module docstring), sampled every ``dt`` s;
     ``carried``: how many of the memory's leading entries the step only carries (left out
-    of A). The controller's functions are built once, with the pose as their input."""
+    of A). The controller's functions are built once, with the pose as their input.
+
+    For a planned design whose memory starts with its plan's clock (``ida-winch``, the
+    ``smooth`` family): the clock is set long past the plan's end. Raises ValueError where
+    the law clips its command at rest (FLAG_SATURATED: not linear there)."""
     n, robot = model.n, model.robot
     rest = ca.SX.sym("rest", n)
     gains = ca.DM(robot.k), ca.DM(robot.r_d)
@@ -77,7 +83,8 @@ def loop_matrices(controller: Controller, model: SymbolicModel, poses: Any, dt: 
                                       ca.DM(dt))
     moving = ca.vertcat(q, dq, memory[carried:])
     parts = ca.Function("parts", [q, dq, memory, rest], [
-        law.tau, ca.jacobian(law.tau, moving), ca.jacobian(following[carried:], moving)])
+        law.tau, ca.jacobian(law.tau, moving), ca.jacobian(following[carried:], moving),
+        law.flags])
     at_rest = ca.Function("at_rest", [memory, rest],
                           [ca.substitute(following, ca.vertcat(q, dq),
                                          ca.vertcat(rest, ca.SX.zeros(n)))])
@@ -87,8 +94,11 @@ def loop_matrices(controller: Controller, model: SymbolicModel, poses: Any, dt: 
         memory0 = np.array(memory_at(pose)).ravel()
         memory0[0] = 1e6  # the plan's clock, long past its end
         memory0 = _settled_memory(at_rest, pose, memory0, carried)
-        held, tension_rows, memory_rows = (np.array(value) for value in parts(
+        held, tension_rows, memory_rows, flags = (np.array(value) for value in parts(
             pose, np.zeros(n), memory0, pose))
+        if int(flags.ravel()[0]) & FLAG_SATURATED:
+            raise ValueError(f"the law clips its command at rest at {pose.tolist()}: the "
+                             "loop is not linear there")
         phi, gamma = _plant_map(model, pose, held.ravel(), dt)
         motion = np.hstack([phi, np.zeros((2 * n, size - carried))]) + gamma @ tension_rows
         matrices.append(np.vstack([motion, memory_rows]))
@@ -136,6 +146,8 @@ def loop_modes(matrix: np.ndarray, dt: float, *, ignored_at_one: int = 0) -> Loo
     eigenvalue z, frequency |Im s| / (2 pi), damping ratio -Re s / |s|. ``ignored_at_one``:
     how many eigenvalues nearest 1 to leave out (states the motion never reaches, such as
     an integral's part in the null space of W with more cables than coordinates)."""
+    if ignored_at_one < 0:
+        raise ValueError(f"ignored_at_one must be >= 0, got {ignored_at_one}")
     eigenvalues = np.linalg.eigvals(matrix).astype(complex)
     if ignored_at_one:
         eigenvalues = eigenvalues[np.argsort(np.abs(eigenvalues - 1))[ignored_at_one:]]

@@ -161,12 +161,12 @@ def winch_gains(robot: Robot, drive: Actuation, dt: Any, *, model: Any = None
     """``ida-winch``'s gains by the module's rules, for ``robot`` driven by ``drive``
     (its winches, as the controller models them) sampled every ``dt`` s (a number or a
     CasADi symbol); ``model`` its SymbolicModel, built when not given. The integral's share
-    (:func:`integral_share_kept`) is worked out at ``dt`` when it is a number, else at the
-    toolkit's 1 kHz."""
+    (:func:`integral_share_kept`) is worked out at the toolkit's 1 kHz whatever ``dt`` (the
+    compiled step takes its period as an input, so a share at ``dt`` would differ between
+    what ``tune`` reports and what runs)."""
     corner, stiffness, damping, integral = _nominal_gains(robot, drive, dt, model)
-    rule_dt = DEFAULT_DT if isinstance(dt, (ca.SX, ca.MX)) else float(dt)
     return WinchGains(stiffness=stiffness, damping=damping,
-                      integral=integral * integral_share_kept(robot, drive, rule_dt, model),
+                      integral=integral * integral_share_kept(robot, drive, DEFAULT_DT, model),
                       feedback_cutoff=corner)
 
 
@@ -219,9 +219,11 @@ def platform_stiffness(model: Any, q: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 def integral_share_kept(robot: Robot, drive: Actuation, dt: float, model: Any = None
                         ) -> float:
-    """The share of the integral rule's k_i kept, in (0, 1]: at most
+    """The share of the integral rule's k_i kept, in [0, 1]: at most
     k_d omega_s^2 / (INTEGRAL_HEADROOM k_i), omega_s the slowest mode
-    (:func:`slowest_mode`), with the rule's k_p, k_d and k_i at the period ``dt`` (s).
+    (:func:`slowest_mode`), with the rule's k_p, k_d and k_i at the period ``dt`` (s); 0,
+    no integral, where a mode has no positive stiffness (omega_s = 0: an integral would
+    wind it up).
 
     An integral k_i on a length error acts on a mode of angular frequency omega as a
     negative damping k_i / omega^2 beside the damper's k_d (the same cables carry both, so

@@ -82,7 +82,8 @@ def _loop_numbers(robot: Robot, model: Any, design: Any, winch: Any, drive: Actu
 
     stages = design.stages_for(robot, model)
     modes = least_damping(design, model, (robot.start, robot.goal), dt,
-                          carried=design.carried_size(model), ignored_at_one=robot.m - robot.n)
+                          carried=design.carried_size(model),
+                          ignored_at_one=max(robot.m - robot.n, 0))
     return {"feedback_stages": stages,
             "integral_share": tuning.integral_share_kept(robot, drive, dt, model),
             "slowest_mode_hz": tuning.slowest_mode(robot, winch.stiffness, model)

@@ -81,7 +81,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import weakref
 from typing import Any, ClassVar
 
 import casadi as ca
@@ -102,14 +101,19 @@ from cdpr_sym.distribution.closed_form import nearest_to
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
+from cdpr_sym.robot.description import robot_key
 from cdpr_sym.robot.gains import DEFAULT_DT
 
 #: The feedback filter's stages at most, and the least damping ratio the rule asks of every
 #: mode of the linearised sampled loop (:meth:`WinchIdaPbc.stages_for`).
 MOST_STAGES = 4
 MIN_LOOP_DAMPING = 0.02
-#: The stages found per robot (weakly keyed: a robot's entry goes with it) and options.
-_STAGES_FOUND: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: Where no stage count reaches MIN_LOOP_DAMPING: least dampings within this of the best
+#: count's are taken as equal, and the most stages among them kept (a tenth of the target).
+DAMPING_TIE = 0.002
+#: The stages found, by the robot's numbers and the options (the STAGES_KEPT latest).
+_STAGES_FOUND: dict[tuple[str, str], int] = {}
+STAGES_KEPT = 64
 
 #: Periods of the platform's mode on the motor springs a planned move lasts at least
 #: (:meth:`WinchIdaPbc.paced_plan`).
@@ -189,7 +193,7 @@ class WinchIdaPbc:
     feedback_stages : int or "robot"
         Stages of that filter, 1 to 8. "robot" (default): :meth:`stages_for`, the most
         stages (at most 4) whose linearised sampled loop damps every mode by at least
-        MIN_LOOP_DAMPING at the case's start and goal.
+        MIN_LOOP_DAMPING at the case's start and goal (else the best damped).
     plan : SmoothReference
         The planner of the reference (duration, margin).
     """
@@ -295,23 +299,31 @@ class WinchIdaPbc:
         (``feedback_stages="robot"``): the most stages N <= MOST_STAGES whose linearised
         sampled loop on the ideal plant (:mod:`cdpr_sym.control.sampled_loop`, this law with
         N stages, at the toolkit's 1 kHz) damps every mode by at least MIN_LOOP_DAMPING at
-        the case's start and goal; where no N does (a mode the encoders barely see, which no
-        filter damps: ipanema8's slow rotations, 0.0004-0.0008), the most N with no growing
-        mode; MOST_STAGES where every N has one.
+        the case's start and goal; where no N does, the N whose least damping is largest,
+        the most stages among those within DAMPING_TIE of it (differences that small buy
+        nothing worth the filtering lost: ipanema8's slow rotations, which no filter damps,
+        get 0.0004-0.0008 with any count and keep four stages; a 287 kg platform on 8
+        cables gets 0.017 with one stage against 0.010 with two and a growing mode with
+        three or four, and gets one).
 
         Why: each stage lags a mode at f by atan(f / f_c). A body held on short arms under
         large tensions has rotation modes the cables' geometric stiffness sets, far faster
         than the motor springs give (a 173 kg platform on 8 cables with 2.3 cm arms: 18 Hz
         against f_c = 25 Hz); there the four stages' lag turns the damper into negative
         damping and the mode grows (that robot left its frame on the ideal plant; with one
-        stage it settles). Computed once per robot and options (1-6 s on a 6-DOF robot)."""
+        stage it settles). Worked out at 1 kHz, whatever the run's period (the memory's
+        layout cannot follow a period given at run time): at another period ``cdpr-sym tune
+        --dt`` prints the loop's least damping there; state ``feedback_stages`` where it
+        grows. Computed once per robot (by its numbers) and options: 0.1 s on aras3, 3 s on
+        ipanema8."""
         if self.feedback_stages != FROM_ROBOT:
             return int(self.feedback_stages)
-        key = json.dumps(self.options(), sort_keys=True, default=str)
-        known = _STAGES_FOUND.setdefault(robot, {})
-        if key not in known:
-            known[key] = self._stages_by_rule(robot, model or SymbolicModel(robot))
-        return known[key]
+        key = (robot_key(robot), json.dumps(self.options(), sort_keys=True, default=str))
+        if key not in _STAGES_FOUND:
+            if len(_STAGES_FOUND) >= STAGES_KEPT:
+                del _STAGES_FOUND[next(iter(_STAGES_FOUND))]
+            _STAGES_FOUND[key] = self._stages_by_rule(robot, model or SymbolicModel(robot))
+        return _STAGES_FOUND[key]
 
     def _stages_by_rule(self, robot: Robot, model: SymbolicModel) -> int:
         """:meth:`stages_for`'s rule, worked out."""
@@ -323,11 +335,12 @@ class WinchIdaPbc:
             trial = dataclasses.replace(self, feedback_stages=stages)
             found[stages] = least_damping(
                 trial, model, poses, DEFAULT_DT, carried=trial.carried_size(model),
-                ignored_at_one=model.m - model.n).least_damping
+                ignored_at_one=max(model.m - model.n, 0)).least_damping
             if found[stages] >= MIN_LOOP_DAMPING:
                 return stages
-        steady = [stages for stages, damping in found.items() if damping >= 0]
-        return max(steady) if steady else MOST_STAGES
+        best = max(found.values())
+        return max(stages for stages, damping in found.items()
+                   if damping >= best - DAMPING_TIE)
 
     def carried_size(self, model: SymbolicModel) -> int:
         """How many of the memory's leading entries the step only carries: the plan and

@@ -239,22 +239,21 @@ class NmpcProblem:
         q0 = z0[: self.n]
         numeric = isinstance(z0, np.ndarray) and isinstance(q_goal, np.ndarray)
         smaller, larger = (np.minimum, np.maximum) if numeric else (ca.fmin, ca.fmax)
-        pose_lower = smaller(frame_lower + band, smaller(q0, q_goal))
-        pose_upper = larger(frame_upper - band, larger(q0, q_goal))
-        rate = self.tuning.max_rate
-        free = np.full(self.n, np.inf)
-        stack = np.concatenate if numeric else ca.vertcat
-        if numeric:
-            parts_lower = (np.full(self.m, -rate), pose_lower, -free, np.full(self.m, robot.t_min))
-            parts_upper = (np.full(self.m, rate), pose_upper, free, np.full(self.m, robot.t_max))
-            return (np.tile(stack(parts_lower), self.intervals),
-                    np.tile(stack(parts_upper), self.intervals))
-        parts_lower = (ca.DM(np.full(self.m, -rate)), pose_lower, ca.DM(-free),
-                       ca.DM(np.full(self.m, robot.t_min)))
-        parts_upper = (ca.DM(np.full(self.m, rate)), pose_upper, ca.DM(free),
-                       ca.DM(np.full(self.m, robot.t_max)))
-        return (ca.repmat(stack(*parts_lower), self.intervals, 1),
-                ca.repmat(stack(*parts_upper), self.intervals, 1))
+        poses = (smaller(frame_lower + band, smaller(q0, q_goal)),
+                 larger(frame_upper - band, larger(q0, q_goal)))
+        pose = slice(self.m, self.m + self.n)  # one stage of v: [rates, q, dq, tau]
+        bounds = []
+        for frame_bounds, pose_bound in zip(self._bounds, poses, strict=True):
+            stage = frame_bounds[: self.stage]
+            if numeric:
+                stage = stage.copy()
+                stage[pose] = pose_bound
+                bounds.append(np.tile(stage, self.intervals))
+            else:
+                stage = ca.vertcat(ca.DM(stage[: self.m]), pose_bound,
+                                   ca.DM(stage[self.m + self.n:]))
+                bounds.append(ca.repmat(stage, self.intervals, 1))
+        return bounds[0], bounds[1]
 
     # -- guesses -----------------------------------------------------------------------
     def hold(self, z0: np.ndarray) -> np.ndarray:
