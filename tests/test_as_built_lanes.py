@@ -21,8 +21,8 @@ from cdpr_sym.closed_loop.batch import batch_rollout, run_many, summarise_many
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import preset
-from cdpr_sym.sweep.config import SweepConfig, draw_pairs
 from cdpr_sym.sweep import runner
+from cdpr_sym.sweep.config import SweepConfig, draw_pairs
 from cdpr_sym.sweep.runner import run_as_built, run_as_built_group
 
 PAIRS = 5
