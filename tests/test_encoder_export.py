@@ -26,7 +26,7 @@ from cdpr_sym.as_built import load_as_built_draw
 from cdpr_sym.calibration.drawn import calibrated_model, drawn_robot
 from cdpr_sym.cli import main
 from cdpr_sym.closed_loop import get_simulator
-from cdpr_sym.control import controller_by_name
+from cdpr_sym.control import WinchIdaPbc, controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.export import export_encoder_c
 from cdpr_sym.export.encoder_description import RANGE_MARGIN, length_bounds
@@ -104,6 +104,16 @@ def test_the_package_runs_its_loop_bit_for_bit_trips_every_guard_and_times_itsel
         assert f"int {result.prefix}{call}" in header
     assert "malloc" not in "".join(path.read_text() for path in result.files.values()
                                    if path.suffix in (".c", ".h", ".inc"))
+
+
+@pytest.mark.slow  # shares the package's build
+def test_the_manifest_records_the_stage_count_the_package_was_built_with(winch_package):
+    """ida-winch chooses its filter stages from the robot (feedback_stages="robot"): the
+    manifest records the count, which the package's memory layout has."""
+    result, _ = winch_package
+    options = json.loads((result.out_dir / "manifest.json").read_text())["controller"][
+        "options"]
+    assert options["feedback_stages"] == WinchIdaPbc().stages_for(preset("aras3")) == 4
 
 
 @pytest.mark.slow  # ~11 s of compiling

@@ -36,6 +36,7 @@ import scipy.linalg
 
 from cdpr_sym.control.flags import FLAG_SATURATED
 from cdpr_sym.control.interface import Controller, step_with_drives
+from cdpr_sym.control.tuning import platform_stiffness
 from cdpr_sym.model import SymbolicModel
 
 #: Periods the memory is given to settle at rest, in chunks of SETTLE_CHUNK.
@@ -128,10 +129,7 @@ def _plant_map(model: SymbolicModel, q_rest: np.ndarray, held: np.ndarray, dt: f
     """(Phi, Gamma): the rigid plant's exact zero-order-hold map about rest at ``q_rest``
     under the tension ``held`` (N)."""
     n, m = model.n, model.m
-    q = ca.SX.sym("q", n)
-    energy = model.potential(q) + ca.dot(ca.DM(held), model.cable_lengths(q))
-    stiffness = np.array(ca.Function("K", [q], [ca.hessian(energy, q)[0]])(q_rest))
-    mass = np.array(model.functions["mass_matrix"](q_rest))
+    stiffness, mass = platform_stiffness(model, q_rest, held)
     W = np.array(model.functions["structure_matrix"](q_rest))
     continuous = np.zeros((2 * n + m, 2 * n + m))
     continuous[:n, n: 2 * n] = np.eye(n)

@@ -207,11 +207,14 @@ def slowest_mode(robot: Robot, stiffness: float, model: Any = None) -> float:
     return slowest
 
 
-def platform_stiffness(model: Any, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(K_g, M) at the pose q (numpy): grad^2 (V + T_s . l), N/m (N m/rad on angles), with
-    T_s the static tension at q held fixed, and the mass matrix."""
+def platform_stiffness(model: Any, q: np.ndarray, tension: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """(K_g, M) at the pose q (numpy): grad^2 (V + T . l), N/m (N m/rad on angles), with the
+    cables' tension T held fixed (default: the static tension T_s at q), and the mass
+    matrix."""
     symbol = ca.SX.sym("q", model.n)
-    held = np.array(ca.Function("T_s", [symbol], [model.static_tension(symbol)])(q)).ravel()
+    held = (np.array(ca.Function("T_s", [symbol], [model.static_tension(symbol)])(q)).ravel()
+            if tension is None else np.asarray(tension, dtype=float))
     energy = model.potential(symbol) + ca.dot(ca.DM(held), model.cable_lengths(symbol))
     hessian = ca.Function("K_g", [symbol], [ca.hessian(energy, symbol)[0]])
     return np.array(hessian(q)), np.array(model.functions["mass_matrix"](q))
