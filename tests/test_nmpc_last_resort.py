@@ -96,3 +96,22 @@ def test_the_band_keeps_predicted_poses_inside_and_the_ends_reachable(body):
                            list(problem.prediction_bounds(symbol_z0, symbol_goal)))
     for numeric, casadi_value in zip((lower, upper), symbolic(z0, goal), strict=True):
         np.testing.assert_array_equal(numeric, np.array(casadi_value).ravel())
+
+
+@pytest.mark.parametrize("last_resort", ["daqp", None])
+def test_the_sampled_solver_falls_back_to_daqp_only_when_asked(body, last_resort):
+    """The loop's solve at that first sample: with the last resort it returns DAQP's plan,
+    without it none (the safe command follows)."""
+    from cdpr_sym import BuildOptions
+    from cdpr_sym.closed_loop.sampled import SampledSolver
+
+    robot, problem, z0, goal, tau_goal = body
+    design = Nmpc(last_resort=last_resort)
+    solver = SampledSolver(problem.model, design, backend="casadi",
+                           build_options=BuildOptions(backend="casadi"), library_name="unused",
+                           problem=NmpcProblem(problem.model, design))
+    solution = solver.solve(z0, problem.hold(z0), np.zeros(problem.multiplier_size), goal,
+                            tau_goal)
+    assert (solution is not None) == (last_resort == "daqp")
+    if solution is not None:
+        assert problem.checked(solution[0], 0.0) and solver.retried == 1
