@@ -105,7 +105,7 @@ def test_the_sampled_solver_falls_back_to_daqp_only_when_asked(body, last_resort
     from cdpr_sym import BuildOptions
     from cdpr_sym.closed_loop.sampled import SampledSolver
 
-    robot, problem, z0, goal, tau_goal = body
+    _, problem, z0, goal, tau_goal = body
     design = Nmpc(last_resort=last_resort)
     solver = SampledSolver(problem.model, design, backend="casadi",
                            build_options=BuildOptions(backend="casadi"), library_name="unused",
