@@ -44,8 +44,11 @@ def _simulator(robot, design, plants, build_options):
                          as_built=plants[0].as_built.structure())
 
 
-@pytest.mark.parametrize("design", ["ida-winch", "smooth-lp"])
-@pytest.mark.parametrize("lanes", [2, 4, None])
+@pytest.mark.parametrize(("design", "lanes"), [
+    ("ida-winch", 4),
+    *(pytest.param(design, lanes, marks=pytest.mark.slow)  # a compile each
+      for design, lanes in (("ida-winch", 2), ("ida-winch", None), ("smooth-lp", 2),
+                            ("smooth-lp", 4), ("smooth-lp", None)))])
 def test_as_built_lanes_equal_runs_one_by_one(drawn, design, lanes, build_options):
     robot, _, starts, goals, plants = drawn
     simulator = _simulator(robot, design, plants, build_options)
