@@ -211,3 +211,28 @@ def test_ipanemas_integral_share_keeps_its_slow_modes_from_growing():
     for name in ("aras3", "planar2", "planar3", "spatial6", "planar4", "spatial4"):
         other = preset(name)
         assert tuning.integral_share_kept(other, WinchIdaPbc().drive_of(other), DT) == 1.0
+
+
+# -- the rule's stages at another period ---------------------------------------------------------
+
+def test_stages_chosen_at_1khz_that_grow_at_another_period_are_refused(build_options):
+    """The 1 kg body's 2 stages damp its loop at 1 ms and 2 ms; at 4 ms a mode grows
+    (8.8 Hz, -0.008), and the run is refused in one line naming feedback_stages."""
+    from cdpr_sym.errors import InvalidCase
+
+    robot = _planar_body()
+    for dt in (1e-3, 2e-3):
+        WinchIdaPbc().check_loop(robot, dt)
+    with pytest.raises(InvalidCase, match=r"^feedback_stages: the 2 filter stages"):
+        simulate(robot, WinchIdaPbc(), duration=1.0, dt=4e-3, build_options=build_options)
+
+
+@pytest.mark.slow
+def test_the_refused_period_grows_when_the_stages_are_forced(build_options):
+    """What the refusal prevents: the same 2 stages stated at 4 ms settle the body within
+    1.1 s, then the mode grows (30 s: centimetres off, where 10 s showed 1e-5 m)."""
+    robot = _planar_body()
+    run = simulate(robot, WinchIdaPbc(feedback_stages=2), duration=30.0, dt=4e-3,
+                   build_options=build_options)
+    error = np.max(np.abs(np.asarray(run.q) - np.asarray(robot.goal)), axis=1)
+    assert error[int(10.0 / 4e-3)] < 1e-3 < error[-1]

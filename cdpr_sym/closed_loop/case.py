@@ -114,10 +114,14 @@ def minimal_values_per_step(robot: Robot) -> int:
 def check_controller_period(controller: object, robot: Robot, dt: float) -> None:
     """Raise :class:`InvalidCase` naming the gain when ``controller`` has gains no loop
     sampled every ``dt`` s can hold on ``robot`` (a controller that states such a limit
-    has a ``check_period(robot_mass, dt)`` method, as ``ida-winch`` does)."""
+    has a ``check_period(robot_mass, dt)`` method, as ``ida-winch`` does, and one whose
+    defaults are worked out at another period a ``check_loop(robot, dt)`` method)."""
     check = getattr(controller, "check_period", None)
     if check is not None:
         check(robot.mass, dt)
+    check_loop = getattr(controller, "check_loop", None)
+    if check_loop is not None:
+        check_loop(robot, dt)
 
 
 def check_timing(duration: float, dt: float, *, values_per_step: int = 1) -> int:

@@ -113,6 +113,8 @@ MIN_LOOP_DAMPING = 0.02
 DAMPING_TIE = 0.002
 #: The stages found, by the robot's numbers and the options (the STAGES_KEPT latest).
 _STAGES_FOUND: dict[tuple[str, str], int] = {}
+#: check_loop's findings, by the robot's numbers, the options and the period.
+_LOOPS_CHECKED: dict[tuple[str, str, float], tuple[int, Any]] = {}
 STAGES_KEPT = 64
 
 #: Periods of the platform's mode on the motor springs a planned move lasts at least
@@ -324,6 +326,34 @@ class WinchIdaPbc:
                 del _STAGES_FOUND[next(iter(_STAGES_FOUND))]
             _STAGES_FOUND[key] = self._stages_by_rule(robot, model or SymbolicModel(robot))
         return _STAGES_FOUND[key]
+
+    def check_loop(self, robot: Robot, dt: float) -> None:
+        """Raise :class:`InvalidCase` (``feedback_stages``) where the stages the rule chose
+        at 1 kHz (``feedback_stages="robot"``) leave the loop sampled every ``dt`` s with a
+        growing mode on the ideal plant at the case's start or goal (the memory's layout is
+        fixed when the step is built, so the rule cannot follow the period): state
+        ``feedback_stages``. At 1 kHz, or with stated stages, nothing is checked. Worked out
+        once per robot, options and period."""
+        if self.feedback_stages != FROM_ROBOT or dt == DEFAULT_DT:
+            return
+        key = (robot_key(robot), json.dumps(self.options(), sort_keys=True, default=str),
+               float(dt))
+        if key not in _LOOPS_CHECKED:
+            from cdpr_sym.control.sampled_loop import least_damping
+
+            model = SymbolicModel(robot)
+            stages = self.stages_for(robot, model)
+            trial = dataclasses.replace(self, feedback_stages=stages)
+            _LOOPS_CHECKED[key] = (stages, least_damping(
+                trial, model, (robot.start, robot.goal), dt, carried=trial.carried_size(model),
+                ignored_at_one=max(model.m - model.n, 0)))
+        stages, modes = _LOOPS_CHECKED[key]
+        if modes.least_damping < 0:
+            raise InvalidCase("feedback_stages", f"the {stages} filter stages the rule chose at "
+                              f"1 kHz leave a mode of ida-winch's loop growing at dt = {dt:g} s "
+                              f"({modes.least_damped_frequency:.3g} Hz, damping ratio "
+                              f"{modes.least_damping:.3g}); state feedback_stages (cdpr-sym tune "
+                              f"--dt {dt:g} prints the loop at that period)")
 
     def _stages_by_rule(self, robot: Robot, model: SymbolicModel) -> int:
         """:meth:`stages_for`'s rule, worked out."""
