@@ -314,9 +314,8 @@ class WinchIdaPbc:
         against f_c = 25 Hz); there the four stages' lag turns the damper into negative
         damping and the mode grows (that robot left its frame on the ideal plant; with one
         stage it settles). Worked out at 1 kHz, whatever the run's period (the memory's
-        layout cannot follow a period given at run time): at another period ``cdpr-sym tune
-        --dt`` prints the loop's least damping there; state ``feedback_stages`` where it
-        grows. Computed once per robot (by its numbers) and options: 0.1 s on aras3, 3 s on
+        layout cannot follow a period given at run time): a run at a period where these
+        stages leave the loop growing is refused (:meth:`check_loop`). Computed once per robot (by its numbers) and options: 0.1 s on aras3, 3 s on
         ipanema8."""
         if self.feedback_stages != FROM_ROBOT:
             return int(self.feedback_stages)
