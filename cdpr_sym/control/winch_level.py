@@ -331,9 +331,10 @@ class WinchIdaPbc:
         at 1 kHz (``feedback_stages="robot"``) leave the loop sampled every ``dt`` s with a
         growing mode on the ideal plant at the case's start or goal (the memory's layout is
         fixed when the step is built, so the rule cannot follow the period): state
-        ``feedback_stages``. At 1 kHz, or with stated stages, nothing is checked. Worked out
-        once per robot, options and period."""
-        if self.feedback_stages != FROM_ROBOT or dt == DEFAULT_DT:
+        ``feedback_stages``. At 1 kHz, with stated stages or without the filter, nothing is
+        checked. Worked out once per robot, options and period."""
+        if self.feedback_stages != FROM_ROBOT or self.feedback_cutoff is None \
+                or dt == DEFAULT_DT:
             return
         key = (robot_key(robot), json.dumps(self.options(), sort_keys=True, default=str),
                float(dt))
