@@ -78,12 +78,9 @@ def _loop_numbers(robot: Robot, model: Any, design: Any, winch: Any, drive: Actu
     and its linearised sampled loop's least damped mode on the ideal plant at start and
     goal (:mod:`cdpr_sym.control.sampled_loop`) at ``dt``."""
     from cdpr_sym.control import tuning
-    from cdpr_sym.control.sampled_loop import least_damping
 
     stages = design.stages_for(robot, model)
-    modes = least_damping(design, model, (robot.start, robot.goal), dt,
-                          carried=design.carried_size(model),
-                          ignored_at_one=max(robot.m - robot.n, 0))
+    modes = design.loop_modes(model, dt)
     return {"feedback_stages": stages,
             "integral_share": tuning.integral_share_kept(robot, drive, dt, model),
             "slowest_mode_hz": tuning.slowest_mode(robot, winch.stiffness, model)

@@ -315,11 +315,11 @@ class WinchIdaPbc:
         damping and the mode grows (that robot left its frame on the ideal plant; with one
         stage it settles). Worked out at 1 kHz, whatever the run's period (the memory's
         layout cannot follow a period given at run time): a run at a period where these
-        stages leave the loop growing is refused (:meth:`check_loop`). Computed once per robot (by its numbers) and options: 0.1 s on aras3, 3 s on
-        ipanema8."""
+        stages leave the loop growing is refused (:meth:`check_loop`). Computed once per
+        robot (by its numbers) and options: 0.1 s on aras3, 3 s on ipanema8."""
         if self.feedback_stages != FROM_ROBOT:
             return int(self.feedback_stages)
-        key = (robot_key(robot), json.dumps(self.options(), sort_keys=True, default=str))
+        key = self._rule_key(robot)
         if key not in _STAGES_FOUND:
             if len(_STAGES_FOUND) >= STAGES_KEPT:
                 del _STAGES_FOUND[next(iter(_STAGES_FOUND))]
@@ -336,17 +336,12 @@ class WinchIdaPbc:
         if self.feedback_stages != FROM_ROBOT or self.feedback_cutoff is None \
                 or dt == DEFAULT_DT:
             return
-        key = (robot_key(robot), json.dumps(self.options(), sort_keys=True, default=str),
-               float(dt))
+        key = (*self._rule_key(robot), float(dt))
         if key not in _LOOPS_CHECKED:
-            from cdpr_sym.control.sampled_loop import least_damping
-
             model = SymbolicModel(robot)
             stages = self.stages_for(robot, model)
-            trial = dataclasses.replace(self, feedback_stages=stages)
-            _LOOPS_CHECKED[key] = (stages, least_damping(
-                trial, model, (robot.start, robot.goal), dt, carried=trial.carried_size(model),
-                ignored_at_one=max(model.m - model.n, 0)))
+            _LOOPS_CHECKED[key] = (stages, dataclasses.replace(
+                self, feedback_stages=stages).loop_modes(model, dt))
         stages, modes = _LOOPS_CHECKED[key]
         if modes.least_damping < 0:
             raise InvalidCase("feedback_stages", f"the {stages} filter stages the rule chose at "
@@ -355,17 +350,27 @@ class WinchIdaPbc:
                               f"{modes.least_damping:.3g}); state feedback_stages (cdpr-sym tune "
                               f"--dt {dt:g} prints the loop at that period)")
 
-    def _stages_by_rule(self, robot: Robot, model: SymbolicModel) -> int:
-        """:meth:`stages_for`'s rule, worked out."""
+    def loop_modes(self, model: SymbolicModel, dt: float) -> Any:
+        """The modes of this law's linearised sampled loop on the ideal plant, sampled every
+        ``dt`` s, at the case's start or goal, whichever is less damped
+        (:func:`cdpr_sym.control.sampled_loop.least_damping`, a ``LoopModes``)."""
         from cdpr_sym.control.sampled_loop import least_damping
 
-        poses = (robot.start, robot.goal)
+        robot = model.robot
+        return least_damping(self, model, (robot.start, robot.goal), dt,
+                             carried=self.carried_size(model),
+                             ignored_at_one=max(model.m - model.n, 0))
+
+    def _rule_key(self, robot: Robot) -> tuple[str, str]:
+        """What the rule's findings are kept by: the robot's numbers and the options."""
+        return robot_key(robot), json.dumps(self.options(), sort_keys=True, default=str)
+
+    def _stages_by_rule(self, robot: Robot, model: SymbolicModel) -> int:
+        """:meth:`stages_for`'s rule, worked out."""
         found = {}
         for stages in range(MOST_STAGES, 0, -1):
-            trial = dataclasses.replace(self, feedback_stages=stages)
-            found[stages] = least_damping(
-                trial, model, poses, DEFAULT_DT, carried=trial.carried_size(model),
-                ignored_at_one=max(model.m - model.n, 0)).least_damping
+            found[stages] = dataclasses.replace(self, feedback_stages=stages).loop_modes(
+                model, DEFAULT_DT).least_damping
             if found[stages] >= MIN_LOOP_DAMPING:
                 return stages
         best = max(found.values())
