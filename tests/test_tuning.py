@@ -268,3 +268,16 @@ def test_a_box_floor_under_the_families_friction_gets_a_drive_that_resolves_it()
     assert 0.01 / 0.03 * 56.3 / 60 > 0.17  # what the family alone would have given
     # the rest of the winch still scales with the pull
     assert drive.inertia / drive.drum_radius**2 == pytest.approx(1e-4 / 0.03**2 * 56.3 / 60)
+
+
+@pytest.mark.slow  # ipanema8's stage rule, 3 s
+def test_tune_reports_the_integral_share_the_gains_use_at_another_period():
+    """The share is worked out at 1 kHz whatever the period (the compiled step takes dt as
+    an input); ``tune --dt 0.002`` reported the share at 2 ms (0.348 on ipanema8) beside
+    gains made with the 1 kHz one (0.280)."""
+    robot = preset("ipanema8")
+    drive = WinchIdaPbc().drive_of(robot)
+    report = tune_report(robot, drive, 2e-3)
+    at_rule = tuning.integral_share_kept(robot, drive, 1e-3)
+    assert report["loop"]["integral_share"] == at_rule
+    assert at_rule != tuning.integral_share_kept(robot, drive, 2e-3)

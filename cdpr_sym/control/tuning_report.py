@@ -78,11 +78,13 @@ def _loop_numbers(robot: Robot, model: Any, design: Any, winch: Any, drive: Actu
     and its linearised sampled loop's least damped mode on the ideal plant at start and
     goal (:mod:`cdpr_sym.control.sampled_loop`) at ``dt``."""
     from cdpr_sym.control import tuning
+    from cdpr_sym.robot.gains import DEFAULT_DT
 
     stages = design.stages_for(robot, model)
     modes = design.loop_modes(model, dt)
     return {"feedback_stages": stages,
-            "integral_share": tuning.integral_share_kept(robot, drive, dt, model),
+            # the share the gains use: worked out at 1 kHz whatever dt (tuning.winch_gains)
+            "integral_share": tuning.integral_share_kept(robot, drive, DEFAULT_DT, model),
             "slowest_mode_hz": tuning.slowest_mode(robot, winch.stiffness, model)
             / (2 * math.pi),
             "least_damping": modes.least_damping,
