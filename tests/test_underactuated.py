@@ -352,6 +352,26 @@ def test_the_robots_own_case_settles_in_the_box(path):
     assert metrics["max_tension_step"] <= 1.0
 
 
+@pytest.mark.slow
+def test_a_tall_platform_s_plan_leaves_time_to_settle_where_half_the_window_did_not():
+    """A drawn 3-cable platform under anchors 3.8 m up (swing periods of seconds, slowest
+    decay 0.06 1/s): the rule's plan, 4/5 of the settle time, settles its own case by 5 s;
+    the plan capped at half of it (the rule before) rings past 5 s."""
+    from cdpr_sym.underactuated.zoo import underactuated_zoo
+
+    robot = underactuated_zoo(0, 6)[5]
+    design = derived_design(robot)
+    assert design.duration == pytest.approx(0.8 * robot.design_target.settle_time)
+    settled = {}
+    for name, duration in (("rule", None), ("half", 0.5 * robot.design_target.settle_time)):
+        run = simulate(robot, UnderactuatedIdaPbc(duration=duration), duration=8.0)
+        metrics = run.metrics(settle_band=robot.design_target.error)
+        assert metrics["tension_feasible"] and run.stop_reason is None
+        settled[name] = metrics["settle_time"]
+    assert settled["rule"] is not None and settled["rule"] <= 5.0
+    assert settled["half"] is None or settled["half"] > 5.0
+
+
 def test_overrides_are_checked_and_kept():
     with pytest.raises(InvalidCase, match="stiffness"):
         UnderactuatedIdaPbc(stiffness=-1.0)

@@ -112,6 +112,8 @@ def _underactuated_report(robot: Any) -> dict[str, Any]:
 
 
 def _underactuated_lines(report: dict[str, Any]) -> list[str]:
+    from cdpr_sym.control.underactuated import PLAN_PERIODS, PLAN_SHARE, SHORTEST_PLAN
+
     design = report["ida_under"]
     return [f"{report['robot']}: fewer cables than degrees of freedom, ida-under's rules "
             f"(docs/guide/underactuated.md)",
@@ -120,7 +122,8 @@ def _underactuated_lines(report: dict[str, Any]) -> list[str]:
             "equilibria "
             f"maximised: {design['median_decay_per_s']:.3g} 1/s; at the case goal "
             f"{design['goal_decay_per_s']:.3g} 1/s), plan {design['plan_s']:.3g} s "
-            "(2.5 longest swing periods, within [1 s, half the settle time])",
+            f"({PLAN_PERIODS:g} longest swing periods, within [{SHORTEST_PLAN:g} s, "
+            f"{PLAN_SHARE:g} of the settle time])",
             ("ida-under-i: no integral gain of its rule is stable on this robot"
              if design["integral"] is None else
              f"ida-under-i: k_i {design['integral']:.4g} N/(m s) per cable (the extended "
