@@ -10,6 +10,7 @@ sweep's as-built rows are the same whether its pairs run together or one by one.
 from __future__ import annotations
 
 import copy
+import dataclasses
 
 import numpy as np
 import pytest
@@ -112,6 +113,30 @@ def test_plants_per_run_are_checked(drawn, build_options):
     with pytest.raises(InvalidCase, match="plant"):  # an ideal plant on an as-built step
         summarise_many(simulator, starts[:2], goals[:2], robot.k, robot.r_d, duration=0.1,
                        dt=1e-3, plant=[Plant(), Plant()])
+
+
+def test_a_batch_refuses_the_run_whose_winches_rk4_cannot_follow(drawn, build_options):
+    """The lanes check every run's start and goal in one evaluation: a batch holding one
+    plant whose cables are too stiff for its substeps is refused as that run alone is, and
+    the same batch without it runs."""
+    robot, _, starts, goals, plants = drawn
+    simulator = _simulator(robot, "ida-winch", plants, build_options)
+    spec = plants[3].as_built
+    stiff = dataclasses.replace(plants[3], as_built=dataclasses.replace(
+        spec, actuation=dataclasses.replace(spec.actuation,
+                                            cable_stiffness=300 * spec.actuation.cable_stiffness)))
+    mixed = [*plants[:3], stiff, plants[4]]
+    with pytest.raises(InvalidCase, match="substeps") as alone:
+        simulator.run(starts[3], goals[3], robot.k, robot.r_d, duration=0.1, dt=1e-3,
+                      plant=stiff)
+    with pytest.raises(InvalidCase, match="substeps") as together:
+        summarise_many(simulator, starts, goals, robot.k, robot.r_d, duration=0.1, dt=1e-3,
+                       plant=mixed, build_options=build_options)
+    assert together.value.field == alone.value.field
+    kept = [0, 1, 2, 4]
+    assert len(summarise_many(simulator, starts[kept], goals[kept], robot.k, robot.r_d,
+                              duration=0.1, dt=1e-3, plant=[mixed[i] for i in kept],
+                              build_options=build_options)) == 4
 
 
 @pytest.mark.slow  # ipanema8's as-built step, compiled twice (alone and in lanes)

@@ -212,3 +212,19 @@ def test_modes_scale_as_the_square_root_of_stiffness():
     high = fastest_mode(model, dataclasses.replace(LOSSLESS, cable_stiffness=4e5), q)
     assert high / low == pytest.approx(2.0, rel=0.02)
     assert math.isfinite(low) and low > 0
+
+
+def test_the_rates_of_many_poses_are_those_pose_by_pose():
+    """One evaluation for a sweep's starts and goals: the same numbers, bit for bit, as
+    each pose's own check (so a run in a batch is judged as alone)."""
+    from cdpr_sym.as_built.stability import fastest_rates
+
+    robot = preset("spatial6")
+    model = SymbolicModel(robot)
+    rng = np.random.default_rng(3)
+    poses = robot.frame_lower + (robot.frame_upper - robot.frame_lower) * (
+        0.3 + 0.4 * rng.random((12, robot.n)))
+    drive = Actuation(coulomb=0.5, viscous=0.01)
+    together = fastest_rates(model, drive, poses)
+    assert together.tolist() == [fastest_rate(model, drive, q) for q in poses]
+    assert len(set(together.tolist())) == len(poses)  # the poses differ, and so do the rates

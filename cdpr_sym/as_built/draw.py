@@ -224,12 +224,12 @@ _SUBSTEPS: dict[tuple[str, Actuation], int] = {}
 
 def _substeps_for(robot: Robot, actuation: Actuation) -> int:
     from cdpr_sym.as_built.spec import SUBSTEP_RANGE, TORQUE_LOOP_STEP_LIMIT
-    from cdpr_sym.as_built.stability import fastest_rate
+    from cdpr_sym.as_built.stability import fastest_rates
     from cdpr_sym.model import SymbolicModel
 
     model = SymbolicModel(robot)
     poses = [robot.start, robot.goal, *_held_poses(robot, model)]
-    rate = max(fastest_rate(model, actuation, np.asarray(q, dtype=float)) for q in poses)
+    rate = float(fastest_rates(model, actuation, np.array(poses, dtype=float)).max())
     needed = RATE_HEADROOM * rate * SUBSTEP_PERIOD / TORQUE_LOOP_STEP_LIMIT
     if not math.isfinite(needed):
         return FEWEST_SUBSTEPS  # the run's own check names the implausible number

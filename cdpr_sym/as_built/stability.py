@@ -84,27 +84,39 @@ def _linear_parts(model: SymbolicModel) -> ca.Function:
     return _LINEAR_PARTS[model]
 
 
-def _linearised(model: SymbolicModel, actuation: Actuation, q: np.ndarray
+def _linearised(model: SymbolicModel, actuation: Actuation, poses: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(M_f, K, C) of the taut plant linearised at rest at ``q`` (module notes)."""
-    J_a, M, lengths = (np.array(value) for value in _linear_parts(model)(q))
-    m, n = J_a.shape
-    G = np.hstack([J_a, -np.eye(m)])
-    per_length = 1.0 / lengths.ravel()
-    K = G.T @ np.diag(actuation.cable_stiffness * per_length) @ G
-    C = G.T @ np.diag(actuation.cable_damping * per_length) @ G
+    """(M_f, K, C) of the taut plant linearised at rest at each of the ``poses`` (k, n),
+    stacked (k, n + m, n + m) (module notes); the model's terms of every pose come from one
+    evaluation."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    count, n = poses.shape
+    parts = _linear_parts(model)
+    J_a, M, lengths = (np.asarray(value) for value in
+                       (parts if count == 1 else parts.map(count))(poses.T))
+    m = J_a.shape[0]
+    # the map puts the poses' blocks side by side: (rows, count * columns)
+    J_a = J_a.reshape(m, count, n).transpose(1, 0, 2)
+    M = M.reshape(n, count, n).transpose(1, 0, 2)
+    per_length = 1.0 / lengths.reshape(m, count).T
+    G = np.concatenate([J_a, np.broadcast_to(-np.eye(m), (count, m, m))], axis=2)
+    G_t = G.transpose(0, 2, 1)
+    K = G_t @ (actuation.cable_stiffness * per_length[:, :, None] * G)
+    C = G_t @ (actuation.cable_damping * per_length[:, :, None] * G)
     radius = float(actuation.drum_radius)
     friction = (actuation.viscous + actuation.coulomb / FRICTION_SPEED) / radius / radius
-    C[n:, n:] += friction * np.eye(m)
+    C[:, n:, n:] += friction * np.eye(m)
     drum = actuation.inertia / radius / radius
-    M_f = np.block([[M, np.zeros((n, m))], [np.zeros((m, n)), drum * np.eye(m)]])
+    M_f = np.zeros((count, n + m, n + m))
+    M_f[:, :n, :n] = M
+    M_f[:, n:, n:] = drum * np.eye(m)
     return M_f, K, C
 
 
 def fastest_mode(model: SymbolicModel, actuation: Actuation, q: np.ndarray) -> float:
     """omega_max (rad/s) of the taut plant linearised at rest at ``q``, damping and friction
     left out (module notes), with ``model``'s geometry and ``mass_scale`` 1."""
-    M_f, K, _ = _linearised(model, actuation, q)
+    M_f, K, _ = (value[0] for value in _linearised(model, actuation, q))
     # lambda_max of M_f^-1 K through the symmetric form L^-1 K L^-T, M_f = L L^T
     inverse = np.linalg.inv(np.linalg.cholesky(M_f))
     return float(math.sqrt(max(np.linalg.eigvalsh(inverse @ K @ inverse.T)[-1], 0.0)))
@@ -113,17 +125,33 @@ def fastest_mode(model: SymbolicModel, actuation: Actuation, q: np.ndarray) -> f
 def fastest_rate(model: SymbolicModel, actuation: Actuation, q: np.ndarray) -> float:
     """rho = max |eig(A)| (1/s) of the taut plant linearised at rest at ``q``, damping and
     friction included (module notes); inf when the numbers overflow."""
+    return float(fastest_rates(model, actuation, np.asarray(q, dtype=float)[None])[0])
+
+
+def fastest_rates(model: SymbolicModel, actuation: Actuation, poses: np.ndarray
+                  ) -> np.ndarray:
+    """:func:`fastest_rate` at each of the ``poses`` (k, n), 1/s, (k,): the model's terms
+    in one evaluation and the k eigenvalue problems as one stacked call (a sweep checks
+    every run's start and goal at once; the same numbers pose by pose)."""
     with np.errstate(all="ignore"):
-        M_f, K, C = _linearised(model, actuation, q)
-        size = M_f.shape[0]
-        if not (np.isfinite(M_f).all() and np.isfinite(K).all() and np.isfinite(C).all()):
-            return math.inf
-        solve = np.linalg.solve(M_f, np.hstack([K, C]))
-        A = np.block([[np.zeros((size, size)), np.eye(size)],
-                      [-solve[:, :size], -solve[:, size:]]])
-        if not np.isfinite(A).all():
-            return math.inf
-        return float(np.abs(np.linalg.eigvals(A)).max())
+        M_f, K, C = _linearised(model, actuation, poses)
+        count, size = M_f.shape[:2]
+        rates = np.full(count, math.inf)
+        finite = np.isfinite(M_f).all(axis=(1, 2)) & np.isfinite(K).all(axis=(1, 2)) \
+            & np.isfinite(C).all(axis=(1, 2))
+        if not finite.any():
+            return rates
+        solve = np.linalg.solve(M_f[finite], np.concatenate([K[finite], C[finite]], axis=2))
+        A = np.zeros((len(solve), 2 * size, 2 * size))
+        A[:, :size, size:] = np.eye(size)
+        A[:, size:, :size] = -solve[:, :, :size]
+        A[:, size:, size:] = -solve[:, :, size:]
+        usable = np.isfinite(A).all(axis=(1, 2))
+        found = np.full(len(A), math.inf)
+        if usable.any():
+            found[usable] = np.abs(np.linalg.eigvals(A[usable])).max(axis=1)
+        rates[finite] = found
+        return rates
 
 
 def check_integrable(model: SymbolicModel, actuation: Actuation | None, dt: float,
@@ -157,7 +185,8 @@ def check_integrable(model: SymbolicModel, actuation: Actuation | None, dt: floa
                           f"(inertia / drum_radius^2), over {MAX_DRUM_MASS_RATIO:g} times the "
                           f"platform's {model.robot.mass:g} kg: the motors could not move the "
                           "robot; expected a physical drum")
-    rate = max(fastest_rate(model, actuation, np.asarray(q, dtype=float)) for q in poses)
+    rate = float(fastest_rates(model, actuation, np.array([np.asarray(q, dtype=float)
+                                                           for q in poses])).max())
     if rate * dt / substeps <= TORQUE_LOOP_STEP_LIMIT:
         return
     needed = rate * dt / TORQUE_LOOP_STEP_LIMIT

@@ -17,6 +17,7 @@ import functools
 import hashlib
 import json
 import threading
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -414,12 +415,35 @@ class Simulator:
         it), after the checks an as-built plant needs before it runs (RK4 can follow its
         cables and drums at ``dt``; its encoders can read the start). ``plant`` is checked
         by the caller (:meth:`check_plant`)."""
-        if plant.as_built is not None:
-            check_integrable(self.model, plant.as_built.actuation, dt, plant.as_built.substeps,
-                             (start, goal))
-            self._check_readable(start, plant)
+        self.check_as_built_runs(np.asarray(start, dtype=float)[None],
+                                 np.asarray(goal, dtype=float)[None], dt, [plant])
+        return self.started(start, goal, k, r_d, dt, plant, dq0=dq0)
+
+    def started(self, start: np.ndarray, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray,
+                dt: float, plant: Plant, *, dq0: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`prepared` after :meth:`check_as_built_runs` has passed its run."""
         return (self.initial_state(start, goal, k, r_d, dq0=dq0, plant=plant),
                 self.parameters(goal, k, r_d, dt, plant))
+
+    def check_as_built_runs(self, starts: np.ndarray, goals: np.ndarray, dt: float,
+                            plants: Sequence[Plant]) -> None:
+        """The checks of :meth:`prepared` for many runs (starts and goals (runs, n), one
+        plant each) at once: RK4 can follow the cables and drums at every start and goal
+        (one evaluation for all runs on the same winches), and each as-built start is
+        readable. The same decisions as run by run; where several runs fail, the error
+        raised may be another run's than the first failing one's."""
+        groups: dict[tuple[Any, int], list[int]] = {}
+        for run, plant in enumerate(plants):
+            if plant.as_built is not None:
+                spec = plant.as_built
+                groups.setdefault((spec.actuation, spec.substeps), []).append(run)
+        for (actuation, substeps), runs in groups.items():
+            check_integrable(self.model, actuation, dt, substeps,
+                             np.vstack([starts[runs], goals[runs]]))
+        for start, plant in zip(starts, plants, strict=True):
+            if plant.as_built is not None:
+                self._check_readable(start, plant)
 
     def check_plant(self, plant: Plant) -> None:
         """Raise :class:`InvalidCase` (``plant``) when ``plant`` is of another kind than the

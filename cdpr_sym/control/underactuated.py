@@ -74,8 +74,8 @@ damped only through its coupling with the cables), but at most four fifths of th
 settle time and at least 1 s: the body follows the slow end of the path within the band,
 so it settles while the reference is still arriving, and the last fifth is left for the
 lag and the swing to decay (a cap of one half left the tall 3-cable platforms' moves
-ringing: under0_005_tri's own case settled at 6.2 s with a 2.5 s plan, 4.0 s with 4 s). The case gains k, r_d of the step's
-signature are not used.
+ringing: under0_005_tri's own case settled at 6.2 s with a 2.5 s plan, 4.0 s with 4 s).
+The case gains k, r_d of the step's signature are not used.
 """
 
 from __future__ import annotations
