@@ -99,7 +99,7 @@ def test_the_drum_cable_mode_rule_matches_the_linearised_plant(name):
     rule = tuning.drum_cable_mode(robot, drive)
 
     def drum_modes(q):
-        M_f, K, _ = _linearised(model, drive, q)
+        M_f, K, _ = (stacked[0] for stacked in _linearised(model, drive, q))
         inverse = np.linalg.inv(np.linalg.cholesky(M_f))
         omega = np.sqrt(np.maximum(np.linalg.eigvalsh(inverse @ K @ inverse.T), 0))
         return np.sort(omega)[-robot.m:] / (2 * math.pi)  # the m drum-cable modes

@@ -616,7 +616,9 @@ def test_the_plan_feeds_forward_the_tension_that_accelerates_the_path(path, shar
     out = law(q=q_ref, dq=rate, q_goal=robot.goal, k=np.ones(n), r_d=np.ones(n),
               memory=memory, dt=1e-3)
     inertial = expected - t_ref
-    assert np.abs(inertial).max() > 0.05 * robot.t_min  # the feed-forward matters here
+    # the feed-forward matters here: a law without it errs by |inertial| (bar2's 3.3 s
+    # plan: 0.042 N at half of it, a thousand times the tolerance)
+    assert np.abs(inertial).max() > 0.02 * robot.t_min
     np.testing.assert_allclose(np.array(out["tau"]).ravel(), expected, rtol=0,
                                atol=1e-3 * np.abs(inertial).max())
 
