@@ -109,6 +109,148 @@ def test_one_dimensional_min_norm_agrees_with_the_qp(rng, random_states):
     assert checked > 30 and infeasible > 5  # both verdicts occurred
 
 
+def _guarded_function(shape: tuple[int, int], guard: float, runs: int = 1) -> ca.Function:
+    from cdpr_sym.distribution.one_dimensional import guarded_min_norm
+
+    W_s, w_s = ca.SX.sym("W", *shape), ca.SX.sym("w", shape[0])
+    function = ca.Function("g", [W_s, w_s], list(guarded_min_norm(W_s, w_s, LO, HI, guard)))
+    return function if runs == 1 else function.map(runs)
+
+
+def _guarded(W: np.ndarray, w: np.ndarray, guard: float) -> tuple[np.ndarray, bool]:
+    tau, feasible = _guarded_function(W.shape, guard)(W, w)
+    return np.array(tau).ravel(), bool(float(feasible) > 0.5)
+
+
+def _guarded_path(Ws: list[np.ndarray], ws: list[np.ndarray], guard: float) -> np.ndarray:
+    """The guarded tensions along a path of problems, (points, m), in one mapped call."""
+    taus, _ = _guarded_function(Ws[0].shape, guard, len(Ws))(np.hstack(Ws),
+                                                              np.column_stack(ws))
+    return np.array(taus).T
+
+
+def _largest_margin_lp(W: np.ndarray, w: np.ndarray) -> float:
+    """max mu over (s, mu): every cable of tau_p + s h at least mu from both bounds, by
+    SciPy's LP solver."""
+    from scipy.optimize import linprog
+
+    tau_p, h, _, _ = dref.segment(W, w, LO, HI)
+    # variables (s, mu); constraints -h s + mu <= tau_p - LO and h s + mu <= HI - tau_p
+    A = np.vstack([np.column_stack([-h, np.ones_like(h)]), np.column_stack([h, np.ones_like(h)])])
+    b = np.concatenate([tau_p - LO, HI - tau_p])
+    found = linprog([0.0, -1.0], A_ub=A, b_ub=b, bounds=[(None, None), (None, None)])
+    assert found.status == 0
+    return -found.fun
+
+
+def test_the_largest_margin_is_the_lp_s(rng, random_states):
+    """The closed form of mu* (crossings of rising and falling distances) against SciPy's
+    LP solver, on spatial4's problems, feasible and not."""
+    from cdpr_sym.distribution.one_dimensional import largest_margin, tension_interval
+
+    W_s, w_s = ca.SX.sym("W", 3, 4), ca.SX.sym("w", 3)
+    tau_p, h, _, _ = tension_interval(W_s, w_s, LO, HI)
+    margin = ca.Function("mu", [W_s, w_s], [largest_margin(tau_p, h, LO, HI)])
+    signs = set()
+    for W, w in preset_problems("spatial4", rng, 60, random_states, spread=30.0):
+        expected = _largest_margin_lp(W, w)
+        assert float(margin(W, w)) == pytest.approx(expected, rel=1e-7, abs=1e-7)
+        signs.add(expected > 0)
+    assert signs == {True, False}
+
+
+def _room_weights(W: np.ndarray) -> np.ndarray:
+    """min(1, sqrt(m) |h_i|), h the unit null vector from the SVD."""
+    h = np.linalg.svd(W)[2][-1]
+    return np.minimum(1.0, np.sqrt(len(h)) * np.abs(h))
+
+
+def _min_norm_between(W: np.ndarray, w: np.ndarray, lower: np.ndarray, upper: np.ndarray
+                      ) -> np.ndarray | None:
+    """min |tau|^2 subject to W tau = w, lower <= tau <= upper (cvxpy + Clarabel), None
+    when infeasible."""
+    import cvxpy as cp
+
+    tau = cp.Variable(W.shape[1])
+    problem = cp.Problem(cp.Minimize(cp.sum_squares(tau)),
+                         [W @ tau == w, tau >= lower, tau <= upper])
+    problem.solve(solver=cp.CLARABEL)
+    return None if problem.status != cp.OPTIMAL else np.asarray(tau.value)
+
+
+def test_guarded_min_norm_is_the_qp_in_the_shrunk_box_else_in_the_full_one(rng, random_states):
+    """Where the box shrunk by the guard (times each cable's room weight) holds a tension,
+    the minimum norm there (cvxpy on the shrunk box); where only the full box does, a
+    tension in the full box; guard 0 is the plain minimum norm."""
+    guard = 8.0
+    shrunk = full_only = 0
+    for W, w in preset_problems("spatial4", rng, 150, random_states, spread=30.0):
+        if min(abs(_margin(W, w)), abs(high_low(W, w, guard))) < 1e-6:
+            continue  # on a boundary: either verdict is within round-off
+        tau, feasible = _guarded(W, w, guard)
+        plain = min_norm_reference(W, w, LO, HI)
+        assert feasible == (plain.status == OPTIMAL)
+        np.testing.assert_allclose(_guarded(W, w, 0.0)[0], _evaluate("min_norm", W, w)[0],
+                                   atol=1e-9)
+        if not feasible:
+            continue
+        room = guard * _room_weights(W)
+        inside = _min_norm_between(W, w, LO + room, HI - room)
+        np.testing.assert_allclose(W @ tau, w, atol=1e-8)
+        if inside is not None:
+            np.testing.assert_allclose(tau, inside, atol=1e-5)
+            shrunk += 1
+        else:
+            assert np.all(tau >= LO - 1e-9) and np.all(tau <= HI + 1e-9)
+            full_only += 1
+    assert shrunk > 30 and full_only > 3  # both cases occurred
+
+
+def high_low(W: np.ndarray, w: np.ndarray, guard: float) -> float:
+    """The segment length of the box shrunk by the guard times the room weights (negative:
+    empty)."""
+    tau_p, h, _, _ = dref.segment(W, w, LO, HI)
+    room = guard * _room_weights(W)
+    with np.errstate(divide="ignore"):
+        a, b = (LO + room - tau_p) / h, (HI - room - tau_p) / h
+    return float(np.min(np.maximum(a, b)) - np.max(np.minimum(a, b)))
+
+
+def test_guarded_min_norm_moves_continuously_where_the_shrunk_box_empties(rng):
+    """Along a wrench path that crosses out of the shrunk box's reach (still inside the full
+    box's), the tension moves by at most the path's own scale per step, where switching to
+    the full box's minimum norm jumps."""
+    W = np.array([[1.0, -1.0, 0.3], [0.5, 0.8, -1.0]])
+    first, last = np.array([40.0, 40.0, 40.0]), np.array([6.0, 90.0, 20.0])  # both in the box
+    guard = 20.0
+    path = [W @ ((1 - s) * first + s * last) for s in np.linspace(0.0, 1.0, 2001)]
+    verdicts = [high_low(W, w, guard) >= 0 for w in path]
+    assert verdicts[0] and not verdicts[-1] and all(_margin(W, w) > 0 for w in path)
+    taus = _guarded_path([W] * len(path), path, guard)
+    steps = np.abs(np.diff(taus, axis=0)).max()
+    switched = np.array([_guarded(W, w, guard if ok else 0.0)[0]
+                         for w, ok in zip(path[::10], verdicts[::10], strict=True)])
+    assert steps < 0.2  # 2,000 steps of a move of 50 N
+    assert np.abs(np.diff(switched, axis=0)).max() > 100 * steps
+    assert np.all(taus >= LO - 1e-9)
+
+
+def test_guarded_min_norm_stays_continuous_where_a_cable_the_null_space_barely_moves_is_low():
+    """W(theta) = [[1, 0, -1], [theta, 1, 0]]: the null vector (1, -theta, 1) barely moves
+    cable 2 near theta = 0, and its tension there (10 N) sits inside the guard (20 N above
+    T_min = 5 N): the box shrunk by the guard asks s -> +-infinity on either side of 0.
+    The guarded tension still moves continuously through theta = 0 and keeps the other
+    cables in the box."""
+    target = np.array([30.0, 10.0, 30.0])
+    thetas = np.linspace(-0.05, 0.05, 2001)
+    Ws = [np.array([[1.0, 0.0, -1.0], [theta, 1.0, 0.0]]) for theta in thetas]
+    taus = _guarded_path(Ws, [W @ target for W in Ws], 20.0)
+    np.testing.assert_allclose([W @ tau for W, tau in zip(Ws, taus, strict=True)],
+                               [W @ target for W in Ws], atol=1e-8)
+    assert np.abs(np.diff(taus, axis=0)).max() < 0.5
+    assert taus.min() >= LO - 1e-9 and taus.max() <= HI + 1e-9
+
+
 def test_one_dimensional_centroid_is_the_middle_of_the_lp_segment(rng, random_states):
     """The segment's ends are the LP's minimiser and maximiser of a generic linear form."""
     import cvxpy as cp

@@ -53,6 +53,7 @@ from cdpr_sym.control import (
     capabilities,
     check_cables,
     controller_by_name,
+    holding_tension_function,
     initial_memory_function,
     law_function,
 )
@@ -182,7 +183,7 @@ class Simulator:
             self.library = self._compiled_library(build_options)
             native = self.library.native()
             self._rollout = _Rollout(native)
-            self._static_native = native.casadi_function("static_tension")
+            self._static_native = native.casadi_function(self.hold_tension.name())
         else:
             self._chunk_function = chunk_function(self.step, chunk)
         #: The solver of a controller that optimises at its own rate (NMPC), else None.
@@ -255,8 +256,9 @@ class Simulator:
         keeps a large planning function out of the compiled library."""
         def generate() -> tuple[list[ca.Function], str]:
             functions = [*self.model.functions.values(), self.law, self.step]
-            return functions, rollout_source(self.step, self.model.functions["static_tension"],
-                                             self.layout)
+            if self.hold_tension.name() not in self.model.functions:
+                functions.append(self.hold_tension)
+            return functions, rollout_source(self.step, self.hold_tension, self.layout)
 
         return build_recipe(self.recipe, self.library_name, generate, options=build_options)
 
@@ -524,9 +526,16 @@ class Simulator:
             return n_steps, None
         return int(stopped[0]), ALL_STOP_REASONS[int(status[stopped[0]])]
 
+    @functools.cached_property
+    def hold_tension(self) -> ca.Function:
+        """(q) -> the tension holding the robot at rest before a move, N: the controller's
+        (:func:`~cdpr_sym.control.interface.holding_tension_function`). Every run starts
+        held by it (its first command's jump, an as-built plant's stretched cables)."""
+        return holding_tension_function(self.controller, self.model)
+
     def _static_tension(self, q: np.ndarray) -> np.ndarray:
         if self.library is None:
-            return np.array(self.model.functions["static_tension"](q)).ravel()
+            return np.array(self.hold_tension(q)).ravel()
         # the compiled term: a CasADi call on numpy arrays took 27 us of a run's Python time
         tension = np.empty(self.robot.m)
         self._static_native.evaluate([np.ascontiguousarray(q, dtype=float)], [tension])

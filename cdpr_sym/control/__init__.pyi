@@ -24,6 +24,8 @@ from .interface import (
     DriveReading,
     StatelessLaw,
     capabilities,
+    holding_tension,
+    holding_tension_function,
     rigid_drive_reading,
     step_with_drives,
 )
@@ -75,6 +77,8 @@ __all__ = [
     "check_cables",
     "controller_by_name",
     "controller_from_options",
+    "holding_tension",
+    "holding_tension_function",
     "initial_memory_function",
     "law_function",
     "rigid_drive_reading",

@@ -128,6 +128,27 @@ def rigid_drive_reading(model: SymbolicModel, q: ca.SX, dq: ca.SX) -> DriveReadi
     return DriveReading(model.cable_lengths(q), rigid=True)
 
 
+def holding_tension(controller: object, model: SymbolicModel, q: ca.SX) -> ca.SX:
+    """The tension (N) holding the robot at rest at ``q`` before a move under
+    ``controller``: its ``holding_tension(model, q)`` where it has one (a design that keeps
+    the rest tension off the box's bounds), else the model's static tension
+    (:meth:`SymbolicModel.static_tension`). A run starts held by it: the plant's cables
+    carry it and the first command's jump is measured from it."""
+    method = getattr(controller, "holding_tension", None)
+    return model.static_tension(q) if method is None else method(model, q)
+
+
+def holding_tension_function(controller: object, model: SymbolicModel) -> ca.Function:
+    """:func:`holding_tension` as ``static_tension`` (q) -> (tau_1), the model's own
+    function where the controller holds with the model's static tension, else one named
+    ``hold_tension``."""
+    if getattr(controller, "holding_tension", None) is None:
+        return model.functions["static_tension"]
+    q = ca.SX.sym("q", model.n)
+    return ca.Function("hold_tension", [q], [holding_tension(controller, model, q)], ["q"],
+                       ["tau_1"])
+
+
 def step_with_drives(controller: Controller, model: SymbolicModel, q: ca.SX, dq: ca.SX,
                      q_goal: ca.SX, k: ca.SX, r_d: ca.SX, memory: ca.SX, dt: ca.SX,
                      drives: DriveReading | None = None) -> tuple[ControlLaw, ca.SX]:

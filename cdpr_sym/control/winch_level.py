@@ -89,6 +89,7 @@ import numpy as np
 from cdpr_sym.as_built import Actuation
 from cdpr_sym.as_built.actuation import friction_torque
 from cdpr_sym.as_built.cable_law import drum_pull, unstretched_length
+from cdpr_sym.as_built.draw import DEFAULT_DRAW
 from cdpr_sym.as_built.hardware import scaled_actuation
 from cdpr_sym.checks import positive_number
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
@@ -98,6 +99,7 @@ from cdpr_sym.control.planned import SmoothReference, minimum_jerk, planned_pref
 from cdpr_sym.control.tuning import FROM_ROBOT, command_corner, platform_share, winch_gains
 from cdpr_sym.distribution import AUTO
 from cdpr_sym.distribution.closed_form import nearest_to
+from cdpr_sym.distribution.one_dimensional import guarded_min_norm
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
@@ -120,6 +122,9 @@ STAGES_KEPT = 64
 #: Periods of the platform's mode on the motor springs a planned move lasts at least
 #: (:meth:`WinchIdaPbc.paced_plan`).
 MOVE_PERIODS = 2.0
+#: The weight error (share) the hold leaves the feedback room for (:meth:`WinchIdaPbc.
+#: hold_guard`): the default build's mass error, +-10 %.
+HOLD_MASS_ERROR = DEFAULT_DRAW.mass_error
 
 
 def _from_options(field: str, kind: type, value: object) -> object:
@@ -198,6 +203,15 @@ class WinchIdaPbc:
         MIN_LOOP_DAMPING at the case's start and goal (else the best damped).
     plan : SmoothReference
         The planner of the reference (duration, margin).
+    hold_room : bool
+        With m = n + 1 cables, hold the robot at rest and feed forward the minimum-norm
+        tension in the box shrunk by :meth:`hold_guard` (the feedback's room: the drums'
+        Coulomb friction at the cable plus a weight error of the default build), continued
+        where the shrunk box empties (:func:`~cdpr_sym.distribution.one_dimensional.
+        guarded_min_norm`). False: the plain minimum norm, whose lowest cable sits on
+        T_min, so the floor of :meth:`kept_in_box` clips the command at rest and holds the
+        integral for good (a 36.6 kg point on three cables, 10 % heavier as built, stayed
+        3.6 cm low for 20 s), and a heavier build dips that cable below T_min at once.
     """
 
     stiffness: float | None = None
@@ -208,6 +222,7 @@ class WinchIdaPbc:
     feedback_stages: int | str = FROM_ROBOT
     drive: Actuation | None = None
     plan: SmoothReference = SmoothReference()  # noqa: RUF009 - frozen, as above
+    hold_room: bool = True
     name: ClassVar[str] = "ida-winch"
 
     def __post_init__(self) -> None:
@@ -233,6 +248,8 @@ class WinchIdaPbc:
                                      or not 1 <= stages <= 8):
             raise InvalidCase("feedback_stages", f"expected a whole number in 1..8 or "
                               f"'robot', got {stages!r}")
+        if not isinstance(self.hold_room, (bool, np.bool_)):
+            raise InvalidCase("hold_room", f"expected True or False, got {self.hold_room!r}")
 
     def check_period(self, robot_mass: float, dt: float) -> None:
         """Raise :class:`InvalidCase` (``stiffness``, ``damping``) for gains no loop sampled
@@ -263,7 +280,7 @@ class WinchIdaPbc:
                 "rate_cutoff": self.rate_cutoff, "feedback_cutoff": self.feedback_cutoff,
                 "feedback_stages": self.feedback_stages,
                 "drive": None if self.drive is None else dataclasses.asdict(self.drive),
-                "plan": self.plan.options()}
+                "plan": self.plan.options(), "hold_room": self.hold_room}
 
     def drive_of(self, robot: Robot) -> Actuation:
         """The winches as the controller models them: ``drive``, or ``robot``'s default
@@ -437,6 +454,8 @@ class WinchIdaPbc:
         700 N where the shrunk polygon vanished and the full box's took over (ipanema8,
         ideal plant: 17 of 40 pairs missed the step limit; none without the guard)."""
         if model.m == model.n + 1:
+            if self.hold_room:  # continuous, in the box where the plain one is
+                return self.guarded(model, W, force)
             planned = distributed_command(model, W, force, method="min_norm").tau
         else:
             planned = clip_to_box(model, nearest_to(W, force, preferred))[0]
@@ -444,11 +463,41 @@ class WinchIdaPbc:
             model, W, force, method="min_norm_2d" if model.m == model.n + 2 else AUTO).tau
         return ca.if_else(margin >= 0, planned, fallback)
 
+    def hold_guard(self, model: SymbolicModel, W: ca.SX, force: ca.SX) -> ca.SX:
+        """The room (N) :attr:`hold_room` keeps inside the box for the feedback, for the
+        force ``force`` held through ``W``: F + e |W^+ f|_inf, with F = tau_c / r the drums'
+        Coulomb friction at the cable (the floor :meth:`kept_in_box` adds to T_min) and e
+        the default build's mass error (:data:`HOLD_MASS_ERROR`). Why W^+ f: the integral
+        removes a weight error e f by moving the platform on the motor springs (equal
+        stiffness on every cable), which changes the tensions by
+        k_p J_a (W k_p J_a)^{-1} e f = W^+ e f (J_a = -W^T): a cable of the minimum-norm
+        tension may have to give up that much."""
+        drive = self.drive_of(model.robot)
+        carried = W.T @ ca.solve(W @ W.T, force)
+        return drive.coulomb / drive.drum_radius + HOLD_MASS_ERROR * ca.mmax(ca.fabs(carried))
+
+    def guarded(self, model: SymbolicModel, W: ca.SX, force: ca.SX) -> ca.SX:
+        """The tension (N) producing ``force`` with m = n + 1 cables: the minimum norm in
+        the box shrunk by :meth:`hold_guard`, continued where that box empties, in the box
+        where the box holds one (else clipped to it)."""
+        robot = model.robot
+        return guarded_min_norm(W, force, robot.t_min, robot.t_max,
+                                self.hold_guard(model, W, force))[0]
+
+    def holding_tension(self, model: SymbolicModel, q: ca.SX) -> ca.SX:
+        """The tension (N) with which this controller holds the robot at rest at ``q``:
+        with m = n + 1 and :attr:`hold_room`, :meth:`guarded` of the weight; else the
+        model's static tension (:meth:`SymbolicModel.static_tension`). A run starts from
+        rest held by it (:func:`~cdpr_sym.control.interface.holding_tension`)."""
+        if model.m == model.n + 1 and self.hold_room:
+            return self.guarded(model, model.structure_matrix(q), model.grad_potential(q))
+        return model.static_tension(q)
+
     def start_internal(self, model: SymbolicModel, W: ca.SX, q_start: ca.SX, margin: ca.SX,
                        preferred_start: ca.SX | None = None) -> ca.SX:
         """The internal tension (N, in the null space of ``W``) that the reference adds,
-        times 1 - s(t), to start at the static tension the plant holds at ``q_start``
-        (:meth:`SymbolicModel.static_tension`, the default distribution) rather than at the
+        times 1 - s(t), to start at the tension holding the plant at ``q_start``
+        (:meth:`holding_tension`; zero where that is the plan's own) rather than at the
         plan's distribution of the same weight: their difference d lies in the null space of
         W(q_start), and its projection (I - W^T (W W^T)^{-1} W) d onto the null space of
         ``W`` (at the reference pose) changes no force. Without it, 16 of 20 of ipanema8's
@@ -456,7 +505,7 @@ class WinchIdaPbc:
         tension at the start (:func:`~cdpr_sym.control.planned.planned_preference`, s = 0;
         needed with m >= n + 2 only)."""
         start_w = model.structure_matrix(q_start)
-        difference = model.static_tension(q_start) - self.distributed(
+        difference = self.holding_tension(model, q_start) - self.distributed(
             model, start_w, model.grad_potential(q_start), margin, preferred_start)
         return difference - W.T @ ca.solve(W @ W.T, W @ difference)
 
