@@ -14,6 +14,7 @@ import pytest
 
 from cdpr_sym import Actuation, AsBuilt, InvalidCase, Plant, Sensing, get_simulator, preset
 from cdpr_sym.as_built import AsBuiltHamiltonian
+from cdpr_sym.as_built.spec import FRICTION_SPEED
 from cdpr_sym.as_built.stability import (
     MAX_STRAIN,
     check_integrable,
@@ -228,3 +229,19 @@ def test_the_rates_of_many_poses_are_those_pose_by_pose():
     together = fastest_rates(model, drive, poses)
     assert together.tolist() == [fastest_rate(model, drive, q) for q in poses]
     assert len(set(together.tolist())) == len(poses)  # the poses differ, and so do the rates
+    # the module notes' matrices written out pose by pose: K = G^T diag(EA / l) G, ...
+    m, n = robot.m, robot.n
+    radius = drive.drum_radius
+    for q, rate in zip(poses, together, strict=True):
+        J = np.array(model.functions["jacobian_ja"](q))
+        lengths = np.array(model.functions["cable_lengths"](q)).ravel()
+        G = np.hstack([J, -np.eye(m)])
+        K = G.T @ np.diag(drive.cable_stiffness / lengths) @ G
+        C = G.T @ np.diag(drive.cable_damping / lengths) @ G
+        C[n:, n:] += (drive.viscous + drive.coulomb / FRICTION_SPEED) / radius**2 * np.eye(m)
+        M = np.zeros((n + m, n + m))
+        M[:n, :n] = np.array(model.functions["mass_matrix"](q))
+        M[n:, n:] = drive.inertia / radius**2 * np.eye(m)
+        A = np.block([[np.zeros((n + m, n + m)), np.eye(n + m)],
+                      [-np.linalg.solve(M, K), -np.linalg.solve(M, C)]])
+        assert rate == pytest.approx(np.abs(np.linalg.eigvals(A)).max(), rel=1e-10)

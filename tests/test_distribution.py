@@ -129,14 +129,16 @@ def _guarded_path(Ws: list[np.ndarray], ws: list[np.ndarray], guard: float) -> n
     return np.array(taus).T
 
 
-def _largest_margin_lp(W: np.ndarray, w: np.ndarray) -> float:
-    """max mu over (s, mu): every cable of tau_p + s h at least mu from both bounds, by
-    SciPy's LP solver."""
+def _largest_margin_lp(W: np.ndarray, w: np.ndarray, weights: np.ndarray | None = None
+                       ) -> float:
+    """max mu over (s, mu): every cable i of tau_p + s h at least w_i mu from both bounds
+    (w_i 1 without ``weights``), by SciPy's LP solver."""
     from scipy.optimize import linprog
 
     tau_p, h, _, _ = dref.segment(W, w, LO, HI)
-    # variables (s, mu); constraints -h s + mu <= tau_p - LO and h s + mu <= HI - tau_p
-    A = np.vstack([np.column_stack([-h, np.ones_like(h)]), np.column_stack([h, np.ones_like(h)])])
+    ones = np.ones_like(h) if weights is None else weights
+    # variables (s, mu); constraints -h s + w mu <= tau_p - LO and h s + w mu <= HI - tau_p
+    A = np.vstack([np.column_stack([-h, ones]), np.column_stack([h, ones])])
     b = np.concatenate([tau_p - LO, HI - tau_p])
     found = linprog([0.0, -1.0], A_ub=A, b_ub=b, bounds=[(None, None), (None, None)])
     assert found.status == 0
@@ -145,18 +147,46 @@ def _largest_margin_lp(W: np.ndarray, w: np.ndarray) -> float:
 
 def test_the_largest_margin_is_the_lp_s(rng, random_states):
     """The closed form of mu* (crossings of rising and falling distances) against SciPy's
-    LP solver, on spatial4's problems, feasible and not."""
-    from cdpr_sym.distribution.one_dimensional import largest_margin, tension_interval
+    LP solver, on spatial4's problems, feasible and not, with equal weights and with the
+    room weights min(1, sqrt(m) |h_i|) (h the unit null vector from the SVD)."""
+    from cdpr_sym.distribution.one_dimensional import (
+        largest_margin,
+        room_weights,
+        tension_interval,
+    )
 
     W_s, w_s = ca.SX.sym("W", 3, 4), ca.SX.sym("w", 3)
     tau_p, h, _, _ = tension_interval(W_s, w_s, LO, HI)
-    margin = ca.Function("mu", [W_s, w_s], [largest_margin(tau_p, h, LO, HI)])
-    signs = set()
+    margin = ca.Function("mu", [W_s, w_s], [largest_margin(tau_p, h, LO, HI),
+                                            largest_margin(tau_p, h, LO, HI, room_weights(h))])
+    signs, lighter = set(), 0
     for W, w in preset_problems("spatial4", rng, 60, random_states, spread=30.0):
+        equal, weighted = (float(value) for value in margin(W, w))
         expected = _largest_margin_lp(W, w)
-        assert float(margin(W, w)) == pytest.approx(expected, rel=1e-7, abs=1e-7)
+        assert equal == pytest.approx(expected, rel=1e-7, abs=1e-7)
+        weights = _room_weights(W)
+        assert weighted == pytest.approx(_largest_margin_lp(W, w, weights), rel=1e-7,
+                                         abs=1e-7)
         signs.add(expected > 0)
-    assert signs == {True, False}
+        lighter += bool(weights.min() < 0.99)
+    assert signs == {True, False} and lighter > 5
+
+
+def test_where_the_shrunk_box_holds_no_tension_each_cable_keeps_its_share_of_mu(
+        rng, random_states):
+    """Where the box shrunk by the guard holds no tension, the guarded tension keeps
+    w_i min(g, mu*) from both bounds on every cable i (mu* from the weighted LP)."""
+    guard, checked = 30.0, 0
+    for W, w in preset_problems("spatial4", rng, 150, random_states, spread=30.0):
+        if _margin(W, w) < 1e-6 or high_low(W, w, guard) > -1e-6:
+            continue  # infeasible, or the shrunk box holds one: the other tests
+        weights = _room_weights(W)
+        kept = min(guard, _largest_margin_lp(W, w, weights)) * weights
+        tau, feasible = _guarded(W, w, guard)
+        assert feasible
+        assert np.all(tau - LO >= kept - 1e-6) and np.all(HI - tau >= kept - 1e-6)
+        checked += 1
+    assert checked > 3
 
 
 def _room_weights(W: np.ndarray) -> np.ndarray:

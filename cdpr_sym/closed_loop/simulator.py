@@ -70,11 +70,13 @@ if TYPE_CHECKING:  # NMPC's solver is imported where a run needs it
 class _Rollout:
     """The compiled rollout loop, with the work memory of the step and the static tension."""
 
-    def __init__(self, native: NativeLibrary) -> None:
+    def __init__(self, native: NativeLibrary, hold: str) -> None:
         self._call = native.entry("rollout", ctypes.c_longlong,
                                   [ctypes.c_void_p] * 3 + [ctypes.c_longlong]
                                   + [ctypes.c_void_p] * 3)
-        sizes = [native.work_sizes(name) for name in _ROLLOUT_CALLS]
+        # the work memory of every generated function the loop calls: the holding
+        # tension ``hold`` (the model's static tension or the controller's own) and the step
+        sizes = [native.work_sizes(name) for name in (hold, "step")]
         self._n_iw, self._n_w = (max(size[i] for size in sizes) for i in (2, 3))
         self._static_many = native.entry("static_tensions", ctypes.c_int,
                                          [ctypes.c_void_p, ctypes.c_longlong]
@@ -113,10 +115,6 @@ class _Rollout:
             w = np.empty(max(self._n_w, 1))
             work = self._local.work = (iw, w, iw.ctypes.data, w.ctypes.data)
         return work[2], work[3]
-
-
-#: The generated functions the rollout loop calls.
-_ROLLOUT_CALLS = ("static_tension", "step")
 
 
 def rollout_source(step: ca.Function, static_tension: ca.Function, layout: StepLayout) -> str:
@@ -182,7 +180,7 @@ class Simulator:
         if self.backend == "c":
             self.library = self._compiled_library(build_options)
             native = self.library.native()
-            self._rollout = _Rollout(native)
+            self._rollout = _Rollout(native, self.hold_tension.name())
             self._static_native = native.casadi_function(self.hold_tension.name())
         else:
             self._chunk_function = chunk_function(self.step, chunk)
@@ -278,11 +276,12 @@ class Simulator:
                       r_d: np.ndarray, *, dq0: np.ndarray | None = None,
                       plant: Plant = Plant()) -> np.ndarray:
         """x at the start of a move: at rest (or ``dq0``), the controller's plan, and for a
-        rate-limited plant the static tension as the applied one. An as-built plant starts
-        at rest as the ideal one does: the controller held it there with the model's static
-        tension, so its cables carry that tension (stretched to it, the winches' torque
-        holding it) and the commands still on their way are it; where the plant's mass or
-        anchors differ, its own mismatch acts from t = 0 on."""
+        rate-limited plant the holding tension as the applied one. An as-built plant starts
+        at rest as the ideal one does: the controller held it there with its holding tension
+        (:attr:`hold_tension`: the model's static tension unless the controller keeps its
+        own), so its cables carry that tension (stretched to it, the winches' torque holding
+        it) and the commands still on their way are it; where the plant's mass or anchors
+        differ, its own mismatch acts from t = 0 on."""
         dq0 = np.zeros(self.robot.n) if dq0 is None else dq0
         fields = {"q": start, "dq": dq0,
                   # an empty memory needs no call (a CasADi call costs ~40 us per run)

@@ -49,14 +49,15 @@ N: a drum of inertia J and radius r reads as a mass J / r^2 on its cable):
   H_d <= mu^2 / (2 max k_i) every spring tension stays within mu of T_r, in the box (the
   damping part c_EA ds/dt / l0 comes on top).
 
-**More cables than degrees of freedom** (m > n). T_r distributes the force: along a plan
-that holds, with the distribution the plan checked (the exact minimum norm for m = n + 1,
-beyond the closed form about the weight's distributions at start and goal, interpolated:
-continuous, in the box by the plan's check), else with the
-exact minimum norm in the box (m = n + 2) or the default
-distribution; plus (1 - s(t)) times the start's internal tension, the static tension's
-difference from that distribution projected on the null space of W(q_r), so the first
-command is the static tension the plant holds (:meth:`WinchIdaPbc.start_internal`). The
+**More cables than degrees of freedom** (m > n). T_r distributes the force: for m = n + 1
+the minimum norm with room for the feedback (:meth:`WinchIdaPbc.guarded`; without
+``hold_room``, the exact minimum norm the plan checked); beyond, along a plan that holds,
+the closed form about the weight's distributions at start and goal, interpolated
+(continuous, in the box by the plan's check), else the exact minimum norm in the box
+(m = n + 2) or the default distribution; plus (1 - s(t)) times the start's internal
+tension, the holding tension's difference from that distribution projected on the null
+space of W(q_r), so the first command is the tension the plant is held with
+(:meth:`WinchIdaPbc.holding_tension`, :meth:`WinchIdaPbc.start_internal`). The
 integral acts only on the length error a motion of the platform can remove
 (:meth:`WinchIdaPbc.integrated_error`); the internal part (the model's and the robot's
 geometry disagreeing) is left to the motor spring, which adds k_p per metre of it to the
@@ -250,6 +251,7 @@ class WinchIdaPbc:
                               f"'robot', got {stages!r}")
         if not isinstance(self.hold_room, (bool, np.bool_)):
             raise InvalidCase("hold_room", f"expected True or False, got {self.hold_room!r}")
+        object.__setattr__(self, "hold_room", bool(self.hold_room))  # JSON in the recipe
 
     def check_period(self, robot_mass: float, dt: float) -> None:
         """Raise :class:`InvalidCase` (``stiffness``, ``damping``) for gains no loop sampled
@@ -440,9 +442,13 @@ class WinchIdaPbc:
 
     def distributed(self, model: SymbolicModel, W: ca.SX, force: ca.SX, margin: ca.SX,
                     preferred: ca.SX | None = None) -> ca.SX:
-        """The feed-forward tension of a robot with m > n cables (N): where the plan holds
-        (``margin`` >= 0), the distribution the plan checked along the reference path
-        (:class:`SmoothReference`: the exact minimum norm for m = n + 1, the closed form
+        """The feed-forward tension of a robot with m > n cables (N). With m = n + 1 and
+        :attr:`hold_room`, :meth:`guarded` whatever the plan found: in the box wherever the
+        plain minimum norm is, continuous; the plan's rate check is made on the plain
+        minimum norm, and the room's weights can move the guarded one faster (spatial4, one
+        pair of 40 on the ideal plant: a step 2 % over the target's limit). Else, where the
+        plan holds (``margin`` >= 0), the distribution the plan checked along the reference
+        path (:class:`SmoothReference`: the exact minimum norm for m = n + 1, the closed form
         p + W^+ (f - W p) about ``preferred`` = p, the plan's
         :func:`~cdpr_sym.control.planned.planned_preference` at the path's progress,
         beyond), in the box by the plan's check and continuous in the pose; where the plan

@@ -68,7 +68,7 @@ def room_weights(h: ca.SX) -> ca.SX:
     share (|h_i| >= |h| / sqrt(m)) keeps all of it, one it barely moves proportionally
     less, one it does not move none (room there is not the internal force's to give)."""
     m = h.shape[0]
-    return ca.fmin(1.0, np.sqrt(m) * ca.fabs(h) / ca.norm_2(h))
+    return ca.fmin(1.0, np.sqrt(m) * ca.fabs(h) / ca.fmax(ca.norm_2(h), FLAT))
 
 
 def largest_margin(tau_p: ca.SX, h: ca.SX, t_min: float, t_max: float,

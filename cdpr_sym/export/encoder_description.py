@@ -163,7 +163,8 @@ def describe_encoders(checked: CheckedExport, *, duration: float, dt: float,
     check_reference(checked, reference)
     limits = _resolved(limits, case, reference, dt)
     check_guard_passes(checked, functions["holding"], reference, limits, dt)
-    plant = loop_plant(model, checked.plant, case.start, case.goal, case.k, case.r_d, dt)
+    plant = loop_plant(model, checked.plant, case.start, case.goal, case.k, case.r_d, dt,
+                       checked.controller)
     robot = checked.model_robot
     bounds = length_bounds(robot, spec.actuation.cable_stiffness)
     caps = capabilities(checked.controller)

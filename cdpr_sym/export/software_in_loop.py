@@ -32,7 +32,13 @@ from cdpr_sym.closed_loop.effects import plant_effects
 from cdpr_sym.closed_loop.effects.encoders import raw_reading
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.step import plant_layout
-from cdpr_sym.control import Capabilities, ControlLaw, Controller, DriveReading
+from cdpr_sym.control import (
+    Capabilities,
+    ControlLaw,
+    Controller,
+    DriveReading,
+    holding_tension,
+)
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.results import Trajectory
 
@@ -46,12 +52,22 @@ class ExternalCommand:
     """A "controller" that applies the command held in its memory: [tension (m), flags].
 
     Used only to build the plant's step for the software in the loop; it reads the
-    winches, so that the step solves no forward kinematics of its own."""
+    winches, so that the step solves no forward kinematics of its own. ``held_by``: the
+    controller whose holding tension the plant starts from (the reference run's; None: the
+    model's static tension)."""
 
+    held_by: Any = None
     name: ClassVar[str] = "external"
 
     def options(self) -> dict[str, Any]:
-        return {}
+        if self.held_by is None:
+            return {}
+        return {"held_by": {"name": self.held_by.name, **self.held_by.options()}}
+
+    def holding_tension(self, model: SymbolicModel, q: ca.SX) -> ca.SX:
+        """The tension ``held_by`` holds the robot with at rest at ``q`` (N)."""
+        return holding_tension(self.held_by, model, q) if self.held_by is not None \
+            else model.static_tension(q)
 
     def capabilities(self) -> Capabilities:
         return Capabilities(any_cables=True, reads_drives=True)
@@ -106,11 +122,13 @@ class LoopPlant:
 
 
 def loop_plant(model: SymbolicModel, plant: Plant, start: np.ndarray, goal: np.ndarray,
-               k: np.ndarray, r_d: np.ndarray, dt: float) -> LoopPlant:
+               k: np.ndarray, r_d: np.ndarray, dt: float, controller: Controller
+               ) -> LoopPlant:
     """The as-built ``plant`` for the software in the loop: the step, the encoders and the
-    run's start state, which is the Python run's (:func:`reference_run`) field by field."""
+    run's start state, which is the Python run's (:func:`reference_run` of ``controller``)
+    field by field, the plant held at rest by ``controller``'s holding tension."""
     kind = plant.kind
-    external = ExternalCommand()
+    external = ExternalCommand(held_by=controller)
     effects = plant_effects(kind)
     layout = plant_layout(model, external, effects)
     step = step_function(model, external, effects=effects)

@@ -55,7 +55,9 @@ class Trajectory:
     memory : ndarray, shape (N + 1, m)
         The controller's internal state at each sample (m = 0 for memoryless controllers).
     static_tension : ndarray, shape (m,), optional
-        W^{-1} grad V at the start, N: the tension holding the robot at rest there.
+        The tension holding the robot at rest at the start, N: W^{-1} grad V (m > n: its
+        distribution), or the controller's own holding tension where it keeps one
+        (:func:`~cdpr_sym.control.interface.holding_tension`).
     command : ndarray, shape (N, m), optional
         Runs on an as-built plant: the controller's tension command, N. ``tau`` is then the
         true tension in the cables at t[k], on which the run is judged.
