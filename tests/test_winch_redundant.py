@@ -279,3 +279,21 @@ def test_the_software_in_the_loop_plant_starts_as_the_python_run_held_with_room(
     held = python.static_tensions(np.asarray(robot.start)[None])[0]
     static = np.array(model.functions["static_tension"](robot.start)).ravel()
     assert np.abs(held - static).max() > 1.0  # the two holds differ here
+
+
+def test_tune_reports_the_hold_and_its_room_for_one_cable_more():
+    """``tune``'s hold numbers (m = n + 1 only): the room written out in numpy, the lowest
+    held cable that room above T_min where the plain minimum norm sits on it."""
+    from cdpr_sym.as_built.hardware import scaled_actuation
+    from cdpr_sym.control.tuning_report import _hold_numbers
+    from cdpr_sym.studies.zoo import zoo_robots
+
+    robot = next(r for r in zoo_robots(0) if r.name == "zoo0_004_point2_m3")
+    model = SymbolicModel(robot)
+    hold = _hold_numbers(robot, model, WinchIdaPbc(drive=scaled_actuation(robot)))
+    W = np.array(model.functions["structure_matrix"](robot.start))
+    weight = np.array(model.functions["grad_potential"](robot.start)).ravel()
+    assert hold["room_N"] == pytest.approx(_numpy_guard(robot, W, weight), rel=1e-12)
+    assert min(hold["static_N"]) == pytest.approx(robot.t_min, abs=1e-9)
+    assert min(hold["held_N"]) == pytest.approx(robot.t_min + hold["room_N"], rel=1e-9)
+    assert _hold_numbers(preset("aras3"), SymbolicModel(preset("aras3")), DESIGN) is None

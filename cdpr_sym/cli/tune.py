@@ -67,6 +67,12 @@ def _lines(report: dict[str, Any]) -> list[str]:
     lines.append(f"ida-winch's sampled loop (ideal plant, linearised at start and goal): least "
                  f"damped mode {loop['least_damped_hz']:.3g} Hz, zeta "
                  f"{loop['least_damping']:.3g}")
+    hold = report.get("hold")
+    if hold is not None:
+        lines.append(f"ida-winch's hold at the start (one cable more than coordinates): room "
+                     f"{hold['room_N']:.4g} N (drum friction at the cable + 0.1 |W+ f|), "
+                     f"lowest cable {min(hold['held_N']):.4g} N (the plain minimum norm's: "
+                     f"{min(hold['static_N']):.4g} N)")
     return lines
 
 

@@ -67,8 +67,24 @@ def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
         "modes": {name: linearised_modes(robot, model, winch.stiffness, winch.damping, q)
                   for name, q in (("start", robot.start), ("goal", robot.goal))},
         "loop": _loop_numbers(robot, model, WinchIdaPbc(drive=drive), winch, drive, dt),
+        "hold": _hold_numbers(robot, model, WinchIdaPbc(drive=drive)),
         "rules": tuning.rules(),
     }
+
+
+def _hold_numbers(robot: Robot, model: Any, design: Any) -> dict[str, Any] | None:
+    """``ida-winch``'s hold at the case start with m = n + 1 cables (its room, N, and the
+    tension it holds with, N, beside the model's static tension), else None."""
+    import casadi as ca
+
+    if robot.m != robot.n + 1:
+        return None
+    q = ca.DM(robot.start)
+    W, weight = model.structure_matrix(q), model.grad_potential(q)
+    room = float(ca.evalf(design.hold_guard(model, W, weight)))
+    held = np.array(ca.evalf(design.holding_tension(model, q))).ravel()
+    static = np.array(ca.evalf(model.static_tension(q))).ravel()
+    return {"room_N": room, "held_N": held.tolist(), "static_N": static.tolist()}
 
 
 def _loop_numbers(robot: Robot, model: Any, design: Any, winch: Any, drive: Actuation,
