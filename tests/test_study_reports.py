@@ -160,3 +160,63 @@ def test_a_template_value_missing_from_any_study_is_one_line_naming_the_files(
     assert main(["report", "robustness", str(folder)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "study.json, summary.json" in err[0], err
+
+
+class _TableStudy:
+    """A study of one per-run table, for the run files' digest check."""
+
+    @staticmethod
+    def make():
+        from cdpr_sym.studies.interface import Study
+
+        class TableStudy(Study):
+            name = "table"
+
+            def compute(self, folder, request):
+                (folder / "runs").mkdir(parents=True, exist_ok=True)
+                (folder / "runs" / "a.csv").write_text("pair,share\n0,0.5\n")
+                (folder / "study.json").write_text(json.dumps({"study": "table"}))
+
+            def run_files(self, folder):
+                return [folder / "runs" / "a.csv"]
+
+            def aggregate_files(self, folder):
+                return [folder / "summary.json"]
+
+            def aggregate(self, folder):
+                share = (folder / "runs" / "a.csv").read_text().splitlines()[1].split(",")[1]
+                (folder / "summary.json").write_text(json.dumps({"share": float(share)}))
+
+            def render(self, folder):
+                result = json.loads((folder / "summary.json").read_text())
+                (folder / "report.md").write_text(f"share {result['share']}\n")
+                return result
+
+            def summary_lines(self, result):
+                return []
+
+        return TableStudy()
+
+
+def test_a_report_from_run_files_of_another_run_is_refused_naming_the_file(tmp_path):
+    """The study records its run files' digests; a report redrawn from a table that is not
+    the one computed (an older run's, left in a checkout) is refused in one line naming
+    it, and writes nothing; the table restored, it reports; a folder without the record
+    (computed before it was kept) is reported as before."""
+    from cdpr_sym.errors import InvalidCase
+    from cdpr_sym.studies.interface import RUNS_DIGEST_FILE, StudyRequest
+
+    study = _TableStudy.make()
+    folder = tmp_path / "table"
+    assert study.run(folder, StudyRequest(robot=None, source=None)) == {"share": 0.5}
+    assert (folder / RUNS_DIGEST_FILE).exists()
+    table = folder / "runs" / "a.csv"
+    table.write_text("pair,share\n0,0.9\n")  # another run's numbers
+    with pytest.raises(InvalidCase, match=r"runs/a\.csv is not the file this table study"):
+        study.report(folder)
+    assert json.loads((folder / "summary.json").read_text()) == {"share": 0.5}
+    table.write_text("pair,share\n0,0.5\n")
+    assert study.report(folder) == {"share": 0.5}
+    table.write_text("pair,share\n0,0.9\n")
+    (folder / RUNS_DIGEST_FILE).unlink()
+    assert study.report(folder) == {"share": 0.9}

@@ -27,6 +27,10 @@ if TYPE_CHECKING:
 STUDY_FILE = "study.json"
 #: The report every study writes into its folder.
 REPORT_FILE = "report.md"
+#: The digests of the per-run files a computed study wrote (small, kept in git): a report
+#: redrawn from run files of another run (a checkout's older tables beside a newer
+#: study.json) is refused instead of silently reporting their numbers.
+RUNS_DIGEST_FILE = "runs.sha256.json"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -160,6 +164,7 @@ class Study(abc.ABC):
         folder = Path(folder)
         try:
             if self.has_runs(folder):
+                self.check_runs(folder)
                 self.aggregate(folder)
             elif not all(path.exists() for path in self.aggregate_files(folder)):
                 raise InvalidCase("results", f"{folder} has no stored runs "
@@ -193,9 +198,42 @@ class Study(abc.ABC):
 
     def run(self, folder: Path, request: StudyRequest, **options: Any) -> Any:
         """Compute into ``folder`` (with the study's own keyword ``options``, see
-        :meth:`compute`), then report from the files; returns the result."""
+        :meth:`compute`), record the per-run files' digests (:data:`RUNS_DIGEST_FILE`),
+        then report from the files; returns the result."""
         self.compute(folder, request, **options)
+        self.record_runs(folder)
         return self.report(folder)
+
+    def record_runs(self, folder: Path) -> None:
+        """Write :data:`RUNS_DIGEST_FILE`: the SHA-256 of each per-run file of ``folder``
+        (a folder's files together), by its path relative to ``folder``."""
+        from cdpr_sym.results.store import write_json
+
+        folder = Path(folder)
+        write_json(folder / RUNS_DIGEST_FILE, {
+            "study": self.name,
+            "runs": {path.relative_to(folder).as_posix(): _digest(path)
+                     for path in self.run_files(folder) if path.exists()}})
+
+    def check_runs(self, folder: Path) -> None:
+        """Refuse (``results``), before reporting from them, per-run files that are not
+        the ones this study computed: a recorded file whose digest differs, or a run file
+        not recorded. A folder without :data:`RUNS_DIGEST_FILE` (computed before it was
+        kept) is not checked."""
+        from cdpr_sym.results.store import read_json
+
+        record = Path(folder) / RUNS_DIGEST_FILE
+        if not record.exists():
+            return
+        digests = read_json(record).get("runs", {})
+        for path in self.run_files(folder):
+            name = path.relative_to(folder).as_posix()
+            if digests.get(name) != _digest(path):
+                raise InvalidCase("results", f"{path} is not the file this {self.name} study "
+                                  f"computed (its digest is not the one in "
+                                  f"{RUNS_DIGEST_FILE}: a table of another run?); run "
+                                  f"'cdpr-sym study {self.name}' again, or remove the run "
+                                  "files to report from the stored aggregates")
 
     def check_folder(self, folder: Path) -> None:
         """Refuse, naming ``results``, a folder that holds no computed study of this kind.
@@ -216,3 +254,17 @@ class Study(abc.ABC):
         if kind != self.name:
             held = f"a {kind} study" if isinstance(kind, str) else "no study's record"
             raise InvalidCase("results", f"{folder} holds {held}, not {self.name}")
+
+
+def _digest(path: Path) -> str:
+    """SHA-256 of a file, or of a folder's files (sorted by relative path, each path and
+    content hashed), hex."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    files = [path] if path.is_file() else sorted(p for p in path.rglob("*") if p.is_file())
+    for file in files:
+        digest.update(file.relative_to(path.parent).as_posix().encode())
+        digest.update(b"\0")
+        digest.update(file.read_bytes())
+    return digest.hexdigest()
