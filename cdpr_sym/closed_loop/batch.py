@@ -240,12 +240,15 @@ def _inputs(simulator: Simulator, starts: np.ndarray, goals: np.ndarray, k: np.n
     """The runs' initial states x0 (runs, x size) and parameters p (runs, p size), equal
     row by row to ``simulator.initial_state`` and ``simulator.parameters`` of each run
     with its plant of ``plants``: on the ideal (or rate-limited) plant, all the same,
-    made at once; as built, each run's own (:meth:`Simulator.prepared`: its checks made
-    for all runs at once)."""
+    made at once; as built, each run's own (:meth:`Simulator.prepared`: its checks and the
+    controller's plans made for all runs at once)."""
     if plants and plants[0].as_built is not None:
         simulator.check_as_built_runs(starts, goals, dt, plants)
-        prepared = [simulator.started(start, goal, k, r_d, dt, one)
-                    for start, goal, one in zip(starts, goals, plants, strict=True)]
+        memories = simulator.initial_memories(starts, goals, k, r_d)
+        prepared = [simulator.started(start, goal, k, r_d, dt, one,
+                                      memory=None if memories is None else memories[run])
+                    for run, (start, goal, one) in enumerate(zip(starts, goals, plants,
+                                                                 strict=True))]
         size_x, size_p = simulator.layout.x.size, simulator.layout.p.size
         return (np.array([x0 for x0, _ in prepared]).reshape(-1, size_x),
                 np.array([p for _, p in prepared]).reshape(-1, size_p))

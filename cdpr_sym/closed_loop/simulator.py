@@ -274,19 +274,21 @@ class Simulator:
 
     def initial_state(self, start: np.ndarray, goal: np.ndarray, k: np.ndarray,
                       r_d: np.ndarray, *, dq0: np.ndarray | None = None,
-                      plant: Plant = Plant()) -> np.ndarray:
+                      plant: Plant = Plant(), memory: np.ndarray | None = None) -> np.ndarray:
         """x at the start of a move: at rest (or ``dq0``), the controller's plan, and for a
         rate-limited plant the holding tension as the applied one. An as-built plant starts
         at rest as the ideal one does: the controller held it there with its holding tension
         (:attr:`hold_tension`: the model's static tension unless the controller keeps its
         own), so its cables carry that tension (stretched to it, the winches' torque holding
         it) and the commands still on their way are it; where the plant's mass or anchors
-        differ, its own mismatch acts from t = 0 on."""
+        differ, its own mismatch acts from t = 0 on. ``memory``: the controller's initial
+        memory, when the caller has it (:meth:`initial_memories`, the same numbers)."""
         dq0 = np.zeros(self.robot.n) if dq0 is None else dq0
+        if memory is None and self.layout.n_memory:
+            # an empty memory needs no call (a CasADi call costs ~40 us per run)
+            memory = np.array(self.initial_memory(start, goal, k, r_d)).ravel()
         fields = {"q": start, "dq": dq0,
-                  # an empty memory needs no call (a CasADi call costs ~40 us per run)
-                  "memory": np.array(self.initial_memory(start, goal, k, r_d)).ravel()
-                  if self.layout.n_memory else [],
+                  "memory": memory if self.layout.n_memory else [],
                   "applied": [], "status": 0.0}
         if self.effects:
             context = StartContext(np.asarray(start, dtype=float), dq0, plant,
@@ -421,10 +423,11 @@ class Simulator:
         return self.started(start, goal, k, r_d, dt, plant, dq0=dq0)
 
     def started(self, start: np.ndarray, goal: np.ndarray, k: np.ndarray, r_d: np.ndarray,
-                dt: float, plant: Plant, *, dq0: np.ndarray | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`prepared` after :meth:`check_as_built_runs` has passed its run."""
-        return (self.initial_state(start, goal, k, r_d, dq0=dq0, plant=plant),
+                dt: float, plant: Plant, *, dq0: np.ndarray | None = None,
+                memory: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`prepared` after :meth:`check_as_built_runs` has passed its run
+        (``memory``: the controller's initial memory when the caller has it)."""
+        return (self.initial_state(start, goal, k, r_d, dq0=dq0, plant=plant, memory=memory),
                 self.parameters(goal, k, r_d, dt, plant))
 
     def check_as_built_runs(self, starts: np.ndarray, goals: np.ndarray, dt: float,
@@ -575,6 +578,16 @@ class Simulator:
                 for name, values in effect.start_values(context).items():
                     states[:, fields.slice(name)] = values
         return states
+
+    def initial_memories(self, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,
+                         r_d: np.ndarray) -> np.ndarray | None:
+        """The controller's memory at the start of each move (runs, memory size), in one
+        call; None for a controller without memory."""
+        if not self.layout.n_memory or not len(starts):
+            return None
+        return self._initial_memories(np.asarray(starts, dtype=float).reshape(-1, self.robot.n),
+                                      np.asarray(goals, dtype=float).reshape(-1, self.robot.n),
+                                      k, r_d)
 
     def _initial_memories(self, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,
                           r_d: np.ndarray) -> np.ndarray:
