@@ -171,6 +171,7 @@ class _TableStudy:
 
         class TableStudy(Study):
             name = "table"
+            records_runs = True
 
             def compute(self, folder, request):
                 (folder / "runs").mkdir(parents=True, exist_ok=True)
@@ -220,3 +221,15 @@ def test_a_report_from_run_files_of_another_run_is_refused_naming_the_file(tmp_p
     table.write_text("pair,share\n0,0.9\n")
     (folder / RUNS_DIGEST_FILE).unlink()
     assert study.report(folder) == {"share": 0.9}
+
+
+@pytest.mark.parametrize("name", STUDY_NAMES)
+def test_only_the_studies_of_sweep_tables_keep_a_record_of_their_runs(name):
+    """The record is committed beside study.json, so a study whose run files are not plain
+    tables (the paper's trajectories) keeps none: the README's paper study leaves the
+    tree as it found it."""
+    from cdpr_sym.studies.interface import RUNS_DIGEST_FILE
+
+    keeps = study_by_name(name).records_runs
+    assert keeps == (name in ("zoo", "underactuated"))
+    assert (REPORTS / name / RUNS_DIGEST_FILE).exists() == keeps

@@ -110,6 +110,11 @@ class Study(abc.ABC):
     options: ClassVar[StudyOptions] = StudyOptions()
     #: Where the per-run files are (for the message when they are missing).
     runs_note: ClassVar[str] = "runs/ is not kept in git"
+    #: Whether :meth:`run` records the per-run files' digests (:data:`RUNS_DIGEST_FILE`):
+    #: the studies whose reports aggregate sweep tables (plain text, the same bytes from the
+    #: same run), where a checkout's older tables were once reported beside a newer
+    #: study.json. The others keep no record and are not checked.
+    records_runs: ClassVar[bool] = False
 
     @abc.abstractmethod
     def compute(self, folder: Path, request: StudyRequest) -> None:
@@ -198,10 +203,11 @@ class Study(abc.ABC):
 
     def run(self, folder: Path, request: StudyRequest, **options: Any) -> Any:
         """Compute into ``folder`` (with the study's own keyword ``options``, see
-        :meth:`compute`), record the per-run files' digests (:data:`RUNS_DIGEST_FILE`),
-        then report from the files; returns the result."""
+        :meth:`compute`), record the per-run files' digests where the study keeps them
+        (:attr:`records_runs`), then report from the files; returns the result."""
         self.compute(folder, request, **options)
-        self.record_runs(folder)
+        if self.records_runs:
+            self.record_runs(folder)
         return self.report(folder)
 
     def record_runs(self, folder: Path) -> None:

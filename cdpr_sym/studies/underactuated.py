@@ -151,6 +151,7 @@ class UnderactuatedStudy(Study):
     options = StudyOptions(robot=False, default_robot=None, own_robots=UNDERACTUATED_PRESETS,
                            default_pairs=40)
     runs_note = "its sweep tables (runs/) are not kept in git"
+    records_runs = True
 
     def compute(self, folder: Path, request: StudyRequest) -> None:
         """Robot files, design numbers and own cases, one sweep table per robot and design,

@@ -234,6 +234,7 @@ class ZooStudy(Study):
     options = StudyOptions(robot=False, default_robot=None, own_robots=PRESET_NAMES,
                            default_pairs=40)
     runs_note = "its sweep tables (runs/) are not kept in git"
+    records_runs = True
 
     def compute(self, folder: Path, request: StudyRequest) -> None:
         """The drawn robots' files, their gains and own cases, one sweep table per robot,
