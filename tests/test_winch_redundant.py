@@ -187,7 +187,7 @@ def test_a_robot_on_one_cable_more_is_held_with_room_for_the_feedback():
     (cvxpy on the shrunk box, the room written out in numpy: each cable's share of it
     min(1, sqrt(m) |h_i|), h the unit null vector), so no cable sits on T_min, where the
     plain minimum norm (the model's static tension) puts one there."""
-    from test_distribution import _min_norm_between
+    from test_distribution import _min_norm_between, _room_weights
 
     from cdpr_sym.closed_loop import get_simulator
     from cdpr_sym.studies.zoo import zoo_robots
@@ -208,8 +208,8 @@ def test_a_robot_on_one_cable_more_is_held_with_room_for_the_feedback():
         np.testing.assert_allclose(unguarded, np.array(model.functions["static_tension"](q))
                                    .ravel(), atol=1e-9)
         on_floor += bool(unguarded.min() < robot.t_min + 1e-6)
-        h = np.linalg.svd(W)[2][-1]  # each cable keeps the room times how much h moves it
-        room = _numpy_guard(robot, W, weight) * np.minimum(1.0, np.sqrt(len(h)) * np.abs(h))
+        # each cable keeps the room times how much the null space moves it
+        room = _numpy_guard(robot, W, weight) * _room_weights(W)
         inside = _min_norm_between(W, weight, robot.t_min + room, robot.t_max - room)
         if inside is None:
             continue

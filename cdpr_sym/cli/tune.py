@@ -69,8 +69,11 @@ def _lines(report: dict[str, Any]) -> list[str]:
                  f"{loop['least_damping']:.3g}")
     hold = report.get("hold")
     if hold is not None:
+        from cdpr_sym.control.winch_level import HOLD_MASS_ERROR
+
         lines.append(f"ida-winch's hold at the start (one cable more than coordinates): room "
-                     f"{hold['room_N']:.4g} N (drum friction at the cable + 0.1 |W+ f|), "
+                     f"{hold['room_N']:.4g} N (drum friction at the cable + "
+                     f"{HOLD_MASS_ERROR:g} |W+ f|), "
                      f"lowest cable {min(hold['held_N']):.4g} N (the plain minimum norm's: "
                      f"{min(hold['static_N']):.4g} N)")
     return lines

@@ -569,8 +569,9 @@ class Simulator:
         fields = self.layout.x
         states = np.zeros((len(starts), fields.size))
         states[:, fields.slice("q")] = starts
-        if self.layout.n_memory and len(starts):
-            states[:, fields.slice("memory")] = self._initial_memories(starts, goals, k, r_d)
+        memories = self.initial_memories(starts, goals, k, r_d)
+        if memories is not None:
+            states[:, fields.slice("memory")] = memories
         if self.effects and len(starts):  # rows of starts: the ideal plant's effects take them
             context = StartContext(starts, np.zeros_like(starts), Plant(),
                                    self.static_tensions(starts), None)
@@ -581,19 +582,14 @@ class Simulator:
 
     def initial_memories(self, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,
                          r_d: np.ndarray) -> np.ndarray | None:
-        """The controller's memory at the start of each move (runs, memory size), in one
-        call; None for a controller without memory."""
+        """The controller's memory at the start of each move (runs, memory size); None for
+        a controller without memory or no runs: its planning function mapped over the runs
+        (one call, each run's the same instructions as a call of its own; about half the
+        time of a call per run)."""
         if not self.layout.n_memory or not len(starts):
             return None
-        return self._initial_memories(np.asarray(starts, dtype=float).reshape(-1, self.robot.n),
-                                      np.asarray(goals, dtype=float).reshape(-1, self.robot.n),
-                                      k, r_d)
-
-    def _initial_memories(self, starts: np.ndarray, goals: np.ndarray, k: np.ndarray,
-                          r_d: np.ndarray) -> np.ndarray:
-        """The controller's memory at the start of each move, (runs, memory size): its
-        planning function mapped over the runs (one call, each run's the same instructions
-        as a call of its own; about half the time of a call per run)."""
+        starts = np.asarray(starts, dtype=float).reshape(-1, self.robot.n)
+        goals = np.asarray(goals, dtype=float).reshape(-1, self.robot.n)
         runs = len(starts)
         mapped = self._mapped_memory.get(runs)
         if mapped is None:

@@ -102,6 +102,7 @@ from cdpr_sym.distribution import AUTO
 from cdpr_sym.distribution.closed_form import nearest_to
 from cdpr_sym.distribution.one_dimensional import guarded_min_norm
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.linalg import pseudo_inverse_times
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
 from cdpr_sym.robot.description import robot_key
@@ -479,7 +480,7 @@ class WinchIdaPbc:
         k_p J_a (W k_p J_a)^{-1} e f = W^+ e f (J_a = -W^T): a cable of the minimum-norm
         tension may have to give up that much."""
         drive = self.drive_of(model.robot)
-        carried = W.T @ ca.solve(W @ W.T, force)
+        carried = pseudo_inverse_times(W, force)
         return drive.coulomb / drive.drum_radius + HOLD_MASS_ERROR * ca.mmax(ca.fabs(carried))
 
     def guarded(self, model: SymbolicModel, W: ca.SX, force: ca.SX) -> ca.SX:

@@ -65,9 +65,9 @@ class ExternalCommand:
         return {"held_by": {"name": self.held_by.name, **self.held_by.options()}}
 
     def holding_tension(self, model: SymbolicModel, q: ca.SX) -> ca.SX:
-        """The tension ``held_by`` holds the robot with at rest at ``q`` (N)."""
-        return holding_tension(self.held_by, model, q) if self.held_by is not None \
-            else model.static_tension(q)
+        """The tension ``held_by`` holds the robot with at rest at ``q`` (N; without one,
+        the model's static tension)."""
+        return holding_tension(self.held_by, model, q)
 
     def capabilities(self) -> Capabilities:
         return Capabilities(any_cables=True, reads_drives=True)
