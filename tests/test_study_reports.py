@@ -218,6 +218,9 @@ def test_a_report_from_run_files_of_another_run_is_refused_naming_the_file(tmp_p
     assert json.loads((folder / "summary.json").read_text()) == {"share": 0.5}
     table.write_text("pair,share\n0,0.5\n")
     assert study.report(folder) == {"share": 0.5}
+    (folder / RUNS_DIGEST_FILE).write_text("[1, 2]")  # a damaged record names itself
+    with pytest.raises(InvalidCase, match=r"runs\.sha256\.json is not a record of run files"):
+        study.report(folder)
     table.write_text("pair,share\n0,0.9\n")
     (folder / RUNS_DIGEST_FILE).unlink()
     assert study.report(folder) == {"share": 0.9}

@@ -231,7 +231,12 @@ class Study(abc.ABC):
         record = Path(folder) / RUNS_DIGEST_FILE
         if not record.exists():
             return
-        digests = read_json(record).get("runs", {})
+        stored = read_json(record)
+        digests = stored.get("runs") if isinstance(stored, dict) else None
+        if not isinstance(digests, dict):
+            raise InvalidCase("results", f"{record} is not a record of run files (expected "
+                              "an object with 'runs': path -> SHA-256); run 'cdpr-sym study "
+                              f"{self.name}' again, or remove it to report without the check")
         for path in self.run_files(folder):
             name = path.relative_to(folder).as_posix()
             if digests.get(name) != _digest(path):
