@@ -67,6 +67,25 @@ def test_the_best_share_counts_the_pairs_some_design_meets_by_brute_force(held_o
     assert zoo_study.best_share(tables, held_only=held_only) == pytest.approx(np.mean(met))
 
 
+def test_the_best_share_over_given_pairs_counts_those_only():
+    """Restricted to a set of pairs, the share is recounted over the held pairs in it."""
+    rows = [_row(0, settle=1.0, held=True), _row(1, settle=None, held=True),
+            _row(2, settle=1.0, held=False), _row(3, settle=None, held=True)]
+    tables = {"a": (rows, _meta())}
+    assert zoo_study.best_share(tables, held_only=True, pairs={0, 2}) == 1.0
+    assert zoo_study.best_share(tables, held_only=True, pairs={0, 1, 3}) == pytest.approx(1 / 3)
+    assert zoo_study.best_share(tables, held_only=True, pairs=set()) is None
+
+
+def test_the_pairs_within_the_floor_are_held_with_a_floor_inside_the_band():
+    """Held, floor under the target's 1 cm band: in; on the band, NaN (no taut rest) or
+    not held: out."""
+    floors = [0.002, 0.0099, 0.01, float("nan"), 0.002]
+    rows = [{**_row(p, settle=1.0, held=p != 4), "floor_error": floor}
+            for p, floor in enumerate(floors)]
+    assert zoo_study.within_floor(rows, _meta()) == {0, 1}
+
+
 def test_the_best_share_judges_each_row_against_its_robots_own_target():
     """A step of 1.5 N meets a 2 N step limit and fails a 1 N one: the same rows give
     another share under another robot's target."""
@@ -101,7 +120,7 @@ def test_the_study_takes_no_robot_and_runs_forty_pairs_by_default(capsys, monkey
 
 def test_the_tally_counts_the_robots_reaching_each_target():
     def robot(ideal, built, nmpc_case, nmpc_share):
-        return {"best": {"ideal": ideal, "as_built": built},
+        return {"best": {"ideal": ideal, "as_built": built, "as_built_reachable": built},
                 "own_case": {"nmpc": {"meets_target": nmpc_case}},
                 "shares": {"ideal": {"nmpc": {"meets_target": nmpc_share}}}}
 
@@ -109,7 +128,8 @@ def test_the_tally_counts_the_robots_reaching_each_target():
         (0.95, 0.9), (0.9, None), (True, False), (0.9, 0.85)))}
     tally = zoo_study._tally(robots)
     assert (tally["robots"], tally["best_ideal"], tally["best_as_built"],
-            tally["nmpc_own_case"], tally["nmpc_pairs"]) == (16, 8, 8, 8, 8)
+            tally["best_as_built_reachable"], tally["nmpc_own_case"],
+            tally["nmpc_pairs"]) == (16, 8, 8, 8, 8, 8)
     json.dumps(tally)
 
 

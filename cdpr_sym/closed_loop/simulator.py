@@ -25,6 +25,7 @@ import casadi as ca
 import numpy as np
 import numpy.typing as npt
 
+from cdpr_sym.as_built.cable_law import drum_pull
 from cdpr_sym.as_built.stability import check_integrable
 from cdpr_sym.closed_loop.case import (
     Case,
@@ -34,6 +35,7 @@ from cdpr_sym.closed_loop.case import (
 )
 from cdpr_sym.closed_loop.effects import AsBuiltReadout, StartContext, plant_effects
 from cdpr_sym.closed_loop.effects.base import elastic_stiffness
+from cdpr_sym.closed_loop.floor import DriveFloor
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.plant_kind import PlantKind
@@ -61,6 +63,7 @@ from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.results import Trajectory
 from cdpr_sym.robot import Robot, resolve_robot, robot_key
+from cdpr_sym.robot.gains import DEFAULT_DT
 
 if TYPE_CHECKING:  # NMPC's solver is imported where a run needs it
     from cdpr_sym.as_built import AsBuiltStructure
@@ -321,6 +324,43 @@ class Simulator:
         reading = readout.encoder_reading(q, readout.true_static(q, plant)[0], plant)
         read = readout.read_pose(reading, q, spec.sensing, elastic_stiffness(plant))
         return np.full(self.robot.n, np.nan) if read is None else read - q
+
+    @functools.cached_property
+    def _drive_floor(self) -> DriveFloor:
+        return DriveFloor(self.model)
+
+    @functools.cached_property
+    def _homing(self) -> ca.Function:
+        """(memory, goal) -> the drive-reading controller's homing references
+        (``homing_references``: l0_r at t = 0 and at the end, T_r at the end)."""
+        memory = ca.SX.sym("memory", self.layout.n_memory)
+        goal = ca.SX.sym("q_goal", self.robot.n)
+        return ca.Function("homing", [memory, goal], list(
+            self.controller.homing_references(self.model, memory, goal)))
+
+    def floor_offset(self, start: np.ndarray, goal: np.ndarray, plant: Plant, k: np.ndarray,
+                     r_d: np.ndarray, dt: float = DEFAULT_DT) -> np.ndarray:
+        """Where the as-built ``plant`` rests once this controller (case gains ``k``,
+        ``r_d``; its own gains at the period ``dt``, s) has zeroed what it measures on the
+        move from ``start`` to ``goal``, minus ``goal`` (m; rad for angles): the build's
+        floor (:mod:`cdpr_sym.closed_loop.floor`), under which no run of it on this build
+        settles. Zero on the ideal plant and with exact state; NaN where no rest is found
+        (a drive-reading controller on a build that cannot hold its lengths with every
+        cable taut, a pose no reading explains)."""
+        self.check_plant(plant)
+        if plant.as_built is None:
+            return np.zeros(self.robot.n)
+        if not capabilities(self.controller).reads_drives:
+            return -self.read_offset(goal, plant)
+        start, goal = (np.asarray(q, dtype=float) for q in (start, goal))
+        first, last, tension = (np.array(value).ravel() for value in self._homing(
+            np.array(self.initial_memory(start, goal, k, r_d)).ravel(), goal))
+        held = self.readout.unstretched_lengths(start, self._static_tension(start), plant)
+        drive = self.controller.drive_of(self.robot)
+        stiffness = float(self.controller.gains(self.robot, dt, self.model)[0])
+        rest = self._drive_floor.rest(plant, last + held - first, goal,
+                                      drum_pull(tension, drive.cable_stiffness), stiffness)
+        return np.full(self.robot.n, np.nan) if rest is None else rest - goal
 
     def _check_readable(self, start: np.ndarray, plant: Plant) -> None:
         """:meth:`AsBuiltReadout.check_readable` unless the controller reads the drives."""

@@ -552,6 +552,21 @@ class WinchIdaPbc:
         return (payout, jacobian @ dq_r, jacobian @ ddq_r, tension,
                 model.singularity_measure(W))
 
+    def homing_references(self, model: SymbolicModel, memory: ca.SX, q_goal: ca.SX
+                          ) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """(l0_r at t = 0, l0_r at the plan's end, T_r there), m, m, N: the motor references
+        the encoders are homed against at the first step (their misfit there is their zero)
+        and the ones the move ends on, with its feed-forward tension, from the controller's
+        initial ``memory`` (:meth:`initial_memory`) on the elastic cables it models. What
+        a robot as built holds at rest (:mod:`cdpr_sym.closed_loop.floor`)."""
+        n = model.n
+        q_start, duration, margin = memory[1: n + 1], memory[n + 1], memory[n + 2]
+        base = self._kept_from(model)
+        ends = memory[n + 3: base] if base > n + 3 else None
+        first = self.reference(model, ca.SX(0.0), q_start, duration, q_goal, margin, ends=ends)
+        last = self.reference(model, duration, q_start, duration, q_goal, margin, ends=ends)
+        return first[0], last[0], last[3]
+
     def pull(self, tension: ca.SX | np.ndarray | float, drive: Actuation):
         """The pull P = T + T^2 / (2 EA) that holds a cable of tension T on ``drive``'s drum,
         N."""

@@ -27,7 +27,9 @@ CALIBRATION_COLUMNS = ("anchor_rms_error", "anchor_rms_std", "offset_max_error",
 def as_built_columns(m: int, d: int, *, calibrated: bool) -> dict[str, str]:
     """The columns a sweep on the robot as built adds, with their types: ``held`` (the true
     plant holds start and goal with tensions in the box), ``read_error`` (how far the
-    encoders misplace the goal at rest, m), the draw (``mass_scale``;
+    encoders misplace the goal at rest, m), ``floor_error`` (how far from the goal the
+    build rests once the row's controller has zeroed what it measures, m and rad:
+    :mod:`cdpr_sym.closed_loop.floor`; NaN where it rests nowhere taut), the draw (``mass_scale``;
     ``anchor_offset_<cable>_<axis>``, true minus nominal, m) and, calibrated, the
     calibration's :data:`CALIBRATION_COLUMNS`.
 
@@ -39,7 +41,8 @@ def as_built_columns(m: int, d: int, *, calibrated: bool) -> dict[str, str]:
         Whether each pair is calibrated before its runs.
     """
     axes = ("x", "y", "z") if d == 3 else ("x", "z")
-    columns = {"held": "bool", "read_error": "float64", "mass_scale": "float64"}
+    columns = {"held": "bool", "read_error": "float64", "floor_error": "float64",
+               "mass_scale": "float64"}
     columns.update({f"anchor_offset_{i + 1}_{axis}": "float64" for i in range(m)
                     for axis in axes})
     if calibrated:

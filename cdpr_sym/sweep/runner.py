@@ -113,14 +113,15 @@ def run_as_built(robot: Robot, draw: AsBuiltDraw, config: SweepConfig, pair: int
                  controller_name: str, start: np.ndarray, goal: np.ndarray
                  ) -> dict[str, Any]:
     """One run on pair ``pair``'s robot as built (calibrated first when the sweep says so),
-    judged on the true tensions, with ``held``, ``read_error`` and the draw."""
+    judged on the true tensions, with ``held``, ``read_error``, ``floor_error`` and the
+    draw."""
     from cdpr_sym.calibration.drawn import drawn_robot
 
     try:
         drawn = drawn_robot(robot, draw, config.seed, pair, config.calibration)
         simulator = get_simulator(drawn.model, controller_by_name(controller_name),
                                   as_built=drawn.plant.as_built.structure())
-        checked = _as_built_checks(simulator, drawn.plant, start, goal)
+        checked = _as_built_checks(simulator, drawn.plant, start, goal, robot)
         run = simulator.run(start, goal, robot.k, robot.r_d, duration=config.duration,
                             dt=config.dt, plant=drawn.plant)
     except _RUN_FAILURES as failure:
@@ -152,7 +153,7 @@ def run_as_built_group(robot: Robot, draw: AsBuiltDraw, config: SweepConfig,
             return one_by_one()
         simulator = get_simulator(robot, controller_by_name(controller_name),
                                   as_built=structure)
-        checked = [_as_built_checks(simulator, one.plant, start, goal)
+        checked = [_as_built_checks(simulator, one.plant, start, goal, robot)
                    for one, start, goal in zip(drawn, starts, goals, strict=True)]
         summaries = summarise_many(simulator, starts, goals, robot.k, robot.r_d,
                                    duration=config.duration, dt=config.dt,
@@ -164,23 +165,30 @@ def run_as_built_group(robot: Robot, draw: AsBuiltDraw, config: SweepConfig,
             for summary, one, check in zip(summaries, drawn, checked, strict=True)]
 
 
-def _as_built_checks(simulator: Any, plant: Plant, start: np.ndarray, goal: np.ndarray
-                     ) -> tuple[bool, float]:
-    """(held, read_error) of a run as built: whether the true static tension holds the
-    robot in the box at start and goal, and how far the encoders read the goal, m."""
+def _as_built_checks(simulator: Any, plant: Plant, start: np.ndarray, goal: np.ndarray,
+                     robot: Robot) -> tuple[bool, float, float]:
+    """(held, read_error, floor_error) of a run as built: whether the true static tension
+    holds the robot in the box at start and goal, how far the encoders read the goal (m),
+    and how far from the goal the build rests once the controller has zeroed what it
+    measures (m and rad; :meth:`~cdpr_sym.closed_loop.Simulator.floor_offset` with the
+    case's gains)."""
     held = all(simulator.true_static_held(q, plant) for q in (start, goal))
-    return held, float(np.linalg.norm(simulator.read_offset(goal, plant)))
+    floor = simulator.floor_offset(start, goal, plant, robot.k, robot.r_d)
+    return (held, float(np.linalg.norm(simulator.read_offset(goal, plant))),
+            float(np.linalg.norm(floor)))
 
 
 def _as_built_row(run: Trajectory | RunSummary, robot: Robot, record: dict[str, Any],
-                  checked: tuple[bool, float]) -> dict[str, Any]:
-    """An as-built run's row: its metrics, ``held``, ``read_error`` and the draw."""
+                  checked: tuple[bool, float, float]) -> dict[str, Any]:
+    """An as-built run's row: its metrics, ``held``, ``read_error``, ``floor_error`` and the
+    draw."""
     axes = ("x", "y", "z") if robot.dimension == 3 else ("x", "z")
     offsets = {f"anchor_offset_{i + 1}_{axis}": value
                for i, row in enumerate(record["anchor_offsets"])
                for axis, value in zip(axes, row, strict=True)}
     extra = {key: record[key] for key in CALIBRATION_COLUMNS if key in record}
     return {**_row(run, robot), "held": checked[0], "read_error": checked[1],
+            "floor_error": checked[2],
             "mass_scale": record["mass_scale"], **offsets, **extra}
 
 
