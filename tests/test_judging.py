@@ -106,6 +106,23 @@ def test_summarise_counts_shares_and_medians_by_hand():
     assert (b["runs_with_infeasible_steps"], b["stopped_or_failed"]) == (0, 0)
 
 
+def test_summarise_counts_the_held_pairs_within_the_builds_floor_by_hand():
+    """As built with floors: within the floor = held and floor under the band (1 cm); the
+    share meeting the target is over those; a sweep without floors reports neither."""
+    rows = [_row(held=True, floor_error=0.002),
+            _row(held=True, floor_error=0.009, settle_time=6.0),  # within, late
+            _row(held=True, floor_error=0.01),  # on the band: out
+            _row(held=True, floor_error=float("nan")),  # no taut rest: out
+            _row(held=False, floor_error=0.001)]  # not held: out
+    s = summarise(rows)["a"]
+    assert (s["held"], s["within_floor"]) == (4, 2)
+    assert s["meets_target_within_floor"] == pytest.approx(1 / 2)
+    assert s["meets_target_held"] == pytest.approx(3 / 4)
+    assert summarise([_row(held=False, floor_error=0.001)])["a"][
+        "meets_target_within_floor"] is None
+    assert "within_floor" not in summarise([_row(held=True)])["a"]
+
+
 def test_summarise_of_only_failed_runs_has_no_medians():
     rows = [_row(status="failed", converged=False), _row(status="singular")]
     s = summarise(rows)["a"]

@@ -357,6 +357,10 @@ def _summary_lines(summary: dict[str, dict[str, object]]) -> list[str]:
             share = row["meets_target_held"]
             held = (f", {'–' if share is None else f'{100 * share:.1f} %'} of the "
                     f"{row['held']} held pairs")
+        if "within_floor" in row:
+            share = row["meets_target_within_floor"]
+            held += (f", {'–' if share is None else f'{100 * share:.1f} %'} of the "
+                     f"{row['within_floor']} within the build's floor")
         lines.append(f"{name:<12} meets the target on {100 * row['meets_target']:5.1f} % of "
                      f"all {row['runs']} pairs{held} (tension-feasible "
                      f"{100 * row['feasible']:.1f} %, converged {100 * row['converged']:.1f} "

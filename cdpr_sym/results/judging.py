@@ -9,6 +9,7 @@ robot's 1 cm by 5 s and 1 N per 1 ms step.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -54,7 +55,9 @@ def summarise(rows: list[dict[str, Any]], target: Target = PAPER_TARGET, *,
     (all pairs), ``meets_target`` judged against ``target`` at control period ``dt`` (s;
     see :func:`meets_target`). Rows of the robot as built (with ``held``) add ``held``, the
     pairs whose start and goal the true plant holds, and ``meets_target_held``, the share
-    of those meeting the target (None when none is held)."""
+    of those meeting the target (None when none is held); with ``floor_error``,
+    ``within_floor``, the held pairs whose build's floor lies inside the target's band
+    (:func:`within_floor`), and ``meets_target_within_floor``, the share of those."""
 
     def meets(row: dict[str, Any]) -> bool:
         return meets_target(row, target, dt=dt)
@@ -81,7 +84,19 @@ def summarise(rows: list[dict[str, Any]], target: Target = PAPER_TARGET, *,
             held = [row for row in mine if row.get("held")]
             out[name]["held"] = len(held)
             out[name]["meets_target_held"] = (_share(held, meets) if held else None)
+        if any("floor_error" in row for row in mine):
+            within = [row for row in mine if within_floor(row, target)]
+            out[name]["within_floor"] = len(within)
+            out[name]["meets_target_within_floor"] = (_share(within, meets) if within
+                                                      else None)
     return out
+
+
+def within_floor(row: dict[str, Any], target: Target) -> bool:
+    """Whether an as-built row's pair is held and its build lets its controller settle in
+    ``target``'s band at all: ``floor_error`` (:mod:`cdpr_sym.closed_loop.floor`, m and
+    rad) under the band; a NaN floor (no taut rest) is not."""
+    return bool(row.get("held")) and float(row.get("floor_error", math.nan)) < target.error
 
 
 def sweep_target(meta: dict[str, Any]) -> tuple[Target, float]:

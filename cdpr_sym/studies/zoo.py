@@ -42,6 +42,7 @@ import numpy as np
 from cdpr_sym.errors import CdprError
 from cdpr_sym.reporting.text import render_report
 from cdpr_sym.results.judging import meets_target
+from cdpr_sym.results.judging import within_floor as row_within_floor
 from cdpr_sym.results.store import read_json, write_json
 from cdpr_sym.robot import Robot
 from cdpr_sym.robot.files import PRESET_NAMES, load_robot, preset, robot_file_text
@@ -190,12 +191,10 @@ def best_share(tables: dict[str, tuple[list[dict[str, Any]], dict[str, Any]]],
 
 
 def within_floor(rows: list[dict[str, Any]], meta: dict[str, Any]) -> set[int]:
-    """The held pairs of an as-built sweep whose build lets its controller settle in the
-    target's band: ``floor_error`` (:mod:`cdpr_sym.closed_loop.floor`) under the band (a
-    NaN floor, no taut rest, is not)."""
-    band = sweep_target(meta)[0].error
-    return {row["pair"] for row in rows
-            if row.get("held") and float(row.get("floor_error", np.nan)) < band}
+    """The pairs of an as-built sweep's rows that are held with the build's floor inside the
+    target's band (:func:`~cdpr_sym.results.judging.within_floor`)."""
+    target = sweep_target(meta)[0]
+    return {row["pair"] for row in rows if row_within_floor(row, target)}
 
 
 def _aggregate_robot(folder: Path, name: str, study: dict[str, Any]) -> dict[str, Any]:
