@@ -111,13 +111,15 @@ def test_summarise_counts_the_held_pairs_within_the_builds_floor_by_hand():
     share meeting the target is over those; a sweep without floors reports neither."""
     rows = [_row(held=True, floor_error=0.002),
             _row(held=True, floor_error=0.009, settle_time=6.0),  # within, late
-            _row(held=True, floor_error=0.01),  # on the band: out
-            _row(held=True, floor_error=float("nan")),  # no taut rest: out
-            _row(held=False, floor_error=0.001)]  # not held: out
+            _row(held=True, floor_error=0.01),  # on the band: in, as a settled error
+            _row(held=True, floor_error=0.0101),  # out
+            _row(held=True, floor_error=float("nan")),  # no rest found: out
+            _row(held=False, floor_error=0.001),  # not held: out
+            _row(held=None, floor_error=None, status="failed")]  # an error row: out
     s = summarise(rows)["a"]
-    assert (s["held"], s["within_floor"]) == (4, 2)
-    assert s["meets_target_within_floor"] == pytest.approx(1 / 2)
-    assert s["meets_target_held"] == pytest.approx(3 / 4)
+    assert (s["held"], s["within_floor"]) == (5, 3)
+    assert s["meets_target_within_floor"] == pytest.approx(2 / 3)
+    assert s["meets_target_held"] == pytest.approx(4 / 5)
     assert summarise([_row(held=False, floor_error=0.001)])["a"][
         "meets_target_within_floor"] is None
     assert "within_floor" not in summarise([_row(held=True)])["a"]

@@ -78,9 +78,9 @@ def test_the_best_share_over_given_pairs_counts_those_only():
 
 
 def test_the_pairs_within_the_floor_are_held_with_a_floor_inside_the_band():
-    """Held, floor under the target's 1 cm band: in; on the band, NaN (no taut rest) or
+    """Held, floor within the target's 1 cm band: in; beyond it, NaN (no rest found) or
     not held: out."""
-    floors = [0.002, 0.0099, 0.01, float("nan"), 0.002]
+    floors = [0.002, 0.01, 0.0101, float("nan"), 0.002]
     rows = [{**_row(p, settle=1.0, held=p != 4), "floor_error": floor}
             for p, floor in enumerate(floors)]
     assert zoo_study.within_floor(rows, _meta()) == {0, 1}

@@ -349,7 +349,8 @@ def _target_record(target: Target, dt: float) -> dict[str, object]:
 
 def _summary_lines(summary: dict[str, dict[str, object]]) -> list[str]:
     """One line per design: the share meeting the target of all pairs (and, as built, of
-    the held pairs, the share a robustness report gives) and what it is made of."""
+    the held pairs, the share a robustness report gives, and of the held pairs within the
+    build's floor) and what it is made of."""
     lines = []
     for name, row in summary.items():
         held = ""

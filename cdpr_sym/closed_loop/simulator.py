@@ -344,23 +344,32 @@ class Simulator:
         ``r_d``; its own gains at the period ``dt``, s) has zeroed what it measures on the
         move from ``start`` to ``goal``, minus ``goal`` (m; rad for angles): the build's
         floor (:mod:`cdpr_sym.closed_loop.floor`), under which no run of it on this build
-        settles. Zero on the ideal plant and with exact state; NaN where no rest is found
-        (a drive-reading controller on a build that cannot hold its lengths with every
-        cable taut, a pose no reading explains)."""
+        settles (m = n and n + 1; an estimate on slow redundant bodies: see the module).
+        Zero on the ideal plant and with exact state; NaN where no rest is found (a
+        drive-reading controller on a build that cannot hold its lengths with every cable
+        taut and its commands unclipped, a pose no reading explains) or none is modelled (a
+        build without elastic cables on winches)."""
         self.check_plant(plant)
         if plant.as_built is None:
             return np.zeros(self.robot.n)
         if not capabilities(self.controller).reads_drives:
             return -self.read_offset(goal, plant)
+        unknown = np.full(self.robot.n, np.nan)
+        if getattr(self.controller, "homing_references", None) is None:
+            return unknown  # a drive reader whose references are not known here
         start, goal = (np.asarray(q, dtype=float) for q in (start, goal))
         first, last, tension = (np.array(value).ravel() for value in self._homing(
             np.array(self.initial_memory(start, goal, k, r_d)).ravel(), goal))
         held = self.readout.unstretched_lengths(start, self._static_tension(start), plant)
         drive = self.controller.drive_of(self.robot)
+        friction = drive.coulomb / drive.drum_radius
+        command_range = (drum_pull(self.robot.t_min, drive.cable_stiffness) + friction,
+                         drum_pull(self.robot.t_max, drive.cable_stiffness) - friction)
         stiffness = float(self.controller.gains(self.robot, dt, self.model)[0])
         rest = self._drive_floor.rest(plant, last + held - first, goal,
-                                      drum_pull(tension, drive.cable_stiffness), stiffness)
-        return np.full(self.robot.n, np.nan) if rest is None else rest - goal
+                                      drum_pull(tension, drive.cable_stiffness), stiffness,
+                                      command_range)
+        return unknown if rest is None else rest - goal
 
     def _check_readable(self, start: np.ndarray, plant: Plant) -> None:
         """:meth:`AsBuiltReadout.check_readable` unless the controller reads the drives."""

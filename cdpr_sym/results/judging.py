@@ -9,7 +9,6 @@ robot's 1 cm by 5 s and 1 N per 1 ms step.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -95,8 +94,10 @@ def summarise(rows: list[dict[str, Any]], target: Target = PAPER_TARGET, *,
 def within_floor(row: dict[str, Any], target: Target) -> bool:
     """Whether an as-built row's pair is held and its build lets its controller settle in
     ``target``'s band at all: ``floor_error`` (:mod:`cdpr_sym.closed_loop.floor`, m and
-    rad) under the band; a NaN floor (no taut rest) is not."""
-    return bool(row.get("held")) and float(row.get("floor_error", math.nan)) < target.error
+    rad) within the band, as a settled error is; a NaN floor (no rest found) or none
+    recorded is not."""
+    floor = row.get("floor_error")
+    return bool(row.get("held")) and floor is not None and float(floor) <= target.error
 
 
 def sweep_target(meta: dict[str, Any]) -> tuple[Target, float]:

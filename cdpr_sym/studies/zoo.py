@@ -27,8 +27,8 @@ figure the issue's targets name (>= 95 % ideal, >= 90 % as built; ``nmpc`` >= 90
 and its own case settled). As built, the pairs *within the floor* are the held pairs on
 which the build lets a loop on the drives settle in the target's band at all
 (``ida-winch``'s ``floor_error``, :mod:`cdpr_sym.closed_loop.floor`): the best share over
-them says what the controllers do where the build is not the limit; the rest need the
-robot calibrated.
+them says what the controllers do where the build is not ``ida-winch``'s limit; on the
+rest ``ida-winch`` cannot settle in the band uncalibrated.
 """
 
 from __future__ import annotations
@@ -220,7 +220,8 @@ def _aggregate_robot(folder: Path, name: str, study: dict[str, Any]) -> dict[str
             if design in BEST_OF:
                 tables[design] = (rows, meta)
         best[plant] = best_share(tables, held_only=plant == "as_built") if tables else None
-        if plant == "as_built" and FLOOR_DESIGN in tables:
+        if plant == "as_built" and FLOOR_DESIGN in tables and any(
+                "floor_error" in row for row in tables[FLOOR_DESIGN][0]):
             reachable = within_floor(*tables[FLOOR_DESIGN])
             shares[plant][FLOOR_DESIGN]["reachable"] = len(reachable)
             best["as_built_reachable"] = best_share(tables, held_only=True, pairs=reachable)

@@ -121,7 +121,7 @@ def run_as_built(robot: Robot, draw: AsBuiltDraw, config: SweepConfig, pair: int
         drawn = drawn_robot(robot, draw, config.seed, pair, config.calibration)
         simulator = get_simulator(drawn.model, controller_by_name(controller_name),
                                   as_built=drawn.plant.as_built.structure())
-        checked = _as_built_checks(simulator, drawn.plant, start, goal, robot)
+        checked = _as_built_checks(simulator, drawn.plant, start, goal, robot, config.dt)
         run = simulator.run(start, goal, robot.k, robot.r_d, duration=config.duration,
                             dt=config.dt, plant=drawn.plant)
     except _RUN_FAILURES as failure:
@@ -153,7 +153,7 @@ def run_as_built_group(robot: Robot, draw: AsBuiltDraw, config: SweepConfig,
             return one_by_one()
         simulator = get_simulator(robot, controller_by_name(controller_name),
                                   as_built=structure)
-        checked = [_as_built_checks(simulator, one.plant, start, goal, robot)
+        checked = [_as_built_checks(simulator, one.plant, start, goal, robot, config.dt)
                    for one, start, goal in zip(drawn, starts, goals, strict=True)]
         summaries = summarise_many(simulator, starts, goals, robot.k, robot.r_d,
                                    duration=config.duration, dt=config.dt,
@@ -166,14 +166,14 @@ def run_as_built_group(robot: Robot, draw: AsBuiltDraw, config: SweepConfig,
 
 
 def _as_built_checks(simulator: Any, plant: Plant, start: np.ndarray, goal: np.ndarray,
-                     robot: Robot) -> tuple[bool, float, float]:
+                     robot: Robot, dt: float) -> tuple[bool, float, float]:
     """(held, read_error, floor_error) of a run as built: whether the true static tension
     holds the robot in the box at start and goal, how far the encoders read the goal (m),
     and how far from the goal the build rests once the controller has zeroed what it
     measures (m and rad; :meth:`~cdpr_sym.closed_loop.Simulator.floor_offset` with the
-    case's gains)."""
+    case's gains, the controller's at the period ``dt``, s)."""
     held = all(simulator.true_static_held(q, plant) for q in (start, goal))
-    floor = simulator.floor_offset(start, goal, plant, robot.k, robot.r_d)
+    floor = simulator.floor_offset(start, goal, plant, robot.k, robot.r_d, dt)
     return (held, float(np.linalg.norm(simulator.read_offset(goal, plant))),
             float(np.linalg.norm(floor)))
 
