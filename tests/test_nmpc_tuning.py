@@ -159,7 +159,7 @@ def test_nmpc_settles_its_own_case_inside_the_frame(robot, build_options):
 
 
 def test_the_rate_bound_from_the_target_keeps_the_horizons_pace():
-    """``max_rate="robot"``: 0.8 of the robot's target step per ms (800 N/s, the default,
+    """``max_rate="robot"`` (the default): 0.8 of the robot's target step per ms (800 N/s
     wherever the step is 1 N); on a wider box the bound grows with the step while the
     horizon (and the weights sized by it) stays the one that sees the platform brake at
     800 N/s; a bound stated slower than that still lengthens it."""
@@ -168,7 +168,8 @@ def test_the_rate_bound_from_the_target_keeps_the_horizons_pace():
     assert Nmpc(max_rate="robot").tuned(aras3).max_rate == 800.0
     heavy = load_robot(DATA / "heavy8.toml")
     step = heavy.design_target.step
-    tuned, paced = Nmpc(max_rate="robot").tuned(heavy), Nmpc().tuned(heavy)
+    assert Nmpc().tuned(heavy).max_rate == Nmpc(max_rate="robot").tuned(heavy).max_rate
+    tuned, paced = Nmpc(max_rate="robot").tuned(heavy), Nmpc(max_rate=800.0).tuned(heavy)
     assert step == pytest.approx(49.9) and tuned.max_rate == pytest.approx(0.8 * step * 1000)
     assert paced.max_rate == 800.0
     assert (tuned.horizon, tuned.rate_weight) == (paced.horizon, paced.rate_weight)

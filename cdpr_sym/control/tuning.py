@@ -283,10 +283,10 @@ def plan_rate(robot: Robot) -> float:
 
 
 def nmpc_rate(robot: Robot) -> float:
-    """``nmpc``'s bound on each cable's tension rate with ``max_rate="robot"`` (opt-in; the
-    default stays 800 N/s, see :class:`~cdpr_sym.control.nmpc.design.Nmpc`), N/s:
-    NMPC_RATE_SHARE of the robot's target step per ms (800 N/s under 1 N per ms). A fixed
-    800 N/s lets a 173 kg platform's cables turn its weight at about 1 m/s^3."""
+    """``nmpc``'s bound on each cable's tension rate with ``max_rate="robot"`` (the default,
+    see :class:`~cdpr_sym.control.nmpc.design.Nmpc`), N/s: NMPC_RATE_SHARE of the robot's
+    target step per ms (800 N/s under 1 N per ms). A fixed 800 N/s lets a 173 kg
+    platform's cables turn its weight at about 1 m/s^3."""
     return NMPC_RATE_SHARE * robot.design_target.step / STEP_PERIOD
 
 
