@@ -18,6 +18,8 @@ import numpy as np
 
 from cdpr_sym.control import CONTROLLERS, capabilities
 from cdpr_sym.control.analysis import L2_FELL_BACK, construction_gap
+from cdpr_sym.control.registry import check_cables
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.reporting import plots
 from cdpr_sym.reporting.text import render_report
@@ -48,6 +50,21 @@ SHOWN = ("l2", "pd-sat", "smooth", "ida-ref")
 DESIGNS = tuple(name for name, design in CONTROLLERS.items()
                 if not (capabilities(design).sampled and design.solver != "rti")
                 and name != "nmpc-of")
+
+
+def designs_for(robot: Robot) -> tuple[str, ...]:
+    """The :data:`DESIGNS` that run on ``robot``'s cable count
+    (:func:`~cdpr_sym.control.registry.check_cables`): the underactuated designs
+    (``ida-under`` and its kin) refuse m >= n, and, registered after this study last ran,
+    stopped it at its first sweep."""
+    def runs(name: str) -> bool:
+        try:
+            check_cables(CONTROLLERS[name], robot.n, robot.m)
+        except InvalidCase:
+            return False
+        return True
+
+    return tuple(name for name in DESIGNS if runs(name))
 
 
 def best_design(sweep: dict[str, dict[str, Any]]) -> str:
@@ -92,8 +109,9 @@ class RigidStudy(Study):
         measured = {}
         for spec in (request.source,) if request.source else ROBOTS:
             robot, source = robot_reference(spec)
-            save_runs(case_runs(robot, DESIGNS), folder / robot.name)
-            config = SweepConfig(robot=source, controllers=DESIGNS, pairs=request.pairs,
+            designs = designs_for(robot)
+            save_runs(case_runs(robot, designs), folder / robot.name)
+            config = SweepConfig(robot=source, controllers=designs, pairs=request.pairs,
                                  seed=request.seed)
             study_sweep(config, _sweep_table(folder, robot.name), progress=request.progress)
             measured[robot.name] = {
