@@ -4,7 +4,7 @@
 Checked two ways that share nothing with the floor's Newton solve: as the minimum of the
 energy the drums and the weight store (a numpy model of the point robot's geometry,
 minimised by SciPy), and against long simulated runs of ``ida-winch`` as built, whose
-ends reach it.
+ends reach it (40 s each: a slow check).
 """
 
 from __future__ import annotations
@@ -88,6 +88,7 @@ def test_the_floor_is_the_minimum_of_the_stored_energy(name, pair):
     np.testing.assert_allclose(floor, expected, atol=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("name", "pair"), [("planar2", 3), ("spatial4", 1), ("planar4", 1),
                                             ("planar3", 0)])
 def test_long_runs_of_ida_winch_end_at_the_floor(name, pair):
