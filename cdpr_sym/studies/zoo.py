@@ -215,16 +215,14 @@ def _aggregate_robot(folder: Path, name: str, study: dict[str, Any]) -> dict[str
             summary = summarise_sweep(rows, meta)[design]
             shares.setdefault(plant, {})[design] = {
                 key: summary.get(key) for key in ("runs", "meets_target", "held",
-                                                  "meets_target_held", "median_settle_s",
-                                                  "stopped_or_failed")}
+                                                  "meets_target_held", "within_floor",
+                                                  "median_settle_s", "stopped_or_failed")}
             if design in BEST_OF:
                 tables[design] = (rows, meta)
         best[plant] = best_share(tables, held_only=plant == "as_built") if tables else None
-        if plant == "as_built" and FLOOR_DESIGN in tables and any(
-                "floor_error" in row for row in tables[FLOOR_DESIGN][0]):
-            reachable = within_floor(*tables[FLOOR_DESIGN])
-            shares[plant][FLOOR_DESIGN]["reachable"] = len(reachable)
-            best["as_built_reachable"] = best_share(tables, held_only=True, pairs=reachable)
+        if FLOOR_DESIGN in tables and shares[plant][FLOOR_DESIGN]["within_floor"] is not None:
+            best["as_built_reachable"] = best_share(
+                tables, held_only=True, pairs=within_floor(*tables[FLOOR_DESIGN]))
     source = study["sources"][name]
     robot = preset(source) if source in PRESET_NAMES else load_robot(folder / source)
     return {**study["robots"][name], **describe(robot), "shares": shares, "best": best,
