@@ -203,3 +203,18 @@ def test_as_built_shares_say_whether_they_are_of_all_or_of_held_pairs():
     nothing_held = summarise([_row("l2", False, True)])["l2"]
     assert nothing_held["meets_target_held"] is None
     assert "–" in _summary_lines({"l2": nothing_held})[0]
+
+
+@pytest.mark.parametrize(("column", "value", "refused"), [
+    ("floor_error", 0.004, False), ("floor_error", float("nan"), False),
+    ("floor_error", None, False), ("floor_error", "abc", True), ("floor_error", -0.5, True),
+    ("read_error", float("nan"), False), ("read_error", -1e-3, True)])
+def test_an_as_built_rows_distances_are_distances_or_nan(column, value, refused):
+    """A hand-edited floor or read error (text, negative) is refused naming its column,
+    before a summary would turn it into a traceback; NaN (none found) and empty cells pass."""
+    from cdpr_sym.results.consistency import inconsistency
+
+    row = {**_row("ida-winch", True, True), "min_tension": 2.0, "max_tension": 20.0,
+           "start_jump": 0.0, "duration": 10.0, column: value}
+    found = inconsistency(row, 1.0, 30.0)
+    assert (found is not None and found[0] == column) if refused else found is None

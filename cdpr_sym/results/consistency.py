@@ -14,7 +14,8 @@ error, and a report would count such a row as computed. :func:`inconsistency` ch
   [0, duration], and a settled run ends inside the band it was measured in (``final_error``
   <= the robot's target's ``error``, :data:`~cdpr_sym.results.summary.SETTLE_TOLERANCE`
   unless its robot file states another);
-* the largest tension step is no more than the total variation it is part of.
+* the largest tension step is no more than the total variation it is part of;
+* as built, ``read_error`` and ``floor_error`` are distances >= 0 or NaN (none found).
 
 Only finished runs (status ``ok`` or ``stopped``) carry metrics; an ``error`` row has none.
 """
@@ -39,6 +40,9 @@ _SHARES = ("share_alpha_below_one", "share_fallback")
 FLAG_COLUMNS = ("tension_feasible", "converged")
 #: Metrics that count steps.
 COUNT_COLUMNS = ("fallback_steps", "infeasible_steps")
+#: An as-built row's distances (m and rad) from the goal: >= 0, NaN where none was found
+#: (no pose explains the reading, no rest holds the lengths), or empty.
+AS_BUILT_DISTANCES = ("read_error", "floor_error")
 
 
 def inconsistency(row: dict[str, Any], t_min: float, t_max: float,
@@ -59,6 +63,11 @@ def inconsistency(row: dict[str, Any], t_min: float, t_max: float,
             return column, f"expected a value >= 0, got {value!r}"
         if column in _SHARES and value > 1:
             return column, f"expected a share within [0, 1], got {value!r}"
+    for column in AS_BUILT_DISTANCES:
+        value = row.get(column)
+        if value is not None and not (is_real(value) and (math.isnan(value) or value >= 0)):
+            return column, (f"expected a distance >= 0, NaN (none found) or an empty cell, "
+                            f"got {value!r}")
     for column in FLAG_COLUMNS:
         if not isinstance(row.get(column), bool):
             return column, f"expected True or False, got {row.get(column)!r}"
