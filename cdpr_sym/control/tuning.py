@@ -156,17 +156,21 @@ def platform_share(robot: Robot) -> float:
     return PLATFORM_SHARE if robot.m == robot.n else REDUNDANT_PLATFORM_SHARE
 
 
-def winch_gains(robot: Robot, drive: Actuation, dt: Any, *, model: Any = None
-                ) -> WinchGains:
+def winch_gains(robot: Robot, drive: Actuation, dt: Any, *, model: Any = None,
+                integral_boost: float = 1.0) -> WinchGains:
     """``ida-winch``'s gains by the module's rules, for ``robot`` driven by ``drive``
     (its winches, as the controller models them) sampled every ``dt`` s (a number or a
     CasADi symbol); ``model`` its SymbolicModel, built when not given. The integral's share
     (:func:`integral_share_kept`) is worked out at the toolkit's 1 kHz whatever ``dt`` (the
     compiled step takes its period as an input, so a share at ``dt`` would differ between
-    what ``tune`` reports and what runs)."""
+    what ``tune`` reports and what runs). ``integral_boost`` (>= 1) multiplies the rule's
+    k_i before that share caps it (the corner ``ida-winch``'s loop allows:
+    :meth:`~cdpr_sym.control.winch_level.WinchIdaPbc.integral_boost`)."""
     corner, stiffness, damping, integral = _nominal_gains(robot, drive, dt, model)
+    integral = integral * integral_boost
     return WinchGains(stiffness=stiffness, damping=damping,
-                      integral=integral * integral_share_kept(robot, drive, DEFAULT_DT, model),
+                      integral=integral * integral_share_kept(robot, drive, DEFAULT_DT, model,
+                                                              integral_boost),
                       feedback_cutoff=corner)
 
 
@@ -220,10 +224,10 @@ def platform_stiffness(model: Any, q: np.ndarray, tension: np.ndarray | None = N
     return np.array(hessian(q)), np.array(model.functions["mass_matrix"](q))
 
 
-def integral_share_kept(robot: Robot, drive: Actuation, dt: float, model: Any = None
-                        ) -> float:
-    """The share of the integral rule's k_i kept, in [0, 1]: at most
-    k_d omega_s^2 / (INTEGRAL_HEADROOM k_i), omega_s the slowest mode
+def integral_share_kept(robot: Robot, drive: Actuation, dt: float, model: Any = None,
+                        integral_boost: float = 1.0) -> float:
+    """The share of the integral rule's k_i (times ``integral_boost``) kept, in [0, 1]: at
+    most k_d omega_s^2 / (INTEGRAL_HEADROOM k_i), omega_s the slowest mode
     (:func:`slowest_mode`), with the rule's k_p, k_d and k_i at the period ``dt`` (s); 0,
     no integral, where a mode has no positive stiffness (omega_s = 0: an integral would
     wind it up).
@@ -238,7 +242,7 @@ def integral_share_kept(robot: Robot, drive: Actuation, dt: float, model: Any = 
     k_d omega_s^2 / k_i is 2.5 or more on them)."""
     _, stiffness, damping, integral = _nominal_gains(robot, drive, dt, model)
     omega = slowest_mode(robot, stiffness, model)
-    return min(1.0, damping * omega**2 / (INTEGRAL_HEADROOM * integral))
+    return min(1.0, damping * omega**2 / (INTEGRAL_HEADROOM * integral * integral_boost))
 
 
 def _larger(a: Any, b: Any) -> Any:

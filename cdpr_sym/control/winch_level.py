@@ -115,8 +115,15 @@ MIN_LOOP_DAMPING = 0.02
 #: Where no stage count reaches MIN_LOOP_DAMPING: least dampings within this of the best
 #: count's are taken as equal, and the most stages among them kept (a tenth of the target).
 DAMPING_TIE = 0.002
+#: The integral's corner may be these multiples of the rule's (a twentieth of the platform's
+#: mode: a tenth or a fifth), the largest whose linearised sampled loop still damps every
+#: mode by MIN_INTEGRAL_DAMPING (:meth:`WinchIdaPbc.integral_boost`).
+INTEGRAL_BOOSTS = (4.0, 2.0)
+MIN_INTEGRAL_DAMPING = 0.1
 #: The stages found, by the robot's numbers and the options (the STAGES_KEPT latest).
 _STAGES_FOUND: dict[tuple[str, str], int] = {}
+#: The integral's boosts found, kept as the stages are.
+_BOOSTS_FOUND: dict[tuple[str, str], float] = {}
 #: check_loop's findings, by the robot's numbers, the options and the period.
 _LOOPS_CHECKED: dict[tuple[str, str, float], tuple[int, Any]] = {}
 STAGES_KEPT = 64
@@ -296,7 +303,9 @@ class WinchIdaPbc:
         or a CasADi symbol): the options given, the rest from the robot
         (:func:`cdpr_sym.control.tuning.winch_gains`; ``model``, the robot's, saves
         building it)."""
-        derived = winch_gains(robot, self.drive_of(robot), dt, model=model)
+        boost = self.integral_boost(robot, model) if self.integral is None else 1.0
+        derived = winch_gains(robot, self.drive_of(robot), dt, model=model,
+                              integral_boost=boost)
         cutoff = (derived.feedback_cutoff if self.feedback_cutoff == FROM_ROBOT
                   else self.feedback_cutoff)
         stiffness, damping, integral = (
@@ -346,6 +355,49 @@ class WinchIdaPbc:
             _STAGES_FOUND[key] = self._stages_by_rule(robot, model or SymbolicModel(robot))
         return _STAGES_FOUND[key]
 
+    def integral_boost(self, robot: Robot, model: SymbolicModel | None = None) -> float:
+        """The multiple of the integral rule's k_i the law uses (``integral=None``): the
+        largest of INTEGRAL_BOOSTS (a corner a fifth, then a tenth of the platform's mode)
+        whose linearised sampled loop on the ideal plant, with the stages of
+        :meth:`stages_for`, damps every mode by at least MIN_INTEGRAL_DAMPING at the case's
+        start and goal; 1 (the rule's twentieth) where none does. k_i stays under the cap of
+        :func:`~cdpr_sym.control.tuning.integral_share_kept` whatever the boost.
+
+        Why: the integral is what removes the offset a weight error leaves on the soft motor
+        springs, k_p / k_i seconds per e-fold (20 / omega_p: 3.5 s on an 18.7 kg robot whose
+        mode is 0.9 Hz, 6.9 s on a 165 kg one at 0.46 Hz), and a 10 % weight error's offset
+        of several centimetres is not gone by the target's 5 s. How fast it may be is the
+        loop's to say: with m = n cables the platform's mode already sits where the filter's
+        lag leaves it damped by 0.02-0.08 and a tenth of the mode loses that (aras3 0.063 to
+        0.007), with m > n (a mode at f_c / 14) the loop keeps 0.15-0.2 at a fifth.
+        Measured as built (``--as-built default``, 20 pairs, stages held): a 165 kg point
+        on three cables 4 to 16 of 20 at a fifth, a 36.6 kg one 17 to 19, spatial4 20 of 20
+        either way; with m = n a doubled integral took aras3 19 to 18, planar3 19 to 18.
+        Worked out at 1 kHz, once per robot (by its numbers) and options."""
+        if self.integral is not None:
+            return 1.0
+        key = self._rule_key(robot)
+        if key not in _BOOSTS_FOUND:
+            if len(_BOOSTS_FOUND) >= STAGES_KEPT:
+                del _BOOSTS_FOUND[next(iter(_BOOSTS_FOUND))]
+            _BOOSTS_FOUND[key] = self._boost_by_rule(robot, model or SymbolicModel(robot))
+        return _BOOSTS_FOUND[key]
+
+    def _boost_by_rule(self, robot: Robot, model: SymbolicModel) -> float:
+        """:meth:`integral_boost`'s rule, worked out."""
+        stages = self.stages_for(robot, model)
+        for boost in INTEGRAL_BOOSTS:
+            trial = dataclasses.replace(self, feedback_stages=stages,
+                                        integral=self._rule_integral(robot, model, boost))
+            if trial.loop_modes(model, DEFAULT_DT).least_damping >= MIN_INTEGRAL_DAMPING:
+                return boost
+        return 1.0
+
+    def _rule_integral(self, robot: Robot, model: SymbolicModel, boost: float) -> float:
+        """The rule's k_i at 1 kHz times ``boost`` (capped), N/(m s)."""
+        return float(winch_gains(robot, self.drive_of(robot), DEFAULT_DT, model=model,
+                                 integral_boost=boost).integral)
+
     def check_loop(self, robot: Robot, dt: float) -> None:
         """Raise :class:`InvalidCase` (``feedback_stages``) where the stages the rule chose
         at 1 kHz (``feedback_stages="robot"``) leave the loop sampled every ``dt`` s with a
@@ -387,9 +439,13 @@ class WinchIdaPbc:
 
     def _stages_by_rule(self, robot: Robot, model: SymbolicModel) -> int:
         """:meth:`stages_for`'s rule, worked out."""
+        # the stages are chosen with the rule's own integral (its boost is chosen after them)
+        integral = self.integral if self.integral is not None else self._rule_integral(
+            robot, model, 1.0)
         found = {}
         for stages in range(MOST_STAGES, 0, -1):
-            found[stages] = dataclasses.replace(self, feedback_stages=stages).loop_modes(
+            found[stages] = dataclasses.replace(
+                self, feedback_stages=stages, integral=integral).loop_modes(
                 model, DEFAULT_DT).least_damping
             if found[stages] >= MIN_LOOP_DAMPING:
                 return stages
