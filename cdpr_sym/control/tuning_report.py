@@ -42,7 +42,9 @@ def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
     model = SymbolicModel(robot)
     mode = tuning.drum_cable_mode(robot, drive)
     corner = tuning.command_corner(robot, drive, dt)
-    winch = tuning.winch_gains(robot, drive, dt, model=model)
+    design = WinchIdaPbc(drive=drive)
+    winch = tuning.winch_gains(robot, drive, dt, model=model,
+                               integral_boost=design.integral_boost(robot, model))
     derived_k, derived_r_d = case_gains(robot.mass, robot.inertia, robot.n, robot.dimension,
                                         robot.center_of_mass)
     stated = not (np.allclose(robot.k, derived_k) and np.allclose(robot.r_d, derived_r_d))
@@ -66,7 +68,7 @@ def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
                  "derived_k": derived_k.tolist(), "derived_r_d": derived_r_d.tolist()},
         "modes": {name: linearised_modes(robot, model, winch.stiffness, winch.damping, q)
                   for name, q in (("start", robot.start), ("goal", robot.goal))},
-        "loop": _loop_numbers(robot, model, WinchIdaPbc(drive=drive), winch, drive, dt),
+        "loop": _loop_numbers(robot, model, design, winch, drive, dt),
         "hold": _hold_numbers(robot, model, WinchIdaPbc(drive=drive)),
         "rules": tuning.rules(),
     }
@@ -89,8 +91,9 @@ def _hold_numbers(robot: Robot, model: Any, design: Any) -> dict[str, Any] | Non
 
 def _loop_numbers(robot: Robot, model: Any, design: Any, winch: Any, drive: Actuation,
                   dt: float) -> dict[str, Any]:
-    """``ida-winch``'s feedback stages, its integral's share and slowest mode (the rules of
-    :meth:`WinchIdaPbc.stages_for` and :func:`~cdpr_sym.control.tuning.integral_share_kept`)
+    """``ida-winch``'s feedback stages, its integral's boost, share and slowest mode (the
+    rules of :meth:`WinchIdaPbc.stages_for`, :meth:`WinchIdaPbc.integral_boost` and
+    :func:`~cdpr_sym.control.tuning.integral_share_kept`)
     and its linearised sampled loop's least damped mode on the ideal plant at start and
     goal (:mod:`cdpr_sym.control.sampled_loop`) at ``dt``."""
     from cdpr_sym.control import tuning
@@ -98,9 +101,11 @@ def _loop_numbers(robot: Robot, model: Any, design: Any, winch: Any, drive: Actu
 
     stages = design.stages_for(robot, model)
     modes = design.loop_modes(model, dt)
-    return {"feedback_stages": stages,
+    boost = design.integral_boost(robot, model)
+    return {"feedback_stages": stages, "integral_boost": boost,
             # the share the gains use: worked out at 1 kHz whatever dt (tuning.winch_gains)
-            "integral_share": tuning.integral_share_kept(robot, drive, DEFAULT_DT, model),
+            "integral_share": tuning.integral_share_kept(robot, drive, DEFAULT_DT, model,
+                                                         boost),
             "slowest_mode_hz": tuning.slowest_mode(robot, winch.stiffness, model)
             / (2 * math.pi),
             "least_damping": modes.least_damping,
