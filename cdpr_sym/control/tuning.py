@@ -17,7 +17,9 @@ rules below size every such gain from the robot instead, in dimensionless form:
   k_p = M (2 pi f_p)^2 (the mass on one cable's spring), its damper
   k_d = 2 zeta sqrt(k_p M) with zeta = DAMPING_RATIO, its integral
   k_i = k_p (2 pi f_p) INTEGRAL_SHARE (a corner a twentieth of the mode's, so the integral
-  removes a weight error's offset without eating the phase margin). With more cables than
+  removes a weight error's offset without eating the phase margin; ``ida-winch`` raises it
+  to a fifth or a tenth where its sampled loop stays damped by 0.1:
+  :meth:`~cdpr_sym.control.winch_level.WinchIdaPbc.integral_boost`). With more cables than
   degrees of freedom the mode is REDUNDANT_PLATFORM_SHARE f_c = f_c / 14: there the motor
   spring also holds the internal length error (the model's and the robot's anchors
   disagreeing by millimetres), k_p newtons per metre of it on the cables' internal force,

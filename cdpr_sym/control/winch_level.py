@@ -194,7 +194,8 @@ class WinchIdaPbc:
         k_i, N/(m s), >= 0: integral action on the length error, which removes the offset a
         weight error leaves on the soft motor spring (held while the command is clipped).
         None (default): a corner a twentieth of the mode's (1,431 N/(m s) on the paper's
-        robot).
+        robot), or a fifth or a tenth where the sampled loop stays damped
+        (:meth:`integral_boost`).
     rate_cutoff : float
         Hz: the drum speeds are the encoders' difference quotient through a first-order
         low-pass filter of this corner. Default 500 Hz: well above the drum-cable modes,
