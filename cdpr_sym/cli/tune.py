@@ -47,9 +47,9 @@ def _lines(report: dict[str, Any]) -> list[str]:
         f"{1 / report['platform_share']:.3g} unless the fastest mode's cap at f_c / 6 "
         f"binds: see the modes below), k_d "
         f"{winch['damping']:.4g} N s/m (zeta 0.45), k_i {winch['integral']:.4g} N/(m s) "
-        f"(corner {_corner_share(loop['integral_boost'])} of the mode: the largest of a fifth, "
-        f"a tenth and a twentieth whose sampled loop damps every mode by 0.1, else a "
-        f"twentieth; times {loop['integral_share']:.3g}: k_d w_s^2 / 2 "
+        f"(corner {_corner_share(loop['integral_boost'])} of the mode: a fifth or else a "
+        f"tenth where the sampled loop still damps every mode by 0.1, else a twentieth; "
+        f"times {loop['integral_share']:.3g}: k_d w_s^2 / 2 "
         f"at most, w_s the slowest mode with the cables' geometric stiffness, "
         f"{loop['slowest_mode_hz']:.3g} Hz), filter {winch['feedback_cutoff']:.3g} Hz x "
         f"{loop['feedback_stages']} (the most stages, at most 4, whose sampled loop damps "
@@ -144,4 +144,7 @@ def _underactuated_lines(report: dict[str, Any]) -> list[str]:
 
 def _corner_share(boost: float) -> str:
     """The integral's corner as words, from its boost over the rule's twentieth."""
-    return {4.0: "a fifth", 2.0: "a tenth"}.get(float(boost), "a twentieth")
+    from cdpr_sym.control.tuning import INTEGRAL_SHARE
+
+    parts = round(1 / (INTEGRAL_SHARE * boost), 9)
+    return {5: "a fifth", 10: "a tenth", 20: "a twentieth"}.get(parts, f"1/{parts:g}")

@@ -166,8 +166,10 @@ def winch_gains(robot: Robot, drive: Actuation, dt: Any, *, model: Any = None,
     (:func:`integral_share_kept`) is worked out at the toolkit's 1 kHz whatever ``dt`` (the
     compiled step takes its period as an input, so a share at ``dt`` would differ between
     what ``tune`` reports and what runs). ``integral_boost`` (>= 1) multiplies the rule's
-    k_i before that share caps it (the corner ``ida-winch``'s loop allows:
-    :meth:`~cdpr_sym.control.winch_level.WinchIdaPbc.integral_boost`)."""
+    k_i before that share caps it: the gains ``ida-winch`` runs with are these with the
+    boost its loop allows (:meth:`~cdpr_sym.control.winch_level.WinchIdaPbc.integral_boost`;
+    :meth:`~cdpr_sym.control.winch_level.WinchIdaPbc.gains` passes it), the default 1 the
+    rule's twentieth before that."""
     corner, stiffness, damping, integral = _nominal_gains(robot, drive, dt, model)
     integral = integral * integral_boost
     return WinchGains(stiffness=stiffness, damping=damping,

@@ -304,9 +304,8 @@ class WinchIdaPbc:
         or a CasADi symbol): the options given, the rest from the robot
         (:func:`cdpr_sym.control.tuning.winch_gains`; ``model``, the robot's, saves
         building it)."""
-        boost = self.integral_boost(robot, model) if self.integral is None else 1.0
         derived = winch_gains(robot, self.drive_of(robot), dt, model=model,
-                              integral_boost=boost)
+                              integral_boost=self.integral_boost(robot, model))
         cutoff = (derived.feedback_cutoff if self.feedback_cutoff == FROM_ROBOT
                   else self.feedback_cutoff)
         stiffness, damping, integral = (
@@ -331,7 +330,10 @@ class WinchIdaPbc:
         (``feedback_stages="robot"``): the most stages N <= MOST_STAGES whose linearised
         sampled loop on the ideal plant (:mod:`cdpr_sym.control.sampled_loop`, this law with
         N stages, at the toolkit's 1 kHz) damps every mode by at least MIN_LOOP_DAMPING at
-        the case's start and goal; where no N does, the N whose least damping is largest,
+        the case's start and goal, with the rule's own integral (a twentieth of the mode: its
+        boost, :meth:`integral_boost`, is chosen after the stages, with them, and a boosted
+        integral would otherwise change the stages it was chosen with); where no N does, the
+        N whose least damping is largest,
         the most stages among those within DAMPING_TIE of it (differences that small buy
         nothing worth the filtering lost: ipanema8's slow rotations, which no filter damps,
         get 0.0004-0.0008 with any count and keep four stages; a 287 kg platform on 8
@@ -370,7 +372,8 @@ class WinchIdaPbc:
         of several centimetres is not gone by the target's 5 s. How fast it may be is the
         loop's to say: with m = n cables the platform's mode already sits where the filter's
         lag leaves it damped by 0.02-0.08 and a tenth of the mode loses that (aras3 0.063 to
-        0.007), with m > n (a mode at f_c / 14) the loop keeps 0.15-0.2 at a fifth.
+        0.007); with m > n (a mode at f_c / 14) it can keep more (planar4 0.297 at a fifth;
+        spatial4 0.044 at a fifth and 0.107 at a tenth).
         Measured as built (``--as-built default``, 20 pairs, stages held): a 165 kg point
         on three cables 4 to 16 of 20 at a fifth, a 36.6 kg one 17 to 19, spatial4 20 of 20
         either way; with m = n a doubled integral took aras3 19 to 18, planar3 19 to 18.
@@ -386,7 +389,7 @@ class WinchIdaPbc:
 
     def _boost_by_rule(self, robot: Robot, model: SymbolicModel) -> float:
         """:meth:`integral_boost`'s rule, worked out."""
-        stages = self.stages_for(robot, model)
+        stages = self._stages(model)
         for boost in INTEGRAL_BOOSTS:
             trial = dataclasses.replace(self, feedback_stages=stages,
                                         integral=self._rule_integral(robot, model, boost))
@@ -420,8 +423,9 @@ class WinchIdaPbc:
             raise InvalidCase("feedback_stages", f"the {stages} filter stages the rule chose at "
                               f"1 kHz leave a mode of ida-winch's loop growing at dt = {dt:g} s "
                               f"({modes.least_damped_frequency:.3g} Hz, damping ratio "
-                              f"{modes.least_damping:.3g}); state feedback_stages (cdpr-sym tune "
-                              f"--dt {dt:g} prints the loop at that period)")
+                              f"{modes.least_damping:.3g}); state feedback_stages, or "
+                              f"integral where its corner was raised (cdpr-sym tune --dt "
+                              f"{dt:g} prints the loop at that period)")
 
     def loop_modes(self, model: SymbolicModel, dt: float) -> Any:
         """The modes of this law's linearised sampled loop on the ideal plant, sampled every
