@@ -389,9 +389,11 @@ class WinchIdaPbc:
 
     def _boost_by_rule(self, robot: Robot, model: SymbolicModel) -> float:
         """:meth:`integral_boost`'s rule, worked out."""
-        stages = self._stages(model)
+        # an unfiltered law has no stages to find
+        stages = ({} if self.feedback_cutoff is None
+                  else {"feedback_stages": self.stages_for(robot, model)})
         for boost in INTEGRAL_BOOSTS:
-            trial = dataclasses.replace(self, feedback_stages=stages,
+            trial = dataclasses.replace(self, **stages,
                                         integral=self._rule_integral(robot, model, boost))
             if trial.loop_modes(model, DEFAULT_DT).least_damping >= MIN_INTEGRAL_DAMPING:
                 return boost
