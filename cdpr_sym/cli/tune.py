@@ -69,6 +69,7 @@ def _lines(report: dict[str, Any]) -> list[str]:
     lines.append(f"ida-winch's sampled loop (ideal plant, linearised at start and goal): least "
                  f"damped mode {loop['least_damped_hz']:.3g} Hz, zeta "
                  f"{loop['least_damping']:.3g}")
+    lines.append(_built_loop_line(report["loop_as_built"]))
     hold = report.get("hold")
     if hold is not None:
         from cdpr_sym.control.winch_level import HOLD_MASS_ERROR
@@ -99,13 +100,35 @@ def tune_command(args: argparse.Namespace, out: Output) -> int:
         report = _underactuated_report(robot)
         out.result(report, _underactuated_lines(report))
         return 0
-    drive = load_as_built_draw(args.as_built).drive(robot)
+    draw = load_as_built_draw(args.as_built)
+    drive = draw.drive(robot)
     if drive is None:
         raise InvalidCase("as_built", "the gains are derived from the winches: the as-built "
                           "specification needs an [actuation] table")
     report = tune_report(robot, drive, args.dt)
+    report["loop_as_built"] = _built_loop_numbers(robot, draw, drive, args.dt)
     out.result(report, _lines(report))
     return 0
+
+
+def _built_loop_numbers(robot: Any, draw: Any, drive: Any, dt: float) -> dict[str, Any]:
+    """``ida-winch``'s sampled loop on the build linearised at rest at the case's start and
+    goal (:mod:`cdpr_sym.closed_loop.built_loop`): each pose's least damped mode, or why the
+    loop did not hold it, or why it was not worked out (a period the build's substeps
+    cannot follow)."""
+    from cdpr_sym.closed_loop.built_loop import built_loops, linearised_build
+    from cdpr_sym.control import WinchIdaPbc
+    from cdpr_sym.errors import CdprError
+
+    try:
+        loops = built_loops(robot, WinchIdaPbc(drive=drive), [robot.start, robot.goal],
+                            build=linearised_build(robot, draw), dt=dt)
+    except CdprError as refusal:
+        return {"not_worked_out": str(refusal)}
+    return {name: ({"held": False, "reason": loop.stop_reason} if loop.modes is None else
+                   {"held": True, "least_damping": loop.modes.least_damping,
+                    "least_damped_hz": loop.modes.least_damped_frequency})
+            for name, loop in zip(("start", "goal"), loops, strict=True)}
 
 
 def _underactuated_report(robot: Any) -> dict[str, Any]:
@@ -148,3 +171,18 @@ def _corner_share(boost: float) -> str:
 
     parts = round(1 / (INTEGRAL_SHARE * boost), 9)
     return {5: "a fifth", 10: "a tenth", 20: "a twentieth"}.get(parts, f"1/{parts:g}")
+
+
+def _built_loop_line(built: dict[str, Any]) -> str:
+    """The loop as built, in one line."""
+    head = ("ida-winch's sampled loop as built (its winches, delay and encoders' filter, "
+            "linearised at rest: anchors exact, encoders unquantised, no Coulomb friction)")
+    if "not_worked_out" in built:
+        return f"{head}: not worked out ({built['not_worked_out']})"
+    parts = []
+    for name in ("start", "goal"):
+        loop = built[name]
+        parts.append(f"at the {name} least damped mode {loop['least_damped_hz']:.3g} Hz, zeta "
+                     f"{loop['least_damping']:.3g}" if loop["held"] else
+                     f"at the {name} the loop does not hold the pose ({loop['reason']})")
+    return f"{head}: {'; '.join(parts)}"
