@@ -82,6 +82,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import casadi as ca
@@ -134,6 +135,15 @@ MOVE_PERIODS = 2.0
 #: The weight error (share) the hold leaves the feedback room for (:meth:`WinchIdaPbc.
 #: hold_guard`): the default build's mass error, +-10 %.
 HOLD_MASS_ERROR = DEFAULT_DRAW.mass_error
+
+
+def _kept(found: dict[Any, Any], key: Any, compute: Callable[[], Any]) -> Any:
+    """``found[key]``, computed on first use and kept (the STAGES_KEPT latest)."""
+    if key not in found:
+        if len(found) >= STAGES_KEPT:
+            del found[next(iter(found))]
+        found[key] = compute()
+    return found[key]
 
 
 def _from_options(field: str, kind: type, value: object) -> object:
@@ -351,12 +361,8 @@ class WinchIdaPbc:
         robot (by its numbers) and options: 0.1 s on aras3, 3 s on ipanema8."""
         if self.feedback_stages != FROM_ROBOT:
             return int(self.feedback_stages)
-        key = self._rule_key(robot)
-        if key not in _STAGES_FOUND:
-            if len(_STAGES_FOUND) >= STAGES_KEPT:
-                del _STAGES_FOUND[next(iter(_STAGES_FOUND))]
-            _STAGES_FOUND[key] = self._stages_by_rule(robot, model or SymbolicModel(robot))
-        return _STAGES_FOUND[key]
+        return _kept(_STAGES_FOUND, self._rule_key(robot),
+                     lambda: self._stages_by_rule(robot, model or SymbolicModel(robot)))
 
     def integral_boost(self, robot: Robot, model: SymbolicModel | None = None) -> float:
         """The multiple of the integral rule's k_i the law uses (``integral=None``): the
@@ -380,12 +386,8 @@ class WinchIdaPbc:
         Worked out at 1 kHz, once per robot (by its numbers) and options."""
         if self.integral is not None:
             return 1.0
-        key = self._rule_key(robot)
-        if key not in _BOOSTS_FOUND:
-            if len(_BOOSTS_FOUND) >= STAGES_KEPT:
-                del _BOOSTS_FOUND[next(iter(_BOOSTS_FOUND))]
-            _BOOSTS_FOUND[key] = self._boost_by_rule(robot, model or SymbolicModel(robot))
-        return _BOOSTS_FOUND[key]
+        return _kept(_BOOSTS_FOUND, self._rule_key(robot),
+                     lambda: self._boost_by_rule(robot, model or SymbolicModel(robot)))
 
     def _boost_by_rule(self, robot: Robot, model: SymbolicModel) -> float:
         """:meth:`integral_boost`'s rule, worked out."""
