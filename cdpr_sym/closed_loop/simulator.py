@@ -482,8 +482,10 @@ class Simulator:
     def check_as_built_runs(self, starts: np.ndarray, goals: np.ndarray, dt: float,
                             plants: Sequence[Plant]) -> None:
         """The checks of :meth:`prepared` for many runs (starts and goals (runs, n), one
-        plant each) at once: RK4 can follow the cables and drums at every start and goal
-        (one evaluation for all runs on the same winches), and each as-built start is
+        plant each) at once: the controller can run on the build's winches (its
+        ``check_build(robot, actuation, dt)``, where it has one: ``smooth-lp``'s command
+        filter), RK4 can follow the cables and drums at every start and goal (one
+        evaluation for all runs on the same winches), and each as-built start is
         readable. The same decisions as run by run; where several runs fail, the error
         raised may be another run's than the first failing one's."""
         groups: dict[tuple[Any, int], list[int]] = {}
@@ -491,7 +493,10 @@ class Simulator:
             if plant.as_built is not None:
                 spec = plant.as_built
                 groups.setdefault((spec.actuation, spec.substeps), []).append(run)
+        check_build = getattr(self.controller, "check_build", None)
         for (actuation, substeps), runs in groups.items():
+            if check_build is not None and actuation is not None:
+                check_build(self.robot, actuation, dt)
             check_integrable(self.model, actuation, dt, substeps,
                              np.vstack([starts[runs], goals[runs]]))
         for start, plant in zip(starts, plants, strict=True):

@@ -174,6 +174,42 @@ class SmoothReference:
             return tuning.command_cutoff(robot, dt)
         return self.command_cutoff
 
+    def check_build(self, robot: Robot, drive: Any, dt: float) -> None:
+        """Raise :class:`InvalidCase` (``command_cutoff``) where the command filter (at the
+        period ``dt``, s) sits above half the drum-cable mode of the winches ``drive`` (an
+        :class:`~cdpr_sym.as_built.Actuation`) a robot as built runs on: MODE_SHARE f_dc
+        (:func:`~cdpr_sym.control.tuning.drum_cable_mode`), the part of the command
+        corner f_c that the winches set (its other part, f_s / 40, is the sampled loop's
+        delay, not checked here).
+
+        Why: the filter is what keeps the loop's gain low at the drum-cable mode; above half
+        of it, it passes it. The derived corner is at least LOOP_MULTIPLE times the case's
+        tracking loop (a filter near the loop it filters makes it ring), so on winches whose
+        f_dc / 2 is under that (an 18.7 kg point on 24 m cables, 6.4 Hz, and a 36.6 kg one,
+        10.7 Hz, under a 13.9 Hz filter for the case's 2.78 Hz loop) no corner serves both:
+        the loop, linearised on the build at rest at the case's start and goal
+        (:mod:`cdpr_sym.closed_loop.built_loop`), lost the pose with the filter at 13.9 Hz
+        and grew with it at 4, 6, 8, 10 and 12 Hz; on aras3 (f_dc / 2 = 25 Hz) it held with
+        the filter at 15 to 25 Hz (damped by 0.013, 0.003 at 25 Hz) and not at 30 or 40 Hz,
+        and its 13.8 Hz filter held at 1, 2 and 4 ms. A design without the filter is not
+        checked here."""
+        cutoff = self.cutoff_for(robot, dt)
+        if cutoff is None:
+            return
+        mode = tuning.drum_cable_mode(robot, drive)
+        limit = tuning.MODE_SHARE * mode
+        if cutoff <= limit:
+            return
+        loop = tuning.tracking_loop(robot)
+        why = (f" (at least {tuning.LOOP_MULTIPLE:g} times the case's tracking loop, "
+               f"{loop:.3g} Hz)" if self.command_cutoff == FROM_ROBOT else "")
+        raise InvalidCase("command_cutoff", f"the command filter at {cutoff:.3g} Hz{why} "
+                          f"would pass the drum-cable mode of the winches of {robot.name} as "
+                          f"built ({mode:.3g} Hz; the filter must stay under half of it, "
+                          f"{limit:.3g} Hz): its loop does not hold the robot even at rest; "
+                          f"give the case a tracking loop under {limit / tuning.LOOP_MULTIPLE:.3g}"
+                          f" Hz (case.k, case.r_d) or use ida-winch")
+
     def rate_for(self, robot: Robot) -> float:
         """The plan's largest feed-forward tension rate on ``robot``, N/s."""
         return tuning.plan_rate(robot) if self.max_rate == FROM_ROBOT else self.max_rate

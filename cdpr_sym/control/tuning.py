@@ -268,16 +268,22 @@ def command_cutoff(robot: Robot, dt: Any, drive: Actuation | None = None) -> Any
     a 30 kg robot on soft default winches, f_c = 8.9 Hz, got a 5.3 Hz filter on a 2.8 Hz loop
     and ended 1.4 m off on the ideal plant); ``drive`` is the robot's default build when not
     given (``dt`` may be a CasADi symbol)."""
-    from cdpr_sym.robot.gains import coordinate_inertias
-
     if drive is None:
         from cdpr_sym.as_built.hardware import scaled_actuation
 
         drive = scaled_actuation(robot)
+    return _larger(COMMAND_SHARE * command_corner(robot, drive, dt),
+                   LOOP_MULTIPLE * tracking_loop(robot))
+
+
+def tracking_loop(robot: Robot) -> float:
+    """The case's tracking loop's fastest natural frequency, Hz: max_i sqrt(k_i / I_i) / 2 pi
+    with the case's gains k and each coordinate's inertia I_i."""
+    from cdpr_sym.robot.gains import coordinate_inertias
+
     inertias = coordinate_inertias(robot.mass, robot.inertia, robot.n, robot.dimension,
                                    robot.center_of_mass)
-    loop = float(np.max(np.sqrt(np.asarray(robot.k, dtype=float) / inertias))) / (2 * math.pi)
-    return _larger(COMMAND_SHARE * command_corner(robot, drive, dt), LOOP_MULTIPLE * loop)
+    return float(np.max(np.sqrt(np.asarray(robot.k, dtype=float) / inertias))) / (2 * math.pi)
 
 
 def plan_rate(robot: Robot) -> float:

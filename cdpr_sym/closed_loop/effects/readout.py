@@ -173,7 +173,9 @@ def check_draw_runs(robot: Robot, draw: AsBuiltDraw, seed: int, dt: float, start
     torque loop or a velocity filter at Nyquist (:meth:`AsBuilt.check_period`), encoders too
     coarse for the frame (:meth:`AsBuilt.check_robot`), cables and
     drums no fixed-step run can follow (:func:`~cdpr_sym.as_built.stability.check_integrable`,
-    at the robot's case), or, uncalibrated, encoders that a controller of ``controllers``
+    at the robot's case), a controller of ``controllers`` that cannot run on its winches
+    (its ``check_build``: ``smooth-lp``'s command filter over their command corner), or,
+    uncalibrated, encoders that a controller of ``controllers``
     reading the pose could not read held at ``start`` (:meth:`AsBuiltReadout.check_readable`,
     ``sensing``). A robot whose cables stretch too far for its encoders fails on every draw
     alike; one draw and one pose find it."""
@@ -186,6 +188,12 @@ def check_draw_runs(robot: Robot, draw: AsBuiltDraw, seed: int, dt: float, start
     spec.check_robot(robot.m, robot.dimension, robot.frame_side)
     model = SymbolicModel(robot)
     check_integrable(model, spec.actuation, dt, spec.substeps, (robot.start, robot.goal))
+    controllers = list(controllers)
+    if spec.actuation is not None:
+        for controller in controllers:
+            check_build = getattr(controller, "check_build", None)
+            if check_build is not None:
+                check_build(robot, spec.actuation, dt)
     if calibration != "none" or spec.sensing is None or all(
             capabilities(controller).reads_drives for controller in controllers):
         return
