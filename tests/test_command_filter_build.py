@@ -8,6 +8,7 @@
 * Why: with the refusal removed, the loop linearised on that build
   (:mod:`cdpr_sym.closed_loop.built_loop`) does not even hold the robot at rest at the
   case's start, where aras3's, whose filter is under its corner, holds and is damped.
+* The API refuses before it builds, and the batched as-built path's check refuses too.
 * Every fully actuated preset's default build runs it (aras3 at 2 ms too, where f_s / 40
   is under its filter, but the drum-cable mode is not); an explicit corner is refused just
   above half the build's drum-cable mode and taken at it.
@@ -17,11 +18,15 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 
 from cdpr_sym.as_built import DEFAULT_DRAW
 from cdpr_sym.cli import main
+from cdpr_sym.closed_loop import simulate
 from cdpr_sym.closed_loop.built_loop import built_loops
+from cdpr_sym.closed_loop.plant import Plant
+from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import tuning
 from cdpr_sym.control.planned import SmoothReference
 from cdpr_sym.control.registry import controller_by_name
@@ -57,6 +62,29 @@ def test_the_sweep_and_the_run_are_refused_before_they_start(heavy, tmp_path, ca
     assert main(["simulate", "--robot", str(path), "--controller", "smooth-lp",
                  "--as-built", "default"]) == 2
     assert "command_cutoff" in capsys.readouterr().err
+
+
+def test_the_api_refuses_before_building(heavy, monkeypatch):
+    """simulate() as built checks the build before any code is generated (the simulator
+    would compile first); the batched as-built path checks it too."""
+    import cdpr_sym.closed_loop.simulator as simulator_module
+
+    def no_build(*args, **kwargs):
+        raise AssertionError("built before the refusal")
+
+    monkeypatch.setattr(simulator_module, "get_simulator", no_build)
+    _, built = DEFAULT_DRAW.draw_pair(heavy, 0, 0)
+    with pytest.raises(InvalidCase) as refused:
+        simulate(heavy, "smooth-lp", plant=Plant(as_built=built), duration=0.1)
+    assert refused.value.field == "command_cutoff"
+    monkeypatch.undo()
+    simulator = simulator_module.get_simulator(heavy, controller_by_name("smooth-lp"),
+                                               as_built=built.structure(),
+                                               build_options=BuildOptions(backend="casadi"))
+    with pytest.raises(InvalidCase) as refused:
+        simulator.check_as_built_runs(np.asarray([heavy.start]), np.asarray([heavy.goal]),
+                                      DT, [Plant(as_built=built)])
+    assert refused.value.field == "command_cutoff"
 
 
 def test_without_the_refusal_its_loop_does_not_hold_the_robot_at_rest(heavy, monkeypatch):

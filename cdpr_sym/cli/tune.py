@@ -127,7 +127,8 @@ def _built_loop_numbers(robot: Any, draw: Any, drive: Any, dt: float) -> dict[st
         return {"not_worked_out": str(refusal)}
     return {name: ({"held": False, "reason": loop.stop_reason} if loop.modes is None else
                    {"held": True, "least_damping": loop.modes.least_damping,
-                    "least_damped_hz": loop.modes.least_damped_frequency})
+                    "least_damped_hz": loop.modes.least_damped_frequency,
+                    "swing": loop.swing})
             for name, loop in zip(("start", "goal"), loops, strict=True)}
 
 

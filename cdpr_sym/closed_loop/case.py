@@ -124,6 +124,17 @@ def check_controller_period(controller: object, robot: Robot, dt: float) -> None
         check_loop(robot, dt)
 
 
+def check_controller_build(controller: object, robot: Robot, drive: object, dt: float
+                           ) -> None:
+    """Raise :class:`InvalidCase` where ``controller`` cannot run on ``robot`` as built on the
+    winches ``drive`` (an :class:`~cdpr_sym.as_built.Actuation`, None: none modelled),
+    sampled every ``dt`` s: a controller that states such a limit has a
+    ``check_build(robot, drive, dt)`` method, as ``smooth-lp``'s command filter does."""
+    check = getattr(controller, "check_build", None)
+    if check is not None and drive is not None:
+        check(robot, drive, dt)
+
+
 def check_timing(duration: float, dt: float, *, values_per_step: int = 1) -> int:
     """Validate a run's length and control period (s); the number of steps.
 

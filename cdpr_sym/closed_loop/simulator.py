@@ -29,6 +29,7 @@ from cdpr_sym.as_built.cable_law import drum_pull
 from cdpr_sym.as_built.stability import check_integrable
 from cdpr_sym.closed_loop.case import (
     Case,
+    check_controller_build,
     check_controller_period,
     check_timing,
     minimal_values_per_step,
@@ -493,10 +494,8 @@ class Simulator:
             if plant.as_built is not None:
                 spec = plant.as_built
                 groups.setdefault((spec.actuation, spec.substeps), []).append(run)
-        check_build = getattr(self.controller, "check_build", None)
         for (actuation, substeps), runs in groups.items():
-            if check_build is not None and actuation is not None:
-                check_build(self.robot, actuation, dt)
+            check_controller_build(self.controller, self.robot, actuation, dt)
             check_integrable(self.model, actuation, dt, substeps,
                              np.vstack([starts[runs], goals[runs]]))
         for start, plant in zip(starts, plants, strict=True):
@@ -810,6 +809,7 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *,
     if plant.as_built is not None:
         plant.as_built.check_period(dt)  # before building: enough substeps for dt
         plant.as_built.check_robot(robot.m, robot.dimension, robot.frame_side)
+        check_controller_build(controller, robot, plant.as_built.actuation, dt)
         # at the start and goal the run integrates, resolved on a model of its own
         model = SymbolicModel(robot)
         case = Case.of(robot, start=start, goal=goal, k=k, r_d=r_d, model=model)

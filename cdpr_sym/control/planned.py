@@ -200,15 +200,17 @@ class SmoothReference:
         limit = tuning.MODE_SHARE * mode
         if cutoff <= limit:
             return
-        loop = tuning.tracking_loop(robot)
+        derived = self.command_cutoff == FROM_ROBOT
         why = (f" (at least {tuning.LOOP_MULTIPLE:g} times the case's tracking loop, "
-               f"{loop:.3g} Hz)" if self.command_cutoff == FROM_ROBOT else "")
+               f"{tuning.tracking_loop(robot):.3g} Hz)" if derived else "")
+        remedy = (f"give the case a tracking loop under {limit / tuning.LOOP_MULTIPLE:.3g} Hz "
+                  f"(a softer case.k)" if derived
+                  else f"state a command_cutoff of at most {limit:.3g} Hz")
         raise InvalidCase("command_cutoff", f"the command filter at {cutoff:.3g} Hz{why} "
                           f"would pass the drum-cable mode of the winches of {robot.name} as "
                           f"built ({mode:.3g} Hz; the filter must stay under half of it, "
-                          f"{limit:.3g} Hz): its loop does not hold the robot even at rest; "
-                          f"give the case a tracking loop under {limit / tuning.LOOP_MULTIPLE:.3g}"
-                          f" Hz (case.k, case.r_d) or use ida-winch")
+                          f"{limit:.3g} Hz), where such loops were measured losing the robot "
+                          f"even at rest; {remedy}, or use ida-winch")
 
     def rate_for(self, robot: Robot) -> float:
         """The plan's largest feed-forward tension rate on ``robot``, N/s."""

@@ -17,6 +17,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from cdpr_sym.closed_loop.case import check_controller_build
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.codegen import c_identifier
 from cdpr_sym.control import Controller, capabilities, check_cables, controller_by_name
@@ -112,6 +113,7 @@ def check_export(robot: Robot | str | Path, controller: Controller | str,
     out = Path(out_dir)
     if out.exists():  # refused early as _make_folder would, without creating it
         _make_folder(out, overwrite)
+    check_controller_build(controller, robot, draw.drive(robot), dt)
     drawn = drawn_robot(robot, draw, seed, 0)
     plant = drawn.plant if calibration is None else plant_relative_to(robot, drawn.plant,
                                                                       model_robot)

@@ -180,6 +180,7 @@ def check_draw_runs(robot: Robot, draw: AsBuiltDraw, seed: int, dt: float, start
     ``sensing``). A robot whose cables stretch too far for its encoders fails on every draw
     alike; one draw and one pose find it."""
     from cdpr_sym.as_built.stability import check_integrable
+    from cdpr_sym.closed_loop.case import check_controller_build
     from cdpr_sym.closed_loop.plant import Plant
     from cdpr_sym.control import capabilities
 
@@ -189,11 +190,8 @@ def check_draw_runs(robot: Robot, draw: AsBuiltDraw, seed: int, dt: float, start
     model = SymbolicModel(robot)
     check_integrable(model, spec.actuation, dt, spec.substeps, (robot.start, robot.goal))
     controllers = list(controllers)
-    if spec.actuation is not None:
-        for controller in controllers:
-            check_build = getattr(controller, "check_build", None)
-            if check_build is not None:
-                check_build(robot, spec.actuation, dt)
+    for controller in controllers:
+        check_controller_build(controller, robot, spec.actuation, dt)
     if calibration != "none" or spec.sensing is None or all(
             capabilities(controller).reads_drives for controller in controllers):
         return
