@@ -5,7 +5,7 @@
   numbers (the platform, 36 times the drum's mass at the cable, nearly still), is a mode of
   the loop within 2 %, and damped. The ideal loop (:mod:`cdpr_sym.control.sampled_loop`)
   has no such mode.
-* Against runs on the same build: an 18.7 kg robot on 24 m cables whose feedback passes one
+* Against runs on the same build (slow check): an 18.7 kg robot on 24 m cables whose feedback passes one
   filter stage has a growing drum-cable mode at its case's start (28 Hz), and a run nudged
   from rest there ends over 5 times further off than in its first second (8.7 times; the
   growth saturates as cables go slack); with the rule's four stages the loop is damped and
@@ -75,6 +75,7 @@ def _nudged_growth(robot, law, pose, seconds: float) -> float:
     return float(off[-second:].max() / off[:second].max())
 
 
+@pytest.mark.slow
 def test_a_growing_mode_predicted_grows_in_the_run_and_a_damped_one_dies(long_cables):
     robot, pose = long_cables, np.asarray(long_cables.start, dtype=float)
     one_stage, rule = WinchIdaPbc(feedback_stages=1), WinchIdaPbc()

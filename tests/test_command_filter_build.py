@@ -5,7 +5,7 @@
   13.9 Hz filter, over half its default winches' drum-cable mode (21.5 Hz); a sweep and a run
   as built are refused before they start, in one line naming ``command_cutoff``, exit
   status 2.
-* Why: with the refusal removed, the loop linearised on that build
+* Why (slow check): with the refusal removed, the loop linearised on that build
   (:mod:`cdpr_sym.closed_loop.built_loop`) does not even hold the robot at rest at the
   case's start, where aras3's, whose filter is under its corner, holds and is damped.
 * The API refuses before it builds, and the batched as-built path's check refuses too.
@@ -87,6 +87,7 @@ def test_the_api_refuses_before_building(heavy, monkeypatch):
     assert refused.value.field == "command_cutoff"
 
 
+@pytest.mark.slow
 def test_without_the_refusal_its_loop_does_not_hold_the_robot_at_rest(heavy, monkeypatch):
     design = controller_by_name("smooth-lp")
     assert design.cutoff_for(heavy, DT) > tuning.drum_cable_mode(heavy, _drive(heavy)) / 2

@@ -75,8 +75,11 @@ def _numpy_floor(robot, plant, simulator):
     return found.x[:robot.n] - goal
 
 
-@pytest.mark.parametrize(("name", "pair"), [("aras3", 0), ("aras3", 1), ("planar2", 0),
-                                            ("spatial4", 0), ("spatial4", 2)])
+# spatial4's cases are slow checks: its integral's rule alone costs 4 s a process
+@pytest.mark.parametrize(("name", "pair"), [
+    ("aras3", 0), ("aras3", 1), ("planar2", 0),
+    pytest.param("spatial4", 0, marks=pytest.mark.slow),
+    pytest.param("spatial4", 2, marks=pytest.mark.slow)])
 def test_the_floor_is_the_minimum_of_the_stored_energy(name, pair):
     """m = n and m = n + 1 point robots: the floor equals the minimum of the energy (numpy,
     SciPy's BFGS) to a micrometre, and is far larger than that (the build's errors)."""
