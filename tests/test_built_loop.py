@@ -5,11 +5,11 @@
   numbers (the platform, 36 times the drum's mass at the cable, nearly still), is a mode of
   the loop within 2 %, and damped. The ideal loop (:mod:`cdpr_sym.control.sampled_loop`)
   has no such mode.
-* Against runs on the same build (slow check): an 18.7 kg robot on 24 m cables whose feedback passes one
-  filter stage has a growing drum-cable mode at its case's start (28 Hz), and a run nudged
-  from rest there ends over 5 times further off than in its first second (8.7 times; the
-  growth saturates as cables go slack); with the rule's four stages the loop is damped and
-  the same nudge dies out (0.1).
+* Against runs on the same build (slow check): an 18.7 kg robot on 24 m cables whose
+  feedback passes one filter stage has a growing drum-cable mode at its case's start
+  (28 Hz), and a run nudged from rest there ends over 5 times further off than in its
+  first second (8.7 times; the growth saturates as cables go slack); with the rule's four
+  stages the loop is damped and the same nudge dies out (0.1).
 * A loop that ends further off its pose than the target's band has no modes, and says how
   far; one whose lightly damped mode still swings (ipanema8's 0.2 Hz rotation, slow check)
   is linearised where it is, and says how much it swings; an NMPC, whose loop is not in the
@@ -35,16 +35,14 @@ from cdpr_sym.control.registry import controller_by_name
 from cdpr_sym.control.winch_level import WinchIdaPbc
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import preset
-from cdpr_sym.workspace.zoo import zoo
+from tests.drawn_robots import zoo_robot
 
 DT = 1e-3
 
 
 @pytest.fixture(scope="module")
 def long_cables():
-    robot = zoo(0, 8)[1]
-    assert robot.name == "zoo0_001_point3_m3"
-    return robot
+    return zoo_robot(1, "zoo0_001_point3_m3")
 
 
 def test_each_cables_drum_cable_mode_is_a_mode_of_the_loop():

@@ -33,16 +33,14 @@ from cdpr_sym.control.registry import controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import PRESET_NAMES, preset
 from cdpr_sym.robot.files import robot_file_text
-from cdpr_sym.workspace.zoo import zoo
+from tests.drawn_robots import zoo_robot
 
 DT = 1e-3
 
 
 @pytest.fixture(scope="module")
 def heavy():
-    robot = zoo(0, 8)[4]
-    assert robot.name == "zoo0_004_point2_m3"
-    return robot
+    return zoo_robot(4, "zoo0_004_point2_m3")
 
 
 def _drive(robot):

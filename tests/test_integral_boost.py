@@ -6,9 +6,9 @@
 * planar4 (m = n + 2) takes a fifth and spatial4 (m = n + 1), whose loop keeps 0.107 at a
   tenth and 0.044 at a fifth, a tenth: k_i four and two times the twentieth worked out here
   (the fall-through and the 0.1 both pinned); ``tune --json`` reports the k_i that runs.
-* A run as built (slow check): a 36.6 kg point on three cables, 10 % light, stays within 5 mm of its goal
-  from 5 s on with the rule's integral, and more than 1 cm off with the twentieth (the stages
-  held).
+* A run as built (slow check): a 36.6 kg point on three cables, 10 % light, stays within
+  5 mm of its goal from 5 s on with the rule's integral, and more than 1 cm off with the
+  twentieth (the stages held).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from cdpr_sym.closed_loop import simulate
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.control.winch_level import MIN_INTEGRAL_DAMPING, WinchIdaPbc
 from cdpr_sym.robot import preset
-from cdpr_sym.workspace.zoo import zoo
+from tests.drawn_robots import zoo_robot
 from tests.test_sampled_loop import _point_loop_by_hand
 
 DT = 1e-3
@@ -74,8 +74,7 @@ def test_tune_reports_the_integral_that_runs(capsys):
 
 @pytest.mark.slow
 def test_a_light_build_rests_at_its_goal_by_5_s_with_the_rules_integral():
-    robot = zoo(0, 8)[4]
-    assert robot.name == "zoo0_004_point2_m3"
+    robot = zoo_robot(4, "zoo0_004_point2_m3")
     rule = WinchIdaPbc()
     assert rule.integral_boost(robot) == 4.0
     twentieth = WinchIdaPbc(integral=rule.gains(robot, DT)[2] / 4,
