@@ -44,7 +44,7 @@ def heavy():
 
 
 def _drive(robot):
-    return DEFAULT_DRAW.draw_pair(robot, 0, 0)[1].actuation
+    return DEFAULT_DRAW.drive(robot)
 
 
 def test_the_sweep_and_the_run_are_refused_before_they_start(heavy, tmp_path, capsys):

@@ -43,8 +43,8 @@ def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
     mode = tuning.drum_cable_mode(robot, drive)
     corner = tuning.command_corner(robot, drive, dt)
     design = WinchIdaPbc(drive=drive)
-    winch = tuning.winch_gains(robot, drive, dt, model=model,
-                               integral_boost=design.integral_boost(robot, model))
+    # the gains the law runs with (its integral's boost included)
+    winch = tuning.WinchGains(*design.gains(robot, dt, model))
     derived_k, derived_r_d = case_gains(robot.mass, robot.inertia, robot.n, robot.dimension,
                                         robot.center_of_mass)
     stated = not (np.allclose(robot.k, derived_k) and np.allclose(robot.r_d, derived_r_d))
@@ -69,7 +69,7 @@ def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
         "modes": {name: linearised_modes(robot, model, winch.stiffness, winch.damping, q)
                   for name, q in (("start", robot.start), ("goal", robot.goal))},
         "loop": _loop_numbers(robot, model, design, winch, drive, dt),
-        "hold": _hold_numbers(robot, model, WinchIdaPbc(drive=drive)),
+        "hold": _hold_numbers(robot, model, design),
         "rules": tuning.rules(),
     }
 
