@@ -39,7 +39,7 @@ def _comment_above(header: str, declaration: str) -> str:
 def test_the_step_says_what_one_period_does_and_its_sizes(header):
     assert _comment_above(header, "int cdpr_planar2_smooth_step(").startswith(
         "One closed-loop period of dt = p[P_DT] s: the tension of the control law, held over "
-        "one RK4 step of the plant (x: 10, p: 9, log: 6 doubles; x and x_next must not "
+        "one RK4 step of the plant (x: 11, p: 9, log: 6 doubles; x and x_next must not "
         "overlap).")
 
 
@@ -70,9 +70,9 @@ def _defines(header: str) -> dict[str, tuple[str, str]]:
 def test_the_sizes_and_offsets_are_those_worked_out_by_hand(header):
     defines = _defines(header)
     values = {name: value for name, (value, _) in defines.items()}
-    assert {"N": "2", "NJ": "1", "NMEM": "5", "NX": "10", "NP": "9", "NLOG": "6",
+    assert {"N": "2", "NJ": "1", "NMEM": "6", "NX": "11", "NP": "9", "NLOG": "6",
             "T_MIN": "1.0", "T_MAX": "30.0"}.items() <= values.items()
-    assert {"X_Q": "0", "X_DQ": "2", "X_MEMORY": "4", "X_STATUS": "9",
+    assert {"X_Q": "0", "X_DQ": "2", "X_MEMORY": "4", "X_STATUS": "10",
             "P_GOAL": "0", "P_K": "2", "P_R_D": "4", "P_DT": "6", "P_MASS_SCALE": "7",
             "P_SLACK": "8",
             "LOG_TAU": "0", "LOG_ALPHA": "2", "LOG_BETA": "3", "LOG_J": "4",
@@ -160,7 +160,7 @@ def test_the_planner_is_declared_with_the_argument_names_it_documents(header):
     declaration = _declaration(header, "int cdpr_planar2_smooth_initial_memory(")
     assert declaration == ("int cdpr_planar2_smooth_initial_memory(const double q0[2], "
                            "const double q_goal[2], const double k[2], const double r_d[2], "
-                           "double memory[5], cdpr_planar2_smooth_work *work)")
+                           "double memory[6], cdpr_planar2_smooth_work *work)")
 
 
 # -- the layout tables: every field of the declared layout, with its unit -------------------
@@ -196,7 +196,7 @@ def _bracket(text: str, opening: str) -> list[str]:
 
 def test_the_step_lists_every_field_of_x_and_the_log_with_its_unit(header, layout):
     comment = _comment_above(header, "int cdpr_planar2_smooth_step(")
-    assert _bracket(comment, "x[10]: state [") == _listed(layout.x, keep=("memory",))
+    assert _bracket(comment, "x[11]: state [") == _listed(layout.x, keep=("memory",))
     assert _bracket(comment, "log_out[6]: this period's [") == _listed(
         layout.log, keep=layout.log.names)
     comments = {name: comment for name, (_, comment) in _defines(header).items()}

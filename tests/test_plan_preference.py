@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from cdpr_sym import preset
+from cdpr_sym.control.path import minimum_jerk
 from cdpr_sym.control.planned import (
     SmoothReference,
-    minimum_jerk,
     planned_preference,
     preference_ends,
 )
@@ -155,7 +155,8 @@ def test_ida_winch_starts_at_the_static_tension_and_produces_the_reference_force
     n, m = robot.n, robot.m
     duration, margin = memory[n + 1], memory[n + 2]
     assert margin >= 0
-    ends = memory[n + 3: n + 3 + 2 * m]  # kept in the memory, as the step reads them
+    assert memory[n + 3] == 0.0  # the straight segment (the reference below is straight)
+    ends = memory[n + 4: n + 4 + 2 * m]  # kept in the memory, as the step reads them
     t = ca.SX.sym("t")
     _, _, _, tension, _ = controller.reference(model, t, ca.DM(start), ca.DM(duration),
                                                ca.DM(goal), ca.DM(margin), ends=ca.DM(ends))

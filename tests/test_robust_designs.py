@@ -22,7 +22,7 @@ from cdpr_sym.control import CONTROLLERS, law_function, tension
 from cdpr_sym.control.evaluate import initial_memory_function
 from cdpr_sym.control.flags import FLAG_SATURATED
 from cdpr_sym.control.parts import FILTER_STAGES, filter_command
-from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
+from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc, plan_size
 
 DT = 1e-3
 #: Tension each winch delivers beyond its command, N: the matched force d = W(q) offset.
@@ -168,7 +168,7 @@ def test_smooth_lp_first_plan_is_smooth(aras3):
         aras3.start, aras3.goal, aras3.k, aras3.r_d)
     filtered = initial_memory_function(model, SmoothReference(command_cutoff=15.0))(
         aras3.start, aras3.goal, aras3.k, aras3.r_d)
-    np.testing.assert_array_equal(np.array(filtered)[: aras3.n + 3], np.array(plain))
+    np.testing.assert_array_equal(np.array(filtered)[: plan_size(model)], np.array(plain))
 
 
 def test_guard_never_clips_past_the_static_tension(aras3, aras3_model):

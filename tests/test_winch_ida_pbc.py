@@ -62,7 +62,7 @@ def _storage(robot, controller, simulator, states):
                                      ca.DM(memory[n + 1]), ca.DM(robot.start),
                                      ca.DM(memory[n + 2]))
     payout_r, _, _, tension_r, _ = (np.array(ca.DM(value)).ravel() for value in reference)
-    goal_payout = payout_r + memory[n + 3: n + 3 + m]
+    goal_payout = payout_r + memory[n + 4: n + 4 + m]  # after the plan [t, q_start, T, margin, c]
     system = AsBuiltHamiltonian(model).functions
     numbers = (LOSSLESS.parameters(), 1.0, np.zeros(m * robot.dimension))
     pull = controller.pull(tension_r, controller.drive_of(robot))

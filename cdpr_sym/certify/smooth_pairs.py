@@ -31,8 +31,12 @@ T): each option's sampled check -- the band at the samples and the rate limit be
 them -- is enclosed over the pair box and is certainly true, certainly false or undecided.
 The options the plan may pick are the undecided ones before the first certainly true one,
 and that one; the shortest T among them gives x_max. A pair box is **disproven**
-when every option certainly fails (the plan flags every pair of the box infeasible) or the
-path certainly crosses det W = 0 at the samples.
+when every option certainly fails along the straight segment, or the segment certainly
+crosses det W = 0 at the samples: the plan cannot move any pair of the box straight. (The
+design then tries its ``bows``, paths leaning towards the frame's centre,
+:mod:`cdpr_sym.control.path`, which this certificate does not follow: a disproven pair may
+still be planned along a bow. A proven box is unaffected: there the straight plan passes,
+and a design uses a bow only where it fails.)
 
 Floating point: an option counts as certainly passing (failing) only with a slack of
 :data:`SLACK` N, and det W's sign at the samples only :data:`DET_SLACK` from zero, far above
@@ -54,7 +58,8 @@ import numpy as np
 
 from cdpr_sym.certify import interval as iv
 from cdpr_sym.certify.interval_c import CompiledIntervalFunction
-from cdpr_sym.control.planned import SmoothReference, minimum_jerk
+from cdpr_sym.control.path import minimum_jerk
+from cdpr_sym.control.planned import SmoothReference
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
 from cdpr_sym.robot import Robot

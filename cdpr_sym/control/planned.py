@@ -1,8 +1,10 @@
 """Designs with an internal state that plan each move: tension-feasible, fast and smooth.
 
-:class:`SmoothReference` plans, at the start of each run, a minimum-jerk straight-line
-reference from the start to the goal and the shortest duration (and the widest tension
-margin) for which its feed-forward tensions stay inside the box and change slowly; it then
+:class:`SmoothReference` plans, at the start of each run, a minimum-jerk reference from the
+start to the goal (straight, or bowed towards the frame's centre where the straight segment
+leaves the poses the box can hold: :mod:`cdpr_sym.control.path`) and the shortest duration
+(and the widest tension margin) for which its feed-forward tensions stay inside the box and
+change slowly; it then
 tracks the reference with PD feedback plus feed-forward, and clips the command to the box as
 a last resort (flagged). :class:`VirtualReferenceIdaPbc` keeps IDA-PBC's structure with a
 virtual reference particle. Both plan in ``initial_memory`` (a CasADi expression evaluated
@@ -34,19 +36,15 @@ from cdpr_sym.control.parts import (
     guarded_box,
     tension_parts,
 )
+from cdpr_sym.control.path import bow, path_point
 from cdpr_sym.control.tuning import FROM_ROBOT
 from cdpr_sym.distribution.closed_form import nearest_to
 from cdpr_sym.distribution.interval import BIG, feasible_interval
 from cdpr_sym.distribution.one_dimensional import null_vector
 from cdpr_sym.errors import InvalidCase
+from cdpr_sym.linalg import pseudo_inverse_times
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
-
-
-def minimum_jerk(u: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
-    """s(u) = 10u^3 - 15u^4 + 6u^5 on u in [0, 1] and its first two derivatives in u."""
-    return (10 * u**3 - 15 * u**4 + 6 * u**5, 30 * u**2 - 60 * u**3 + 30 * u**4,
-            60 * u - 180 * u**2 + 120 * u**3)
 
 
 def preference_ends(model: SymbolicModel, q_start: ca.SX, q_goal: ca.SX, guard: float
@@ -82,6 +80,18 @@ def planned_preference(ends: ca.SX, s: ca.SX | float) -> ca.SX:
     return (1 - s) * ends[:m] + s * ends[m:]
 
 
+#: N: how far outside the box a path's static tension may lie at a sample and still count
+#: as held when the plan chooses its path (:meth:`SmoothReference.chosen_bow`): far above
+#: the rounding of the tension's arithmetic, far below any tension that matters.
+STATIC_SLACK = 1e-6
+
+
+def plan_size(model: SymbolicModel) -> int:
+    """Entries of a plan in a design's memory: [t, q_start (n), T, margin, c] (c the bow's
+    size, :mod:`cdpr_sym.control.path`)."""
+    return model.n + 4
+
+
 @dataclasses.dataclass(frozen=True)
 class SmoothReference:
     """Minimum-jerk reference, feed-forward tension and PD tracking (``smooth``).
@@ -113,6 +123,11 @@ class SmoothReference:
         m > n the force is distributed in the shrunk box where that can produce it, else in
         the full box, and the first command can differ from the static tension by up to
         the guard). The plan's margins count from the full box.
+    bows : tuple of float
+        Bow sizes c > 0 tried, in order, where the straight segment cannot be planned: the
+        path then leans towards the frame's centre (:mod:`cdpr_sym.control.path`; c = 1
+        puts its middle there); the first whose plan passes its check is used, the straight
+        segment's failed plan otherwise. () plans straight segments only.
 
     Notes
     -----
@@ -120,10 +135,11 @@ class SmoothReference:
     would leave it; FLAG_SATURATED); the first command equals the static tension
     W^{-1} grad V at a start at rest (no start jump); the planned feed-forward tension is in
     the box with the chosen margin and changes by at most ``max_rate`` (checked at the
-    ``samples`` path points). Assumptions: the straight segment from start to goal lies in
-    the static workspace with some margin and does not cross det W = 0 (checked at the
-    samples; else FLAG_INFEASIBLE and the slowest plan, and the run may stop as singular:
-    the 6-cable platform's workspace has such internal singular surfaces);
+    ``samples`` path points). Assumptions: the straight segment from start to goal, or one
+    of the ``bows`` towards the frame's centre, lies in the static workspace with some
+    margin and does not cross det W = 0 (checked at the samples; else FLAG_INFEASIBLE and
+    the straight segment's slowest plan, and the run may stop as singular: the 6-cable
+    platform's workspace has such internal singular surfaces);
     the plant's mass is close to the model's (the feedback absorbs the rest).
     Command: W^{-1} (M(q) ddq_r + C(q, dq) dq_r + grad V - K (q - q_r) - R_d (dq - dq_r)),
     clipped; the plan's feed-forward is M(q_r) ddq_r + C(q_r, dq_r) dq_r + grad V (m ddq_r
@@ -133,7 +149,8 @@ class SmoothReference:
     the start and the goal, interpolated along the path (:func:`planned_preference`; linear
     in the force, so the same interval test applies), and the improved closed form in the
     command.
-    Memory: [t, q_start (n), T, margin] and, with ``command_cutoff``, the filter's stages
+    Memory: [t, q_start (n), T, margin, c] (c the bow's size, 0 for the straight segment)
+    and, with ``command_cutoff``, the filter's stages
     (FILTER_STAGES m), which start at the tension the plant holds at rest at the start (the
     first command for m = n; with m > n the static tension, which the guarded first command
     can miss by the guard or, where the distribution's repairs switch cables, by far more:
@@ -146,15 +163,18 @@ class SmoothReference:
     samples: int = 33
     command_cutoff: float | str | None = None
     guard: float | str = 0.0
+    bows: tuple[float, ...] = (0.5, 1.0, 1.5)
     name: ClassVar[str] = "smooth"
 
     def __post_init__(self) -> None:
-        for field in ("durations", "margins"):  # options() gives lists; keep it hashable
+        for field in ("durations", "margins", "bows"):  # options() gives lists; hashable
             object.__setattr__(self, field, tuple(float(v) for v in getattr(self, field)))
         if not self.durations or min(self.durations) <= 0:
             raise InvalidCase("durations", f"expected positive durations, got {self.durations}")
         if not self.margins or min(self.margins) < 0:
             raise InvalidCase("margins", f"expected margins >= 0 N, got {self.margins}")
+        if not all(np.isfinite(c) and c > 0 for c in self.bows):
+            raise InvalidCase("bows", f"expected bow sizes > 0, got {self.bows}")
         if self.max_rate != FROM_ROBOT:
             check_positive("max_rate", self.max_rate, "N/s")
         if isinstance(self.samples, bool) or not isinstance(self.samples, int) \
@@ -223,7 +243,8 @@ class SmoothReference:
     def options(self) -> dict[str, Any]:
         return {"durations": list(self.durations), "margins": list(self.margins),
                 "max_rate": self.max_rate, "samples": self.samples,
-                "command_cutoff": self.command_cutoff, "guard": self.guard}
+                "command_cutoff": self.command_cutoff, "guard": self.guard,
+                "bows": list(self.bows)}
 
     def capabilities(self) -> Capabilities:
         """Runs on robots with more cables than degrees of freedom (its plan and command
@@ -231,8 +252,8 @@ class SmoothReference:
         return Capabilities(any_cables=True, planned=True)
 
     def memory_size(self, model: SymbolicModel) -> int:
-        """Internal state: [t, q_start (n), T, margin] and the command filter's stages."""
-        return model.n + 3 + (FILTER_STAGES * model.m if self.command_cutoff else 0)
+        """Internal state: [t, q_start (n), T, margin, c] and the command filter's stages."""
+        return plan_size(model) + (FILTER_STAGES * model.m if self.command_cutoff else 0)
 
     def ends_for(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX) -> ca.SX | None:
         """The plan's preferred tensions at start and goal with m >= n + 2 cables
@@ -244,22 +265,83 @@ class SmoothReference:
 
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX, *, ends: ca.SX | None = None) -> ca.SX:
-        """Plan: the first admissible (margin, T) in preference order. ``ends``: the
-        preferred tensions of :meth:`ends_for` when the caller has them already (worked
-        out here when not given)."""
-        robot = model.robot
-        delta = q_goal - q0
-        u = np.linspace(0.0, 1.0, self.samples)
-        static, accel, dets, segments = [], [], [], []
+        """Plan: the path (:meth:`chosen_bow`), then the first admissible (margin, T) in
+        preference order along it. ``ends``: the preferred tensions of :meth:`ends_for`
+        when the caller has them already (worked out here when not given)."""
         if ends is None:
             ends = self.ends_for(model, q0, q_goal)
-        for value in u:
-            s, ds, dds = minimum_jerk(ca.SX(value))
-            q_r = q0 + delta * s
+        size = self.chosen_bow(model, q0, q_goal, ends)
+        chosen_T, chosen_margin = self._plan_along(model, q0, q_goal,
+                                                   bow(model.robot, q0, q_goal, size), ends)
+        plan = ca.vertcat(0.0, q0, chosen_T, chosen_margin, size)
+        if not self.command_cutoff:
+            return plan
+        if model.m == model.n:  # the first command: the static tension at a start at rest
+            first = self._tracking(model, q0, ca.SX.zeros(model.n), q_goal, k, r_d,
+                                   plan)[0].tau
+        else:  # the command's distribution in the guarded box can differ from the plant's
+            first = model.static_tension(q0)
+        return ca.vertcat(plan, *([first] * FILTER_STAGES))
+
+    def chosen_bow(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX,
+                   ends: ca.SX | None) -> ca.SX:
+        """The size c of the path's bow (:mod:`cdpr_sym.control.path`): 0 (the straight
+        segment) where its static tension at the plan's samples lies in the box, within
+        :data:`STATIC_SLACK` N, with W regular (m = n: det W of one sign); else the first of
+        :attr:`bows` whose path does; else 0. Static only, so the choice costs a fraction of
+        the plan it precedes (whose interval tests over every duration and margin dominate);
+        a pair certificate's proven box (:mod:`cdpr_sym.certify.smooth_pairs`: the planned
+        tension in the box shrunk by its margin along the whole straight path, the static
+        one included) keeps the straight segment."""
+        zero = ca.SX.zeros(model.n)
+        size = ca.SX(0.0)
+        for candidate in reversed(self.bows):  # the first bow that holds wins
+            holds = self._static_holds(model, q0, q_goal,
+                                       bow(model.robot, q0, q_goal, candidate), ends)
+            size = ca.if_else(holds, candidate, size)
+        return ca.if_else(self._static_holds(model, q0, q_goal, zero, ends), 0.0, size)
+
+    def _static_holds(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, bowed: ca.SX,
+                      ends: ca.SX | None) -> ca.SX:
+        """1 where the weight can be held in the box (within STATIC_SLACK) at every sample
+        of the path with bow ``bowed``, W regular along it; else 0."""
+        robot = model.robot
+        lower = ca.DM.ones(robot.m) * (robot.t_min - STATIC_SLACK)
+        upper = ca.DM.ones(robot.m) * (robot.t_max + STATIC_SLACK)
+        inside, dets = ca.SX(1.0), []
+        for value in np.linspace(0.0, 1.0, self.samples):
+            q_r, _, _, s = path_point(q0, q_goal, bowed, ca.SX(value))
             W = model.structure_matrix(q_r)
-            # M q_r'' + C(q_r, q_r') q_r' = (M dds delta + C(q_r, ds delta) ds delta) / T^2
-            inertial = (model.mass_matrix(q_r) @ (dds * delta)
-                        + model.coriolis_force(q_r, ds * delta))
+            weight = model.grad_potential(q_r)
+            if model.m == model.n:
+                dets.append(ca.det(W))
+                held = ca.logic_and(ca.mmin(ca.solve(W, weight) - lower) >= 0,
+                                    ca.mmin(upper - ca.solve(W, weight)) >= 0)
+            else:
+                dets.append(model.singularity_measure(W) - SINGULAR_DET)
+                if model.m == model.n + 1:
+                    low, high = feasible_interval(pseudo_inverse_times(W, weight),
+                                                  null_vector(W), lower, upper)
+                    held = low <= high
+                else:
+                    tau = nearest_to(W, weight, planned_preference(ends, s))
+                    held = ca.logic_and(ca.mmin(tau - lower) >= 0, ca.mmin(upper - tau) >= 0)
+            inside = inside * held
+        crosses = ca.sum1(ca.vertcat(*dets) * dets[0] <= 0) > 0
+        return ca.logic_and(inside > 0.5, ca.logic_not(crosses))
+
+    def _plan_along(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, bowed: ca.SX,
+                    ends: ca.SX | None) -> tuple[ca.SX, ca.SX]:
+        """(T, margin) of the path with bow ``bowed`` (:func:`~cdpr_sym.control.path.bow`):
+        margin -1 where no option passes or the path crosses det W = 0."""
+        robot = model.robot
+        u = np.linspace(0.0, 1.0, self.samples)
+        static, accel, dets, segments = [], [], [], []
+        for value in u:
+            q_r, dq_du, ddq_du, s = path_point(q0, q_goal, bowed, ca.SX(value))
+            W = model.structure_matrix(q_r)
+            # M q_r'' + C(q_r, q_r') q_r' = (M ddq_du + C(q_r, dq_du) dq_du) / T^2
+            inertial = (model.mass_matrix(q_r) @ ddq_du + model.coriolis_force(q_r, dq_du))
             if model.m == model.n:
                 dets.append(ca.det(W))
                 static.append(model.static_tension(q_r))
@@ -280,19 +362,10 @@ class SmoothReference:
         else:
             chosen_T, chosen_margin = self._choose(robot, ca.vertcat(*static),
                                                    ca.vertcat(*accel), step)
-        # a straight path through det W = 0 (the sign changes between samples; m > n: W
-        # loses rank at a sample) has no plan
+        # a path through det W = 0 (the sign changes between samples; m > n: W loses rank
+        # at a sample) has no plan
         crosses = ca.sum1(ca.vertcat(*dets) * dets[0] <= 0) > 0
-        chosen_margin = ca.if_else(crosses, -1.0, chosen_margin)
-        plan = ca.vertcat(0.0, q0, chosen_T, chosen_margin)
-        if not self.command_cutoff:
-            return plan
-        if model.m == model.n:  # the first command: the static tension at a start at rest
-            first = self._tracking(model, q0, ca.SX.zeros(model.n), q_goal, k, r_d,
-                                   plan)[0].tau
-        else:  # the command's distribution in the guarded box can differ from the plant's
-            first = model.static_tension(q0)
-        return ca.vertcat(plan, *([first] * FILTER_STAGES))
+        return chosen_T, ca.if_else(crosses, -1.0, chosen_margin)
 
     def _choose(self, robot: Robot, a: ca.SX, b: ca.SX, step: float) -> tuple[ca.SX, ca.SX]:
         """(T, margin) for a planned tension a + b / T^2 (stacked samples): the widest margin,
@@ -351,7 +424,7 @@ class SmoothReference:
         law, plan_next = self._tracking(model, q, dq, q_goal, k, r_d, memory, dt)
         if not self.command_cutoff:
             return law, plan_next
-        tau, stages = filter_command(law.tau, memory[model.n + 3:],
+        tau, stages = filter_command(law.tau, memory[plan_size(model):],
                                      self.cutoff_for(model.robot, dt), dt)
         return law._replace(tau=tau), ca.vertcat(plan_next, stages)
 
@@ -364,9 +437,9 @@ class SmoothReference:
         n = model.n
         t, q_start, T, margin = memory[0], memory[1: n + 1], memory[n + 1], memory[n + 2]
         u = ca.fmin(ca.fmax(t / T, 0.0), 1.0)
-        s, ds, dds = minimum_jerk(u)
-        delta = q_goal - q_start
-        q_r, dq_r, ddq_r = q_start + delta * s, delta * ds / T, delta * dds / T**2
+        bowed = bow(model.robot, q_start, q_goal, memory[n + 3])
+        q_r, dq_du, ddq_du, _ = path_point(q_start, q_goal, bowed, u)
+        dq_r, ddq_r = dq_du / T, ddq_du / T**2
         force = (model.mass_matrix(q) @ ddq_r + model.coriolis_matrix(q, dq) @ dq_r
                  + model.grad_potential(q) - k * (q - q_r) - r_d * (dq - dq_r))
         if model.m > model.n:
@@ -383,7 +456,7 @@ class SmoothReference:
         flags = (flag_if(saturated, FLAG_SATURATED) + flag_if(margin < 0, FLAG_INFEASIBLE)
                  + flag_if(singular, FLAG_SINGULAR))
         law = ControlLaw(tau, ca.SX(1.0), beta, ca.SX.zeros(model.n_j), flags)
-        return law, ca.vertcat(t + dt, q_start, T, margin)
+        return law, ca.vertcat(t + dt, memory[1: plan_size(model)])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -479,7 +552,7 @@ class VirtualReferenceIdaPbc:
     brake: float = 0.5
     ramp: float = 0.25
     start_share: float = 0.02
-    plan: SmoothReference = SmoothReference()
+    plan: SmoothReference = SmoothReference(bows=())  # its particle moves straight
     observer_rate: float | None = None
     command_cutoff: float | None = None
     name: ClassVar[str] = "ida-ref"

@@ -71,7 +71,7 @@ motor springs stiffer than the cables and went unstable).
 The pull the cables are to carry is clipped to the box as a last resort (FLAG_SATURATED:
 the energy argument then no longer holds), and the motor's command kept where the cable's
 pull stays in the box whichever way the drum's friction acts
-(:meth:`WinchIdaPbc.kept_in_box`). Memory: the plan's [t, q_start (n), T, margin] (and,
+(:meth:`WinchIdaPbc.kept_in_box`). Memory: the plan's [t, q_start (n), T, margin, c] (and,
 with m >= n + 2, its preference's two ends, 2 m), then per
 cable the encoders' zero misfit, the last reading, the filtered drum speed (m/s of cable),
 the integral of the length error and the feedback filter's stages.
@@ -97,7 +97,8 @@ from cdpr_sym.checks import positive_number
 from cdpr_sym.control.flags import FLAG_INFEASIBLE, FLAG_SATURATED, FLAG_SINGULAR
 from cdpr_sym.control.interface import Capabilities, ControlLaw, DriveReading
 from cdpr_sym.control.parts import beta_margin, clip_to_box, distributed_command, flag_if
-from cdpr_sym.control.planned import SmoothReference, minimum_jerk, planned_preference
+from cdpr_sym.control.path import bow, path_point
+from cdpr_sym.control.planned import SmoothReference, plan_size, planned_preference
 from cdpr_sym.control.tuning import FROM_ROBOT, command_corner, platform_share, winch_gains
 from cdpr_sym.distribution import AUTO
 from cdpr_sym.distribution.closed_form import nearest_to
@@ -468,7 +469,7 @@ class WinchIdaPbc:
         return self._kept_from(model) + model.m
 
     def memory_size(self, model: SymbolicModel) -> int:
-        """[t, q_start (n), T, margin], with m >= n + 2 cables the plan's preferred
+        """[t, q_start (n), T, margin, c], with m >= n + 2 cables the plan's preferred
         tensions at start and goal (2 m), then per cable the encoders' zero misfit, the last
         reading, the filtered rate, the integral and the feedback filter's stages."""
         return self._kept_from(model) + (4 + self._stages(model)) * model.m
@@ -476,7 +477,7 @@ class WinchIdaPbc:
     @staticmethod
     def _kept_from(model: SymbolicModel) -> int:
         """Where the per-cable memory starts: after the plan and its preferred ends."""
-        return model.n + 3 + (2 * model.m if model.m >= model.n + 2 else 0)
+        return plan_size(model) + (2 * model.m if model.m >= model.n + 2 else 0)
 
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
@@ -583,7 +584,8 @@ class WinchIdaPbc:
 
     def reference(self, model: SymbolicModel, t: ca.SX, q_start: ca.SX, duration: ca.SX,
                   q_goal: ca.SX, margin: ca.SX | float = 0.0, *, rigid: bool = False,
-                  ends: ca.SX | None = None) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX, ca.SX]:
+                  ends: ca.SX | None = None, bow_size: ca.SX | float = 0.0
+                  ) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX, ca.SX]:
         """(l0_r, dl0_r/dt, d2l0_r/dt2, T_r, det measure) at time t: the motor references
         (m, m/s, m/s^2), the feed-forward tension (N) and the reference pose's distance
         from a singularity. The rates are the rigid cables' J_a dq_r and J_a ddq_r: the
@@ -592,11 +594,12 @@ class WinchIdaPbc:
         velocity and acceleration at its two ends. With ``rigid`` cables (the ideal plant)
         the motor reference is the geometric length l(q_r) itself. ``ends``: the plan's
         preferred tensions at start and goal with m >= n + 2 cables, as the memory keeps
-        them (worked out here when not given)."""
+        them (worked out here when not given). ``bow_size``: the plan's bow
+        (:mod:`cdpr_sym.control.path`; 0, the straight segment)."""
         u = ca.fmin(ca.fmax(t / duration, 0.0), 1.0)
-        s, ds, dds = minimum_jerk(u)
-        delta = q_goal - q_start
-        q_r, dq_r, ddq_r = q_start + delta * s, delta * ds / duration, delta * dds / duration**2
+        q_r, dq_du, ddq_du, s = path_point(q_start, q_goal,
+                                           bow(model.robot, q_start, q_goal, bow_size), u)
+        dq_r, ddq_r = dq_du / duration, ddq_du / duration**2
         W = model.structure_matrix(q_r)
         force = (model.mass_matrix(q_r) @ ddq_r + model.coriolis_force(q_r, dq_r)
                  + model.grad_potential(q_r))
@@ -626,10 +629,12 @@ class WinchIdaPbc:
         a robot as built holds at rest (:mod:`cdpr_sym.closed_loop.floor`)."""
         n = model.n
         q_start, duration, margin = memory[1: n + 1], memory[n + 1], memory[n + 2]
-        base = self._kept_from(model)
-        ends = memory[n + 3: base] if base > n + 3 else None
-        first = self.reference(model, ca.SX(0.0), q_start, duration, q_goal, margin, ends=ends)
-        last = self.reference(model, duration, q_start, duration, q_goal, margin, ends=ends)
+        base, planned = self._kept_from(model), plan_size(model)
+        ends = memory[planned: base] if base > planned else None
+        first = self.reference(model, ca.SX(0.0), q_start, duration, q_goal, margin, ends=ends,
+                               bow_size=memory[n + 3])
+        last = self.reference(model, duration, q_start, duration, q_goal, margin, ends=ends,
+                              bow_size=memory[n + 3])
         return first[0], last[0], last[3]
 
     def pull(self, tension: ca.SX | np.ndarray | float, drive: Actuation):
@@ -643,13 +648,14 @@ class WinchIdaPbc:
         n, m, robot = model.n, model.m, model.robot
         t, q_start, duration, margin = (memory[0], memory[1: n + 1], memory[n + 1],
                                         memory[n + 2])
-        base = self._kept_from(model)
-        ends = memory[n + 3: base] if base > n + 3 else None
+        base, planned = self._kept_from(model), plan_size(model)
+        ends = memory[planned: base] if base > planned else None
         kept = [memory[base + i * m: base + (i + 1) * m] for i in range(4)]
         misfit_kept, last, rate_kept, integrated_kept = kept
         stages_kept = memory[base + 4 * m:]
         payout_r, rate_r, accel_r, tension_r, singularity = self.reference(
-            model, t, q_start, duration, q_goal, margin, rigid=drives.rigid, ends=ends)
+            model, t, q_start, duration, q_goal, margin, rigid=drives.rigid, ends=ends,
+            bow_size=memory[n + 3])
         reading = drives.lengths
         first = t <= 0
         misfit = ca.if_else(first, reading - payout_r, misfit_kept)
@@ -674,17 +680,16 @@ class WinchIdaPbc:
                 drive)
         # the integral holds while the command is clipped (no wind-up)
         integrated = ca.if_else(saturated, integrated_kept,
-                                integrated_kept + dt * self.integrated_error(model, q_start,
-                                                                             duration, t,
-                                                                             q_goal, error))
+                                integrated_kept + dt * self.integrated_error(
+                                    model, q_start, duration, t, q_goal, error,
+                                    bow_size=memory[n + 3]))
         singular = singularity <= SINGULAR_DET
         flags = (flag_if(saturated, FLAG_SATURATED) + flag_if(margin < 0, FLAG_INFEASIBLE)
                  + flag_if(singular, FLAG_SINGULAR))
         beta = beta_margin(model, tension_r)
         law = ControlLaw(clipped, ca.SX(1.0), beta, ca.SX.zeros(model.n_j), flags)
-        return law, ca.vertcat(t + dt, q_start, duration, margin,
-                               ca.SX.zeros(0) if ends is None else ends, misfit, reading,
-                               rate, integrated, stages)
+        return law, ca.vertcat(t + dt, memory[1:base], misfit, reading, rate, integrated,
+                               stages)
 
     def kept_in_box(self, pull: ca.SX, drive_terms: ca.SX, model: SymbolicModel,
                     drive: Actuation) -> tuple[ca.SX, ca.SX]:
@@ -725,7 +730,8 @@ class WinchIdaPbc:
         return command, clipped
 
     def integrated_error(self, model: SymbolicModel, q_start: ca.SX, duration: ca.SX,
-                         t: ca.SX, q_goal: ca.SX, error: ca.SX) -> ca.SX:
+                         t: ca.SX, q_goal: ca.SX, error: ca.SX, *,
+                         bow_size: ca.SX | float = 0.0) -> ca.SX:
         """The part of the length ``error`` (m) the integral acts on: all of it with m = n;
         with m > n its projection J_a (J_a^T J_a)^{-1} J_a^T e on the lengths a motion of
         the platform changes (J_a at the reference pose). The rest of a redundant robot's
@@ -733,11 +739,11 @@ class WinchIdaPbc:
         anchor a few millimetres off), no pose removes it, and an integral on it would wind
         the cables against each other by EA / l per metre; the motor spring's k_p alone
         holds it (a few newtons per millimetre of disagreement), the feed-forward sets the
-        internal force."""
+        internal force. ``bow_size``: the plan's bow (:mod:`cdpr_sym.control.path`)."""
         if model.m == model.n:
             return error
         u = ca.fmin(ca.fmax(t / duration, 0.0), 1.0)
-        q_r = q_start + (q_goal - q_start) * minimum_jerk(u)[0]
+        q_r = path_point(q_start, q_goal, bow(model.robot, q_start, q_goal, bow_size), u)[0]
         jacobian = model.jacobian_ja(q_r)
         return jacobian @ ca.solve(jacobian.T @ jacobian, jacobian.T @ error)
 
