@@ -16,8 +16,10 @@ from cdpr_sym.as_built import DEFAULT_DRAW, AsBuilt
 from cdpr_sym.calibration.drawn import drawn_robot
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.control import controller_by_name
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.studies import robustness
 from cdpr_sym.studies.interface import StudyRequest
+from tests.drawn_robots import zoo_robot
 
 
 def _row(effect, design, *, held=True, meets=False, status="ok", feasible=True, settle=1.0,
@@ -150,3 +152,44 @@ def test_the_tension_traces_are_the_runs_true_tensions_and_draw(aras3, tmp_path)
     np.testing.assert_allclose(trace, run.tau[::robustness.TRACE_STRIDE], atol=1e-3)
     path = robustness._traces_figure(traces, tmp_path / "tensions.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# -- a design its own build check refuses: the others run, the report names it -------------
+def _heavy_point():
+    """The zoo's 18.7 kg point on 15 m cables: smooth-lp's filter is over half its winches'
+    drum-cable mode (13.9 Hz against 6.4 Hz)."""
+    return zoo_robot(1, "zoo0_001_point3_m3")
+
+
+def test_only_the_design_whose_build_check_fails_is_refused(aras3):
+    assert robustness.refused_designs(aras3, 0) == {}
+    refused = robustness.refused_designs(_heavy_point(), 0)
+    assert list(refused) == ["smooth-lp"] and "drum-cable mode" in refused["smooth-lp"]
+    # the request is accepted: the study runs the others
+    robustness.STUDY.check_request(StudyRequest(robot=_heavy_point(), source="heavy",
+                                                pairs=2, seed=0, progress=False))
+
+
+def test_a_robot_every_design_refuses_is_refused(monkeypatch):
+    monkeypatch.setattr(robustness, "DESIGNS", ("smooth-lp",))
+    with pytest.raises(InvalidCase, match="every design of the robustness study"):
+        robustness.STUDY.check_request(StudyRequest(robot=_heavy_point(), source="heavy",
+                                                    pairs=2, seed=0, progress=False))
+
+
+@pytest.mark.slow  # one pair, two designs, a calibrated column of one
+def test_a_refused_design_is_left_out_and_named(tmp_path, monkeypatch):
+    monkeypatch.setattr(robustness, "CALIBRATED_DESIGNS", ("smooth-lp", "ida-winch"))
+    monkeypatch.setattr(robustness, "DESIGNS", ("smooth-lp", "ida-winch"))
+    monkeypatch.setattr(robustness, "TRACE_DESIGNS", ("ida-winch", "smooth-lp"))
+    monkeypatch.setattr(robustness, "DAMPING_SCAN", (0.0,))
+    robot = _heavy_point()
+    request = StudyRequest(robot=robot, source="heavy", pairs=1, seed=0, progress=False)
+    robustness.STUDY.run(tmp_path, request)
+    rows = json.loads((tmp_path / "runs.json").read_text())
+    study = json.loads((tmp_path / "study.json").read_text())
+    assert {row["design"] for row in rows} == {"ida-winch"}
+    assert study["designs"] == ["ida-winch"] and list(study["refused_designs"]) == ["smooth-lp"]
+    report = (tmp_path / "report.md").read_text()
+    assert "| ida-winch |" in report and "| smooth-lp |" not in report
+    assert "- `smooth-lp`: the command filter at" in report

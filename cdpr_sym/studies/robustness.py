@@ -12,6 +12,10 @@ plant) a simulated laser-tracker campaign (:mod:`cdpr_sym.calibration`) at D-opt
 estimates the anchors and encoder offsets, and the designs run with the calibrated robot as
 their model on the same true plant (one build per draw, so only :data:`CALIBRATED_DESIGNS`).
 
+A design whose own build check refuses the robot's default build (``smooth-lp``'s command
+filter above half the drum-cable mode of a heavy robot's winches) does not run; the study
+runs the others, and ``study.json`` and the report name it with the one-line reason.
+
 ``compute`` writes ``runs.json`` (one row per run; not kept in git) and ``study.json``
 (pairs, seed and every effect's specification, drawn values included). The report step
 condenses the runs into ``summary.json`` (shares and reasons per effect and design) and
@@ -34,6 +38,7 @@ from cdpr_sym.as_built import Actuation, AsBuilt
 from cdpr_sym.as_built.draw import DEFAULT_DRAW
 from cdpr_sym.calibration.drawn import SELF_POSES, TRACKER_NOISE, TRACKER_POSES, drawn_robot
 from cdpr_sym.closed_loop import Plant, get_simulator
+from cdpr_sym.closed_loop.case import check_controller_build
 from cdpr_sym.closed_loop.effects.readout import check_draw_runs
 from cdpr_sym.control import capabilities, controller_by_name
 from cdpr_sym.errors import InvalidCase
@@ -150,24 +155,25 @@ EFFECTS = (
 )
 
 
-def tension_traces(robot: Robot, starts: np.ndarray, goals: np.ndarray, seed: int
-                   ) -> dict[str, Any]:
+def tension_traces(robot: Robot, starts: np.ndarray, goals: np.ndarray, seed: int,
+                   designs: tuple[str, ...] = TRACE_DESIGNS) -> dict[str, Any]:
     """The true cable tensions over time (every :data:`TRACE_STRIDE` periods) of each of
-    :data:`TRACE_DESIGNS` on the first pair whose as-built draw holds start and goal."""
+    ``designs`` (of :data:`TRACE_DESIGNS`) on the first pair whose as-built draw holds
+    start and goal."""
     effect = next(e for e in EFFECTS if e.name == "as built")
     plants = (effect.draw(np.random.default_rng([seed, index, _tag(effect.name)]), robot)
               for index in range(len(starts)))
     judge = None
     chosen = 0
     for index, (plant, start, goal) in enumerate(zip(plants, starts, goals, strict=False)):
-        judge = judge or get_simulator(robot, controller_by_name(TRACE_DESIGNS[0]),
+        judge = judge or get_simulator(robot, controller_by_name(designs[0]),
                                        as_built=plant.as_built.structure())
         chosen = index
         if judge.true_static_held(start, plant) and judge.true_static_held(goal, plant):
             break
     traces: dict[str, Any] = {"pair": chosen, "stride": TRACE_STRIDE, "dt": DT,
                               "t_min": robot.t_min, "t_max": robot.t_max, "designs": {}}
-    for design in TRACE_DESIGNS:
+    for design in designs:
         simulator = get_simulator(robot, controller_by_name(design),
                                   as_built=plant.as_built.structure())
         run = simulator.run(start, goal, robot.k, robot.r_d, duration=DURATION, dt=DT,
@@ -210,14 +216,14 @@ def _traces_figure(traces: dict[str, Any], path: Path) -> Path:
 
 def _calibrated_pair(task: tuple) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """One pair of a calibrated column (in a worker process): calibrate, then run."""
-    robot, effect, kind, start, goal, seed, index = task
+    robot, effect, kind, start, goal, seed, index, designs = task
     try:
         drawn = drawn_robot(robot, DEFAULT_DRAW, seed, index, kind)
     except InvalidCase as refused:  # the campaign did not calibrate: no run follows
-        return _refused_rows(robot, effect, start, goal, seed, index), {
+        return _refused_rows(robot, effect, start, goal, seed, index, designs), {
             "refused": refused.message}
     rows = []
-    for design in CALIBRATED_DESIGNS:
+    for design in designs:
         rows += _effect_rows(drawn.model, design, effect, [drawn.plant], [start], [goal],
                              first=index)
     record = {key: value for key, value in drawn.record.items() if key != "anchor_offsets"}
@@ -225,11 +231,11 @@ def _calibrated_pair(task: tuple) -> tuple[list[dict[str, Any]], dict[str, Any]]
 
 
 def _refused_rows(robot: Robot, effect: str, start: np.ndarray, goal: np.ndarray, seed: int,
-                  index: int) -> list[dict[str, Any]]:
-    """The rows of a pair whose calibration was refused: held as the uncalibrated plant
-    is, stopped before any run."""
+                  index: int, designs: tuple[str, ...]) -> list[dict[str, Any]]:
+    """The rows of ``designs`` on a pair whose calibration was refused: held as the
+    uncalibrated plant is, stopped before any run."""
     drawn = drawn_robot(robot, DEFAULT_DRAW, seed, index)
-    simulator = get_simulator(robot, controller_by_name(CALIBRATED_DESIGNS[0]),
+    simulator = get_simulator(robot, controller_by_name(designs[0]),
                               as_built=drawn.plant.as_built.structure())
     held = bool(simulator.true_static_held(start, drawn.plant)
                 and simulator.true_static_held(goal, drawn.plant))
@@ -238,18 +244,20 @@ def _refused_rows(robot: Robot, effect: str, start: np.ndarray, goal: np.ndarray
              "stop_reason": "calibration_refused", "tension_feasible": False,
              "settle_time": None, "max_tension_step": None, "start_jump": None,
              "min_tension": None, "max_tension": None, "final_error": None,
-             "meets_target": False} for design in CALIBRATED_DESIGNS]
+             "meets_target": False} for design in designs]
 
 
 def calibrated_column(robot: Robot, effect: str, kind: str, starts: np.ndarray,
-                      goals: np.ndarray, seed: int, workers: int = 2
+                      goals: np.ndarray, seed: int, workers: int = 2,
+                      designs: tuple[str, ...] = CALIBRATED_DESIGNS
                       ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """Rows of a calibrated column (``kind`` ``tracker`` or ``self``; pair by pair, in
-    ``workers`` processes: each pair builds its own controllers) and each pair's
-    calibration record. The plants are the "as built" column's own draws."""
+    ``workers`` processes: each pair builds its own controllers) of ``designs`` (of
+    :data:`CALIBRATED_DESIGNS`) and each pair's calibration record. The plants are the "as
+    built" column's own draws."""
     from concurrent.futures import ProcessPoolExecutor
 
-    tasks = [(robot, effect, kind, start, goal, seed, index)
+    tasks = [(robot, effect, kind, start, goal, seed, index, designs)
              for index, (start, goal) in enumerate(zip(starts, goals, strict=True))]
     rows, records = [], []
     with ProcessPoolExecutor(workers) as pool:
@@ -269,13 +277,13 @@ def calibrated_effects(robot: Robot) -> dict[str, str]:
     return out
 
 
-def _damping_scan(robot: Robot, starts: np.ndarray, goals: np.ndarray, progress: bool
-                  ) -> dict[str, Any]:
+def _damping_scan(robot: Robot, starts: np.ndarray, goals: np.ndarray, progress: bool,
+                  designs: tuple[str, ...] = DESIGNS) -> dict[str, Any]:
     """With winches alone: the share of pairs meeting the target (over held pairs) for each
-    cable damping of :data:`DAMPING_SCAN`, per design; where the drive mode stops breaking
-    a design."""
+    cable damping of :data:`DAMPING_SCAN`, per design of ``designs``; where the drive mode
+    stops breaking a design."""
     out: dict[str, Any] = {"cable_damping": list(DAMPING_SCAN), "pairs": len(starts)}
-    for design in DESIGNS:
+    for design in designs:
         if progress:
             print(f"robustness: winch damping scan / {design}", file=sys.stderr, flush=True)
         shares = []
@@ -526,7 +534,9 @@ class RobustnessStudy(Study):
     def check_request(self, request: StudyRequest) -> None:
         """The study compares :data:`DESIGNS` on the default robot as built: refuse a robot
         some of them cannot run (more cables than degrees of freedom), naming the study's
-        designs, and one whose encoders the default specification cannot read."""
+        designs, one whose encoders the default specification cannot read, and one whose
+        build every design refuses (:func:`refused_designs`; those some designs refuse run
+        the others)."""
         robot = request.robot
         square_only = [name for name in DESIGNS
                        if not capabilities(controller_by_name(name)).any_cables]
@@ -536,14 +546,20 @@ class RobustnessStudy(Study):
                               f"freedom, and {robot.name} has {robot.m} for n = {robot.n}. "
                               "Compare designs for more cables with 'cdpr-sym sweep "
                               "--as-built SPEC --controllers ...' instead")
+        refused = refused_designs(robot, request.seed)
+        if len(refused) == len(DESIGNS):
+            raise InvalidCase("robot", f"every design of the robustness study is refused on "
+                              f"{robot.name} as built: {next(iter(refused.values()))}")
         check_draw_runs(robot, DEFAULT_DRAW, request.seed, DT, robot.start,
-                        [controller_by_name(name) for name in DESIGNS])
+                        [controller_by_name(name) for name in DESIGNS if name not in refused])
 
     def compute(self, folder: Path, request: StudyRequest) -> None:
         """``runs.json``, ``tensions.json`` and ``study.json`` of the request's robot (see
         the module notes)."""
         robot, pairs, seed, progress = (request.robot, request.pairs, request.seed,
                                         request.progress)
+        refused = refused_designs(robot, seed)
+        designs = tuple(name for name in DESIGNS if name not in refused)
         rng = np.random.default_rng(seed)
         poses = sample_static_workspace(robot, 2 * pairs, rng, margin=FRAME_MARGIN)
         starts, goals = poses[:pairs], poses[pairs:]
@@ -553,7 +569,7 @@ class RobustnessStudy(Study):
                                   robot) for index in range(pairs)]
             specs[effect.name] = {"description": effect.description,
                                   "plants": [plant.record() for plant in plants]}
-            for design in DESIGNS:
+            for design in designs:
                 if progress:
                     print(f"robustness: {effect.name} / {design}", file=sys.stderr,
                           flush=True)
@@ -561,19 +577,23 @@ class RobustnessStudy(Study):
         for effect, kind in calibrated_effects(robot).items():
             if progress:
                 print(f"robustness: {effect}", file=sys.stderr, flush=True)
-            calibrated_rows, calibrations = calibrated_column(robot, effect, kind, starts,
-                                                              goals, seed)
+            calibrated_rows, calibrations = calibrated_column(
+                robot, effect, kind, starts, goals, seed,
+                designs=tuple(d for d in CALIBRATED_DESIGNS if d in designs))
             rows += calibrated_rows
             specs[effect] = {"description": _CAMPAIGNS[kind], "calibrations": calibrations}
-        scan = _damping_scan(robot, starts[:SCAN_PAIRS], goals[:SCAN_PAIRS], progress)
-        traces = tension_traces(robot, starts, goals, seed)
+        scan = _damping_scan(robot, starts[:SCAN_PAIRS], goals[:SCAN_PAIRS], progress,
+                             designs)
+        traces = tension_traces(robot, starts, goals, seed,
+                                tuple(d for d in TRACE_DESIGNS if d in designs))
         folder.mkdir(parents=True, exist_ok=True)
         write_json(folder / TRACES_FILE, traces, indent=None)
         write_json(folder / RUNS_FILE, rows)
         # every run's specification makes it about 0.5 MB: on one line, half the
         # indented size
         write_study(folder, "robustness", robot, indent=None, pairs=pairs, seed=seed,
-                    designs=list(DESIGNS), duration=DURATION, dt=DT, effects=specs,
+                    designs=list(designs), refused_designs=refused, duration=DURATION,
+                    dt=DT, effects=specs,
                     damping_scan=scan, starts=starts.tolist(), goals=goals.tolist())
 
     def run_files(self, folder: Path) -> list[Path]:
@@ -598,6 +618,7 @@ class RobustnessStudy(Study):
         (folder / REPORT_FILE).write_text(render_report(
             "robustness.md.j2", robot=study["robot"], pairs=study["pairs"],
             seed=study["seed"], duration=study["duration"], dt=study["dt"], designs=designs,
+            refused=study.get("refused_designs") or {},
             effects=list(table), effect_specs=study["effects"], table=table,
             misread=misread_effects(table, designs), best=best_by_effect(table),
             best_readable=best_readable_by_effect(table), scan=study.get("damping_scan"),
@@ -613,6 +634,21 @@ class RobustnessStudy(Study):
         return [f"{design:<8} meets target (of held pairs): " + ", ".join(
             f"{effect} {_percent(row[design]['meets_target'])}"
             for effect, row in result.items()) for design in next(iter(result.values()))]
+
+
+def refused_designs(robot: Robot, seed: int) -> dict[str, str]:
+    """The designs of :data:`DESIGNS` whose own build check
+    (:func:`~cdpr_sym.closed_loop.case.check_controller_build`) refuses ``robot``'s default
+    build (the draw of pair 0 of ``seed``: its winches are the robot's, whatever the
+    draw), each with the check's one-line reason."""
+    _, spec = DEFAULT_DRAW.draw_pair(robot, seed, 0)
+    refused = {}
+    for name in DESIGNS:
+        try:
+            check_controller_build(controller_by_name(name), robot, spec.actuation, DT)
+        except InvalidCase as refusal:
+            refused[name] = refusal.message
+    return refused
 
 
 def calibration_summary(study: dict[str, Any]) -> dict[str, Any] | None:
