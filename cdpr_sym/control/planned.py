@@ -288,8 +288,9 @@ class SmoothReference:
         """The size c of the path's bow (:mod:`cdpr_sym.control.path`): 0 (the straight
         segment) where its static tension at the plan's samples lies in the box, within
         :data:`STATIC_SLACK` N, with W regular (m = n: det W of one sign); else the first of
-        :attr:`bows` whose path does; else 0. Static only, so the choice costs a fraction of
-        the plan it precedes (whose interval tests over every duration and margin dominate);
+        :attr:`bows` whose path does at every other of those samples (the plan then checks it
+        at all of them); else 0. Static only, so the choice costs a fraction of the plan it
+        precedes (whose interval tests over every duration and margin dominate);
         a pair certificate's proven box (:mod:`cdpr_sym.certify.smooth_pairs`: the planned
         tension in the box shrunk by its margin along the whole straight path, the static
         one included) keeps the straight segment."""
@@ -297,26 +298,27 @@ class SmoothReference:
         size = ca.SX(0.0)
         for candidate in reversed(self.bows):  # the first bow that holds wins
             holds = self._static_holds(model, q0, q_goal,
-                                       bow(model.robot, q0, q_goal, candidate), ends)
+                                       bow(model.robot, q0, q_goal, candidate), ends,
+                                       every=2)
             size = ca.if_else(holds, candidate, size)
         return ca.if_else(self._static_holds(model, q0, q_goal, zero, ends), 0.0, size)
 
     def _static_holds(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, bowed: ca.SX,
-                      ends: ca.SX | None) -> ca.SX:
+                      ends: ca.SX | None, *, every: int = 1) -> ca.SX:
         """1 where the weight can be held in the box (within STATIC_SLACK) at every sample
         of the path with bow ``bowed``, W regular along it; else 0."""
         robot = model.robot
         lower = ca.DM.ones(robot.m) * (robot.t_min - STATIC_SLACK)
         upper = ca.DM.ones(robot.m) * (robot.t_max + STATIC_SLACK)
         inside, dets = ca.SX(1.0), []
-        for value in np.linspace(0.0, 1.0, self.samples):
+        for value in np.linspace(0.0, 1.0, self.samples)[::every]:
             q_r, _, _, s = path_point(q0, q_goal, bowed, ca.SX(value))
             W = model.structure_matrix(q_r)
             weight = model.grad_potential(q_r)
             if model.m == model.n:
                 dets.append(ca.det(W))
-                held = ca.logic_and(ca.mmin(ca.solve(W, weight) - lower) >= 0,
-                                    ca.mmin(upper - ca.solve(W, weight)) >= 0)
+                tau = ca.solve(W, weight)
+                held = ca.logic_and(ca.mmin(tau - lower) >= 0, ca.mmin(upper - tau) >= 0)
             else:
                 dets.append(model.singularity_measure(W) - SINGULAR_DET)
                 if model.m == model.n + 1:

@@ -439,7 +439,10 @@ class WinchIdaPbc:
         from cdpr_sym.control.sampled_loop import least_damping
 
         robot = model.robot
-        return least_damping(self, model, (robot.start, robot.goal), dt,
+        # at rest the plan's path is a point: its bows (a choice of path) are left out of
+        # the symbolic plan the loop is read from; the memory's layout is the same
+        at_rest = dataclasses.replace(self, plan=dataclasses.replace(self.plan, bows=()))
+        return least_damping(at_rest, model, (robot.start, robot.goal), dt,
                              carried=self.carried_size(model),
                              ignored_at_one=max(model.m - model.n, 0))
 
