@@ -154,3 +154,23 @@ def test_a_preset_pair_keeps_its_straight_plan():
     robot = preset("aras3")
     assert np.array_equal(_plan(robot, SmoothReference(), robot.start, robot.goal),
                           _plan(robot, SmoothReference(bows=()), robot.start, robot.goal))
+
+
+#: Two pairs of the redundant study's ipanema8 draw (m = n + 2): the first's straight
+#: segment leaves the held poses (LP), the second's does not, though the plan's closed-form
+#: distribution misses a tension on it (the bow is chosen by the exact polygon instead).
+IPANEMA_BOWED = ([0.740963, 0.067597, 1.402805, 0.034893, -0.203711, 0.07663],
+                 [-0.808765, 0.560954, 1.539109, -0.061514, 0.154288, 0.109178])
+IPANEMA_STRAIGHT = ([0.807307, -0.343632, 1.548893, -0.02892, -0.223463, -0.03456],
+                    [1.001971, -0.243229, 0.405375, -0.201073, -0.014941, -0.029392])
+
+
+def test_with_two_cables_more_the_box_decides_and_not_the_plans_closed_form():
+    robot = preset("ipanema8")
+    start, goal = (np.array(v) for v in IPANEMA_STRAIGHT)
+    assert _held(robot, _bowed_poses(robot, start, goal, 0.0)).all()
+    assert _plan(robot, SmoothReference(), start, goal)[robot.n + 3] == 0.0
+    start, goal = (np.array(v) for v in IPANEMA_BOWED)
+    assert not _held(robot, _bowed_poses(robot, start, goal, 0.0)).all()
+    size = _plan(robot, SmoothReference(), start, goal)[robot.n + 3]
+    assert size > 0 and _held(robot, _bowed_poses(robot, start, goal, size)).all()

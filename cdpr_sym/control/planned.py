@@ -38,6 +38,7 @@ from cdpr_sym.control.parts import (
 )
 from cdpr_sym.control.path import bow, path_point
 from cdpr_sym.control.tuning import FROM_ROBOT
+from cdpr_sym.distribution import AUTO, distribute
 from cdpr_sym.distribution.closed_form import nearest_to
 from cdpr_sym.distribution.interval import BIG, feasible_interval
 from cdpr_sym.distribution.one_dimensional import null_vector
@@ -270,7 +271,7 @@ class SmoothReference:
         when the caller has them already (worked out here when not given)."""
         if ends is None:
             ends = self.ends_for(model, q0, q_goal)
-        size = self.chosen_bow(model, q0, q_goal, ends)
+        size = self.chosen_bow(model, q0, q_goal)
         chosen_T, chosen_margin = self._plan_along(model, q0, q_goal,
                                                    bow(model.robot, q0, q_goal, size), ends)
         plan = ca.vertcat(0.0, q0, chosen_T, chosen_margin, size)
@@ -283,11 +284,12 @@ class SmoothReference:
             first = model.static_tension(q0)
         return ca.vertcat(plan, *([first] * FILTER_STAGES))
 
-    def chosen_bow(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX,
-                   ends: ca.SX | None) -> ca.SX:
+    def chosen_bow(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX) -> ca.SX:
         """The size c of the path's bow (:mod:`cdpr_sym.control.path`): 0 (the straight
-        segment) where its static tension at the plan's samples lies in the box, within
-        :data:`STATIC_SLACK` N, with W regular (m = n: det W of one sign); else the first of
+        segment) where the box holds the weight at the plan's samples, within
+        :data:`STATIC_SLACK` N (m = n: the static tension in it; m = n + 1 and n + 2: some
+        tension producing the weight, exactly; beyond, the default distribution finds one),
+        with W regular (m = n: det W of one sign); else the first of
         :attr:`bows` whose path does at every other of those samples (the plan then checks it
         at all of them); else 0. Static only, so the choice costs a fraction of the plan it
         precedes (whose interval tests over every duration and margin dominate);
@@ -298,13 +300,12 @@ class SmoothReference:
         size = ca.SX(0.0)
         for candidate in reversed(self.bows):  # the first bow that holds wins
             holds = self._static_holds(model, q0, q_goal,
-                                       bow(model.robot, q0, q_goal, candidate), ends,
-                                       every=2)
+                                       bow(model.robot, q0, q_goal, candidate), every=2)
             size = ca.if_else(holds, candidate, size)
-        return ca.if_else(self._static_holds(model, q0, q_goal, zero, ends), 0.0, size)
+        return ca.if_else(self._static_holds(model, q0, q_goal, zero), 0.0, size)
 
-    def _static_holds(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, bowed: ca.SX,
-                      ends: ca.SX | None, *, every: int = 1) -> ca.SX:
+    def _static_holds(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, bowed: ca.SX, *,
+                      every: int = 1) -> ca.SX:
         """1 where the weight can be held in the box (within STATIC_SLACK) at every sample
         of the path with bow ``bowed``, W regular along it; else 0."""
         robot = model.robot
@@ -312,7 +313,7 @@ class SmoothReference:
         upper = ca.DM.ones(robot.m) * (robot.t_max + STATIC_SLACK)
         inside, dets = ca.SX(1.0), []
         for value in np.linspace(0.0, 1.0, self.samples)[::every]:
-            q_r, _, _, s = path_point(q0, q_goal, bowed, ca.SX(value))
+            q_r = path_point(q0, q_goal, bowed, ca.SX(value))[0]
             W = model.structure_matrix(q_r)
             weight = model.grad_potential(q_r)
             if model.m == model.n:
@@ -325,9 +326,12 @@ class SmoothReference:
                     low, high = feasible_interval(pseudo_inverse_times(W, weight),
                                                   null_vector(W), lower, upper)
                     held = low <= high
-                else:
-                    tau = nearest_to(W, weight, planned_preference(ends, s))
-                    held = ca.logic_and(ca.mmin(tau - lower) >= 0, ca.mmin(upper - tau) >= 0)
+                else:  # not the plan's closed form, which can miss a tension the box
+                    # has (it bowed 24 of ipanema8's 200 redundant-study pairs): the exact
+                    # polygon for m = n + 2 (3 of them), beyond the default distribution
+                    method = "min_norm_2d" if model.m == model.n + 2 else AUTO
+                    held = distribute(method, W, weight, robot.t_min - STATIC_SLACK,
+                                      robot.t_max + STATIC_SLACK)[1] > 0.5
             inside = inside * held
         crosses = ca.sum1(ca.vertcat(*dets) * dets[0] <= 0) > 0
         return ca.logic_and(inside > 0.5, ca.logic_not(crosses))
