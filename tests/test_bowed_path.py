@@ -126,11 +126,35 @@ def test_a_straight_segment_the_box_holds_is_kept(body):
     assert np.array_equal(bowed, straight)
 
 
-def test_bows_are_checked_and_ida_ref_moves_straight():
-    with pytest.raises(InvalidCase, match="bows"):
-        SmoothReference(bows=(0.5, -1.0))
-    assert VirtualReferenceIdaPbc().plan.bows == ()
+def test_bows_are_checked_and_ida_ref_moves_straight(body):
+    for bows in ((0.5, -1.0), (2.5,)):  # a bow over 2 can leave the frame
+        with pytest.raises(InvalidCase, match="bows"):
+            SmoothReference(bows=bows)
     assert SmoothReference(**SmoothReference().options()) == SmoothReference()
+    # ida-ref's particle moves straight: the duration is the straight plan's, whatever
+    # plan it is given (on this pair a bowed plan is faster)
+    n = body.n
+    given = VirtualReferenceIdaPbc(plan=SmoothReference(bows=(1.0,)))
+    straight_T = _plan(body, SmoothReference(bows=()), START, GOAL)[n + 1]
+    assert _plan(body, SmoothReference(bows=(1.0,)), START, GOAL)[n + 1] != straight_T
+    model = SymbolicModel(body)
+    symbols = [ca.SX.sym(name, n) for name in ("q0", "qg", "k", "r_d")]
+    memory = ca.Function("m", symbols, [given.initial_memory(model, *symbols)])
+    xi_accel = np.array(memory(START, GOAL, body.k, body.r_d)).ravel()[2 * n + 1]
+    distance = np.linalg.norm(GOAL - START)
+    assert xi_accel == pytest.approx(given.boost * 5.77 * distance / straight_T**2, rel=1e-12)
+
+
+def test_every_bow_up_to_two_keeps_the_path_in_the_frame_box():
+    """The module's bound, sampled: ends anywhere in a box, the bow towards its centre."""
+    rng = np.random.default_rng(8)
+    lower, upper = np.array([-1.0, 0.5, -0.6]), np.array([2.0, 3.0, 0.6])
+    centre = (lower + upper) / 2
+    q0, qg = rng.uniform(lower, upper, (2, 4000, 3))
+    s = rng.uniform(0, 1, (4000, 1))
+    for size, inside in ((2.0, True), (2.5, False)):
+        q = q0 + s * (qg - q0) + 4 * s * (1 - s) * size * (centre - (q0 + qg) / 2)
+        assert bool(np.all((q >= lower - 1e-12) & (q <= upper + 1e-12))) == inside
 
 
 @pytest.mark.slow

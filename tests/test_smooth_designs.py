@@ -55,6 +55,7 @@ def test_smooth_planned_feed_forward_respects_margin_and_rate(pairs):
         run = simulate(robot, design, start=start, goal=goal, duration=0.01)
         duration, margin = run.memory[0, robot.n + 1], run.memory[0, robot.n + 2]
         assert margin >= 0, "a plan exists for pairs drawn from the static workspace"
+        assert run.memory[0, robot.n + 3] == 0.0  # straight, as the numpy path below
         tau, rate = _planned_feed_forward(robot, start, goal, duration, 20 * design.samples)
         # the plan checks 33 points; between them the tension may bend by a fraction of 1 N
         assert tau.min() >= robot.t_min + margin - 0.5
@@ -180,6 +181,7 @@ def test_smooth_tracks_its_plan_on_rigid_bodies(name, request, build_options):
     run = simulate(robot, SmoothReference(), duration=3.0, build_options=build_options)
     n = robot.n
     t, q_start, T = run.memory[:, 0], run.memory[:, 1: n + 1], run.memory[:, n + 1]
+    assert np.all(run.memory[:, n + 3] == 0.0)  # the case's straight segment, as below
     u = np.clip(t / T, 0.0, 1.0)[:, None]
     q_r = q_start + (robot.goal - q_start) * (10 * u**3 - 15 * u**4 + 6 * u**5)
     assert np.abs(q_r[-1] - robot.goal).max() < 1e-12  # the plan ended within the run

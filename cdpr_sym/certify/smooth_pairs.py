@@ -35,8 +35,9 @@ when every option certainly fails along the straight segment, or the segment cer
 crosses det W = 0 at the samples: the plan cannot move any pair of the box straight. (The
 design then tries its ``bows``, paths leaning towards the frame's centre,
 :mod:`cdpr_sym.control.path`, which this certificate does not follow: a disproven pair may
-still be planned along a bow. A proven box is unaffected: there the straight plan passes,
-and a design uses a bow only where it fails.)
+still be planned along a bow. A proven box is unaffected: the proof covers the static
+tension along the whole straight segment, in the box with det W of one sign, so the
+design's choice of path, made on the static tension, keeps the straight segment there.)
 
 Floating point: an option counts as certainly passing (failing) only with a slack of
 :data:`SLACK` N, and det W's sign at the samples only :data:`DET_SLACK` from zero, far above

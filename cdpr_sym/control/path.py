@@ -28,19 +28,27 @@ random pairs of held poses had straight segments that left the static workspace 
 at 65 points), and a bow towards the frame's centre of 0.5, 1 or 1.5 times the distance
 held 17 of them; on aras3, planar3, spatial6 and ipanema8 1-6 of 100.
 
-Assumptions: the frame's centre lies inside the static workspace or at least on the
-side of the segment where it is wider (checked by the plan at its samples, not assumed);
-the bow keeps the path inside the frame box when both ends are in it and c <= 2 (the path
-is a convex combination of q_0, q_g and q_c for c <= 1; beyond, the plan's check at its
-samples decides).
-"""
+**Inside the frame.** With both ends in the frame box and c <= 2 (:data:`LARGEST_BOW`) the
+whole path is in it, coordinate by coordinate: centred on q_c, a coordinate of the box is
+[-h, h] and q_r = (1 - s - b c / 2) q_0 + (s - b c / 2) q_g with b in [0, 1]; the sum of
+the two coefficients' magnitudes is 1 - b c, 1 - 2 s, 2 s - 1 or b c - 1 by their signs,
+never above 1 for b c <= 2, so |q_r| <= h. (It is not a convex combination of q_0, q_g
+and q_c: the weight of q_0 is negative near the goal once c > 1/2.) Beyond c = 2 the
+path's middle can pass the centre and leave the box.
 
+Assumption: the frame's centre is where the static workspace is wide, or at least on
+the side of the segment where it is wider. Not assumed by the designs: they check the
+chosen path's tensions at the plan's samples.
+"""
 from __future__ import annotations
 
 import casadi as ca
 import numpy as np
 
 from cdpr_sym.robot import Robot
+
+#: The largest bow size: paths with c <= 2 stay in the frame box (module docstring).
+LARGEST_BOW = 2.0
 
 
 def minimum_jerk(u: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:

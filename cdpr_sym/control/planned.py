@@ -36,7 +36,7 @@ from cdpr_sym.control.parts import (
     guarded_box,
     tension_parts,
 )
-from cdpr_sym.control.path import bow, path_point
+from cdpr_sym.control.path import LARGEST_BOW, bow, path_point
 from cdpr_sym.control.tuning import FROM_ROBOT
 from cdpr_sym.distribution import AUTO, distribute
 from cdpr_sym.distribution.closed_form import nearest_to
@@ -125,10 +125,12 @@ class SmoothReference:
         the full box, and the first command can differ from the static tension by up to
         the guard). The plan's margins count from the full box.
     bows : tuple of float
-        Bow sizes c > 0 tried, in order, where the straight segment cannot be planned: the
-        path then leans towards the frame's centre (:mod:`cdpr_sym.control.path`; c = 1
-        puts its middle there); the first whose plan passes its check is used, the straight
-        segment's failed plan otherwise. () plans straight segments only.
+        Bow sizes c in (0, 2] tried, in order, where the box cannot hold the weight on the
+        straight segment: the path then leans towards the frame's centre
+        (:mod:`cdpr_sym.control.path`; c = 1 puts its middle there). The first whose path
+        the box holds is planned (:meth:`chosen_bow`; its plan can still fail, flagged as
+        on a straight one); where none is held, the straight segment. () plans straight
+        segments only.
 
     Notes
     -----
@@ -136,11 +138,11 @@ class SmoothReference:
     would leave it; FLAG_SATURATED); the first command equals the static tension
     W^{-1} grad V at a start at rest (no start jump); the planned feed-forward tension is in
     the box with the chosen margin and changes by at most ``max_rate`` (checked at the
-    ``samples`` path points). Assumptions: the straight segment from start to goal, or one
-    of the ``bows`` towards the frame's centre, lies in the static workspace with some
-    margin and does not cross det W = 0 (checked at the samples; else FLAG_INFEASIBLE and
-    the straight segment's slowest plan, and the run may stop as singular: the 6-cable
-    platform's workspace has such internal singular surfaces);
+    ``samples`` path points). Assumptions: the straight segment from start to goal, or the
+    bow towards the frame's centre :meth:`chosen_bow` picks, lies in the static workspace
+    with some margin and does not cross det W = 0 (checked at the samples; else
+    FLAG_INFEASIBLE and the slowest plan along that path, and the run may stop as
+    singular: the 6-cable platform's workspace has such internal singular surfaces);
     the plant's mass is close to the model's (the feedback absorbs the rest).
     Command: W^{-1} (M(q) ddq_r + C(q, dq) dq_r + grad V - K (q - q_r) - R_d (dq - dq_r)),
     clipped; the plan's feed-forward is M(q_r) ddq_r + C(q_r, dq_r) dq_r + grad V (m ddq_r
@@ -174,8 +176,9 @@ class SmoothReference:
             raise InvalidCase("durations", f"expected positive durations, got {self.durations}")
         if not self.margins or min(self.margins) < 0:
             raise InvalidCase("margins", f"expected margins >= 0 N, got {self.margins}")
-        if not all(np.isfinite(c) and c > 0 for c in self.bows):
-            raise InvalidCase("bows", f"expected bow sizes > 0, got {self.bows}")
+        if not all(np.isfinite(c) and 0 < c <= LARGEST_BOW for c in self.bows):
+            raise InvalidCase("bows", f"expected bow sizes in (0, {LARGEST_BOW:g}] (larger "
+                              f"ones can leave the frame), got {self.bows}")
         if self.max_rate != FROM_ROBOT:
             check_positive("max_rate", self.max_rate, "N/s")
         if isinstance(self.samples, bool) or not isinstance(self.samples, int) \
@@ -606,7 +609,9 @@ class VirtualReferenceIdaPbc:
     def initial_memory(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, k: ca.SX,
                        r_d: ca.SX) -> ca.SX:
         n = model.n
-        T = self.plan.initial_memory(model, q0, q_goal, k, r_d)[n + 1]
+        # the particle moves straight: the plan's duration is the straight segment's
+        straight = dataclasses.replace(self.plan, bows=())
+        T = straight.initial_memory(model, q0, q_goal, k, r_d)[n + 1]
         distance = ca.norm_2(q_goal - q0)
         accel = self.boost * 5.77 * distance / T**2
         momentum = ca.SX.zeros(n if self.observer_rate else 0)  # at rest: z = p = 0

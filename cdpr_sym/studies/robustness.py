@@ -574,20 +574,21 @@ class RobustnessStudy(Study):
                     print(f"robustness: {effect.name} / {design}", file=sys.stderr,
                           flush=True)
                 rows += _effect_rows(robot, design, effect.name, plants, starts, goals)
-        for effect, kind in calibrated_effects(robot).items():
+        calibrated_designs = tuple(d for d in CALIBRATED_DESIGNS if d in designs)
+        for effect, kind in (calibrated_effects(robot) if calibrated_designs else {}).items():
             if progress:
                 print(f"robustness: {effect}", file=sys.stderr, flush=True)
             calibrated_rows, calibrations = calibrated_column(
-                robot, effect, kind, starts, goals, seed,
-                designs=tuple(d for d in CALIBRATED_DESIGNS if d in designs))
+                robot, effect, kind, starts, goals, seed, designs=calibrated_designs)
             rows += calibrated_rows
             specs[effect] = {"description": _CAMPAIGNS[kind], "calibrations": calibrations}
         scan = _damping_scan(robot, starts[:SCAN_PAIRS], goals[:SCAN_PAIRS], progress,
                              designs)
-        traces = tension_traces(robot, starts, goals, seed,
-                                tuple(d for d in TRACE_DESIGNS if d in designs))
+        traced = tuple(d for d in TRACE_DESIGNS if d in designs)
+        traces = tension_traces(robot, starts, goals, seed, traced) if traced else None
         folder.mkdir(parents=True, exist_ok=True)
-        write_json(folder / TRACES_FILE, traces, indent=None)
+        if traces is not None:  # aggregate and render read it where it exists
+            write_json(folder / TRACES_FILE, traces, indent=None)
         write_json(folder / RUNS_FILE, rows)
         # every run's specification makes it about 0.5 MB: on one line, half the
         # indented size
