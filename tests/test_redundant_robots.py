@@ -174,7 +174,9 @@ def test_smooth_plans_the_shortest_admissible_move_of_a_redundant_robot(rng, ran
     starts, _ = random_states(robot, rng, 4, margin=0.25)
     for start in starts:
         memory = np.array(planner(start, robot.goal, robot.k, robot.r_d)).ravel()
-        duration, margin = memory[-2], memory[-1]
+        n = robot.n  # the plan: [t, q_start (n), T, margin, c]
+        duration, margin = memory[n + 1], memory[n + 2]
+        assert memory[n + 3] == 0.0  # the straight segment, which the numpy planner checks
         assert margin >= 0
         assert _plan_admissible(robot, controller, start, robot.goal, duration, margin)
         for shorter in (d for d in controller.durations if d < duration):
