@@ -126,6 +126,7 @@ def test_a_straight_segment_the_box_holds_is_kept(body):
     assert np.array_equal(bowed, straight)
 
 
+@pytest.mark.slow  # three symbolic plans, about 4 s
 def test_bows_are_checked_and_ida_ref_moves_straight(body):
     for bows in ((0.5, -1.0), (2.5,)):  # a bow over 2 can leave the frame
         with pytest.raises(InvalidCase, match="bows"):
@@ -189,6 +190,7 @@ IPANEMA_STRAIGHT = ([0.807307, -0.343632, 1.548893, -0.02892, -0.223463, -0.0345
                     [1.001971, -0.243229, 0.405375, -0.201073, -0.014941, -0.029392])
 
 
+@pytest.mark.slow  # ipanema8's symbolic plan twice, about 7 s: left to CI
 def test_with_two_cables_more_the_box_decides_and_not_the_plans_closed_form():
     robot = preset("ipanema8")
     start, goal = (np.array(v) for v in IPANEMA_STRAIGHT)

@@ -140,6 +140,7 @@ def test_ida_winch_paces_its_moves_to_its_platform_mode():
     assert WinchIdaPbc().paced_plan(preset("aras3")).durations == SmoothReference().durations
 
 
+@pytest.mark.slow  # ipanema8's symbolic plan, about 10 s: left to CI
 def test_ida_winch_starts_at_the_static_tension_and_produces_the_reference_force():
     """ipanema8 (8 cables, 6 DOF), its own case: the feed-forward T_r at t = 0 is the static
     tension the plant holds (the plan's preferred distribution plus the start's internal

@@ -75,6 +75,7 @@ def test_the_feed_forward_produces_the_reference_force_in_the_box(name):
     assert step <= 0.02 * (robot.t_max - robot.t_min)
 
 
+@pytest.mark.slow  # ipanema8's symbolic plan, about 11 s: left to CI
 def test_the_feed_forward_moves_continuously_where_the_default_distribution_jumps():
     """ipanema8's case (m = n + 2): the default distribution, the improved closed form,
     switches cables near the box's floor and jumps by 240 N in one period along this path;
