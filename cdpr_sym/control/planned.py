@@ -43,7 +43,6 @@ from cdpr_sym.distribution.closed_form import nearest_to
 from cdpr_sym.distribution.interval import BIG, feasible_interval
 from cdpr_sym.distribution.one_dimensional import null_vector
 from cdpr_sym.errors import InvalidCase
-from cdpr_sym.linalg import pseudo_inverse_times
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
 
@@ -85,6 +84,18 @@ def planned_preference(ends: ca.SX, s: ca.SX | float) -> ca.SX:
 #: as held when the plan chooses its path (:meth:`SmoothReference.chosen_bow`): far above
 #: the rounding of the tension's arithmetic, far below any tension that matters.
 STATIC_SLACK = 1e-6
+
+
+def _regularity(model: SymbolicModel, W: ca.SX) -> ca.SX:
+    """What keeps its sign along a path W stays regular on: det W (m = n), else the
+    singularity measure less :data:`~cdpr_sym.model.SINGULAR_DET`."""
+    return ca.det(W) if model.m == model.n else model.singularity_measure(W) - SINGULAR_DET
+
+
+def _crosses(regularities: list[ca.SX]) -> ca.SX:
+    """1 where a path crosses det W = 0 (the sign of :func:`_regularity` at a sample is not
+    its first sample's; m > n: W loses rank at a sample): such a path has no plan."""
+    return ca.sum1(ca.vertcat(*regularities) * regularities[0] <= 0) > 0
 
 
 def plan_size(model: SymbolicModel) -> int:
@@ -312,32 +323,24 @@ class SmoothReference:
         """1 where the weight can be held in the box (within STATIC_SLACK) at every sample
         of the path with bow ``bowed``, W regular along it; else 0."""
         robot = model.robot
-        lower = ca.DM.ones(robot.m) * (robot.t_min - STATIC_SLACK)
-        upper = ca.DM.ones(robot.m) * (robot.t_max + STATIC_SLACK)
+        low, high = robot.t_min - STATIC_SLACK, robot.t_max + STATIC_SLACK
+        # m > n: not the plan's closed form, which can miss a tension the box has (it bowed
+        # 24 of ipanema8's 200 redundant-study pairs): the exact line or polygon for one or
+        # two cables more (the polygon bowed 1 of them), beyond the default distribution
+        exact = {1: "min_norm", 2: "min_norm_2d"}.get(model.m - model.n, AUTO)
         inside, dets = ca.SX(1.0), []
         for value in np.linspace(0.0, 1.0, self.samples)[::every]:
             q_r = path_point(q0, q_goal, bowed, ca.SX(value))[0]
             W = model.structure_matrix(q_r)
             weight = model.grad_potential(q_r)
+            dets.append(_regularity(model, W))
             if model.m == model.n:
-                dets.append(ca.det(W))
                 tau = ca.solve(W, weight)
-                held = ca.logic_and(ca.mmin(tau - lower) >= 0, ca.mmin(upper - tau) >= 0)
+                held = ca.logic_and(ca.mmin(tau) >= low, ca.mmax(tau) <= high)
             else:
-                dets.append(model.singularity_measure(W) - SINGULAR_DET)
-                if model.m == model.n + 1:
-                    low, high = feasible_interval(pseudo_inverse_times(W, weight),
-                                                  null_vector(W), lower, upper)
-                    held = low <= high
-                else:  # not the plan's closed form, which can miss a tension the box
-                    # has (it bowed 24 of ipanema8's 200 redundant-study pairs): the exact
-                    # polygon for m = n + 2 (3 of them), beyond the default distribution
-                    method = "min_norm_2d" if model.m == model.n + 2 else AUTO
-                    held = distribute(method, W, weight, robot.t_min - STATIC_SLACK,
-                                      robot.t_max + STATIC_SLACK)[1] > 0.5
+                held = distribute(exact, W, weight, low, high)[1] > 0.5
             inside = inside * held
-        crosses = ca.sum1(ca.vertcat(*dets) * dets[0] <= 0) > 0
-        return ca.logic_and(inside > 0.5, ca.logic_not(crosses))
+        return ca.logic_and(inside > 0.5, ca.logic_not(_crosses(dets)))
 
     def _plan_along(self, model: SymbolicModel, q0: ca.SX, q_goal: ca.SX, bowed: ca.SX,
                     ends: ca.SX | None) -> tuple[ca.SX, ca.SX]:
@@ -351,12 +354,11 @@ class SmoothReference:
             W = model.structure_matrix(q_r)
             # M q_r'' + C(q_r, q_r') q_r' = (M ddq_du + C(q_r, dq_du) dq_du) / T^2
             inertial = (model.mass_matrix(q_r) @ ddq_du + model.coriolis_force(q_r, dq_du))
+            dets.append(_regularity(model, W))
             if model.m == model.n:
-                dets.append(ca.det(W))
                 static.append(model.static_tension(q_r))
                 accel.append(ca.solve(W, inertial))
             else:  # a closed form, linear in the force: the same interval test
-                dets.append(model.singularity_measure(W) - SINGULAR_DET)
                 pseudo_inverse = W.T @ ca.inv(W @ W.T)
                 if ends is not None:
                     static.append(nearest_to(W, model.grad_potential(q_r),
@@ -371,10 +373,7 @@ class SmoothReference:
         else:
             chosen_T, chosen_margin = self._choose(robot, ca.vertcat(*static),
                                                    ca.vertcat(*accel), step)
-        # a path through det W = 0 (the sign changes between samples; m > n: W loses rank
-        # at a sample) has no plan
-        crosses = ca.sum1(ca.vertcat(*dets) * dets[0] <= 0) > 0
-        return chosen_T, ca.if_else(crosses, -1.0, chosen_margin)
+        return chosen_T, ca.if_else(_crosses(dets), -1.0, chosen_margin)
 
     def _choose(self, robot: Robot, a: ca.SX, b: ca.SX, step: float) -> tuple[ca.SX, ca.SX]:
         """(T, margin) for a planned tension a + b / T^2 (stacked samples): the widest margin,
