@@ -14,7 +14,7 @@ import pytest
 from scipy.optimize import linprog
 
 from cdpr_sym import preset, simulate
-from cdpr_sym.control.path import bow, frame_centre, minimum_jerk, path_point
+from cdpr_sym.control.path import LARGEST_BOW, bow, frame_centre, minimum_jerk, path_point
 from cdpr_sym.control.planned import SmoothReference, VirtualReferenceIdaPbc
 from cdpr_sym.control.registry import controller_by_name
 from cdpr_sym.errors import InvalidCase
@@ -146,15 +146,19 @@ def test_bows_are_checked_and_ida_ref_moves_straight(body):
     assert xi_accel == pytest.approx(given.boost * 5.77 * distance / straight_T**2, rel=1e-12)
 
 
-def test_every_bow_up_to_two_keeps_the_path_in_the_frame_box():
-    """The module's bound, sampled: ends anywhere in a box, the bow towards its centre."""
+def test_every_bow_up_to_the_largest_keeps_the_path_in_the_frame_box(body):
+    """The module's bound, sampled on the path the designs follow: ends anywhere in the
+    frame box, the largest bow allowed stays in it and a quarter more leaves it."""
     rng = np.random.default_rng(8)
-    lower, upper = np.array([-1.0, 0.5, -0.6]), np.array([2.0, 3.0, 0.6])
-    centre = (lower + upper) / 2
-    q0, qg = rng.uniform(lower, upper, (2, 4000, 3))
-    s = rng.uniform(0, 1, (4000, 1))
-    for size, inside in ((2.0, True), (2.5, False)):
-        q = q0 + s * (qg - q0) + 4 * s * (1 - s) * size * (centre - (q0 + qg) / 2)
+    lower, upper = np.array(body.frame_lower), np.array(body.frame_upper)
+    q0, qg = rng.uniform(lower, upper, (2, 2000, 3))
+    u = rng.uniform(0, 1, 2000)
+    symbols = [ca.SX.sym(name, 3) for name in ("q0", "qg")]
+    size, u_sym = ca.SX.sym("c"), ca.SX.sym("u")
+    point = ca.Function("point", [*symbols, size, u_sym], [path_point(
+        *symbols, bow(body, *symbols, size), u_sym)[0]]).map(len(u))
+    for bow_size, inside in ((LARGEST_BOW, True), (1.25 * LARGEST_BOW, False)):
+        q = np.array(point(q0.T, qg.T, bow_size, u)).T
         assert bool(np.all((q >= lower - 1e-12) & (q <= upper + 1e-12))) == inside
 
 
