@@ -410,10 +410,12 @@ def test_a_sweep_of_a_robot_with_its_own_target_is_judged_and_reported_against_i
 
 
 def test_the_default_sweep_compares_the_paper_design_with_the_recommended_ones():
+    from cdpr_sym.cli.commands import check_sweep_args
     from cdpr_sym.cli.parser import build_parser
 
     args = build_parser().parse_args(["sweep", "--pairs", "1", "--out", "x.csv"])
-    assert args.controllers.split(",") == ["l2", "smooth", "ida-ref"]
+    assert args.controllers is None  # the robot's own (tests/test_default_designs.py)
+    assert check_sweep_args(args).controllers == ("l2", "smooth", "ida-ref")
 
 
 def test_version_answers_without_loading_numpy_or_casadi():

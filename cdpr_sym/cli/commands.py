@@ -27,7 +27,12 @@ from cdpr_sym.closed_loop import Case, Plant, simulate
 from cdpr_sym.closed_loop.case import check_timing, minimal_values_per_step
 from cdpr_sym.closed_loop.effects.readout import check_draw_runs
 from cdpr_sym.codegen import BuildOptions
-from cdpr_sym.control import Controller, controller_by_name
+from cdpr_sym.control import (
+    Controller,
+    controller_by_name,
+    default_controller,
+    default_sweep_designs,
+)
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.results.trajectory import Trajectory, save_path
 from cdpr_sym.robot import PRESET_NAMES, Robot, resolve_robot
@@ -105,6 +110,8 @@ def check_simulate_args(args: argparse.Namespace) -> SimulateInput:
     (``save``: its real name, ending ``.npz``, in a folder that can be written).
     """
     robot = resolve_robot(args.robot)
+    if args.controller is None:  # the robot's default (its cables decide which runs)
+        args.controller = default_controller(robot.n, robot.m)
     controller = controller_by_name(args.controller)
     check_timing(args.duration, args.dt, values_per_step=minimal_values_per_step(robot))
     plant = Plant(mass_scale=args.mass_scale, slack=args.slack, rate_limit=args.rate_limit)
@@ -309,9 +316,17 @@ def check_sweep_args(args: argparse.Namespace) -> SweepConfig:
         as_built = (args.as_built if args.as_built == "default"
                     else str(Path(args.as_built).resolve()))
     return SweepConfig(robot=source, pairs=args.pairs, seed=args.seed,
-                       controllers=tuple(n.strip() for n in args.controllers.split(",") if n),
+                       controllers=_sweep_designs(args.controllers, robot),
                        duration=args.duration, dt=args.dt, mass_scale=args.mass_scale,
                        as_built=as_built, calibration=args.calibration)
+
+
+def _sweep_designs(given: str | None, robot: Robot) -> tuple[str, ...]:
+    """The designs named by ``--controllers`` (comma-separated), or the robot's default
+    ones (:func:`~cdpr_sym.control.default_sweep_designs`: each of them runs on it)."""
+    if given is None:
+        return default_sweep_designs(robot.n, robot.m)
+    return tuple(name.strip() for name in given.split(",") if name)
 
 
 def sweep_command(args: argparse.Namespace, out: Output) -> int:
@@ -402,6 +417,8 @@ def export_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.export import export_c
 
     robot = checked_robot(args.robot)
+    if args.controller is None:  # the robot's default (its cables decide which runs)
+        args.controller = default_controller(robot.n, robot.m)
     if args.from_encoders:
         return _export_encoders(args, robot, out)
     for option, given in (("calibration", args.calibration is not None),

@@ -88,8 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     sim = command("simulate", "simulate one closed-loop run")
     sim.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
-    sim.add_argument("--controller", default="l2", choices=list(CONTROLLERS),
-                     help="the design (see the list below)")
+    sim.add_argument("--controller", choices=list(CONTROLLERS),
+                     help="the design (see the list below; default the paper's l2, or "
+                          "ida-under for fewer cables than degrees of freedom)")
     sim.add_argument("--start", nargs="+", type=float, metavar="X",
                      help="start q: m (and rad for a rigid body's angles); default the case's")
     sim.add_argument("--goal", nargs="+", type=float, metavar="X",
@@ -148,9 +149,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     sweep = command("sweep", "run many start/goal pairs (resumable)", progress=True)
     sweep.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
-    sweep.add_argument("--controllers", default="l2,smooth,ida-ref",
-                       help="comma-separated controller names (see the list below; the "
-                            "default: the paper's design and the two recommended ones)")
+    sweep.add_argument("--controllers",
+                       help="comma-separated controller names (see the list below); default "
+                            "the paper's design and the two recommended ones for the robot: "
+                            "l2,smooth,ida-ref with as many cables as degrees of freedom, "
+                            "l2,smooth,ida-winch with more, ida-under,ida-under-i with fewer")
     sweep.add_argument("--pairs", type=int, required=True,
                        help=f"start/goal pairs (at most {MAX_PAIRS:,})")
     sweep.add_argument("--seed", type=int, default=0, help="seed of the pair draw (>= 0)")
@@ -183,8 +186,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     export = command("export-c", "write a self-contained C99 package")
     export.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
-    export.add_argument("--controller", default="l2", choices=list(CONTROLLERS),
-                        help="the design (see the list below)")
+    export.add_argument("--controller", choices=list(CONTROLLERS),
+                        help="the design (see the list below; default the paper's l2, or "
+                             "ida-under for fewer cables than degrees of freedom)")
     export.add_argument("--out", type=Path, required=True,
                         help="output folder: new, empty or an earlier export (re-export)")
     export.add_argument("--force", action="store_true",

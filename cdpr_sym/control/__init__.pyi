@@ -37,6 +37,8 @@ from .registry import (
     check_cables,
     controller_by_name,
     controller_from_options,
+    default_controller,
+    default_sweep_designs,
 )
 from .underactuated import CablePD, UnderactuatedIdaPbc, UnderactuatedIdaPbcIntegral
 from .winch_level import WinchIdaPbc
@@ -77,6 +79,8 @@ __all__ = [
     "check_cables",
     "controller_by_name",
     "controller_from_options",
+    "default_controller",
+    "default_sweep_designs",
     "holding_tension",
     "holding_tension_function",
     "initial_memory_function",

@@ -146,3 +146,30 @@ def check_cables(controller: Controller, n: int, m: int) -> None:
         raise InvalidCase("controller", f"{controller.name} needs as many cables as degrees "
                           f"of freedom (it inverts W), got {m} cables for n = {n}; use "
                           f"{', '.join(redundant)}")
+
+
+#: The designs a sweep runs when none are named, by the robot's cables against its degrees
+#: of freedom: the paper's design and the two recommended ones where they run (m = n); with
+#: more cables the motor-level IDA-PBC in place of ``ida-ref``, which inverts W; with fewer
+#: the underactuated IDA-PBC and its integral twin for the robot as built (the paper's
+#: design and every fully actuated one refuse such a robot).
+DEFAULT_SWEEP = {"square": ("l2", "smooth", "ida-ref"), "redundant": ("l2", "smooth", "ida-winch"),
+                 "underactuated": ("ida-under", "ida-under-i")}
+
+
+def robot_class(n: int, m: int) -> str:
+    """"square" (m = n), "redundant" (m > n) or "underactuated" (m < n)."""
+    return "square" if m == n else ("redundant" if m > n else "underactuated")
+
+
+def default_sweep_designs(n: int, m: int) -> tuple[str, ...]:
+    """The designs a sweep of a robot with ``n`` degrees of freedom on ``m`` cables runs
+    by default (:data:`DEFAULT_SWEEP`); each of them runs on it (:func:`check_cables`)."""
+    return DEFAULT_SWEEP[robot_class(n, m)]
+
+
+def default_controller(n: int, m: int) -> str:
+    """The design ``simulate`` and ``export`` use when none is named: the paper's ``l2``
+    where it runs (m >= n), else ``ida-under``."""
+    return "ida-under" if m < n else "l2"
+

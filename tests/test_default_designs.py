@@ -1,0 +1,63 @@
+"""The designs a command runs when none is named come from the robot's cables: a sweep or a
+run with no design named runs on every robot the toolkit accepts (it used to list
+``ida-ref``, which refuses more cables than degrees of freedom, and ``l2``, which refuses
+fewer, so a sweep of such a robot with no ``--controllers`` stopped with a refusal)."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from cdpr_sym import preset
+from cdpr_sym.cli import main
+from cdpr_sym.control import CONTROLLERS, check_cables, default_controller, default_sweep_designs
+from cdpr_sym.robot.files import robot_file_text
+from cdpr_sym.underactuated.zoo import underactuated_zoo
+from cdpr_sym.workspace.zoo import ZOO_KINDS, random_robot
+
+
+def _robots():
+    """Presets of every cable class and robots drawn by both zoos (seeds the studies do
+    not use): m = n, m > n and m < n, point masses and bodies."""
+    rng = np.random.default_rng(11)
+    drawn = [random_robot(rng, kind=kind) for kind in ZOO_KINDS for _ in range(3)]
+    return [preset(name) for name in ("aras3", "planar3", "ipanema8", "bar2", "tri3")] + \
+        drawn + underactuated_zoo(11, 6)
+
+
+@pytest.mark.parametrize("robot", _robots(), ids=lambda robot: robot.name)
+def test_every_default_design_runs_on_the_robot(robot):
+    names = (*default_sweep_designs(robot.n, robot.m), default_controller(robot.n, robot.m))
+    for name in names:
+        check_cables(CONTROLLERS[name], robot.n, robot.m)  # raises where it would refuse
+
+
+def test_the_paper_robot_keeps_the_paper_design_and_the_two_recommended_ones():
+    robot = preset("aras3")
+    assert default_sweep_designs(robot.n, robot.m) == ("l2", "smooth", "ida-ref")
+    assert default_controller(robot.n, robot.m) == "l2"
+
+
+@pytest.mark.slow  # builds three designs' steps for a redundant robot (20 s)
+@pytest.mark.parametrize(("name", "designs"), [
+    ("spatial4", {"l2", "smooth", "ida-winch"}), ("bar2", {"ida-under", "ida-under-i"})])
+def test_a_sweep_with_no_designs_named_runs_the_robots_own(capsys, tmp_path, name, designs):
+    out = tmp_path / "sweep.csv"
+    status = main(["sweep", "--robot", name, "--pairs", "1", "--duration", "0.05",
+                   "--workers", "1", "--out", str(out), "--no-progress"])
+    capsys.readouterr()
+    assert status == 0
+    with open(out, newline="") as handle:
+        assert {row["controller"] for row in csv.DictReader(handle)} == designs
+
+
+def test_simulate_with_no_design_named_runs_an_underactuated_robot(capsys, tmp_path):
+    robot_file = tmp_path / "bar.toml"
+    robot_file.write_text(robot_file_text(preset("bar2")))
+    status = main(["simulate", "--robot", str(robot_file), "--duration", "0.05", "--json"])
+    out = capsys.readouterr().out
+    assert status == 0
+    assert json.loads(out)["controller"] == "ida-under"
