@@ -345,3 +345,27 @@ def test_a_mass_in_a_robot_file_is_range_checked(tmp_path):
     with pytest.raises(InvalidRobot) as raised:
         load_robot(_write(tmp_path, text))
     assert raised.value.field == "mass"
+
+
+def test_a_file_error_names_the_field_as_the_file_writes_it():
+    """A robot file's frame is ``frame.lower``, its case ``case.goal``: the message names
+    the key the user has to change, not the Python attribute behind it."""
+    data = tomllib.loads(_preset_text("aras3"))
+    data["frame"]["lower"] = data["frame"]["lower"][:2]
+    with pytest.raises(InvalidRobot) as raised:
+        robot_from_dict(data)
+    assert raised.value.field == "frame.lower"
+    data = tomllib.loads(_preset_text("aras3"))
+    data["case"]["goal"] = [9.0, 9.0, 9.0]
+    with pytest.raises(InvalidRobot) as raised:
+        robot_from_dict(data)
+    assert raised.value.field == "case.goal"
+
+
+def test_ragged_anchors_are_refused_for_their_shape():
+    data = tomllib.loads(_preset_text("aras3"))
+    data["anchors"][1] = data["anchors"][1][:2]
+    with pytest.raises(InvalidRobot, match=r"rows of one length .* rows of 3, 2, 3 values") \
+            as raised:
+        robot_from_dict(data)
+    assert raised.value.field == "anchors"

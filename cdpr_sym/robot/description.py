@@ -495,6 +495,11 @@ def _float_array(field: str, value: Any, *, ndim: int) -> np.ndarray:
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
+        lengths = _row_lengths(value)
+        if lengths is not None and len(set(lengths)) > 1:
+            raise InvalidRobot(field, f"expected rows of one length (an array of {ndim} "
+                               f"dimensions), got rows of {', '.join(map(str, lengths))} "
+                               f"values") from None
         raise InvalidRobot(field, f"expected finite numbers, got {_shown(value)}") from None
     if array.ndim != ndim:
         raise InvalidRobot(field, f"expected a {ndim}-D array, got shape {array.shape}")
@@ -502,6 +507,15 @@ def _float_array(field: str, value: Any, *, ndim: int) -> np.ndarray:
         raise InvalidRobot(field, f"expected finite numbers, got {array.tolist()}")
     array.setflags(write=False)
     return array
+
+
+def _row_lengths(value: Any) -> list[int] | None:
+    """The length of each row of a list of lists (None for anything else)."""
+    if not isinstance(value, (list, tuple)) or not value:
+        return None
+    if not all(isinstance(row, (list, tuple)) for row in value):
+        return None
+    return [len(row) for row in value]
 
 
 def _inertia_tensor(value: Any, d: int) -> np.ndarray:

@@ -60,20 +60,23 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
     start = get("case.start")
     # until the gains a file leaves out are derived: ones of the start's size
     placeholder = [1.0] * len(start) if isinstance(start, list) else 1.0
-    robot = Robot(
-        name=data.get("name", Path(source).stem),
-        anchors=get("anchors"), mass=get("mass"), gravity=get("gravity", 9.81),
-        t_min=get("tension.min"), t_max=get("tension.max"),
-        frame_lower=get("frame.lower"), frame_upper=get("frame.upper"),
-        start=start, goal=get("case.goal"),
-        k=stated.get("k", placeholder), r_d=stated.get("r_d", placeholder),
-        attachments=body.get("attachments"), inertia=body.get("inertia"),
-        center_of_mass=body.get("center_of_mass"),
-        external_force=wrench.get("force"), external_moment=wrench.get("moment"),
-        encoder_offsets=encoders.get("offsets"),
-        # the fields a [target] table states; the Robot derives the rest from the box
-        target=data.get("target") or None,
-    )
+    try:
+        robot = Robot(
+            name=data.get("name", Path(source).stem),
+            anchors=get("anchors"), mass=get("mass"), gravity=get("gravity", 9.81),
+            t_min=get("tension.min"), t_max=get("tension.max"),
+            frame_lower=get("frame.lower"), frame_upper=get("frame.upper"),
+            start=start, goal=get("case.goal"),
+            k=stated.get("k", placeholder), r_d=stated.get("r_d", placeholder),
+            attachments=body.get("attachments"), inertia=body.get("inertia"),
+            center_of_mass=body.get("center_of_mass"),
+            external_force=wrench.get("force"), external_moment=wrench.get("moment"),
+            encoder_offsets=encoders.get("offsets"),
+            # the fields a [target] table states; the Robot derives the rest from the box
+            target=data.get("target") or None,
+        )
+    except InvalidRobot as error:  # named as the file names it (frame.lower, not frame_lower)
+        raise InvalidRobot(FILE_KEYS.get(error.field, error.field), error.message) from None
     if len(stated) == 2:
         return robot
     # the gains the file leaves out, from the robot (cdpr_sym.robot.gains)
@@ -81,6 +84,15 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
                         robot.center_of_mass)
     return dataclasses.replace(robot, k=np.asarray(stated.get("k", k), dtype=float),
                                r_d=np.asarray(stated.get("r_d", r_d), dtype=float))
+
+
+#: The robot file's key of each :class:`Robot` field whose name differs from it.
+FILE_KEYS = {"t_min": "tension.min", "t_max": "tension.max", "frame_lower": "frame.lower",
+             "frame_upper": "frame.upper", "start": "case.start", "goal": "case.goal",
+             "k": "case.k", "r_d": "case.r_d", "attachments": "body.attachments",
+             "inertia": "body.inertia", "center_of_mass": "body.center_of_mass",
+             "external_force": "wrench.force", "external_moment": "wrench.moment",
+             "encoder_offsets": "encoders.offsets"}
 
 
 #: The robot-file layout: top-level fields, and the fields of each table.
