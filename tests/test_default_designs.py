@@ -1,7 +1,9 @@
-"""The designs a command runs when none is named come from the robot's cables: a sweep or a
-run with no design named runs on every robot the toolkit accepts (it used to list
-``ida-ref``, which refuses more cables than degrees of freedom, and ``l2``, which refuses
-fewer, so a sweep of such a robot with no ``--controllers`` stopped with a refusal)."""
+"""What a command typed with no options answers on any robot. The designs it runs when none
+is named come from the robot's cables: a sweep or a run with no design named runs on every
+robot the toolkit accepts (it used to list ``ida-ref``, which refuses more cables than
+degrees of freedom, and ``l2``, which refuses fewer, so a sweep of such a robot with no
+``--controllers`` stopped with a refusal). And ``simulate`` says whether its run meets the
+robot's own target."""
 
 from __future__ import annotations
 
@@ -61,3 +63,26 @@ def test_simulate_with_no_design_named_runs_an_underactuated_robot(capsys, tmp_p
     out = capsys.readouterr().out
     assert status == 0
     assert json.loads(out)["controller"] == "ida-under"
+
+
+def _judged(capsys, *argv: str) -> dict:
+    status = main(["simulate", "--controller", "smooth", "--json", *argv])
+    assert status == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_simulate_says_whether_the_run_meets_the_robots_own_target(capsys, tmp_path):
+    """The same run judged by two targets: aras3's default (settled by 5 s) and a file's
+    [target] asking for 1 s, which smooth's 1.38 s misses; and the paper's l2, which never
+    settles."""
+    default = _judged(capsys)
+    assert default["meets_target"] and default["target"]["settle_time"] == 5.0
+    assert 1.0 < default["settle_time"] < 5.0
+    strict = tmp_path / "strict.toml"
+    strict.write_text(robot_file_text(preset("aras3")) + "\n[target]\nsettle_time = 1.0\n")
+    judged = _judged(capsys, "--robot", str(strict))
+    assert judged["settle_time"] == default["settle_time"]  # the same run ...
+    assert not judged["meets_target"] and judged["target"]["settle_time"] == 1.0  # ... late
+    status = main(["simulate", "--json"])
+    paper = json.loads(capsys.readouterr().out)
+    assert status == 0 and paper["controller"] == "l2" and not paper["meets_target"]

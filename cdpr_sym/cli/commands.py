@@ -158,6 +158,8 @@ def simulate_command(args: argparse.Namespace, out: Output) -> int:
                        duration=args.duration, dt=args.dt, plant=checked.plant,
                        build_options=BuildOptions(backend=args.backend))
     m = run.metrics()
+    target = robot.design_target
+    met = _meets_target(run, target, args.dt)
     saved = run.save(checked.save) if checked.save else None
     angles = "rad" in robot.coordinate_units
     length = "m and rad" if angles else "m"
@@ -170,7 +172,8 @@ def simulate_command(args: argparse.Namespace, out: Output) -> int:
              f"  final error          {quantity(m['final_error'], length)}",
              f"  largest step         {quantity(m['max_tension_step'], 'N')} per control period",
              f"  min alpha            {quantity(m['min_alpha'])}",
-             f"  stopped              {m['stop_reason'] or 'no'}"]
+             f"  stopped              {m['stop_reason'] or 'no'}",
+             f"  meets the target     {yes_no(met)} ({target.describe(args.dt)})"]
     if drawn:
         lines += [f"  as built             seed {args.seed}, mass x "
                   f"{drawn['as_built']['mass_scale']:.4f}, calibration {args.calibration}",
@@ -185,9 +188,21 @@ def simulate_command(args: argparse.Namespace, out: Output) -> int:
         run.animate(robot, fps=args.fps).save(args.animate)
         lines.append(f"  animation            {args.animate}")
     out.result({**m, **drawn, "robot": robot.name, "controller": args.controller,
+                "meets_target": met, "target": _target_record(target, args.dt),
                 "saved": str(saved) if saved else None,
                 "animation": None if args.animate is None else str(args.animate)}, lines)
     return 0
+
+
+def _meets_target(run: Trajectory, target: Target, dt: float) -> bool:
+    """Whether ``run`` meets the robot's ``target`` as a sweep judges its row: stopped runs
+    do not, the settle time is measured in the target's band (the printed one is the 1 cm
+    band's), the steps against the target's step at the period ``dt`` (s)."""
+    from cdpr_sym.results.judging import meets_target
+
+    row = {"status": "ok" if run.stop_reason is None else "stopped",
+           **run.metrics(settle_band=target.error)}
+    return meets_target(row, target, dt=dt)
 
 
 def check_pairs_and_seed(args: argparse.Namespace) -> None:
