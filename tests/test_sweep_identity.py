@@ -18,6 +18,7 @@ IDENTITY = {"robot": "planar2", "versions": {"numpy": "2"}}
 
 
 def _refusal(out, stored) -> str:
+    out.write_text("")  # a table, whatever its rows: the sidecar speaks for it
     sidecar_path(out).write_text(json.dumps(stored))
     with pytest.raises(InvalidCase) as raised:
         check_identity(CONFIG, IDENTITY, out, "csv")
@@ -62,3 +63,13 @@ def test_a_folder_given_as_a_csv_output_is_refused(tmp_path):
         done_rows(CONFIG, out, "csv", np.zeros((2, 2)), np.zeros((2, 2)))
     assert str(raised.value) == (f"out: {out} is a folder (a Parquet sweep?), not a CSV "
                                  "file; choose another --out or the format it was written in")
+
+
+def test_a_sidecar_whose_table_was_deleted_is_replaced(tmp_path):
+    """Deleting a table to start over left its sidecar, and the next sweep was refused with
+    "rows.csv holds a sweep with another configuration" for a file that did not exist."""
+    out = tmp_path / "rows.csv"
+    stored = {**CONFIG.as_dict(), "pairs": 3}
+    sidecar_path(out).write_text(json.dumps({"config": stored, "identity": IDENTITY}))
+    check_identity(CONFIG, IDENTITY, out, "csv")
+    assert json.loads(sidecar_path(out).read_text())["config"] == CONFIG.as_dict()

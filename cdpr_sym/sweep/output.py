@@ -127,9 +127,12 @@ def _same_file(handle: IO[str], path: Path) -> bool:
 def check_identity(config: SweepConfig, identity: dict[str, Any], out: Path,
                    format: str) -> None:
     """Refuse an output written under another configuration or identity, or an existing
-    output without its sidecar; write the sidecar of a new output."""
+    output without its sidecar; write the sidecar of a new output. A sidecar whose table is
+    gone (deleted to start over) describes no rows: it is replaced."""
     sidecar = sidecar_path(out)
     identity = json.loads(json.dumps(identity))
+    if sidecar.exists() and not out.exists():
+        sidecar.unlink()
     if sidecar.exists():
         stored = read_json(sidecar)
         if not isinstance(stored, dict) or stored.get("config") != config.as_dict():
