@@ -86,3 +86,24 @@ def test_simulate_says_whether_the_run_meets_the_robots_own_target(capsys, tmp_p
     status = main(["simulate", "--json"])
     paper = json.loads(capsys.readouterr().out)
     assert status == 0 and paper["controller"] == "l2" and not paper["meets_target"]
+
+
+@pytest.mark.slow  # exports and runs aras3's package in the loop (5 s)
+def test_an_encoder_package_with_no_design_named_reads_the_drives(capsys, tmp_path):
+    """``export-c --from-encoders`` defaults to ida-winch (the paper's l2 trips the
+    package's guard on the robot as built)."""
+    status = main(["export-c", "--robot", "aras3", "--from-encoders", "--out",
+                   str(tmp_path / "aras3"), "-q"])
+    capsys.readouterr()
+    manifest = json.loads((tmp_path / "aras3" / "manifest.json").read_text())
+    assert status == 0 and manifest["prefix"] == "cdpr_aras3_ida_winch_encoders"
+
+
+def test_an_encoder_package_of_fewer_cables_than_coordinates_is_refused(capsys, tmp_path):
+    """The encoders cannot give the pose: said in one line, before any build (it said the
+    as-built specification needed encoders, which such a robot's build cannot have)."""
+    status = main(["export-c", "--robot", "bar2", "--from-encoders", "--out",
+                   str(tmp_path / "bar2")])
+    err = capsys.readouterr().err
+    assert status == 2 and len(err.splitlines()) == 1
+    assert "from_encoders:" in err and "cannot give its 3 coordinates" in err

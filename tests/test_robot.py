@@ -369,3 +369,21 @@ def test_ragged_anchors_are_refused_for_their_shape():
             as raised:
         robot_from_dict(data)
     assert raised.value.field == "anchors"
+
+
+def test_a_file_error_speaks_the_files_words_in_its_text_too():
+    data = tomllib.loads(_preset_text("aras3"))
+    data["tension"]["min"], data["tension"]["max"] = 60.0, 2.0
+    with pytest.raises(InvalidRobot) as raised:
+        robot_from_dict(data)
+    assert raised.value.field in ("tension.min", "tension.max")
+    assert "t_min" not in str(raised.value) and "tension.min" in raised.value.message
+
+
+def test_a_one_dimensional_field_of_rows_is_not_called_ragged():
+    data = tomllib.loads(_preset_text("aras3"))
+    data["frame"]["lower"] = [[0.0, 1.0], [2.0]]
+    with pytest.raises(InvalidRobot) as raised:
+        robot_from_dict(data)
+    assert raised.value.field == "frame.lower" and "rows of one length" not in str(raised.value)
+

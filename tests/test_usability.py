@@ -72,7 +72,9 @@ def test_help_shows_defaults_and_explains_the_controllers(capsys):
     with pytest.raises(SystemExit):
         main(["simulate", "--help"])
     text = capsys.readouterr().out
-    assert "(default: 10.0)" in text and "(default: l2)" in text
+    words = " ".join(text.split())
+    assert "(default: 10.0)" in text
+    assert "default the paper's l2, or ida-under for fewer cables than degrees of freedom" in words
     for name, description in DESCRIPTIONS.items():
         assert f"{name:<11} {description}" in text
     assert set(DESCRIPTIONS) == set(CONTROLLERS)

@@ -151,9 +151,10 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
     sweep.add_argument("--controllers",
                        help="comma-separated controller names (see the list below); default "
-                            "the paper's design and the two recommended ones for the robot: "
-                            "l2,smooth,ida-ref with as many cables as degrees of freedom, "
-                            "l2,smooth,ida-winch with more, ida-under,ida-under-i with fewer")
+                            "the designs that run on the robot: the paper's and the two "
+                            "recommended ones, l2,smooth,ida-ref with as many cables as "
+                            "degrees of freedom and l2,smooth,ida-winch with more; with fewer "
+                            "ida-under,ida-under-i")
     sweep.add_argument("--pairs", type=int, required=True,
                        help=f"start/goal pairs (at most {MAX_PAIRS:,})")
     sweep.add_argument("--seed", type=int, default=0, help="seed of the pair draw (>= 0)")
@@ -188,7 +189,8 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--robot", default="aras3", help=_ROBOT_HELP)
     export.add_argument("--controller", choices=list(CONTROLLERS),
                         help="the design (see the list below; default the paper's l2, or "
-                             "ida-under for fewer cables than degrees of freedom)")
+                             "ida-under for fewer cables than degrees of freedom; with "
+                             "--from-encoders ida-winch)")
     export.add_argument("--out", type=Path, required=True,
                         help="output folder: new, empty or an earlier export (re-export)")
     export.add_argument("--force", action="store_true",

@@ -89,6 +89,11 @@ def check_export(robot: Robot | str | Path, controller: Controller | str,
     from cdpr_sym.calibration.drawn import drawn_robot, plant_relative_to
 
     robot = resolve_robot(robot)
+    if robot.underactuated:  # before the design's own refusal, which would name the cables
+        raise InvalidCase("from_encoders", f"{robot.name} has fewer cables than degrees of "
+                          f"freedom (m = {robot.m} < n = {robot.n}): its {robot.m} encoder "
+                          f"lengths cannot give its {robot.n} coordinates; export-c without "
+                          f"--from-encoders packages a design that reads the pose")
     label = controller if isinstance(controller, str) else controller.name
     controller = controller_by_name(controller)
     if capabilities(controller).sampled:

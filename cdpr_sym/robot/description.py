@@ -495,7 +495,7 @@ def _float_array(field: str, value: Any, *, ndim: int) -> np.ndarray:
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
-        lengths = _row_lengths(value)
+        lengths = _row_lengths(value) if ndim >= 2 else None
         if lengths is not None and len(set(lengths)) > 1:
             raise InvalidRobot(field, f"expected rows of one length (an array of {ndim} "
                                f"dimensions), got rows of {', '.join(map(str, lengths))} "

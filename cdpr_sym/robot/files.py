@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
+import re
 import stat
 import tomllib
 from importlib import resources
@@ -76,7 +77,8 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
             target=data.get("target") or None,
         )
     except InvalidRobot as error:  # named as the file names it (frame.lower, not frame_lower)
-        raise InvalidRobot(FILE_KEYS.get(error.field, error.field), error.message) from None
+        raise InvalidRobot(FILE_KEYS.get(error.field, error.field),
+                           _file_words(error.message)) from None
     if len(stated) == 2:
         return robot
     # the gains the file leaves out, from the robot (cdpr_sym.robot.gains)
@@ -86,13 +88,19 @@ def robot_from_dict(data: dict[str, Any], *, source: str = "<dict>") -> Robot:
                                r_d=np.asarray(stated.get("r_d", r_d), dtype=float))
 
 
-#: The robot file's key of each :class:`Robot` field whose name differs from it.
+#: The robot file's key of each :class:`Robot` field that :class:`Robot`'s checks name by
+#: its attribute (the body, wrench and encoder fields they already name by the file's key).
 FILE_KEYS = {"t_min": "tension.min", "t_max": "tension.max", "frame_lower": "frame.lower",
              "frame_upper": "frame.upper", "start": "case.start", "goal": "case.goal",
-             "k": "case.k", "r_d": "case.r_d", "attachments": "body.attachments",
-             "inertia": "body.inertia", "center_of_mass": "body.center_of_mass",
-             "external_force": "wrench.force", "external_moment": "wrench.moment",
-             "encoder_offsets": "encoders.offsets"}
+             "k": "case.k", "r_d": "case.r_d"}
+
+
+def _file_words(message: str) -> str:
+    """``message`` with the attribute names a file does not use (t_min, frame_lower, ...)
+    written as its keys; the one-letter ones are left alone (k would match the word)."""
+    for attribute in ("t_min", "t_max", "frame_lower", "frame_upper"):
+        message = re.sub(rf"\b{attribute}\b", FILE_KEYS[attribute], message)
+    return message
 
 
 #: The robot-file layout: top-level fields, and the fields of each table.
