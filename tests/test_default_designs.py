@@ -107,3 +107,32 @@ def test_an_encoder_package_of_fewer_cables_than_coordinates_is_refused(capsys, 
     err = capsys.readouterr().err
     assert status == 2 and len(err.splitlines()) == 1
     assert "from_encoders:" in err and "cannot give its 3 coordinates" in err
+
+
+#: A 40 kg point on four cables a new user wrote: the paper's l2 (simulate's default)
+#: leaves its frame on the file's own case.
+HEAVY_POINT = """name = "heavy_point"
+mass = 40.0
+anchors = [[3.0, 3.0, 6.0], [-3.0, 3.0, 6.0], [-3.0, -3.0, 6.0], [3.0, -3.0, 6.0]]
+[tension]
+min = 20.0
+max = 1500.0
+[frame]
+lower = [-3.0, -3.0, 0.0]
+upper = [3.0, 3.0, 6.0]
+[case]
+start = [-1.0, 0.5, 2.5]
+goal = [1.2, -1.0, 3.5]
+"""
+
+
+def test_simulate_says_when_and_why_its_run_stopped(capsys, tmp_path):
+    from cdpr_sym.closed_loop.stops import ALL_STOP_REASONS, STOP_MEANINGS
+
+    assert set(STOP_MEANINGS) == set(ALL_STOP_REASONS.values())
+    robot_file = tmp_path / "heavy.toml"
+    robot_file.write_text(HEAVY_POINT)
+    assert main(["simulate", "--robot", str(robot_file)]) == 0
+    line = next(line for line in capsys.readouterr().out.splitlines() if "stopped" in line)
+    assert line.split()[1:3] == ["left_frame", "at"]
+    assert STOP_MEANINGS["left_frame"] in line

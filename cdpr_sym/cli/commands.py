@@ -172,7 +172,7 @@ def simulate_command(args: argparse.Namespace, out: Output) -> int:
              f"  final error          {quantity(m['final_error'], length)}",
              f"  largest step         {quantity(m['max_tension_step'], 'N')} per control period",
              f"  min alpha            {quantity(m['min_alpha'])}",
-             f"  stopped              {m['stop_reason'] or 'no'}",
+             f"  stopped              {_stop_text(m['stop_reason'], run)}",
              f"  meets the target     {yes_no(met)} ({target.describe(args.dt)})"]
     if drawn:
         lines += [f"  as built             seed {args.seed}, mass x "
@@ -192,6 +192,15 @@ def simulate_command(args: argparse.Namespace, out: Output) -> int:
                 "saved": str(saved) if saved else None,
                 "animation": None if args.animate is None else str(args.animate)}, lines)
     return 0
+
+
+def _stop_text(reason: str | None, run: Trajectory) -> str:
+    """``no``, or the stop's name, time and meaning (:data:`STOP_MEANINGS`)."""
+    from cdpr_sym.closed_loop.stops import STOP_MEANINGS
+
+    if not reason:
+        return "no"
+    return f"{reason} at {run.t[-1]:.3f} s ({STOP_MEANINGS.get(reason, 'see the docs')})"
 
 
 def _meets_target(run: Trajectory, target: Target, dt: float) -> bool:

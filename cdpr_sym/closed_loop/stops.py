@@ -20,6 +20,15 @@ LOST_POSE = 4
 #: Every stop status a run can end with, the ideal plant's and the as-built plant's: one
 #: table, so no two codes collide.
 ALL_STOP_REASONS = {**STOP_REASONS, LOST_POSE: "lost_pose"}
+#: What each stop means, in a phrase a run's output prints beside its name.
+STOP_MEANINGS = {
+    "singular": "W lost rank (or its determinant changed sign within a step): the cables "
+                "cannot produce every force there",
+    "non_finite": "the state or the command stopped being a finite number",
+    "left_frame": "the pose left the robot's frame box",
+    "lost_pose": "forward kinematics could not read the pose from the encoders within the "
+                 "reading bound, so the controller stopped, as a real one must",
+}
 
 
 def stop_status(model: SymbolicModel, status: ca.SX, flags: ca.SX, command: ca.SX, q: ca.SX,
