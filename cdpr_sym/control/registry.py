@@ -172,4 +172,3 @@ def default_controller(n: int, m: int) -> str:
     """The design ``simulate`` and ``export`` use when none is named: the paper's ``l2``
     where it runs (m >= n), else ``ida-under``."""
     return "ida-under" if m < n else "l2"
-
