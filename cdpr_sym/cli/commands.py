@@ -159,7 +159,7 @@ def simulate_command(args: argparse.Namespace, out: Output) -> int:
                        build_options=BuildOptions(backend=args.backend))
     m = run.metrics()
     target = robot.design_target
-    met = _meets_target(run, target, args.dt)
+    met = _meets_target(run, robot, args.dt)
     saved = run.save(checked.save) if checked.save else None
     angles = "rad" in robot.coordinate_units
     length = "m and rad" if angles else "m"
@@ -203,15 +203,15 @@ def _stop_text(reason: str | None, run: Trajectory) -> str:
     return f"{reason} at {run.t[-1]:.3f} s ({STOP_MEANINGS.get(reason, 'see the docs')})"
 
 
-def _meets_target(run: Trajectory, target: Target, dt: float) -> bool:
-    """Whether ``run`` meets the robot's ``target`` as a sweep judges its row: stopped runs
-    do not, the settle time is measured in the target's band (the printed one is the 1 cm
-    band's), the steps against the target's step at the period ``dt`` (s)."""
+def _meets_target(run: Trajectory, robot: Robot, dt: float) -> bool:
+    """Whether ``run`` meets ``robot``'s design target as a sweep judges its row (its
+    :func:`~cdpr_sym.sweep.runner.run_row`: stopped runs do not, the settle time in the
+    target's band, where the printed one is the 1 cm band's), the steps against the
+    target's step at the period ``dt`` (s)."""
     from cdpr_sym.results.judging import meets_target
+    from cdpr_sym.sweep.runner import run_row
 
-    row = {"status": "ok" if run.stop_reason is None else "stopped",
-           **run.metrics(settle_band=target.error)}
-    return meets_target(row, target, dt=dt)
+    return meets_target(run_row(run, robot), robot.design_target, dt=dt)
 
 
 def check_pairs_and_seed(args: argparse.Namespace) -> None:

@@ -87,7 +87,7 @@ def run_one(robot: Robot, controller_name: str, start: np.ndarray, goal: np.ndar
                             plant=Plant(mass_scale=mass_scale))
     except _RUN_FAILURES as failure:
         return _error_row(failure)
-    return _row(run, robot)
+    return run_row(run, robot)
 
 
 def run_group(robot: Robot, controller_name: str, starts: np.ndarray, goals: np.ndarray, *,
@@ -106,7 +106,7 @@ def run_group(robot: Robot, controller_name: str, starts: np.ndarray, goals: np.
         return [run_one(robot, controller_name, start, goal, duration=duration, dt=dt,
                         mass_scale=mass_scale) for start, goal in zip(starts, goals,
                                                                         strict=True)]
-    return [_row(summary, robot) for summary in summaries]
+    return [run_row(summary, robot) for summary in summaries]
 
 
 def run_as_built(robot: Robot, draw: AsBuiltDraw, config: SweepConfig, pair: int,
@@ -187,14 +187,14 @@ def _as_built_row(run: Trajectory | RunSummary, robot: Robot, record: dict[str, 
                for i, row in enumerate(record["anchor_offsets"])
                for axis, value in zip(axes, row, strict=True)}
     extra = {key: record[key] for key in CALIBRATION_COLUMNS if key in record}
-    return {**_row(run, robot), "held": checked[0], "read_error": checked[1],
+    return {**run_row(run, robot), "held": checked[0], "read_error": checked[1],
             "floor_error": checked[2],
             "mass_scale": record["mass_scale"], **offsets, **extra}
 
 
-def _row(run: Trajectory | RunSummary, robot: Robot) -> dict[str, Any]:
-    """A run's row; a trajectory's settle time measured in the band of ``robot``'s target
-    (a summary's was, when it was made: :func:`run_group`)."""
+def run_row(run: Trajectory | RunSummary, robot: Robot) -> dict[str, Any]:
+    """A run's row, as a sweep stores and judges it; a trajectory's settle time measured in
+    the band of ``robot``'s target (a summary's was, when it was made: :func:`run_group`)."""
     row: dict[str, Any] = {"status": "ok" if run.stop_reason is None else "stopped",
                            "error": ""}
     if isinstance(run, Trajectory):
