@@ -32,7 +32,9 @@ def _robots():
 
 @pytest.mark.parametrize("robot", _robots(), ids=lambda robot: robot.name)
 def test_every_default_design_runs_on_the_robot(robot):
-    names = (*default_sweep_designs(robot.n, robot.m), default_controller(robot.n, robot.m))
+    names = (*default_sweep_designs(robot.n, robot.m), default_controller(robot.n, robot.m),
+             *((default_controller(robot.n, robot.m, encoders=True),) if robot.m >= robot.n
+               else ()))
     for name in names:
         check_cables(CONTROLLERS[name], robot.n, robot.m)  # raises where it would refuse
 

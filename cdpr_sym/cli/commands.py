@@ -441,10 +441,8 @@ def export_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.export import export_c
 
     robot = checked_robot(args.robot)
-    if args.controller is None:  # the robot's default (its cables decide which runs); an
-        # encoder-level package's is the design that reads the drives
-        args.controller = ("ida-winch" if args.from_encoders and not robot.underactuated
-                           else default_controller(robot.n, robot.m))
+    if args.controller is None:  # the robot's default (its cables decide which runs)
+        args.controller = default_controller(robot.n, robot.m, encoders=args.from_encoders)
     if args.from_encoders:
         return _export_encoders(args, robot, out)
     for option, given in (("calibration", args.calibration is not None),

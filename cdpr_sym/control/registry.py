@@ -168,7 +168,11 @@ def default_sweep_designs(n: int, m: int) -> tuple[str, ...]:
     return DEFAULT_SWEEP[robot_class(n, m)]
 
 
-def default_controller(n: int, m: int) -> str:
-    """The design ``simulate`` and ``export`` use when none is named: the paper's ``l2``
-    where it runs (m >= n), else ``ida-under``."""
-    return "ida-under" if m < n else "l2"
+def default_controller(n: int, m: int, *, encoders: bool = False) -> str:
+    """The design ``simulate`` and ``export-c`` use when none is named: the paper's ``l2``
+    where it runs (m >= n), else ``ida-under``; for an encoder-level package
+    (``encoders``, m >= n) ``ida-winch``, the design that reads the drives (``l2`` trips
+    that package's guard on the robot as built)."""
+    if m < n:
+        return "ida-under"
+    return "ida-winch" if encoders else "l2"
