@@ -176,7 +176,7 @@ def _trajectory(error_at: list[float]) -> Trajectory:
 
 
 def test_the_settle_time_is_measured_in_the_targets_band():
-    from cdpr_sym.sweep.runner import _row as sweep_row
+    from cdpr_sym.sweep.runner import run_row as sweep_row
 
     run = _trajectory([0.5, 0.03, 0.015, 0.008, 0.004])
     assert run.metrics()["settle_time"] == 3.0  # the 1 cm band
