@@ -4,9 +4,12 @@ frame its prediction keeps (``Nmpc.last_resort``, ``NmpcProblem.prediction_bound
 * A 22 kg planar body on 3 cables with 0.96 m attachment arms (the zoo property's seed 186):
   at its case's first sample both of ``qrqp``'s solves come back outside their bounds, DAQP's
   passes the same check; IPOPT on the nonlinear problem, a second solver, reaches the same
-  first tension rates to a few percent. Both at the 800 N/s rate bound under which the case
-  was found (the bound now follows the robot, 2.3 kN/s on this one, where qrqp fails too
-  but the first QP step and IPOPT's converged first rates differ by 12 % of the bound).
+  first tension rates to a few percent. Both at the 800 N/s rate bound and the horizon (the
+  eighth of the frame's move, 0.91 s) under which the case was found (the bound now follows
+  the robot, 2.3 kN/s on this one, where qrqp fails too but the first QP step and IPOPT's
+  converged first rates differ by 12 % of the bound; the horizon now sees half the frame,
+  1.6 s, where both of qrqp's solves fail at the robot's own bound and the unscaled one
+  passes at 800 N/s).
 * The band: the predicted poses are kept FRAME_BAND of the range inside the frame, never past
   the start or the goal, and the numeric and CasADi forms agree.
 """
@@ -27,11 +30,20 @@ from cdpr_sym.workspace.zoo import random_robot
 FOUND_RATE = 800.0
 
 
+def _as_found(robot, **options) -> Nmpc:
+    """The design the case was found with: FOUND_RATE, and the horizon of the eighth of the
+    frame the weights count in (the rule's horizon then)."""
+    from cdpr_sym.control import tuning
+
+    _, _, move_time = tuning.nmpc_scales(robot, FOUND_RATE)
+    return Nmpc(max_rate=FOUND_RATE, horizon=move_time, **options)
+
+
 @pytest.fixture(scope="module")
 def body():
     robot = random_robot(np.random.default_rng(186), kind="planar")
     model = SymbolicModel(robot)
-    problem = NmpcProblem(model, Nmpc(max_rate=FOUND_RATE))
+    problem = NmpcProblem(model, _as_found(robot))
     q0, goal = np.asarray(robot.start, float), np.asarray(robot.goal, float)
     static = model.functions["static_tension"]
     z0 = np.r_[q0, np.zeros(robot.n), np.array(static(q0)).ravel()]
@@ -53,7 +65,7 @@ def test_qrqp_fails_where_daqp_solves_and_ipopt_agrees(body):
                                tau_goal)
     assert problem.checked(v, residual)
     # the converged problem by IPOPT from the same guess: its first rates near DAQP's step's
-    converged = NmpcProblem(problem.model, Nmpc(solver="ipopt", max_rate=FOUND_RATE))
+    converged = NmpcProblem(problem.model, _as_found(robot, solver="ipopt"))
     lower, upper = converged.prediction_bounds(z0, goal)
     solver = converged.nlp_solver()
     result = solver(x0=converged.hold(z0), p=np.r_[z0, goal, tau_goal, np.zeros(robot.m)],
@@ -110,8 +122,8 @@ def test_the_sampled_solver_falls_back_to_daqp_only_when_asked(body, last_resort
     from cdpr_sym import BuildOptions
     from cdpr_sym.closed_loop.sampled import SampledSolver
 
-    _, problem, z0, goal, tau_goal = body
-    design = Nmpc(last_resort=last_resort, max_rate=FOUND_RATE)
+    robot, problem, z0, goal, tau_goal = body
+    design = _as_found(robot, last_resort=last_resort)
     solver = SampledSolver(problem.model, design, backend="casadi",
                            build_options=BuildOptions(backend="casadi"), library_name="unused",
                            problem=NmpcProblem(problem.model, design))

@@ -74,7 +74,7 @@ DESCRIPTIONS = {
                  "coordinates, damping on the drum speeds, from the winch encoders alone; any "
                  "m >= n cables",
     "nmpc": "NMPC, hard tension and rate bounds, 50 Hz, horizon from the robot's braking time "
-            "(0.62 s on aras3), one SQP step per "
+            "(1.2 s on aras3), one SQP step per "
             "sample (real-time iteration, generated C); any m >= n cables",
     "nmpc-sqp": "the same NMPC solved to convergence by CasADi's sqpmethod at every sample",
     "nmpc-ipopt": "the same NMPC solved to convergence by IPOPT (the reference)",

@@ -346,29 +346,37 @@ def rules() -> dict[str, Any]:
 #   max_k |(W^+ M)_ki| and the acceleration A_i = (T_max - T_min) / 2 / max_k |(W^+ M)_ki|
 #   the cables give along that coordinate alone (the minimum-norm tension rates, and half
 #   the box for tensions that sit inside it);
-# * the horizon H = max_i T_i, T_i the rest-to-rest time of a move of l_i under J_i and A_i,
-#   l_i = NMPC_MOVE_SHARE x the frame's smallest side for a position and x the smallest
-#   angle range for an angle (one length per kind, so a point mass's cost stays the same in
-#   every direction), with T_i an S-curve's time:
-#   T = (32 l / J)^(1/3) while the acceleration stays below A, i.e. l <= 2 A^3 / J^2, else
-#   T = A / J + sqrt((A / J)^2 + 4 l / A)): within H the platform can start, cover l_i and
-#   stop again, so a plan that does not brake by its end is one the cost sees;
-# * the weights in units of those scales, l the positions' move: Q = NMPC_POSITION_SCALE /
-#   l^2 (an error of l costs as much on every robot), R = NMPC_VELOCITY_SCALE (H / l)^2 (a
-#   speed of l / H, the pace the horizon brakes from, costs as much), and the rate weight
-#   NMPC_RATE_SCALE H^2 per box^2 (a rate of one box per horizon costs as much). Angles
+# * the horizon H = max_i T_i(L_i), T_i(L) the rest-to-rest time of a move of L under J_i
+#   and A_i, L_i = NMPC_HORIZON_SHARE (half) of the frame's smallest side for a position and
+#   of the smallest angle range for an angle (one length per kind, so a point mass's cost
+#   stays the same in every direction), with T an S-curve's time:
+#   T = (32 L / J)^(1/3) while the acceleration stays below A, i.e. L <= 2 A^3 / J^2, else
+#   T = A / J + sqrt((A / J)^2 + 4 L / A)): within H the platform can start, cross half the
+#   frame and stop again, so a plan that does not brake by its end is one the cost sees.
+#   Sized for an eighth of the frame (0.62 s on the paper's robot) the horizon let plans
+#   across the frame race: on a 1 kg planar point a plan reached 3.5 m/s and hit the frame's
+#   corner at an anchor (``singular`` on 4 of 40 pairs), a 0.27 kg 4-cable point left the
+#   frame on 3 of 20; sized for half of it, 40 of 40 and 20 of 20 met the target;
+# * the weights in units of a shorter move, l_i = NMPC_MOVE_SHARE (an eighth) of the same
+#   sides, and its time T = max_i T_i(l_i): Q = NMPC_POSITION_SCALE / l^2 (an error of l
+#   costs as much on every robot), R = NMPC_VELOCITY_SCALE (T / l)^2 (a speed of l / T
+#   costs as much), and the rate weight NMPC_RATE_SCALE T^2 per box^2 (a rate of one box
+#   per T costs as much). Angles
 #   weigh as positions, 0.01 rad like 1 cm: weighed by their own, shorter move, a 15 kg
 #   6-DOF platform's angles got 20 times the position weight and CasADi's qrqp returned
 #   points outside the bounds from a pair's first sample on. The tension weight is already
 #   per box^2.
 #
-# On the paper's robot the rule gives l = 0.445 m and H = 0.62 s (x brakes slowest, the
-# box's acceleration binding there, not the rate) and Q, R and S within 1 % of the
+# On the paper's robot the rule gives l = 0.445 m, T = 0.62 s (x brakes slowest, the box's
+# acceleration binding there, not the rate) and H = 1.2 s, and Q, R and S within 1 % of the
 # hand-tuned 400 1/m^2, 2 s^2/m^2 and 3 s^2 per box^2 they replace.
 
-#: The move the horizon must fit, start to stop, as a share of the frame's smallest side (of
-#: the smallest angle range for angles).
+#: The move the weights are counted in, as a share of the frame's smallest side (of the
+#: smallest angle range for angles).
 NMPC_MOVE_SHARE = 1 / 8
+#: The move the horizon must fit, start to stop, in the same shares: half the frame, about
+#: as far as a pair drawn across the workspace travels.
+NMPC_HORIZON_SHARE = 1 / 2
 #: Q_i l_i^2: the cost of a position error of l_i (400 / m^2 x 0.445^2 on aras3's x).
 NMPC_POSITION_SCALE = 79.0
 #: R_i l_i^2 / H^2: the cost of a speed of l_i / H (2 s^2/m^2 on aras3).
@@ -408,23 +416,38 @@ def rest_to_rest_time(distance: Any, jerk: Any, acceleration: Any) -> Any:
 
 
 def nmpc_scales(robot: Robot, max_rate: float, model: Any = None
-                ) -> tuple[float, np.ndarray]:
-    """(H, l): the NMPC horizon (s) and each coordinate's move l_i (m, rad) by the rule
-    above: l_i = NMPC_MOVE_SHARE x the frame's smallest side (positions) or smallest angle
-    range (angles), H = max_i rest_to_rest_time(l_i, J_i, A_i)."""
+                ) -> tuple[float, np.ndarray, float]:
+    """(H, l, T): the NMPC horizon (s), each coordinate's move l_i (m, rad) and the move's
+    time (s) by the rule above: l_i = NMPC_MOVE_SHARE x the frame's smallest side
+    (positions) or smallest angle range (angles), T = max_i rest_to_rest_time(l_i, J_i,
+    A_i), and H the same time over NMPC_HORIZON_SHARE of those sides and ranges."""
+    jerk, acceleration = coordinate_limits(robot, max_rate, model)
+
+    def longest_time(share: float) -> tuple[float, np.ndarray]:
+        moves = _coordinate_moves(robot, share)
+        return float(np.max(rest_to_rest_time(moves, jerk, acceleration))), moves
+
+    pace, moves = longest_time(NMPC_MOVE_SHARE)
+    horizon, _ = longest_time(NMPC_HORIZON_SHARE)
+    return horizon, moves, pace
+
+
+def _coordinate_moves(robot: Robot, share: float) -> np.ndarray:
+    """Per coordinate, ``share`` of the frame's smallest side (positions, m) or of its
+    smallest angle range (angles, rad)."""
     ranges = (np.asarray(robot.frame_upper, dtype=float)
               - np.asarray(robot.frame_lower, dtype=float))
     d = robot.dimension
-    moves = np.full(robot.n, NMPC_MOVE_SHARE * float(np.min(ranges[:d])))
+    moves = np.full(robot.n, share * float(np.min(ranges[:d])))
     if robot.n > d:
-        moves[d:] = NMPC_MOVE_SHARE * float(np.min(ranges[d:]))
-    jerk, acceleration = coordinate_limits(robot, max_rate, model)
-    return float(np.max(rest_to_rest_time(moves, jerk, acceleration))), moves
+        moves[d:] = share * float(np.min(ranges[d:]))
+    return moves
 
 
-def nmpc_weights(move: float, horizon: float) -> dict[str, Any]:
-    """The NMPC cost's weights for the positions' move l (m) and the horizon H (s): Q (1/m^2,
-    1/rad^2 on angles), R (s^2/m^2, s^2/rad^2) and S (s^2 per box^2), by the rule above."""
+def nmpc_weights(move: float, move_time: float) -> dict[str, Any]:
+    """The NMPC cost's weights for the positions' move l (m) and its rest-to-rest time T (s):
+    Q (1/m^2, 1/rad^2 on angles), R (s^2/m^2, s^2/rad^2) and S (s^2 per box^2), by the rule
+    above."""
     return {"position": NMPC_POSITION_SCALE / move**2,
-            "velocity": NMPC_VELOCITY_SCALE * horizon**2 / move**2,
-            "rate": NMPC_RATE_SCALE * horizon**2}
+            "velocity": NMPC_VELOCITY_SCALE * move_time**2 / move**2,
+            "rate": NMPC_RATE_SCALE * move_time**2}

@@ -112,13 +112,15 @@ class Nmpc:
     horizon : float or "robot"
         s, the prediction horizon (rounded to whole sample intervals, at least one, at most
         :data:`MAX_INTERVALS`); ``"robot"`` (the default): the time the platform takes to
-        start, move an eighth of the frame's smallest side (of the smallest angle range, for
-        an angle) along one coordinate and stop under ``max_rate`` and the tension box, the
-        longest over the coordinates (0.62 s on the paper's robot; 3 s on a 363 kg one under a
-        fixed 800 N/s, 0.67 s under its own target's rate; see
+        start, move half the frame's smallest side (of the smallest angle range, for an
+        angle) along one coordinate and stop under ``max_rate`` and the tension box, the
+        longest over the coordinates (1.2 s on the paper's robot; see
         :mod:`cdpr_sym.control.tuning`). A horizon shorter than the
-        platform's braking lets the plan race: the heavy robot reached 4.9 m/s with 0.5 s
-        and left the frame, since the bound on q at the nodes never saw the stop it needed.
+        platform's braking lets the plan race: a 363 kg robot reached 4.9 m/s with 0.5 s
+        and left the frame, since the bound on q at the nodes never saw the stop it needed;
+        sized for an eighth of the frame, the horizon still let plans across the frame race
+        into a face or an anchor (``left_frame``, ``singular``) on 7 of 80 pairs of three
+        robots, none sized for half of it.
     solver : str
         One of :data:`SOLVERS`; ``rti`` is the real-time variant, warm-started from the
         shifted previous solution.
@@ -127,11 +129,11 @@ class Nmpc:
         the frame's smallest side (an error of l costs the same on every robot; an angle
         weighs as a position, 0.01 rad like 1 cm).
     velocity_weight : float or "robot"
-        R of the cost, s^2/m^2; ``"robot"``: 1.05 (H / l)^2 (a speed of l / H costs the
-        same).
+        R of the cost, s^2/m^2; ``"robot"``: 1.05 (T / l)^2, T the rest-to-rest time over
+        l (a speed of l / T costs the same).
     rate_weight : float or "robot"
-        S of the cost, s^2 per (T_max - T_min)^2; ``"robot"``: 7.9 H^2 (a rate of one box
-        per horizon costs the same).
+        S of the cost, s^2 per (T_max - T_min)^2; ``"robot"``: 7.9 T^2 (a rate of one box
+        per T costs the same).
     tension_weight : float
         T_w of the cost, per (T_max - T_min)^2 (>= 0).
     terminal_factor : float
@@ -228,26 +230,30 @@ class Nmpc:
     def tuned(self, robot: Robot, model: SymbolicModel | None = None) -> NmpcTuning:
         """The horizon and weights on ``robot``: the design's own numbers, and for each
         ``"robot"`` the rule of :mod:`cdpr_sym.control.tuning` (the horizon in which the
-        platform moves from rest to rest over an eighth of the frame's smallest side under
-        ``max_rate`` and the box; the weights in units of that move and horizon).
+        platform moves from rest to rest over half the frame's smallest side under
+        ``max_rate`` and the box; the weights in units of an eighth of that side and the
+        time of that move).
 
-        Raises :class:`InvalidCase` (``horizon``) when the derived horizon needs more than
-        :data:`MAX_INTERVALS` intervals: no horizon the solve affords sees that robot
-        brake, so no plan can be trusted to keep it in the frame."""
+        Where half the frame takes longer than the :data:`MAX_INTERVALS` intervals the
+        solve affords, the horizon is those intervals. Raises :class:`InvalidCase`
+        (``horizon``) when even the eighth of the frame the weights count in does not fit:
+        no horizon the solve affords sees that robot brake, so no plan can be trusted to
+        keep it in the frame."""
         max_rate = self.rate_for(robot)
         # the horizon sees the platform brake at the slowest pace any derived bound gives
         pace = min(max_rate, tuning.NMPC_HORIZON_PACE)
-        derived, moves = tuning.nmpc_scales(robot, pace, model)
-        horizon = derived if self.horizon == FROM_ROBOT else float(self.horizon)
-        intervals = max(1, round(horizon * self.rate))
-        if intervals > MAX_INTERVALS:
+        derived, moves, move_time = tuning.nmpc_scales(robot, pace, model)
+        if round(move_time * self.rate) > MAX_INTERVALS:
             raise InvalidCase("horizon", f"{robot.name} moves from rest to rest over an "
-                              f"eighth of its frame in {horizon:.3g} s under {pace:g} "
+                              f"eighth of its frame in {move_time:.3g} s under {pace:g} "
                               f"N/s and its tension box, more than the {MAX_INTERVALS} "
                               f"intervals ({MAX_INTERVALS / self.rate:g} s at {self.rate:g} "
                               f"Hz) the solve affords: NMPC cannot plan it to a stop inside "
                               f"the frame")
-        weights = tuning.nmpc_weights(float(moves[0]), horizon)
+        horizon = (min(derived, MAX_INTERVALS / self.rate) if self.horizon == FROM_ROBOT
+                   else float(self.horizon))
+        intervals = max(1, round(horizon * self.rate))
+        weights = tuning.nmpc_weights(float(moves[0]), move_time)
         n = robot.n
 
         def chosen(value: float | str, rule: Any) -> np.ndarray:
