@@ -101,6 +101,16 @@ def test_simulate_save_without_json_names_the_file(capsys, tmp_path):
     assert "final error" in out and (tmp_path / "run.npz").exists()
 
 
+@pytest.mark.parametrize("name, shown", [("l2", True), ("box", True), ("pd-sat", False),
+                                         ("smooth", False)])
+def test_simulate_prints_alpha_only_for_designs_that_scale_their_gain(capsys, name, shown):
+    """alpha is the paper's gain scale of (24); designs without it log 1, which the text
+    would show as if it meant something."""
+    status, out, _ = _run(capsys, "simulate", "--controller", name, "--duration", "0.2")
+    assert status == 0 and "final error" in out
+    assert ("min alpha" in out) == shown
+
+
 @pytest.mark.parametrize(("argv", "field"), [
     (["simulate", "--goal", "5", "0", "1"], "goal"),
     (["simulate", "--goal", "0", "0", "0.3"], "goal"),  # needs [27.7, 0, 27.7] N

@@ -29,6 +29,7 @@ from cdpr_sym.closed_loop.effects.readout import check_draw_runs
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import (
     Controller,
+    capabilities,
     controller_by_name,
     default_controller,
     default_sweep_designs,
@@ -171,7 +172,8 @@ def simulate_command(args: argparse.Namespace, out: Output) -> int:
              f"(1 cm band)",
              f"  final error          {quantity(m['final_error'], length)}",
              f"  largest step         {quantity(m['max_tension_step'], 'N')} per control period",
-             f"  min alpha            {quantity(m['min_alpha'])}",
+             *([f"  min alpha            {quantity(m['min_alpha'])}"]
+               if capabilities(checked.controller).scales_gain else []),
              f"  stopped              {_stop_text(m['stop_reason'], run)}",
              f"  meets the target     {yes_no(met)} ({target.describe(args.dt)})"]
     if drawn:

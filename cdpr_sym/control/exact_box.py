@@ -47,7 +47,7 @@ from cdpr_sym.control.flags import (
     FLAG_SATURATED,
     FLAG_SINGULAR,
 )
-from cdpr_sym.control.interface import ControlLaw, StatelessLaw
+from cdpr_sym.control.interface import Capabilities, ControlLaw, StatelessLaw
 from cdpr_sym.control.parts import (
     alpha_interval,
     beta_margin,
@@ -120,6 +120,11 @@ class _ExactBoxDesign(StatelessLaw):
     alpha_margin: float = 1e-6
     linf_slack: float | None = None
     name: ClassVar[str] = "exact-box"
+
+    def capabilities(self) -> Capabilities:
+        """m = n cables (it inverts W), every period in the step; its gain scaled by alpha
+        (the largest the box allows)."""
+        return Capabilities(scales_gain=True)
 
     def __post_init__(self) -> None:
         for field in ("low_speed", "alpha_margin"):

@@ -142,8 +142,8 @@ class L2Design(StatelessLaw):
         the least-squares J_d leaves tau_2 + tau_3 = v (v^T tau_2) / |v|^2 as for m = n
         (:func:`~cdpr_sym.control.parts.least_squares_closed_form`), so Theorem 1's ball
         bound holds unchanged. (The paper's and the minimum-norm constructions solve with
-        A A^T, which has rank n - 1 < m - 1 there.)"""
-        return Capabilities(any_cables=self.construction == "closed_form")
+        A A^T, which has rank n - 1 < m - 1 there.) Its gain is scaled by alpha of (24)."""
+        return Capabilities(any_cables=self.construction == "closed_form", scales_gain=True)
 
     def law(self, model: SymbolicModel, q: ca.SX, dq: ca.SX, q_goal: ca.SX, k: ca.SX,
             r_d: ca.SX) -> ControlLaw:

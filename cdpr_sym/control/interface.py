@@ -79,6 +79,10 @@ class Capabilities:
         Also runs robots with fewer cables than degrees of freedom (m < n).
     fully_actuated : bool
         Runs robots with at least as many cables as degrees of freedom (False: only m < n).
+    scales_gain : bool
+        The law scales its gain by alpha (the paper's (24): alpha in (0, 1] where the
+        least-squares J_d alone would leave the box); the others log alpha = 1, which says
+        nothing about them.
     """
 
     any_cables: bool = False
@@ -87,6 +91,7 @@ class Capabilities:
     planned: bool = False
     underactuated: bool = False
     fully_actuated: bool = True
+    scales_gain: bool = False
 
     @property
     def sampled(self) -> bool:
