@@ -208,7 +208,7 @@ def test_tune_prints_the_rules_and_refuses_a_bad_period(capsys):
     report = json.loads(capsys.readouterr().out)
     assert report["command_corner_hz"] == pytest.approx(25.0)
     assert report["loop"]["feedback_stages"] == 4 and report["loop"]["integral_share"] == 1.0
-    assert report["loop"]["least_damping"] >= 0.02
+    assert report["loop"]["least_damping"] >= 0.02 and report["warnings"] == []
     assert report["case"]["source"] == "the robot file"
     assert set(report["rules"]) >= {"mode_share", "platform_share", "damping_ratio"}
     # the plan's and nmpc's rate bounds under aras3's 1 N per ms, and nmpc's horizon
@@ -218,6 +218,28 @@ def test_tune_prints_the_rules_and_refuses_a_bad_period(capsys):
     assert report["nmpc"]["horizon_s"] == pytest.approx(1.2, abs=0.01)
     assert main(["tune", "--dt", "0"]) == 2
     assert capsys.readouterr().err.strip().startswith("cdpr-sym: error: dt:")
+
+
+@pytest.mark.slow  # the loop of a 6-DOF 8-cable robot, twice: ~40 s
+def test_tune_warns_where_the_filter_rule_cannot_damp_every_mode(capsys, tmp_path):
+    """A 120 kg 8-cable zoo platform: no stage count of ida-winch's feedback filter damps
+    every mode of its ideal loop by the rule's 0.02 (0.0188 at 2.8 Hz); tune says so in one
+    line of text and in the JSON's warnings."""
+    from cdpr_sym.control.winch_level import MIN_LOOP_DAMPING
+    from cdpr_sym.robot.files import robot_file_text
+    from cdpr_sym.workspace.zoo import zoo
+
+    robot = zoo(11, 8)[7]
+    path = tmp_path / "platform.toml"
+    path.write_text(robot_file_text(robot))
+    assert main(["tune", "--robot", str(path), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["loop"]["least_damping"] < MIN_LOOP_DAMPING
+    assert len(report["warnings"]) == 1 and "0.02" in report["warnings"][0]
+    assert main(["tune", "--robot", str(path)]) == 0
+    warned = [line for line in capsys.readouterr().out.splitlines()
+              if line.startswith("warning: ")]
+    assert warned == [f"warning: {report['warnings'][0]}"]
 
 
 @pytest.mark.slow  # two designs built and run on a new robot, ~20 s
