@@ -3,7 +3,8 @@
 Run from the repository root: ``python -m benchmarks.nmpc``; it prints the tables and
 writes them to ``reports/bench/nmpc.md``.
 
-- Per solve: each preset's own case (5 s at 1 kHz, NMPC at 50 Hz with a 0.5 s horizon)
+- Per solve: each preset's own case (5 s at 1 kHz, NMPC at 50 Hz over the horizon its rule
+  derives from the robot)
   with the real-time iteration generated to C, one core; the median and worst wall-clock
   time of the 250 solves of the second run (the first compiles and warms up), the Python
   call included. Targets: median <= 1 ms for the 3-cable point mass, <= 5 ms for the
@@ -88,7 +89,8 @@ def main(argv: list[str] | None = None) -> int:
     pin_to_one_core(0)
     lines = ["# NMPC: compute per control step", "",
              one_core_run("python -m benchmarks.nmpc")
-             + " NMPC solves at 50 Hz over a 0.5 s horizon (25 intervals), one Gauss-Newton "
+             + " NMPC solves at 50 Hz over the horizon its rule derives from each robot "
+             "(`cdpr-sym tune` prints it; 1.2 s, 60 intervals, on aras3), one Gauss-Newton "
              "SQP step per sample (real-time iteration) generated to C with CasADi's `qrqp` "
              "(retried unscaled where the rate-scaled QP's result fails the check); "
              "times are per solve, wall clock, the Python call included, over the 250 "

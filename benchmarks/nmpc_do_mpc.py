@@ -5,8 +5,8 @@ Run from the repository root (do-mpc installed: ``pip install -e '.[bench]'``):
 ``reports/bench/nmpc_do_mpc.md``.
 
 The problem is :class:`~cdpr_sym.control.nmpc.NmpcProblem`'s for the default ``nmpc`` design
-(50 Hz, 25 intervals over 0.5 s, state (q, dq, tau), input the tension rate, the same
-weights, the same bounds), given to do-mpc as a discrete-time model whose transition is the
+(50 Hz, the horizon its rule derives from the robot, state (q, dq, tau), input the
+tension rate, the same weights, the same bounds), given to do-mpc as a discrete-time model whose transition is the
 same two-step RK4 expression; do-mpc solves it with IPOPT (its default, warm-started from its
 previous solution). Its stage cost is over x_0..x_{N-1} and its terminal cost on x_N, which
 differs from ours (stages 1..N, the last with the terminal factor) by a constant, x_0 being
@@ -159,7 +159,8 @@ def main(argv: list[str] | None = None) -> int:
     }
     lines = ["# NMPC beside do-mpc", "",
              one_core_run("python -m benchmarks.nmpc_do_mpc")
-             + " The same problem (the default `nmpc`: 50 Hz, 0.5 s horizon, 25 intervals, "
+             + " The same problem (the default `nmpc`: 50 Hz, the horizon its rule derives "
+             "from the robot, "
              "two RK4 steps per interval) and the same closed loop (the case's 5 s, exact "
              "state, the model as plant at 1 ms); see the script's docstring.", "",
              "| robot | solver | median [ms/solve] | worst [ms] | failed | settle [s] | "

@@ -10,7 +10,7 @@ import math
 
 import pytest
 
-from cdpr_sym import Nmpc, Plant
+from cdpr_sym import Nmpc, Plant, preset
 from cdpr_sym.closed_loop.simulator import Simulator
 from cdpr_sym.control.nmpc.design import MAX_INTERVALS
 from cdpr_sym.control.nmpc.problem import EXPANDED_BUDGET_BYTES, EXPANDED_BYTES, NmpcProblem
@@ -116,7 +116,7 @@ def test_expanded_nmpc_problem_is_refused_by_its_estimated_memory(aras3_model, s
     instructions = NmpcProblem(spatial6_model, Nmpc()).prediction.n_instructions()
     per_interval = instructions * (2 * spatial6.n + spatial6.m) * EXPANDED_BYTES
     most = EXPANDED_BUDGET_BYTES // per_interval
-    assert 25 <= most < 200  # the default horizon fits; the longest allowed does not
+    assert 25 <= most < 200  # spatial6's derived horizon fits; the longest allowed does not
     accepted = NmpcProblem(spatial6_model, Nmpc(solver="ipopt", horizon=most / 50))
     assert accepted.expanded_bytes() == most * per_interval
     with pytest.raises(InvalidCase, match=rf"limit is 2 GiB \({most} intervals\)") as raised:
@@ -126,6 +126,23 @@ def test_expanded_nmpc_problem_is_refused_by_its_estimated_memory(aras3_model, s
     NmpcProblem(spatial6_model, Nmpc(horizon=(most + 1) / 50))
     # aras3's prediction is small: the longest horizon fits with either solver
     NmpcProblem(aras3_model, Nmpc(solver="ipopt", horizon=4.0))
+
+
+def test_a_derived_horizon_the_expanded_problem_cannot_afford_is_cut_to_it():
+    """ipanema8's derived horizon (68 intervals) is more than its converged solvers' expanded
+    problem affords: it is cut to the most intervals the memory budget affords, counted here
+    from the prediction's instructions, as the real-time iteration's is cut to
+    MAX_INTERVALS; a horizon the user gives is refused instead (above)."""
+    ipanema8 = preset("ipanema8")
+    model = SymbolicModel(ipanema8)
+    instructions = NmpcProblem(model, Nmpc()).prediction.n_instructions()
+    most = EXPANDED_BUDGET_BYTES // (instructions * (2 * ipanema8.n + ipanema8.m)
+                                     * EXPANDED_BYTES)
+    assert Nmpc(solver="ipopt").tuned(ipanema8, model).intervals > most
+    for solver in ("ipopt", "sqp"):
+        problem = NmpcProblem(model, Nmpc(solver=solver))
+        assert problem.intervals == most and problem.tuning.horizon == most / 50
+        assert problem.expanded_bytes() <= EXPANDED_BUDGET_BYTES
 
 
 def test_a_simulator_refuses_an_oversized_nmpc_before_compiling(monkeypatch, spatial6):

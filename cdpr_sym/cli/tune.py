@@ -113,11 +113,12 @@ def tune_command(args: argparse.Namespace, out: Output) -> int:
 
 
 def loop_warnings(report: dict[str, Any]) -> list[str]:
-    """A sentence when ``ida-winch``'s linearised sampled loop on the ideal plant damps a
-    mode by less than the MIN_LOOP_DAMPING its feedback filter's rule asks of every mode:
-    no stage count reached it, and the rule kept the best (:meth:`~cdpr_sym.control.
-    WinchIdaPbc.stages_for`). The loop as built is not judged so: its drum-cable modes sit
-    an order of magnitude faster and die out within a move even below it."""
+    """A sentence when ``ida-winch``'s linearised sampled loop on the ideal plant (at the
+    report's period) damps a mode by less than the MIN_LOOP_DAMPING its feedback filter's
+    rule asks of every mode (at 1 kHz, where no stage count reaches it, the rule keeps the
+    best: :meth:`~cdpr_sym.control.WinchIdaPbc.stages_for`). The loop as built is not
+    judged so: its drum-cable modes sit an order of magnitude faster and die out within a
+    move even below it."""
     from cdpr_sym.control.winch_level import MIN_LOOP_DAMPING
 
     zeta, hz = report["loop"]["least_damping"], report["loop"]["least_damped_hz"]
@@ -126,8 +127,8 @@ def loop_warnings(report: dict[str, Any]) -> list[str]:
     ringing = (f"falling by e only every {1.0 / (zeta * 2 * math.pi * hz):.3g} s"
                if zeta > 0 and hz > 0 else "not decaying")
     return [f"ida-winch's loop on the ideal plant has a mode damped by less than the "
-            f"{MIN_LOOP_DAMPING:g} its feedback filter's rule asks (no stage count reaches "
-            f"it; the best is kept): {hz:.3g} Hz, zeta {zeta:.3g}, {ringing}"]
+            f"{MIN_LOOP_DAMPING:g} its feedback filter's rule asks of every mode: "
+            f"{hz:.3g} Hz, zeta {zeta:.3g}, {ringing}"]
 
 
 def _built_loop_numbers(robot: Any, draw: Any, drive: Any, dt: float) -> dict[str, Any]:

@@ -305,7 +305,9 @@ def nmpc_rate(robot: Robot) -> float:
 
 
 # The horizon keeps the pace of the 800 N/s bound (NMPC_HORIZON_PACE) where the robot's own
-# bound is faster. Sized by the faster bound itself, a robot that can brake quickly got a
+# bound is faster. Measured while the horizon was sized for an eighth of the frame (the
+# weights' move, since lengthened to half of it): sized by the faster bound itself, a robot
+# that can brake quickly got a
 # short horizon (a 129 kg 6-DOF platform, 8.95 kN/s: 0.29 s, 14 intervals) and the
 # real-time iteration's QP failed from the first sample on 4 of 10 zoo pairs (6 of 10 met
 # the target, 9 under 800 N/s); with the faster bound and the 0.64 s horizon of the slower
@@ -379,9 +381,9 @@ NMPC_MOVE_SHARE = 1 / 8
 NMPC_HORIZON_SHARE = 1 / 2
 #: Q_i l_i^2: the cost of a position error of l_i (400 / m^2 x 0.445^2 on aras3's x).
 NMPC_POSITION_SCALE = 79.0
-#: R_i l_i^2 / H^2: the cost of a speed of l_i / H (2 s^2/m^2 on aras3).
+#: R_i l_i^2 / T^2: the cost of a speed of l_i / T, T the move's time (2 s^2/m^2 on aras3).
 NMPC_VELOCITY_SCALE = 1.05
-#: S / H^2: the cost of a tension rate of one box per horizon (3 s^2 per box^2 on aras3).
+#: S / T^2: the cost of a tension rate of one box per T (3 s^2 per box^2 on aras3).
 NMPC_RATE_SCALE = 7.9
 
 

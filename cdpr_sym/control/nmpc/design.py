@@ -243,7 +243,7 @@ class Nmpc:
         # the horizon sees the platform brake at the slowest pace any derived bound gives
         pace = min(max_rate, tuning.NMPC_HORIZON_PACE)
         derived, moves, move_time = tuning.nmpc_scales(robot, pace, model)
-        if round(move_time * self.rate) > MAX_INTERVALS:
+        if self.horizon == FROM_ROBOT and round(move_time * self.rate) > MAX_INTERVALS:
             raise InvalidCase("horizon", f"{robot.name} moves from rest to rest over an "
                               f"eighth of its frame in {move_time:.3g} s under {pace:g} "
                               f"N/s and its tension box, more than the {MAX_INTERVALS} "

@@ -16,13 +16,15 @@ in the box.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.control.nmpc.design import Nmpc
+from cdpr_sym.control.nmpc.design import Nmpc, NmpcTuning
+from cdpr_sym.control.tuning import FROM_ROBOT
 from cdpr_sym.control.parts import clip_to_box
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.linalg import pseudo_inverse_times
@@ -55,10 +57,12 @@ class NmpcProblem:
         self.nz = 2 * model.n + model.m
         #: The horizon and weights on this robot (the rule's where the design says "robot").
         self.tuning = design.tuned(model.robot, model)
-        #: Sample intervals in the horizon.
-        self.intervals = self.tuning.intervals
         #: Length of one stage (u_k, z_{k+1}) of v.
         self.stage = self.m + self.nz
+        if design.solver != "rti" and design.horizon == FROM_ROBOT:
+            self.tuning = self._affordable(self.tuning)
+        #: Sample intervals in the horizon.
+        self.intervals = self.tuning.intervals
         #: Length of v.
         self.size = self.intervals * self.stage
 
@@ -81,6 +85,17 @@ class NmpcProblem:
         interval cap bounds.)"""
         return (self.intervals * self.prediction.n_instructions() * self.nz
                 * EXPANDED_BYTES)
+
+    def _affordable(self, tuned: NmpcTuning) -> NmpcTuning:
+        """``tuned`` with the derived horizon cut to the most intervals whose expanded
+        problem (``sqp``, ``ipopt``) fits :data:`EXPANDED_BUDGET_BYTES`, as the real-time
+        iteration's is cut to :data:`~cdpr_sym.control.nmpc.design.MAX_INTERVALS` (ipanema8:
+        68 intervals derived, 63 affordable)."""
+        per_interval = self.prediction.n_instructions() * self.nz * EXPANDED_BYTES
+        most = max(1, int(EXPANDED_BUDGET_BYTES // per_interval))
+        if tuned.intervals <= most:
+            return tuned
+        return dataclasses.replace(tuned, intervals=most, horizon=most * self.design.period)
 
     def _check_expanded_size(self) -> None:
         """Refuse (``horizon``) an ``sqp`` or ``ipopt`` problem estimated over
