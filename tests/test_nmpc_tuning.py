@@ -208,6 +208,11 @@ def test_a_horizon_over_what_the_solve_affords_is_cut_to_it():
     assert derived * 50 > MAX_INTERVALS >= round(move_time * 50)
     tuned = Nmpc().tuned(robot)
     assert tuned.intervals == MAX_INTERVALS and tuned.horizon == MAX_INTERVALS / 50
+    # tune says so
+    from cdpr_sym.control.tuning_report import _nmpc_numbers
+
+    numbers = _nmpc_numbers(robot, SymbolicModel(robot), Nmpc())
+    assert numbers["horizon_capped"] and numbers["half_frame_s"] == pytest.approx(derived)
 
 
 def test_the_rate_bound_from_the_target_keeps_the_horizons_pace():

@@ -216,6 +216,7 @@ def test_tune_prints_the_rules_and_refuses_a_bad_period(capsys):
     assert report["nmpc"]["max_rate_N_per_s"] == 800.0
     assert report["nmpc"]["robot_rate_N_per_s"] == 800.0
     assert report["nmpc"]["horizon_s"] == pytest.approx(1.2, abs=0.01)
+    assert report["nmpc"]["horizon_capped"] is False
     assert main(["tune", "--dt", "0"]) == 2
     assert capsys.readouterr().err.strip().startswith("cdpr-sym: error: dt:")
 

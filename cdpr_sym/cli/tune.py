@@ -85,9 +85,13 @@ def _lines(report: dict[str, Any]) -> list[str]:
 def _nmpc_line(nmpc: dict[str, Any]) -> str:
     if "refused" in nmpc:
         return f"nmpc: not offered ({nmpc['refused']})"
+    capped = (f", cut to the most intervals the solve affords: it sees the platform brake "
+              f"only from moves shorter than half the frame, which takes "
+              f"{nmpc['half_frame_s']:.3g} s" if nmpc["horizon_capped"] else
+              " (half the frame, start to stop)")
     return (f"nmpc: tension rate at most {nmpc['max_rate_N_per_s']:.4g} N/s ("
             f"{nmpc['robot_rate_N_per_s']:.4g} N/s with max_rate='robot', 0.8 of the target's "
-            f"step per ms), horizon {nmpc['horizon_s']:.3g} s")
+            f"step per ms), horizon {nmpc['horizon_s']:.3g} s{capped}")
 
 
 def tune_command(args: argparse.Namespace, out: Output) -> int:
