@@ -214,6 +214,35 @@ def test_a_robot_with_more_cables_reads_its_pose_despite_stretch_and_anchor_erro
     assert lost.stop_reason == "lost_pose"
 
 
+@pytest.mark.parametrize("change, remedy", [("default", "exact anchors"),
+                                            ("soft cables, exact anchors", "stiffer")])
+def test_an_unreadable_start_names_only_the_remedies_that_read_it(change, remedy):
+    """ipanema8 as built (the default specification's pair 0) cannot read its start pose
+    from its 8 encoders: its anchors' 4.7 mm errors leave no converged fit, which neither
+    stiffer cables, finer encoders nor a wider consistency mend; with exact anchors and
+    cables a hundred times softer, stiffer cables do. The refusal names what was found to
+    read it, and only that, in one line."""
+    import dataclasses
+
+    from cdpr_sym.as_built import load_as_built_draw
+    from cdpr_sym.model import SymbolicModel
+
+    robot = preset("ipanema8")
+    mass_scale, spec = load_as_built_draw("default").draw_pair(robot, 0, 0)
+    if change != "default":
+        spec = dataclasses.replace(spec, anchor_offsets=None, actuation=dataclasses.replace(
+            spec.actuation, cable_stiffness=spec.actuation.cable_stiffness / 100))
+    readout = AsBuiltReadout(SymbolicModel(robot))
+    with pytest.raises(InvalidCase) as refused:
+        readout.check_readable(np.asarray(robot.start, float),
+                               Plant(mass_scale=mass_scale, as_built=spec))
+    message = str(refused.value)
+    assert refused.value.field == "sensing" and "\n" not in message
+    named = message[message.index("it reads with"):]
+    assert {word for word in ("exact anchors", "stiffer", "finer", "wider")
+            if word in named} == {remedy}, named
+
+
 def test_the_first_velocity_read_at_rest_is_only_rounding(aras3, rng, build_options):
     """Before the move the encoders already read the (offset) pose, so at rest the first
     velocity estimate is rounding noise, not the pose error over one period."""

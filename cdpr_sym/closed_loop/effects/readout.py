@@ -3,8 +3,9 @@ the pose forward kinematics gives for a reading (the numeric twins of its step).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
@@ -16,6 +17,10 @@ from cdpr_sym.closed_loop.effects.base import elastic_stiffness
 from cdpr_sym.closed_loop.effects.encoders import corrected, raw_reading, read_pose_expression
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.model import SymbolicModel
+
+#: A refused build's remedies are tried this many times stiffer, finer or wider
+#: (:meth:`AsBuiltReadout.check_readable`).
+REMEDY_FACTOR = 10.0
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -135,14 +140,53 @@ class AsBuiltReadout:
         causes = "; ".join(self._misreadings(start, tension, plant))
         bound = f"{1e3 * spec.sensing.consistency:g} mm"
         robot = self.model.robot
-        drives = " or a controller that reads the drives (ida-winch)"
-        bound_hint = " or a wider [sensing] consistency" if robot.m > robot.n else ""
+        remedies = self._remedies(plant)
+        helping = [name for name, changed in remedies if self._readable(start, changed)]
+        found = (f"it reads with {' or with '.join(helping)}; else use " if helping else
+                 f"it reads with none of {', '.join(name for name, _ in remedies)} alone; "
+                 "use ")
         raise InvalidCase("sensing", f"the encoders cannot read the start pose of "
                           f"{robot.name} ({causes}): forward kinematics finds no "
                           f"pose that fits the readings within the consistency bound ({bound}) "
-                          "in its iterations; use stiffer cables, calibrated anchors "
-                          f"(--calibration), finer encoders{bound_hint}, exact state (no "
-                          f"sensing){drives}")
+                          f"in its iterations; {found}exact state (no sensing) or a "
+                          "controller that reads the drives (ida-winch)")
+
+    def _readable(self, start: np.ndarray, plant: Plant) -> bool:
+        """Whether the encoders of ``plant`` held at rest at ``start`` read a pose."""
+        tension = self.true_static(start, plant)[0]
+        reading = self.encoder_reading(start, tension, plant)
+        return self.read_pose(reading, start, plant.as_built.sensing,
+                              elastic_stiffness(plant)) is not None
+
+    def _remedies(self, plant: Plant) -> list[tuple[str, Plant]]:
+        """The changes a refused build could make, each as the plant it would be: cables
+        REMEDY_FACTOR times stiffer, the anchors and encoder zeros a calibration estimates
+        exact, encoders REMEDY_FACTOR times finer, and (m > n, where the lengths
+        over-determine the pose) a consistency bound REMEDY_FACTOR times wider. A refusal
+        names those that alone make the start readable, found by reading again."""
+        spec = plant.as_built
+        times = f"{REMEDY_FACTOR:g} times"
+        changes: list[tuple[str, Any]] = []
+        if spec.actuation is not None:
+            stiffer = dataclasses.replace(spec.actuation, cable_stiffness=REMEDY_FACTOR
+                                          * spec.actuation.cable_stiffness)
+            changes.append((f"cables {times} stiffer",
+                            dataclasses.replace(spec, actuation=stiffer)))
+        if spec.anchor_offsets is not None or spec.encoder_offsets is not None:
+            changes.append(("exact anchors and encoder zeros (a calibration estimates them: "
+                            "--calibration)",
+                            dataclasses.replace(spec, anchor_offsets=None,
+                                                encoder_offsets=None)))
+        if spec.sensing.resolution > 0:
+            changes.append((f"encoders {times} finer", dataclasses.replace(
+                spec, sensing=dataclasses.replace(
+                    spec.sensing, resolution=spec.sensing.resolution / REMEDY_FACTOR))))
+        if self.model.m > self.model.n:
+            changes.append((f"a [sensing] consistency {times} wider", dataclasses.replace(
+                spec, sensing=dataclasses.replace(
+                    spec.sensing, consistency=REMEDY_FACTOR * spec.sensing.consistency))))
+        return [(name, dataclasses.replace(plant, as_built=changed))
+                for name, changed in changes]
 
     def _misreadings(self, start: np.ndarray, tension: np.ndarray, plant: Plant) -> list[str]:
         """What makes the encoders disagree with the model's geometry at ``start``, in words
