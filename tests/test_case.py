@@ -28,7 +28,7 @@ def test_rigid_start_with_concurrent_cable_lines_is_singular_and_refused(planar3
     robot = planar3.with_case(attachments=[[0.0, 0.0]] * 3)
     with pytest.raises(InvalidCase, match="singular") as raised:
         Case.of(robot)
-    assert raised.value.field == "start"
+    assert raised.value.field == "case.start"  # the robot's own case, as its file names it
 
 
 def test_simulate_refuses_a_singular_start_before_running(aras3):
@@ -42,6 +42,27 @@ def test_goal_outside_the_static_workspace_is_refused_as_goal(aras3):
     with pytest.raises(InvalidCase) as raised:
         Case.of(aras3, goal=[0.0, 0.0, 0.05])
     assert raised.value.field == "goal"
+
+
+def test_the_robots_own_goal_outside_the_workspace_is_named_as_its_file_names_it(
+        aras3, tmp_path, capsys):
+    """A goal given on the command line is ``goal``; the robot's own (its file's
+    ``[case] goal``) is ``case.goal``, in the field and in the one-line refusal."""
+    from cdpr_sym.cli import main
+    from cdpr_sym.robot.files import robot_file_text
+
+    robot = aras3.with_case(goal=[0.0, 0.0, 0.05])
+    with pytest.raises(InvalidCase) as raised:
+        Case.of(robot)
+    assert raised.value.field == "case.goal"
+    with pytest.raises(InvalidCase) as raised:
+        Case.of(robot, goal=[0.0, 0.0, 0.05])
+    assert raised.value.field == "goal"
+    path = tmp_path / "low_goal.toml"
+    path.write_text(robot_file_text(robot))
+    assert main(["simulate", "--robot", str(path), "--duration", "0.1"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("cdpr-sym: error: case.goal:") and "\n" not in error
 
 
 def test_goal_where_w_is_singular_is_refused_as_goal(aras3):

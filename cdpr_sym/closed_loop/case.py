@@ -44,21 +44,24 @@ class Case:
         ------
         InvalidCase
             A field is out of the frame, singular, or (the goal) not statically feasible;
-            the error names it (``start``, ``goal``, ``k``, ``r_d``).
+            the error names it (``start``, ``goal``, ``k``, ``r_d``; ``case.start`` and
+            ``case.goal`` where the pose is the robot's own case, as its file names it).
         """
         values = {"start": start, "goal": goal, "k": k, "r_d": r_d}
         changes = {name: value for name, value in values.items() if value is not None}
+        named = {field: field if values[field] is not None else f"case.{field}"
+                 for field in ("start", "goal")}
         try:
             checked = robot.with_case(**changes) if changes else robot
         except InvalidRobot as bad:
             raise InvalidCase(bad.field, str(bad).split(": ", 1)[1]) from None
         model = model or SymbolicModel(robot)
         for field in ("start", "goal"):
-            check_regular(model, field, getattr(checked, field))
+            check_regular(model, named[field], getattr(checked, field))
         if robot.underactuated:  # at rest only on the equilibrium manifold
             manifold = EquilibriumManifold(checked, model)
             for field in ("start", "goal"):
-                check_equilibrium(manifold, field, getattr(checked, field))
+                check_equilibrium(manifold, named[field], getattr(checked, field))
             return cls(checked.start, checked.goal, checked.k, checked.r_d)
         tension, held = model.static_distribution_function(checked.goal)
         tau_1 = np.array(tension.full()).ravel()
@@ -67,7 +70,8 @@ class Case:
             need = (f"needing {[round(float(value), 3) for value in tau_1]} N"
                     if robot.m == robot.n else "where no such tension holds the weight")
             raise InvalidCase(
-                "goal", f"expected a goal in the static workspace (gravity-holding tension "
+                named["goal"], f"expected a goal in the static workspace (gravity-holding "
+                f"tension "
                 f"within [{robot.t_min}, {robot.t_max}] N), got {checked.goal.tolist()} "
                 f"{need}")
         return cls(checked.start, checked.goal, checked.k, checked.r_d)
