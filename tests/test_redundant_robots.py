@@ -31,7 +31,7 @@ def test_fewer_cables_than_degrees_of_freedom_make_an_underactuated_robot():
     fields["anchors"] = fields["anchors"][:2]
     robot = Robot(**fields)
     assert robot.underactuated and robot.m == 2
-    with pytest.raises(InvalidCase, match=r"^start: .* is not an equilibrium"):
+    with pytest.raises(InvalidCase, match=r"^case.start: .* is not an equilibrium"):
         Case.of(robot)
 
 
