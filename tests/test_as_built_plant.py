@@ -290,8 +290,9 @@ def test_too_few_substeps_are_refused_before_anything_is_built(aras3, monkeypatc
 @pytest.mark.slow
 def test_an_unreadable_redundant_robot_is_told_what_runs_on_it(capsys):
     """ipanema8 as built (8 cables, 6 DOF), read by a design of the pose: the refusal names
-    a wider consistency bound and ida-winch, which reads the drives and runs m > n robots
-    (and does run this one as built: the suggestion is one a user can follow)."""
+    exact anchors (the one change found to read it) and ida-winch, which reads the drives
+    and runs m > n robots (and does run this one as built: the suggestion is one a user can
+    follow)."""
     from cdpr_sym.as_built.draw import DEFAULT_DRAW
     from cdpr_sym.cli import main
 
@@ -299,7 +300,7 @@ def test_an_unreadable_redundant_robot_is_told_what_runs_on_it(capsys):
                  "--as-built", "default", "--duration", "1"]) == 2
     error = capsys.readouterr().err
     assert error.startswith("cdpr-sym: error: sensing:") and len(error.splitlines()) == 1
-    assert "ida-winch" in error and "consistency" in error
+    assert "ida-winch" in error and "it reads with exact anchors" in error
     mass_scale, spec = DEFAULT_DRAW.draw_pair(preset("ipanema8"), 0, 0)
     run = simulate("ipanema8", "ida-winch", duration=0.05,
                    plant=Plant(mass_scale=mass_scale, as_built=spec))
