@@ -133,10 +133,9 @@ class AsBuiltReadout:
         spec = plant.as_built
         if spec is None or spec.sensing is None:
             return
-        tension = self.true_static(start, plant)[0]
-        reading = self.encoder_reading(start, tension, plant)
-        if self.read_pose(reading, start, spec.sensing, elastic_stiffness(plant)) is not None:
+        if self._readable(start, plant):
             return
+        tension = self.true_static(start, plant)[0]
         causes = "; ".join(self._misreadings(start, tension, plant))
         bound = f"{1e3 * spec.sensing.consistency:g} mm"
         robot = self.model.robot
