@@ -122,8 +122,6 @@ def _nmpc_numbers(robot: Robot, model: Any, design: Any) -> dict[str, Any]:
         tuned = design.tuned(robot, model)
     except CdprError as refusal:
         return {"refused": str(refusal)}
-    pace = min(tuned.max_rate, tuning.NMPC_HORIZON_PACE)
-    half_frame, _, _ = tuning.nmpc_scales(robot, pace, model)
     return {"max_rate_N_per_s": tuned.max_rate, "horizon_s": tuned.horizon,
-            "half_frame_s": half_frame, "horizon_capped": tuned.horizon < half_frame,
+            "half_frame_s": tuned.half_frame, "horizon_capped": tuned.capped,
             "robot_rate_N_per_s": tuning.nmpc_rate(robot)}

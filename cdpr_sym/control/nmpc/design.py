@@ -64,7 +64,8 @@ DERIVED = ("horizon", "position_weight", "velocity_weight", "rate_weight", "max_
 class NmpcTuning:
     """The numbers one robot's NMPC problem is built with: the horizon (s) and its sample
     intervals, Q and R per coordinate (1/m^2 or 1/rad^2, s^2/m^2 or s^2/rad^2) and S (s^2
-    per (T_max - T_min)^2), and the tension-rate bound (N/s)."""
+    per (T_max - T_min)^2), the tension-rate bound (N/s), and the rule's horizon over half
+    the frame (s) before any cut to what the solve affords."""
 
     horizon: float
     intervals: int
@@ -72,6 +73,12 @@ class NmpcTuning:
     velocity_weight: np.ndarray
     rate_weight: float
     max_rate: float
+    half_frame: float
+
+    @property
+    def capped(self) -> bool:
+        """Whether the horizon is shorter than the rule's over half the frame."""
+        return self.horizon < self.half_frame
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,7 +126,7 @@ class Nmpc:
         platform's braking lets the plan race: a 363 kg robot reached 4.9 m/s with 0.5 s
         and left the frame, since the bound on q at the nodes never saw the stop it needed;
         sized for an eighth of the frame, the horizon still let plans across the frame race
-        into a face or an anchor (``left_frame``, ``singular``) on 7 of 80 pairs of three
+        into a face or an anchor (``left_frame``, ``singular``) on 7 of 60 pairs of two
         robots, none sized for half of it.
     solver : str
         One of :data:`SOLVERS`; ``rti`` is the real-time variant, warm-started from the
@@ -264,7 +271,8 @@ class Nmpc:
         return NmpcTuning(horizon=horizon, intervals=intervals,
                           position_weight=chosen(self.position_weight, weights["position"]),
                           velocity_weight=chosen(self.velocity_weight, weights["velocity"]),
-                          rate_weight=float(rate_weight), max_rate=max_rate)
+                          rate_weight=float(rate_weight), max_rate=max_rate,
+                          half_frame=derived)
 
     def rate_for(self, robot: Robot) -> float:
         """The bound on each cable's tension rate on ``robot``, N/s: ``max_rate``, or for
