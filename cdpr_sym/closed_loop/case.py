@@ -71,8 +71,7 @@ class Case:
                     if robot.m == robot.n else "where no such tension holds the weight")
             raise InvalidCase(
                 named["goal"], f"expected a goal in the static workspace (gravity-holding "
-                f"tension "
-                f"within [{robot.t_min}, {robot.t_max}] N), got {checked.goal.tolist()} "
+                f"tension within [{robot.t_min}, {robot.t_max}] N), got {checked.goal.tolist()} "
                 f"{need}")
         return cls(checked.start, checked.goal, checked.k, checked.r_d)
 

@@ -24,8 +24,8 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.control.nmpc.design import Nmpc, NmpcTuning
-from cdpr_sym.control.tuning import FROM_ROBOT
 from cdpr_sym.control.parts import clip_to_box
+from cdpr_sym.control.tuning import FROM_ROBOT
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.linalg import pseudo_inverse_times
 from cdpr_sym.model import SymbolicModel, rk4
