@@ -21,7 +21,6 @@ missing rounding is caught, never for a proof.
 from __future__ import annotations
 
 import ctypes
-import dataclasses
 
 import casadi as ca
 import numpy as np
@@ -29,6 +28,7 @@ import numpy as np
 from cdpr_sym.certify.evaluate import SUPPORTED, dense_sx, has_jumps
 from cdpr_sym.certify.interval import LIBRARY_ULPS
 from cdpr_sym.codegen import BuildOptions, build
+from cdpr_sym.codegen.build import lighter
 from cdpr_sym.codegen.names import c_double
 from cdpr_sym.codegen.native import NativeLibrary
 
@@ -317,9 +317,7 @@ class CompiledIntervalFunction:
         source = interval_source(function, "interval_eval", rounding=rounding,
                                  centred=centred, varying=varying)
         if len(source) > LARGE_SOURCE and options == BuildOptions():
-            options = dataclasses.replace(options, flags=tuple(
-                "-O1" if flag == "-O2" else flag for flag in options.flags),
-                timeout=LARGE_TIMEOUT)
+            options = lighter(options, timeout=LARGE_TIMEOUT)
         compiled = build([], f"interval_{'r' if rounding else 'n'}{'c' if centred else ''}",
                          extra_source=source, options=options)
         library = NativeLibrary(compiled.path)

@@ -286,6 +286,25 @@ class BuildOptions:
         return "casadi"
 
 
+def lighter(options: BuildOptions, timeout: float | None = None) -> BuildOptions:
+    """``options`` with the default flags' ``-O2`` lowered to ``-O1`` (and ``timeout``, if
+    given), for large generated files whose compile time -O2 multiplies; other flags are
+    left alone.
+
+    The arithmetic is the same bits at either level: :data:`EXACT_FLAGS` forbid
+    contraction, re-association and reciprocals at every level, so a level changes which
+    instructions carry each IEEE operation, never its result. Flags the user chose are
+    kept as given.
+    """
+    if options.flags != EXACT_FLAGS:
+        return options
+    flags = tuple("-O1" if flag == "-O2" else flag for flag in options.flags)
+    changes: dict[str, object] = {"flags": flags}
+    if timeout is not None:
+        changes["timeout"] = max(timeout, options.timeout)
+    return dataclasses.replace(options, **changes)
+
+
 @dataclasses.dataclass(frozen=True)
 class CompiledLibrary:
     """A compiled shared library of generated functions.
