@@ -23,8 +23,9 @@ import pytest
 from cdpr_sym.as_built import DEFAULT_DRAW
 from cdpr_sym.calibration.drawn import drawn_robot
 from cdpr_sym.closed_loop import summarise_many
+from cdpr_sym.closed_loop.build_rules import judged
 from cdpr_sym.closed_loop.built_loop import build_damping
-from cdpr_sym.closed_loop.simulator import get_simulator, judged
+from cdpr_sym.closed_loop.simulator import get_simulator
 from cdpr_sym.control import winch_level
 from cdpr_sym.control.winch_level import DAMPING_TIE, MIN_LOOP_DAMPING, WinchIdaPbc
 from cdpr_sym.errors import InvalidCase

@@ -104,7 +104,7 @@ def _nmpc_line(nmpc: dict[str, Any]) -> str:
 
 def tune_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.as_built import load_as_built_draw
-    from cdpr_sym.closed_loop.simulator import judged
+    from cdpr_sym.closed_loop.build_rules import judged
 
     if not (isinstance(args.dt, float) and 0 < args.dt <= 0.1 and math.isfinite(args.dt)):
         raise InvalidCase("dt", f"expected a control period in (0, 0.1] s, got {args.dt!r}")

@@ -16,7 +16,6 @@ import dataclasses
 import functools
 import hashlib
 import json
-import math
 import threading
 from collections.abc import Sequence
 from pathlib import Path
@@ -28,6 +27,7 @@ import numpy.typing as npt
 
 from cdpr_sym.as_built.cable_law import drum_pull
 from cdpr_sym.as_built.stability import check_integrable
+from cdpr_sym.closed_loop.build_rules import judged
 from cdpr_sym.closed_loop.case import (
     Case,
     check_controller_build,
@@ -41,7 +41,6 @@ from cdpr_sym.closed_loop.floor import DriveFloor
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.plant_kind import PlantKind
-from cdpr_sym.closed_loop.rest_loop import build_of, loops_on
 from cdpr_sym.closed_loop.step import chunk_function, plant_layout, step_function
 from cdpr_sym.closed_loop.stops import ALL_STOP_REASONS
 from cdpr_sym.closed_loop.summaries import judged_tension
@@ -750,52 +749,6 @@ def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
     return simulator
 
 
-def judged(controller: Controller) -> Controller:
-    """``controller`` with the closed loop's reading of the robot's build attached where its
-    rules ask for one (its ``judged_by``: ``ida-winch``'s filter rule reads
-    :func:`build_damping`); else ``controller`` itself.
-
-    A design's defaults come from the robot by rules its own layer works out (the ideal
-    plant's loop); whether ``ida-winch``'s feedback filter helps or harms depends on the
-    drum-cable modes of the build, which only the closed loop's as-built step has. The design
-    takes that reading as a callable, so the control layer imports nothing above it. The
-    simulator, :func:`simulate`'s and the sweep's period checks, the exports, ``tune`` and
-    the zoo study's derived gains call this, so the design they check, run, export and
-    report is one; a design made and evaluated by hand (``WinchIdaPbc().stages_for``,
-    ``step_function``) is not judged and its rule reads the ideal plant alone."""
-    attach = getattr(controller, "judged_by", None)
-    return controller if attach is None else attach(build_damping)
-
-
-def build_damping(controller: Controller, robot: Robot) -> float:
-    """The least damping ratio of ``controller``'s loop on ``robot``'s default build
-    (:func:`~cdpr_sym.closed_loop.rest_loop.build_of`: its winches the controller's own
-    model of them where it states one) at the case's start and goal, at the toolkit's 1 kHz,
-    in CasADi's virtual machine; -inf where the loop loses either pose or the build cannot
-    be linearised at that period (:mod:`cdpr_sym.closed_loop.built_loop` explains the
-    method)."""
-    from cdpr_sym.errors import CdprError
-
-    build = build_of(robot, controller)
-    try:
-        simulator = get_simulator(robot, controller, as_built=build.structure(),
-                                  build_options=BuildOptions(backend="casadi"))
-        loops = loops_on(simulator, [robot.start, robot.goal], build, DEFAULT_DT)
-    except CdprError:
-        return -math.inf
-    return min(loop.least_damping for loop in loops)
-
-
-def built_options(controller: Controller, robot: Robot) -> dict[str, Any]:
-    """``controller``'s options as a loop builds it on ``robot`` (:func:`judged`): a filter
-    stage count its rule chose (``feedback_stages="robot"``) written as the count the
-    memory's layout has, for the records of an exported package."""
-    options = controller.options()
-    if options.get("feedback_stages") == "robot" and hasattr(controller, "stages_for"):
-        options["feedback_stages"] = judged(controller).stages_for(robot)
-    return options
-
-
 def simulate(robot: Robot | str | Path, controller: Controller | str, *,
              start: npt.ArrayLike | None = None, goal: npt.ArrayLike | None = None,
              k: npt.ArrayLike | None = None, r_d: npt.ArrayLike | None = None,
@@ -850,8 +803,7 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *,
     """
     robot, controller = resolve_robot(robot), controller_by_name(controller)
     check_timing(duration, dt, values_per_step=minimal_values_per_step(robot))
-    # before building: gains dt can hold, of the design as the loop builds it
-    check_controller_period(judged(controller), robot, dt)
+    check_controller_period(controller, robot, dt)  # before building: gains dt can hold
     if capabilities(controller).sampled:
         from cdpr_sym.closed_loop.sampled import steps_per_sample
 

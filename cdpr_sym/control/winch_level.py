@@ -237,7 +237,7 @@ class WinchIdaPbc:
     build_judge : callable or None
         Not an option (left out of comparisons, hashes and :meth:`options`): how the filter's
         rule reads the robot's default build, which the closed loop attaches
-        (:meth:`judged_by`, :func:`cdpr_sym.closed_loop.simulator.judged`): a trial
+        (:meth:`judged_by`, :func:`cdpr_sym.closed_loop.build_rules.judged`): a trial
         design and the robot -> the least damping ratio of that design's sampled loop on the
         build at the case's start and goal (-inf where the loop loses the pose). None
         (default): the rule reads the ideal plant alone.

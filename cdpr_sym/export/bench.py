@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from cdpr_sym.closed_loop import step_layout
-from cdpr_sym.closed_loop.simulator import judged
+from cdpr_sym.closed_loop.build_rules import judged
 from cdpr_sym.codegen import render, require_compiler, run_command
 from cdpr_sym.control import (
     Controller,

@@ -19,7 +19,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.closed_loop import STOP_REASONS, Fields, StepLayout, step_function, step_layout
-from cdpr_sym.closed_loop.simulator import built_options
+from cdpr_sym.closed_loop.build_rules import built_options
 from cdpr_sym.codegen import plain_text, renamed
 from cdpr_sym.control import (
     FLAG_NAMES,

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from cdpr_sym.closed_loop.simulator import built_options
+from cdpr_sym.closed_loop.build_rules import built_options
 from cdpr_sym.control import Controller
 from cdpr_sym.export.encoder_checks import CheckedExport, check_export
 from cdpr_sym.export.encoder_description import (

@@ -44,7 +44,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from cdpr_sym.closed_loop.simulator import built_options, judged
+from cdpr_sym.closed_loop.build_rules import built_options, judged
 from cdpr_sym.codegen import c_identifier, is_c_identifier
 from cdpr_sym.codegen.names import MAX_IDENTIFIER
 from cdpr_sym.control import Controller, capabilities, check_cables, controller_by_name
