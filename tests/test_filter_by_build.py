@@ -73,24 +73,6 @@ def test_the_filter_goes_only_where_the_build_damps_the_bare_loop_better(bare, f
     assert WinchIdaPbc().stages_for(robot) == 4  # no judge: the ideal plant alone
 
 
-def test_the_filter_stays_where_the_bare_loop_on_the_ideal_plant_is_damped_too_little(
-        monkeypatch):
-    """Even where the build prefers no filter, the unfiltered loop on the ideal plant must be
-    damped by 0.02 as well: made 0.01 here, the rule keeps its four stages."""
-    robot = preset("aras3")
-    ideal_modes = WinchIdaPbc.loop_modes
-
-    def bare_underdamped(self, model, dt):
-        modes = ideal_modes(self, model, dt)
-        if self.feedback_stages == 0:
-            return dataclasses.replace(modes, damping=np.full_like(modes.damping, 0.01))
-        return modes
-
-    monkeypatch.setattr(WinchIdaPbc, "loop_modes", bare_underdamped)
-    judge, calls = _fixed_judge(0.05, 0.01)
-    assert WinchIdaPbc().judged_by(judge).stages_for(robot) == 4 and not calls
-
-
 def test_stated_stages_and_an_attached_judge_are_kept():
     judge, calls = _fixed_judge(1.0, 0.0)
     stated = WinchIdaPbc(feedback_stages=2)
