@@ -23,9 +23,8 @@ import pytest
 from cdpr_sym.as_built import DEFAULT_DRAW
 from cdpr_sym.calibration.drawn import drawn_robot
 from cdpr_sym.closed_loop import summarise_many
-from cdpr_sym.closed_loop.build_rules import judged
 from cdpr_sym.closed_loop.built_loop import build_damping
-from cdpr_sym.closed_loop.simulator import get_simulator
+from cdpr_sym.closed_loop.simulator import get_simulator, judged
 from cdpr_sym.control import winch_level
 from cdpr_sym.control.winch_level import DAMPING_TIE, MIN_LOOP_DAMPING, WinchIdaPbc
 from cdpr_sym.errors import InvalidCase
@@ -41,8 +40,7 @@ from tests.drawn_robots import zoo_robot
 def _fresh_findings(monkeypatch):
     """The rule keeps its findings per robot and options, judged or not (one judge in a
     process); each check here starts without them."""
-    for found in ("_STAGES_FOUND", "_BOOSTS_FOUND", "_LOOPS_CHECKED"):
-        monkeypatch.setattr(winch_level, found, {})
+    monkeypatch.setattr(winch_level, "_STAGES_FOUND", {})
 
 
 def _fixed_judge(bare: float, filtered: float):
@@ -84,22 +82,6 @@ def test_stated_stages_and_an_attached_judge_are_kept():
     assert "build_judge" not in first.options() and not calls
 
 
-def test_judged_and_plain_findings_are_kept_apart_whichever_comes_first(monkeypatch):
-    """The stages differ with the judge (0 against 4 on aras3 under a judge that prefers
-    none), and so does the integral's boost chosen with them (4 against 1): each design
-    gets its own whatever the order they are asked in."""
-    robot = preset("aras3")
-    judge, _ = _fixed_judge(0.05, 0.01)
-    found = []
-    for order in ((True, False), (False, True)):
-        for found_dict in ("_STAGES_FOUND", "_BOOSTS_FOUND"):
-            monkeypatch.setattr(winch_level, found_dict, {})
-        for with_judge in order:
-            design = WinchIdaPbc().judged_by(judge) if with_judge else WinchIdaPbc()
-            found.append((with_judge, design.stages_for(robot), design.integral_boost(robot)))
-    assert sorted(found[:2]) == sorted(found[2:]) == [(False, 4, 1.0), (True, 0, 4.0)]
-
-
 def test_no_filter_is_a_stated_choice_and_below_it_is_refused():
     assert WinchIdaPbc(feedback_stages=0).stages_for(preset("aras3")) == 0
     with pytest.raises(InvalidCase, match="feedback_stages"):
@@ -131,10 +113,8 @@ def test_a_heavy_robot_on_long_cables_drops_the_filter_and_meets_the_target_as_b
     starts, goals = draw_pairs(robot, config)
     drawn = [drawn_robot(robot, DEFAULT_DRAW, 0, pair) for pair in range(pairs)]
     met = {}
-    for label, law in (("filtered", WinchIdaPbc(feedback_stages=4)), ("rule", WinchIdaPbc())):
+    for label, law in (("filtered", WinchIdaPbc(feedback_stages=4)), ("rule", rule)):
         simulator = get_simulator(robot, law, as_built=drawn[0].plant.as_built.structure())
-        # the plain design the loop is given, judged there: no filter in the memory
-        assert simulator.controller.stages_for(robot) == (4 if label == "filtered" else 0)
         summaries = summarise_many(simulator, starts, goals, robot.k, robot.r_d,
                                    duration=10.0, dt=1e-3,
                                    plant=[one.plant for one in drawn],

@@ -83,9 +83,8 @@ def _lines(report: dict[str, Any]) -> list[str]:
 def _filter_text(winch: dict[str, Any], loop: dict[str, Any]) -> str:
     """ida-winch's feedback filter and the rule that chose it, in words."""
     if loop["feedback_stages"] == 0:
-        return ("no feedback filter (the robot's build, with these winches, damps every mode "
-                "of the loop by 0.02 without one, and better than with the stages the ideal "
-                "plant allows)")
+        return ("no feedback filter (the robot's default build damps every mode of the loop "
+                "by 0.02 without one, and better than with the stages the ideal plant allows)")
     return (f"filter {winch['feedback_cutoff']:.3g} Hz x {loop['feedback_stages']} (the most "
             f"stages, at most 4, whose sampled loop damps every mode by 0.02)")
 
@@ -104,7 +103,7 @@ def _nmpc_line(nmpc: dict[str, Any]) -> str:
 
 def tune_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.as_built import load_as_built_draw
-    from cdpr_sym.closed_loop.build_rules import judged
+    from cdpr_sym.closed_loop.simulator import judged
 
     if not (isinstance(args.dt, float) and 0 < args.dt <= 0.1 and math.isfinite(args.dt)):
         raise InvalidCase("dt", f"expected a control period in (0, 0.1] s, got {args.dt!r}")

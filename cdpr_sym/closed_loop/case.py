@@ -9,7 +9,6 @@ import os
 import numpy as np
 import numpy.typing as npt
 
-from cdpr_sym.closed_loop.build_rules import judged
 from cdpr_sym.errors import InvalidCase, InvalidRobot
 from cdpr_sym.model import SINGULAR_DET, SymbolicModel
 from cdpr_sym.robot import Robot
@@ -123,7 +122,6 @@ def check_controller_period(controller: object, robot: Robot, dt: float) -> None
     check = getattr(controller, "check_period", None)
     if check is not None:
         check(robot.mass, dt)
-    controller = judged(controller)  # the design as a loop builds it
     check_loop = getattr(controller, "check_loop", None)
     if check_loop is not None:
         check_loop(robot, dt)

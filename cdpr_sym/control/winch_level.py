@@ -125,9 +125,9 @@ MIN_INTEGRAL_DAMPING = 0.1
 #: The stages found, by the robot's numbers and the options (the STAGES_KEPT latest).
 _STAGES_FOUND: dict[tuple[str, str, bool], int] = {}
 #: The integral's boosts found, kept as the stages are.
-_BOOSTS_FOUND: dict[tuple[str, str, bool], float] = {}
+_BOOSTS_FOUND: dict[tuple[str, str], float] = {}
 #: check_loop's findings, by the robot's numbers, the options and the period.
-_LOOPS_CHECKED: dict[tuple[str, str, bool, float], tuple[int, Any]] = {}
+_LOOPS_CHECKED: dict[tuple[str, str, float], tuple[int, Any]] = {}
 STAGES_KEPT = 64
 
 #: Periods of the platform's mode on the motor springs a planned move lasts at least
@@ -237,10 +237,7 @@ class WinchIdaPbc:
     build_judge : callable or None
         Not an option (left out of comparisons, hashes and :meth:`options`): how the filter's
         rule reads the robot's default build, which the closed loop attaches
-        (:meth:`judged_by`, :func:`cdpr_sym.closed_loop.build_rules.judged`): a trial
-        design and the robot -> the least damping ratio of that design's sampled loop on the
-        build at the case's start and goal (-inf where the loop loses the pose). None
-        (default): the rule reads the ideal plant alone.
+        (:meth:`judged_by`); None (default): the rule reads the ideal plant alone.
     """
 
     stiffness: float | None = None
@@ -252,8 +249,11 @@ class WinchIdaPbc:
     drive: Actuation | None = None
     plan: SmoothReference = SmoothReference()  # noqa: RUF009 - frozen, as above
     hold_room: bool = True
-    #: (design, robot) -> the least damping ratio of that design's loop as built (see the
-    #: class's parameters)
+    #: How the filter's rule reads the robot's default build where the caller can linearise
+    #: it (the closed loop attaches its own, :meth:`judged_by`): a trial design and the robot
+    #: -> the least damping ratio of that design's sampled loop on the build at the case's
+    #: start and goal (-inf where the loop loses the pose). None: the ideal plant alone.
+    #: Not an option: left out of comparisons, hashes and :meth:`options`.
     build_judge: Callable[[Any, Robot], float] | None = dataclasses.field(
         default=None, compare=False, repr=False)
     name: ClassVar[str] = "ida-winch"
@@ -370,15 +370,11 @@ class WinchIdaPbc:
         damping and the mode grows (that robot left its frame on the ideal plant; with one
         stage it settles). Worked out at 1 kHz, whatever the run's period (the memory's
         layout cannot follow a period given at run time): a run at a period where these
-        stages leave the loop growing is refused (:meth:`check_loop`). With a ``build_judge``
-        (a loop's design), the count is then checked against the robot's build
-        (:meth:`_unless_bare_is_better`): none where the build damps the loop better without
-        the filter. Computed once per robot (by its numbers), options and judged or not: 0.1 s
-        on aras3 and 3 s on ipanema8 on the ideal plant, and 1-7 s more for the loops as
-        built."""
+        stages leave the loop growing is refused (:meth:`check_loop`). Computed once per
+        robot (by its numbers) and options: 0.1 s on aras3, 3 s on ipanema8."""
         if self.feedback_stages != FROM_ROBOT:
             return int(self.feedback_stages)
-        return _kept(_STAGES_FOUND, self._rule_key(robot),
+        return _kept(_STAGES_FOUND, (*self._rule_key(robot), self.build_judge is not None),
                      lambda: self._stages_by_rule(robot, model or SymbolicModel(robot)))
 
     def judged_by(self, judge: Callable[[Any, Robot], float]) -> WinchIdaPbc:
@@ -470,12 +466,9 @@ class WinchIdaPbc:
                              carried=self.carried_size(model),
                              ignored_at_one=max(model.m - model.n, 0))
 
-    def _rule_key(self, robot: Robot) -> tuple[str, str, bool]:
-        """What the rule's findings are kept by: the robot's numbers, the options and
-        whether a build judge reads the robot's build (the stages, and so the integral's
-        boost and the loop at another period, may differ with it)."""
-        return (robot_key(robot), json.dumps(self.options(), sort_keys=True, default=str),
-                self.build_judge is not None)
+    def _rule_key(self, robot: Robot) -> tuple[str, str]:
+        """What the rule's findings are kept by: the robot's numbers and the options."""
+        return robot_key(robot), json.dumps(self.options(), sort_keys=True, default=str)
 
     def _stages_by_rule(self, robot: Robot, model: SymbolicModel) -> int:
         """:meth:`stages_for`'s rule, worked out."""
@@ -507,10 +500,7 @@ class WinchIdaPbc:
         stages). A heavy robot on long cables has them at 13-30 Hz, where the delay lags
         them 7-16 degrees: there the filter takes the damper off them instead, and they
         ring (an 18.7 kg point on 24 m cables: damping ratio 0.007 at 26 Hz with four
-        stages, 0.10 without). Without the filter's lag the integral's rule then takes a
-        corner four times faster (:meth:`integral_boost`, judged on the ideal loop as
-        before): that robot met the target as built on 23 of 40 pairs, 38 with both
-        changes, 23 without the filter alone and 25 with the faster integral alone."""
+        stages, 0.10 without; as built 23 of 40 pairs met the target, 38 without)."""
         if self.build_judge is None:
             return stages
         # the loop is read at rest, where the plan's path is a point: the trials plan with

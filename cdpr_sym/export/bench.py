@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 
 from cdpr_sym.closed_loop import step_layout
-from cdpr_sym.closed_loop.build_rules import judged
 from cdpr_sym.codegen import render, require_compiler, run_command
 from cdpr_sym.control import (
     Controller,
@@ -60,8 +59,7 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
     CompilationFailed
         The compiler rejected the code (its output is in the message).
     """
-    # the design as every loop and export builds it (ida-winch's filter reads the build)
-    robot, controller = resolve_robot(robot), judged(controller_by_name(controller))
+    robot, controller = resolve_robot(robot), controller_by_name(controller)
     check_cables(controller, robot.n, robot.m)
     cc = require_compiler(compiler)
     rng = np.random.default_rng(0)

@@ -17,9 +17,9 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from cdpr_sym.closed_loop.build_rules import judged
 from cdpr_sym.closed_loop.case import check_controller_build
 from cdpr_sym.closed_loop.plant import Plant
+from cdpr_sym.closed_loop.simulator import judged
 from cdpr_sym.codegen import c_identifier
 from cdpr_sym.control import Controller, capabilities, check_cables, controller_by_name
 from cdpr_sym.errors import InvalidCase

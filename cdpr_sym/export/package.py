@@ -44,7 +44,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from cdpr_sym.closed_loop.build_rules import built_options, judged
+from cdpr_sym.closed_loop.simulator import judged
 from cdpr_sym.codegen import c_identifier, is_c_identifier
 from cdpr_sym.codegen.names import MAX_IDENTIFIER
 from cdpr_sym.control import Controller, capabilities, check_cables, controller_by_name
@@ -200,8 +200,7 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
         (out / name).write_text(text)
     manifest = {"generator": _GENERATOR, "version": __version__, "prefix": prefix,
                 "robot": robot.as_dict(),
-                "controller": {"name": controller.name,
-                               "options": built_options(controller, robot)},
+                "controller": {"name": controller.name, "options": controller.options()},
                 "casadi_version": ca.__version__, "avoid_stack": avoid_stack,
                 "functions": {e.name: {"operations": e.function.n_instructions(),
                                        "work_doubles": e.function.sz_w()}
