@@ -39,7 +39,6 @@ nudged from rest (one with a growing mode ends further off, one damped dies out)
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -146,24 +145,3 @@ def _modes(matrix: np.ndarray, dt: float) -> LoopModes | None:
     eigenvalues = np.linalg.eigvals(matrix).astype(complex)
     kept = (np.abs(eigenvalues - 1) > AT_ONE) & (np.abs(eigenvalues) > TINY)
     return loop_modes(np.diag(eigenvalues[kept]), dt) if kept.any() else None
-
-
-def build_damping(controller: Controller, robot: Robot) -> float:
-    """The least damping ratio of ``controller``'s loop on ``robot``'s default build
-    (:func:`linearised_build`; its winches the controller's own model of them where it states
-    one, a ``drive``) at the case's start and goal, at the toolkit's 1 kHz; -inf where the
-    loop loses either pose or the build cannot be linearised at that period. What
-    ``ida-winch``'s filter rule reads where the closed loop attaches it
-    (:meth:`~cdpr_sym.control.WinchIdaPbc.judged_by`)."""
-    from cdpr_sym.errors import CdprError
-
-    build = linearised_build(robot)
-    drive = getattr(controller, "drive", None)
-    if drive is not None and build.actuation is not None:
-        build = dataclasses.replace(build, actuation=dataclasses.replace(drive, coulomb=0.0))
-    try:
-        loops = built_loops(robot, controller, [robot.start, robot.goal], build=build)
-    except CdprError:
-        return -math.inf
-    return min(-math.inf if loop.modes is None else loop.modes.least_damping
-               for loop in loops)

@@ -157,7 +157,6 @@ class Simulator:
                  rate_limited: bool = False, as_built: AsBuiltStructure | None = None
                  ) -> None:
         check_cables(controller, robot.n, robot.m)
-        controller = judged(controller)
         #: What the step is built for (:class:`PlantKind`): runs take plants of this kind.
         self.plant_kind = PlantKind(rate_limited=rate_limited, as_built=as_built)
         self.robot = robot
@@ -698,23 +697,6 @@ def controller_identifier(controller: Controller) -> str:
 #: robots or plants once kept every one (its CasADi graphs and library handles) for the
 #: process's life. (A loaded shared library stays mapped: ctypes never unloads one.)
 _SIMULATORS: collections.OrderedDict[tuple, Simulator] = collections.OrderedDict()
-def judged(controller: Controller) -> Controller:
-    """``controller`` with the closed loop's reading of the robot's default build attached
-    where its rules ask for one (``judged_by``: ``ida-winch``'s filter rule,
-    :func:`~cdpr_sym.closed_loop.built_loop.build_damping`); else itself. Every path that
-    builds a design's step from the closed loop's side calls it, so they build the same."""
-    attach = getattr(controller, "judged_by", None)
-    return controller if attach is None else attach(_build_damping)
-
-
-def _build_damping(controller: Controller, robot: Robot) -> float:
-    """:func:`~cdpr_sym.closed_loop.built_loop.build_damping` (imported on first use: that
-    module builds on this one)."""
-    from cdpr_sym.closed_loop.built_loop import build_damping
-
-    return build_damping(controller, robot)
-
-
 #: Most simulators kept.
 SIMULATOR_CACHE_SIZE = 32
 #: Guards the cache: a Dask worker's threads share it.

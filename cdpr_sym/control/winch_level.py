@@ -123,7 +123,7 @@ DAMPING_TIE = 0.002
 INTEGRAL_BOOSTS = (4.0, 2.0)
 MIN_INTEGRAL_DAMPING = 0.1
 #: The stages found, by the robot's numbers and the options (the STAGES_KEPT latest).
-_STAGES_FOUND: dict[tuple[str, str, bool], int] = {}
+_STAGES_FOUND: dict[tuple[str, str], int] = {}
 #: The integral's boosts found, kept as the stages are.
 _BOOSTS_FOUND: dict[tuple[str, str], float] = {}
 #: check_loop's findings, by the robot's numbers, the options and the period.
@@ -219,10 +219,9 @@ class WinchIdaPbc:
         lowest drum-cable mode, at most a fortieth of the sample rate (25 Hz on the paper's
         robot at 1 kHz).
     feedback_stages : int or "robot"
-        Stages of that filter, 0 (unfiltered) to 8. "robot" (default): :meth:`stages_for`,
-        the most stages (at most 4) whose linearised sampled loop damps every mode by at
-        least MIN_LOOP_DAMPING at the case's start and goal (else the best damped), or none
-        where the robot's default build damps the loop better without them.
+        Stages of that filter, 1 to 8. "robot" (default): :meth:`stages_for`, the most
+        stages (at most 4) whose linearised sampled loop damps every mode by at least
+        MIN_LOOP_DAMPING at the case's start and goal (else the best damped).
     plan : SmoothReference
         The planner of the reference (duration, margin).
     hold_room : bool
@@ -234,10 +233,6 @@ class WinchIdaPbc:
         T_min, so the floor of :meth:`kept_in_box` clips the command at rest and holds the
         integral for good (a 36.6 kg point on three cables, 10 % heavier as built, stayed
         3.6 cm low for 20 s), and a heavier build dips that cable below T_min at once.
-    build_judge : callable or None
-        Not an option (left out of comparisons, hashes and :meth:`options`): how the filter's
-        rule reads the robot's default build, which the closed loop attaches
-        (:meth:`judged_by`); None (default): the rule reads the ideal plant alone.
     """
 
     stiffness: float | None = None
@@ -249,13 +244,6 @@ class WinchIdaPbc:
     drive: Actuation | None = None
     plan: SmoothReference = SmoothReference()  # noqa: RUF009 - frozen, as above
     hold_room: bool = True
-    #: How the filter's rule reads the robot's default build where the caller can linearise
-    #: it (the closed loop attaches its own, :meth:`judged_by`): a trial design and the robot
-    #: -> the least damping ratio of that design's sampled loop on the build at the case's
-    #: start and goal (-inf where the loop loses the pose). None: the ideal plant alone.
-    #: Not an option: left out of comparisons, hashes and :meth:`options`.
-    build_judge: Callable[[Any, Robot], float] | None = dataclasses.field(
-        default=None, compare=False, repr=False)
     name: ClassVar[str] = "ida-winch"
 
     def __post_init__(self) -> None:
@@ -278,8 +266,8 @@ class WinchIdaPbc:
                 "feedback_cutoff", self.feedback_cutoff, "Hz"))
         stages = self.feedback_stages
         if stages != FROM_ROBOT and (isinstance(stages, bool) or not isinstance(stages, int)
-                                     or not 0 <= stages <= 8):
-            raise InvalidCase("feedback_stages", f"expected a whole number in 0..8 or "
+                                     or not 1 <= stages <= 8):
+            raise InvalidCase("feedback_stages", f"expected a whole number in 1..8 or "
                               f"'robot', got {stages!r}")
         if not isinstance(self.hold_room, (bool, np.bool_)):
             raise InvalidCase("hold_room", f"expected True or False, got {self.hold_room!r}")
@@ -374,16 +362,8 @@ class WinchIdaPbc:
         robot (by its numbers) and options: 0.1 s on aras3, 3 s on ipanema8."""
         if self.feedback_stages != FROM_ROBOT:
             return int(self.feedback_stages)
-        return _kept(_STAGES_FOUND, (*self._rule_key(robot), self.build_judge is not None),
+        return _kept(_STAGES_FOUND, self._rule_key(robot),
                      lambda: self._stages_by_rule(robot, model or SymbolicModel(robot)))
-
-    def judged_by(self, judge: Callable[[Any, Robot], float]) -> WinchIdaPbc:
-        """This design with ``judge`` reading its robot's default build for the filter's
-        rule (see ``build_judge``); itself where one is attached already or the stages are
-        stated."""
-        if self.build_judge is not None or self.feedback_stages != FROM_ROBOT:
-            return self
-        return dataclasses.replace(self, build_judge=judge)
 
     def integral_boost(self, robot: Robot, model: SymbolicModel | None = None) -> float:
         """The multiple of the integral rule's k_i the law uses (``integral=None``): the
@@ -481,41 +461,10 @@ class WinchIdaPbc:
                 self, feedback_stages=stages, integral=integral).loop_modes(
                 model, DEFAULT_DT).least_damping
             if found[stages] >= MIN_LOOP_DAMPING:
-                return self._unless_bare_is_better(robot, model, stages, integral)
+                return stages
         best = max(found.values())
-        stages = max(stages for stages, damping in found.items()
-                     if damping >= best - DAMPING_TIE)
-        return self._unless_bare_is_better(robot, model, stages, integral)
-
-    def _unless_bare_is_better(self, robot: Robot, model: SymbolicModel, stages: int,
-                               integral: float) -> int:
-        """``stages``, or 0 (no filter) where ``build_judge`` finds the robot's default
-        build damps the unfiltered loop by at least MIN_LOOP_DAMPING and by more than
-        DAMPING_TIE over the filtered one, and the unfiltered loop on the ideal plant is
-        damped by MIN_LOOP_DAMPING too.
-
-        Why: the filter keeps the damper off drum-cable modes that the loop's delay would
-        feed with negative damping; that needs modes fast against the delay (aras3's at
-        50-250 Hz lag 27-135 degrees behind a 1.5 ms delay and hold pose only with four
-        stages). A heavy robot on long cables has them at 13-30 Hz, where the delay lags
-        them 7-16 degrees: there the filter takes the damper off them instead, and they
-        ring (an 18.7 kg point on 24 m cables: damping ratio 0.007 at 26 Hz with four
-        stages, 0.10 without; as built 23 of 40 pairs met the target, 38 without)."""
-        if self.build_judge is None:
-            return stages
-        # the loop is read at rest, where the plan's path is a point: the trials plan with
-        # the fewest samples and no bows (the same loop, to the last digit on spatial4, and a
-        # seventh of the time: their plan's functions are most of what building a step costs)
-        at_rest = dataclasses.replace(self.plan, bows=(), samples=3)
-        bare = dataclasses.replace(self, feedback_stages=0, integral=integral,
-                                   build_judge=None, plan=at_rest)
-        if bare.loop_modes(model, DEFAULT_DT).least_damping < MIN_LOOP_DAMPING:
-            return stages
-        bare_built = self.build_judge(bare, robot)
-        if bare_built < MIN_LOOP_DAMPING:
-            return stages
-        filtered = dataclasses.replace(bare, feedback_stages=stages)
-        return 0 if bare_built > self.build_judge(filtered, robot) + DAMPING_TIE else stages
+        return max(stages for stages, damping in found.items()
+                   if damping >= best - DAMPING_TIE)
 
     def carried_size(self, model: SymbolicModel) -> int:
         """How many of the memory's leading entries the step only carries: the plan and

@@ -44,7 +44,6 @@ from pathlib import Path
 
 import casadi as ca
 
-from cdpr_sym.closed_loop.simulator import judged
 from cdpr_sym.codegen import c_identifier, is_c_identifier
 from cdpr_sym.codegen.names import MAX_IDENTIFIER
 from cdpr_sym.control import Controller, capabilities, check_cables, controller_by_name
@@ -178,8 +177,7 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     robot = resolve_robot(robot)
     # a registered name names the package (l2-minnorm and l2 share the class name "l2")
     label = controller if isinstance(controller, str) else controller.name
-    # the design as every loop builds it (ida-winch's filter rule reads the robot's build)
-    controller = judged(controller_by_name(controller))
+    controller = controller_by_name(controller)
     check_cables(controller, robot.n, robot.m)
     sampled = capabilities(controller).sampled
     if sampled:
