@@ -291,10 +291,13 @@ def lighter(options: BuildOptions, timeout: float | None = None) -> BuildOptions
     given), for large generated files whose compile time -O2 multiplies; other flags are
     left alone.
 
-    The arithmetic is the same bits at either level: :data:`EXACT_FLAGS` forbid
-    contraction, re-association and reciprocals at every level, so a level changes which
-    instructions carry each IEEE operation, never its result. Flags the user chose are
-    kept as given.
+    The arithmetic is the same bits at either level: GCC and Clang turn on no
+    value-changing floating-point transformation at any -O level (re-association and
+    reciprocals need -ffast-math or its parts), and :data:`EXACT_FLAGS`' -ffp-contract=off
+    forbids the one they do by default, fusing a multiply and an add; a level changes which
+    instructions carry each IEEE operation, never its result (checked on every preset's
+    NMPC run, and in tests/test_build_level.py). Flags that differ from the default are
+    kept as given: to force -O2 append it (``EXACT_FLAGS + ("-O2",)``).
     """
     if options.flags != EXACT_FLAGS:
         return options
