@@ -167,7 +167,8 @@ def test_at_rest_it_holds_the_pull_and_the_plant_stays(aras3, build_options):
 @pytest.mark.parametrize(("field", "value"), [
     ("stiffness", 0.0), ("stiffness", "1e3"), ("damping", -1.0), ("damping", True),
     ("integral", float("nan")), ("rate_cutoff", 0.0), ("feedback_cutoff", -5.0),
-    ("feedback_stages", 0), ("feedback_stages", 2.0), ("drive", "winch"), ("plan", 3)])
+    ("feedback_stages", -1), ("feedback_stages", 9), ("feedback_stages", 2.0),
+    ("drive", "winch"), ("plan", 3)])
 def test_bad_options_name_their_field(field, value):
     with pytest.raises(InvalidCase, match=field):
         WinchIdaPbc(**{field: value})

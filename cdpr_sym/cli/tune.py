@@ -51,9 +51,7 @@ def _lines(report: dict[str, Any]) -> list[str]:
         f"tenth where the sampled loop still damps every mode by 0.1, else a twentieth; "
         f"times {loop['integral_share']:.3g}: k_d w_s^2 / 2 "
         f"at most, w_s the slowest mode with the cables' geometric stiffness, "
-        f"{loop['slowest_mode_hz']:.3g} Hz), filter {winch['feedback_cutoff']:.3g} Hz x "
-        f"{loop['feedback_stages']} (the most stages, at most 4, whose sampled loop damps "
-        f"every mode by 0.02)",
+        f"{loop['slowest_mode_hz']:.3g} Hz), {_filter_text(winch, loop)}",
         f"case gains ({case['source']}): k {np.round(case['k'], 4).tolist()}, r_d "
         f"{np.round(case['r_d'], 4).tolist()}",
         f"plan (smooth, smooth-lp, ida-winch): tension rate at most "
@@ -82,6 +80,16 @@ def _lines(report: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _filter_text(winch: dict[str, Any], loop: dict[str, Any]) -> str:
+    """ida-winch's feedback filter and the rule that chose it, in words."""
+    if loop["feedback_stages"] == 0:
+        return ("no feedback filter (the robot's build, with these winches, damps every mode "
+                "of the loop by 0.02 without one, and better than with the stages the ideal "
+                "plant allows)")
+    return (f"filter {winch['feedback_cutoff']:.3g} Hz x {loop['feedback_stages']} (the most "
+            f"stages, at most 4, whose sampled loop damps every mode by 0.02)")
+
+
 def _nmpc_line(nmpc: dict[str, Any]) -> str:
     if "refused" in nmpc:
         return f"nmpc: not offered ({nmpc['refused']})"
@@ -96,6 +104,7 @@ def _nmpc_line(nmpc: dict[str, Any]) -> str:
 
 def tune_command(args: argparse.Namespace, out: Output) -> int:
     from cdpr_sym.as_built import load_as_built_draw
+    from cdpr_sym.closed_loop.simulator import judged
 
     if not (isinstance(args.dt, float) and 0 < args.dt <= 0.1 and math.isfinite(args.dt)):
         raise InvalidCase("dt", f"expected a control period in (0, 0.1] s, got {args.dt!r}")
@@ -109,7 +118,7 @@ def tune_command(args: argparse.Namespace, out: Output) -> int:
     if drive is None:
         raise InvalidCase("as_built", "the gains are derived from the winches: the as-built "
                           "specification needs an [actuation] table")
-    report = tune_report(robot, drive, args.dt)
+    report = tune_report(robot, drive, args.dt, judged=judged)
     report["loop_as_built"] = _built_loop_numbers(robot, draw, drive, args.dt)
     report["warnings"] = loop_warnings(report)
     out.result(report, _lines(report) + [f"warning: {text}" for text in report["warnings"]])

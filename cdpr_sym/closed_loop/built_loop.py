@@ -38,63 +38,28 @@ nudged from rest (one with a growing mode ends further off, one damped dies out)
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
-from typing import Any
 
-import casadi as ca
 import numpy as np
 
-from cdpr_sym.as_built import DEFAULT_DRAW, AsBuilt, AsBuiltDraw
-from cdpr_sym.closed_loop.plant import Plant
-from cdpr_sym.closed_loop.simulator import get_simulator
+from cdpr_sym.as_built import AsBuilt
+from cdpr_sym.closed_loop.rest_loop import (
+    AT_ONE,
+    REST_SECONDS,
+    TINY,
+    BuiltLoop,
+    linearised_build,
+    loops_on,
+)
+from cdpr_sym.closed_loop.simulator import build_damping, get_simulator
 from cdpr_sym.codegen import BuildOptions
 from cdpr_sym.control import Controller, capabilities
-from cdpr_sym.control.sampled_loop import LoopModes, loop_modes
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
 from cdpr_sym.robot.gains import DEFAULT_DT
 
-#: Seconds the loop runs from rest at the pose before it is linearised.
-REST_SECONDS = 5.0
-#: Eigenvalues of magnitude under TINY are the delay's buffer (they come out at 1e-12 to
-#: 1e-9), not motions.
-#: Eigenvalues within AT_ONE of 1 (the plan's clock, what the law only carries, the
-#: integral's part no pose changes: they come out within 1e-15) are not motions either.
-AT_ONE, TINY = 1e-9, 1e-6
-
-
-@dataclasses.dataclass(frozen=True)
-class BuiltLoop:
-    """The loop as built at ``pose``: its ``modes``, or None where the run from rest there
-    did not stay (``stop_reason`` says why: its stop, or how far off the pose it ended);
-    ``swing``, m (rad), how much the pose still moved in the run's last second (a lightly
-    damped mode's leftover: the linearisation is at the run's end)."""
-
-    pose: np.ndarray
-    modes: LoopModes | None
-    stop_reason: str | None = None
-    swing: float = 0.0
-
-    @property
-    def least_damping(self) -> float:
-        """The least damping ratio, -inf where the loop did not stay at the pose."""
-        return -np.inf if self.modes is None else self.modes.least_damping
-
-
-def linearised_build(robot: Robot, draw: AsBuiltDraw = DEFAULT_DRAW) -> AsBuilt:
-    """The build of ``draw`` (its winches, sensing, delay and substeps for ``robot``) as
-    linearised here: anchors where the model has them, encoders unquantised and without
-    zero errors, no Coulomb friction."""
-    _, built = draw.draw(np.random.default_rng(0), robot)
-    replaced: dict[str, object] = {"anchor_offsets": np.zeros_like(built.anchor_offsets)}
-    if built.encoder_offsets is not None:
-        replaced["encoder_offsets"] = np.zeros_like(built.encoder_offsets)
-    if built.actuation is not None:
-        replaced["actuation"] = dataclasses.replace(built.actuation, coulomb=0.0)
-    if built.sensing is not None:
-        replaced["sensing"] = dataclasses.replace(built.sensing, resolution=0.0)
-    return dataclasses.replace(built, **replaced)
+__all__ = ["AT_ONE", "REST_SECONDS", "TINY", "BuiltLoop", "build_damping", "built_loops",
+           "linearised_build"]
 
 
 def built_loops(robot: Robot, controller: Controller, poses: Sequence[np.ndarray], *,
@@ -110,38 +75,4 @@ def built_loops(robot: Robot, controller: Controller, poses: Sequence[np.ndarray
     build = build if build is not None else linearised_build(robot)
     simulator = get_simulator(robot, controller, as_built=build.structure(),
                               build_options=build_options)
-    plant = Plant(as_built=build)
-    step = simulator.step
-    x, p = ca.SX.sym("x", step.size1_in(0)), ca.SX.sym("p", step.size1_in(1))
-    jacobian = ca.Function("loop_jacobian", [x, p], [ca.jacobian(step(x, p)[0], x)])
-    steps = round(REST_SECONDS / dt)
-    return [_linearised(simulator, jacobian, np.asarray(pose, dtype=float), plant, steps, dt)
-            for pose in poses]
-
-
-def _linearised(simulator: Any, jacobian: ca.Function, pose: np.ndarray, plant: Plant,
-                steps: int, dt: float) -> BuiltLoop:
-    """The loop run from rest at ``pose`` for ``steps`` periods of ``dt`` s, linearised at
-    its end where it stayed in the target's band of the pose."""
-    robot = simulator.robot
-    x0, values = simulator.prepared(pose, pose, robot.k, robot.r_d, dt, plant)
-    states, logs = simulator.rollout(x0, values, steps)
-    run = simulator.trajectory(states, logs, steps, dt, pose, robot.k, robot.r_d, plant)
-    last_second = run.q[-round(1 / dt) - 1:]
-    off = float(np.max(np.linalg.norm(last_second - pose, axis=1)))
-    swing = float(np.max(np.ptp(last_second, axis=0)))
-    if run.stop_reason is not None:
-        return BuiltLoop(pose, None, run.stop_reason, swing)
-    if not off <= robot.design_target.error:
-        return BuiltLoop(pose, None, f"{off:.3g} off the pose after {steps * dt:g} s at rest "
-                         f"(the target's band: {robot.design_target.error:g})", swing)
-    modes = _modes(np.array(jacobian(states[steps], values)), dt)
-    return BuiltLoop(pose, modes, None if modes is not None else "no motion", swing)
-
-
-def _modes(matrix: np.ndarray, dt: float) -> LoopModes | None:
-    """The loop's modes from its matrix, the eigenvalues at 1 and 0 left out (None where
-    none is left)."""
-    eigenvalues = np.linalg.eigvals(matrix).astype(complex)
-    kept = (np.abs(eigenvalues - 1) > AT_ONE) & (np.abs(eigenvalues) > TINY)
-    return loop_modes(np.diag(eigenvalues[kept]), dt) if kept.any() else None
+    return loops_on(simulator, poses, build, dt)

@@ -16,6 +16,7 @@ import dataclasses
 import functools
 import hashlib
 import json
+import math
 import threading
 from collections.abc import Sequence
 from pathlib import Path
@@ -40,6 +41,7 @@ from cdpr_sym.closed_loop.floor import DriveFloor
 from cdpr_sym.closed_loop.layout import StepLayout
 from cdpr_sym.closed_loop.plant import Plant
 from cdpr_sym.closed_loop.plant_kind import PlantKind
+from cdpr_sym.closed_loop.rest_loop import build_of, each_loop, judged_poses
 from cdpr_sym.closed_loop.step import chunk_function, plant_layout, step_function
 from cdpr_sym.closed_loop.stops import ALL_STOP_REASONS
 from cdpr_sym.closed_loop.summaries import judged_tension
@@ -157,6 +159,7 @@ class Simulator:
                  rate_limited: bool = False, as_built: AsBuiltStructure | None = None
                  ) -> None:
         check_cables(controller, robot.n, robot.m)
+        controller = judged(controller)
         #: What the step is built for (:class:`PlantKind`): runs take plants of this kind.
         self.plant_kind = PlantKind(rate_limited=rate_limited, as_built=as_built)
         self.robot = robot
@@ -747,6 +750,57 @@ def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
     return simulator
 
 
+def judged(controller: Controller) -> Controller:
+    """``controller`` with the closed loop's reading of the robot's build attached where its
+    rules ask for one (its ``judged_by``: ``ida-winch``'s filter rule reads
+    :func:`build_damping`); else ``controller`` itself.
+
+    A design's defaults come from the robot by rules its own layer works out (the ideal
+    plant's loop); whether ``ida-winch``'s feedback filter helps or harms depends on the
+    drum-cable modes of the build, which only the closed loop's as-built step has. The design
+    takes that reading as a callable, so the control layer imports nothing above it. The
+    simulator, :func:`simulate`'s and the sweep's period checks, the exports, ``tune`` and
+    the zoo study's derived gains call this, so the design they check, run, export and
+    report is one; a design made and evaluated by hand (``WinchIdaPbc().stages_for``,
+    ``step_function``) is not judged and its rule reads the ideal plant alone."""
+    attach = getattr(controller, "judged_by", None)
+    return controller if attach is None else attach(build_damping)
+
+
+def build_damping(controller: Controller, robot: Robot, floor: float = -math.inf) -> float:
+    """The least damping ratio of ``controller``'s loop on ``robot``'s default build
+    (:func:`~cdpr_sym.closed_loop.rest_loop.build_of`: its winches the controller's own
+    model of them where it states one) at the poses of
+    :func:`~cdpr_sym.closed_loop.rest_loop.judged_poses` (the case's start and goal and
+    poses drawn over the static workspace), at the toolkit's 1 kHz, in CasADi's virtual
+    machine; -inf where the loop loses a pose or the build cannot be linearised at that
+    period (:mod:`cdpr_sym.closed_loop.built_loop` explains the method). The poses are read
+    in order and the reading stops at the first below ``floor`` (its damping returned)."""
+    from cdpr_sym.errors import CdprError
+
+    build = build_of(robot, controller)
+    try:
+        simulator = get_simulator(robot, controller, as_built=build.structure())
+        least = math.inf
+        for loop in each_loop(simulator, judged_poses(robot), build, DEFAULT_DT):
+            least = min(least, loop.least_damping)
+            if least < floor:
+                break
+    except CdprError:
+        return -math.inf
+    return least
+
+
+def built_options(controller: Controller, robot: Robot) -> dict[str, Any]:
+    """``controller``'s options as a loop builds it on ``robot`` (:func:`judged`): a filter
+    stage count its rule chose (``feedback_stages="robot"``) written as the count the
+    memory's layout has, for the records of an exported package."""
+    options = controller.options()
+    if options.get("feedback_stages") == "robot" and hasattr(controller, "stages_for"):
+        options["feedback_stages"] = judged(controller).stages_for(robot)
+    return options
+
+
 def simulate(robot: Robot | str | Path, controller: Controller | str, *,
              start: npt.ArrayLike | None = None, goal: npt.ArrayLike | None = None,
              k: npt.ArrayLike | None = None, r_d: npt.ArrayLike | None = None,
@@ -801,7 +855,8 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *,
     """
     robot, controller = resolve_robot(robot), controller_by_name(controller)
     check_timing(duration, dt, values_per_step=minimal_values_per_step(robot))
-    check_controller_period(controller, robot, dt)  # before building: gains dt can hold
+    # before building: gains dt can hold, of the design as the loop builds it
+    check_controller_period(judged(controller), robot, dt)
     if capabilities(controller).sampled:
         from cdpr_sym.closed_loop.sampled import steps_per_sample
 

@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -33,8 +34,12 @@ def linearised_modes(robot: Robot, model: Any, stiffness: float, damping: float,
     return sorted(modes, key=lambda mode: mode["frequency_hz"])
 
 
-def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
-    """Everything ``tune`` prints, as plain numbers."""
+def tune_report(robot: Robot, drive: Actuation, dt: float, *,
+                judged: Callable[[Any], Any] | None = None) -> dict[str, Any]:
+    """Everything ``tune`` prints, as plain numbers; ``judged``: what the loops that run the
+    designs do to them first (the closed loop's
+    :func:`~cdpr_sym.closed_loop.simulator.judged`, so the report shows the filter they run
+    with), None to leave them as made."""
     from cdpr_sym.control import Nmpc, WinchIdaPbc, tuning
     from cdpr_sym.model import SymbolicModel
     from cdpr_sym.robot.gains import case_gains
@@ -43,6 +48,8 @@ def tune_report(robot: Robot, drive: Actuation, dt: float) -> dict[str, Any]:
     mode = tuning.drum_cable_mode(robot, drive)
     corner = tuning.command_corner(robot, drive, dt)
     design = WinchIdaPbc(drive=drive)
+    if judged is not None:
+        design = judged(design)
     # the gains the law runs with (its integral's boost included)
     winch = tuning.WinchGains(*design.gains(robot, dt, model))
     derived_k, derived_r_d = case_gains(robot.mass, robot.inertia, robot.n, robot.dimension,

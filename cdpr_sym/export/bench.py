@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from cdpr_sym.closed_loop import step_layout
+from cdpr_sym.closed_loop.simulator import judged
 from cdpr_sym.codegen import render, require_compiler, run_command
 from cdpr_sym.control import (
     Controller,
@@ -59,7 +60,8 @@ def bench_export(robot: Robot | str | Path, controller: Controller | str, *,
     CompilationFailed
         The compiler rejected the code (its output is in the message).
     """
-    robot, controller = resolve_robot(robot), controller_by_name(controller)
+    # the design as every loop and export builds it (ida-winch's filter reads the build)
+    robot, controller = resolve_robot(robot), judged(controller_by_name(controller))
     check_cables(controller, robot.n, robot.m)
     cc = require_compiler(compiler)
     rng = np.random.default_rng(0)

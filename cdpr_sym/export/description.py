@@ -19,6 +19,7 @@ import casadi as ca
 import numpy as np
 
 from cdpr_sym.closed_loop import STOP_REASONS, Fields, StepLayout, step_function, step_layout
+from cdpr_sym.closed_loop.simulator import built_options
 from cdpr_sym.codegen import plain_text, renamed
 from cdpr_sym.control import (
     FLAG_NAMES,
@@ -308,7 +309,7 @@ def _offsets(tag: str, fields: Fields, names: tuple[str, ...]) -> list[_Macro]:
 
 def _names(robot: Robot, controller: Controller) -> dict[str, str]:
     """Robot name, controller name and options, safe to paste into any generated text."""
-    options = json.dumps(controller.options(), default=float).replace("*/", "* /")
+    options = json.dumps(built_options(controller, robot), default=float).replace("*/", "* /")
     return {"robot": plain_text(robot.name), "controller": plain_text(controller.name),
             "options": options}
 

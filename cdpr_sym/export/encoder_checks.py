@@ -19,6 +19,7 @@ import numpy as np
 
 from cdpr_sym.closed_loop.case import check_controller_build
 from cdpr_sym.closed_loop.plant import Plant
+from cdpr_sym.closed_loop.simulator import judged
 from cdpr_sym.codegen import c_identifier
 from cdpr_sym.control import Controller, capabilities, check_cables, controller_by_name
 from cdpr_sym.errors import InvalidCase
@@ -95,7 +96,8 @@ def check_export(robot: Robot | str | Path, controller: Controller | str,
                           f"lengths cannot give its {robot.n} coordinates; export-c without "
                           f"--from-encoders packages a design that reads the pose")
     label = controller if isinstance(controller, str) else controller.name
-    controller = controller_by_name(controller)
+    # the design as every loop builds it (ida-winch's filter rule reads the robot's build)
+    controller = judged(controller_by_name(controller))
     if capabilities(controller).sampled:
         raise InvalidCase("controller", f"{controller.name} solves an NMPC at its own rate; "
                           f"--from-encoders packages designs evaluated every sample "

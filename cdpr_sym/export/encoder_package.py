@@ -33,10 +33,10 @@ import dataclasses
 import hashlib
 import json
 from pathlib import Path
-from typing import Any
 
 import casadi as ca
 
+from cdpr_sym.closed_loop.simulator import built_options
 from cdpr_sym.control import Controller
 from cdpr_sym.export.encoder_checks import CheckedExport, check_export
 from cdpr_sym.export.encoder_description import (
@@ -145,15 +145,6 @@ def export_encoder_c(robot: Robot | str | Path, controller: Controller | str,
     return EncoderExportResult(out, checked.prefix, files, description.operations.calls())
 
 
-def _resolved_options(checked: CheckedExport) -> dict[str, Any]:
-    """The design's options as the package was built with them: a stage count the robot's
-    rule chose (``feedback_stages="robot"``) as the count, which the memory's layout has."""
-    options = checked.controller.options()
-    if options.get("feedback_stages") == "robot" and hasattr(checked.controller, "stages_for"):
-        options["feedback_stages"] = checked.controller.stages_for(checked.model_robot)
-    return options
-
-
 def _manifest(checked: CheckedExport, description: EncoderPackageDescription,
               texts: dict[str, str], as_built: str | Path, seed: int) -> str:
     """``manifest.json``: the robot, the design, the draw, the operation counts and the
@@ -161,7 +152,8 @@ def _manifest(checked: CheckedExport, description: EncoderPackageDescription,
     manifest = {"generator": _GENERATOR, "kind": "encoders", "version": __version__,
                 "prefix": checked.prefix, "robot": checked.model_robot.as_dict(),
                 "controller": {"name": checked.controller.name,
-                               "options": _resolved_options(checked)},
+                               "options": built_options(checked.controller,
+                                                        checked.model_robot)},
                 "as_built": {"specification": str(as_built), "seed": seed,
                              **checked.draw_record},
                 "casadi_version": ca.__version__,

@@ -44,6 +44,7 @@ from pathlib import Path
 
 import casadi as ca
 
+from cdpr_sym.closed_loop.simulator import built_options, judged
 from cdpr_sym.codegen import c_identifier, is_c_identifier
 from cdpr_sym.codegen.names import MAX_IDENTIFIER
 from cdpr_sym.control import Controller, capabilities, check_cables, controller_by_name
@@ -177,7 +178,8 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
     robot = resolve_robot(robot)
     # a registered name names the package (l2-minnorm and l2 share the class name "l2")
     label = controller if isinstance(controller, str) else controller.name
-    controller = controller_by_name(controller)
+    # the design as every loop builds it (ida-winch's filter rule reads the robot's build)
+    controller = judged(controller_by_name(controller))
     check_cables(controller, robot.n, robot.m)
     sampled = capabilities(controller).sampled
     if sampled:
@@ -198,7 +200,8 @@ def export_c(robot: Robot | str | Path, controller: Controller | str, out_dir: s
         (out / name).write_text(text)
     manifest = {"generator": _GENERATOR, "version": __version__, "prefix": prefix,
                 "robot": robot.as_dict(),
-                "controller": {"name": controller.name, "options": controller.options()},
+                "controller": {"name": controller.name,
+                               "options": built_options(controller, robot)},
                 "casadi_version": ca.__version__, "avoid_stack": avoid_stack,
                 "functions": {e.name: {"operations": e.function.n_instructions(),
                                        "work_doubles": e.function.sz_w()}

@@ -119,9 +119,10 @@ def derived_gains(robot: Robot) -> dict[str, Any]:
     """The gains the rules give ``robot`` at :data:`DT` with its default build's winches
     (:func:`~cdpr_sym.control.tuning_report.tune_report`, condensed)."""
     from cdpr_sym.as_built import DEFAULT_DRAW
+    from cdpr_sym.closed_loop.simulator import judged
     from cdpr_sym.control.tuning_report import tune_report
 
-    report = tune_report(robot, DEFAULT_DRAW.drive(robot), DT)
+    report = tune_report(robot, DEFAULT_DRAW.drive(robot), DT, judged=judged)
     winch = report["ida_winch"]
     slowest = min(mode["frequency_hz"] for modes in report["modes"].values()
                   for mode in modes)

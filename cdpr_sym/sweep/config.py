@@ -12,6 +12,7 @@ import numpy as np
 from cdpr_sym.closed_loop import Plant
 from cdpr_sym.closed_loop.case import check_controller_period, check_timing
 from cdpr_sym.closed_loop.effects.readout import check_draw_runs
+from cdpr_sym.closed_loop.simulator import judged
 from cdpr_sym.control import controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import PRESET_NAMES, UNDERACTUATED_PRESETS, Robot, preset, resolve_robot
@@ -105,7 +106,8 @@ class SweepConfig:
         check_timing(self.duration, self.dt)  # each run's size, before any is started
         robot = resolve_robot(self.robot)
         for name in self.controllers:  # gains no loop at dt can hold, before any run
-            check_controller_period(controller_by_name(name), robot, self.dt)
+            # the design as the loop builds it (ida-winch's filter reads the build)
+            check_controller_period(judged(controller_by_name(name)), robot, self.dt)
         Plant(mass_scale=self.mass_scale)
         if self.as_built is None and self.calibration != "none":
             raise InvalidCase("calibration", "a calibration needs a robot as built "
