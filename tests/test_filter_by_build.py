@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 
 import numpy as np
@@ -181,6 +182,20 @@ def test_a_loop_damped_at_the_case_s_ends_but_not_between_keeps_the_filter():
     ends = built_loops(robot, slower, poses[:2])
     assert min(loop.least_damping for loop in ends) > 0.2
     assert judged(WinchIdaPbc(integral=integral)).stages_for(robot) == 4
+
+
+@pytest.mark.slow  # the build read over ten poses, twice: ~10 s
+def test_tune_says_where_the_build_takes_the_filter_away(capsys, tmp_path):
+    """tune shows the design the loops run: the zoo's 18.7 kg point on 24 m cables without
+    the filter (four stages on its ideal plant), in the JSON and in words."""
+    from cdpr_sym.cli import main
+
+    path = tmp_path / "robot.toml"
+    path.write_text(robot_file_text(zoo_robot(1, "zoo0_001_point3_m3")))
+    assert main(["tune", "--robot", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["loop"]["feedback_stages"] == 0
+    assert main(["tune", "--robot", str(path)]) == 0
+    assert "no feedback filter (the robot's build" in capsys.readouterr().out
 
 
 @pytest.mark.slow

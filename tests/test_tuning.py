@@ -226,8 +226,8 @@ def test_tune_warns_where_the_filter_rule_cannot_damp_every_mode(capsys):
     """ipanema8: no stage count of ida-winch's feedback filter damps every mode of its ideal
     loop by the rule's 0.02 (its slow rotations on 6 cm arms, 0.0004-0.0008 with any count),
     and its build keeps the four stages; tune says so in one line of text and in the JSON's
-    warnings. (A 120 kg 8-cable zoo platform, 0.0188, was the case here until the rule read
-    the build: the design it gets since damps that loop by 0.025.)"""
+    warnings. (A 120 kg 8-cable zoo platform, 0.0188, was the case here before: ipanema8's
+    loop is read in a third of its time.)"""
     from cdpr_sym.control.winch_level import MIN_LOOP_DAMPING
 
     assert main(["tune", "--robot", "ipanema8", "--json"]) == 0
