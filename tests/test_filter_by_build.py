@@ -144,14 +144,20 @@ def test_aras3_keeps_its_four_stages_its_bare_loop_as_built_loses_the_pose():
     assert judged(WinchIdaPbc()).stages_for(robot) == 4
 
 
+def _judged_poses(robot):
+    """The poses the judge reads ``robot``'s loop at (the simulator's statics)."""
+    return judged_poses(robot, get_simulator(robot, WinchIdaPbc(feedback_stages=4)
+                                             ).static_tensions)
+
+
 def test_the_judged_poses_are_the_case_s_ends_and_the_static_workspace():
     robot = zoo_robot(0, "zoo0_000_point2_m2")
-    poses = judged_poses(robot)
+    poses = _judged_poses(robot)
     assert len(poses) == 2 + JUDGED_SAMPLES
     np.testing.assert_array_equal(poses[0], robot.start)
     np.testing.assert_array_equal(poses[1], robot.goal)
     assert WorkspaceEvaluator(robot).classify(np.array(poses)).feasible.all()
-    assert all(np.array_equal(a, b) for a, b in zip(poses, judged_poses(robot), strict=True))
+    assert all(np.array_equal(a, b) for a, b in zip(poses, _judged_poses(robot), strict=True))
 
 
 def test_a_loop_damped_at_the_case_s_ends_but_not_between_keeps_the_filter():
@@ -161,7 +167,7 @@ def test_a_loop_damped_at_the_case_s_ends_but_not_between_keeps_the_filter():
     without them chattered on all 40 pairs of the zoo study."""
     robot = zoo_robot(0, "zoo0_000_point2_m2")
     bare = WinchIdaPbc(feedback_stages=0)
-    poses = judged_poses(robot)
+    poses = _judged_poses(robot)
     loops = [loop.least_damping for loop in built_loops(robot, bare, poses)]
     assert loops[1] >= MIN_LOOP_DAMPING and min(loops[2:]) < 0
     # the judge's reading is the least over the poses; with a floor it stops at the first

@@ -782,7 +782,8 @@ def build_damping(controller: Controller, robot: Robot, floor: float = -math.inf
     try:
         simulator = get_simulator(robot, controller, as_built=build.structure())
         least = math.inf
-        for loop in each_loop(simulator, judged_poses(robot), build, DEFAULT_DT):
+        for loop in each_loop(simulator, judged_poses(robot, simulator.static_tensions),
+                              build, DEFAULT_DT):
             least = min(least, loop.least_damping)
             if least < floor:
                 break
