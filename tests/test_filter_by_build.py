@@ -50,16 +50,20 @@ def _fresh_findings(monkeypatch):
         monkeypatch.setattr(winch_level, found, {})
 
 
-def _fixed_judge(bare: float, filtered: float):
-    """A judge answering ``bare`` for the unfiltered trial and ``filtered`` for the other,
-    counting its calls; each trial must be the design as it would ship (its integral left to
-    its own rule)."""
+def _fixed_judge(bare: float, filtered, poses: int = 3):
+    """A judge answering ``bare`` at each pose it is asked to read for the unfiltered trial
+    and ``filtered`` (a number for every pose, or a list, one per pose) for the other,
+    counting its calls and keeping the poses each was asked to read; each trial must be
+    the design as it would ship (its integral left to its own rule)."""
     calls = []
 
-    def judge(trial, robot, floor=-math.inf):
+    def judge(trial, robot, *, where=None, floor=-math.inf):
         assert trial.integral is None and trial.build_judge is None
-        calls.append(trial.feedback_stages)
-        return bare if trial.feedback_stages == 0 else filtered
+        calls.append((trial.feedback_stages, where))
+        if trial.feedback_stages != 0:
+            return list(filtered) if isinstance(filtered, list) else [filtered] * poses
+        read = poses if where is None else sum(where)
+        return [bare] * read
 
     return judge, calls
 
@@ -76,8 +80,22 @@ def test_the_filter_goes_only_where_the_build_damps_the_bare_loop_better(bare, f
     robot = preset("aras3")  # its ideal rule gives 4; its bare ideal loop is damped by 0.1
     judge, calls = _fixed_judge(bare, filtered)
     assert WinchIdaPbc().judged_by(judge).stages_for(robot) == stages
-    assert calls[0] == 0 and set(calls) <= {0, 4}
+    assert calls[0][0] == 4 and {stages for stages, _ in calls} <= {0, 4}
     assert WinchIdaPbc().stages_for(robot) == 4  # no judge: the ideal plant alone
+
+
+def test_poses_the_filtered_loop_loses_too_decide_nothing():
+    """Where the build holds no rest for the filtered loop either (it loses the pose), the
+    unfiltered one is not read there: damped by 0.05 where the filtered one holds, it takes
+    the filter away; read there too (-inf) it would not."""
+    robot = preset("aras3")
+    judge, calls = _fixed_judge(0.05, [0.01, -math.inf, 0.01])
+    assert WinchIdaPbc().judged_by(judge).stages_for(robot) == 0
+    assert calls[-1] == (0, [True, False, True])
+    for found in ("_STAGES_FOUND", "_BOOSTS_FOUND"):  # kept per robot and judged or not
+        getattr(winch_level, found).clear()
+    judge, calls = _fixed_judge(0.05, [-math.inf] * 3)
+    assert WinchIdaPbc().judged_by(judge).stages_for(robot) == 4 and len(calls) == 1
 
 
 def test_the_filter_stays_where_the_bare_loop_on_the_ideal_plant_is_damped_too_little(
@@ -104,7 +122,7 @@ def test_stated_stages_and_an_attached_judge_are_kept():
     assert stated.judged_by(judge) is stated and stated.judged_by(judge).stages_for(
         preset("aras3")) == 2
     first = WinchIdaPbc().judged_by(judge)
-    assert first.judged_by(lambda trial, robot, floor=0.0: 0.0) is first
+    assert first.judged_by(lambda trial, robot, **_: [0.0]) is first
     assert first == WinchIdaPbc() and hash(first) == hash(WinchIdaPbc())  # not an option
     assert "build_judge" not in first.options() and not calls
 

@@ -753,7 +753,7 @@ def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
 def judged(controller: Controller) -> Controller:
     """``controller`` with the closed loop's reading of the robot's build attached where its
     rules ask for one (its ``judged_by``: ``ida-winch``'s filter rule reads
-    :func:`build_damping`); else ``controller`` itself.
+    :func:`build_dampings`); else ``controller`` itself.
 
     A design's defaults come from the robot by rules its own layer works out (the ideal
     plant's loop); whether ``ida-winch``'s feedback filter helps or harms depends on the
@@ -764,32 +764,42 @@ def judged(controller: Controller) -> Controller:
     report is one; a design made and evaluated by hand (``WinchIdaPbc().stages_for``,
     ``step_function``) is not judged and its rule reads the ideal plant alone."""
     attach = getattr(controller, "judged_by", None)
-    return controller if attach is None else attach(build_damping)
+    return controller if attach is None else attach(build_dampings)
 
 
-def build_damping(controller: Controller, robot: Robot, floor: float = -math.inf) -> float:
+def build_dampings(controller: Controller, robot: Robot, *,
+                   where: Sequence[bool] | None = None, floor: float = -math.inf
+                   ) -> list[float]:
     """The least damping ratio of ``controller``'s loop on ``robot``'s default build
     (:func:`~cdpr_sym.closed_loop.rest_loop.build_of`: its winches the controller's own
-    model of them where it states one) at the poses of
+    model of them where it states one) at each pose of
     :func:`~cdpr_sym.closed_loop.rest_loop.judged_poses` (the case's start and goal and
-    poses drawn over the static workspace), at the toolkit's 1 kHz, in CasADi's virtual
-    machine; -inf where the loop loses a pose or the build cannot be linearised at that
-    period (:mod:`cdpr_sym.closed_loop.built_loop` explains the method). The poses are read
-    in order and the reading stops at the first below ``floor`` (its damping returned)."""
+    poses drawn over the static workspace; ``where``: only those marked True), at the
+    toolkit's 1 kHz; -inf where the loop loses the pose. Read in order, stopping after the
+    first below ``floor``. [-inf] where the build cannot be linearised at that period
+    (:mod:`cdpr_sym.closed_loop.built_loop` explains the method)."""
     from cdpr_sym.errors import CdprError
 
     build = build_of(robot, controller)
+    found: list[float] = []
     try:
         simulator = get_simulator(robot, controller, as_built=build.structure())
-        least = math.inf
-        for loop in each_loop(simulator, judged_poses(robot, simulator.static_tensions),
-                              build, DEFAULT_DT):
-            least = min(least, loop.least_damping)
-            if least < floor:
+        poses = judged_poses(robot, simulator.static_tensions)
+        if where is not None:
+            poses = [pose for pose, read in zip(poses, where, strict=True) if read]
+        for loop in each_loop(simulator, poses, build, DEFAULT_DT):
+            found.append(loop.least_damping)
+            if found[-1] < floor:
                 break
     except CdprError:
-        return -math.inf
-    return least
+        return [-math.inf]
+    return found
+
+
+def build_damping(controller: Controller, robot: Robot, floor: float = -math.inf) -> float:
+    """The least of :func:`build_dampings` (the reading stops at the first pose under
+    ``floor``)."""
+    return min(build_dampings(controller, robot, floor=floor))
 
 
 def built_options(controller: Controller, robot: Robot) -> dict[str, Any]:

@@ -238,10 +238,11 @@ class WinchIdaPbc:
         Not an option (left out of comparisons, hashes and :meth:`options`): how the filter's
         rule reads the robot's default build, which the closed loop attaches
         (:meth:`judged_by`, :func:`cdpr_sym.closed_loop.simulator.judged`): a trial
-        design and the robot (and ``floor``: the reading may stop at the first pose damped
-        less) -> the least damping ratio of that design's sampled loop on the build at the
-        case's start and goal and poses over the static workspace (-inf where the loop loses
-        a pose). None (default): the rule reads the ideal plant alone.
+        design and the robot (and ``where``, which of the poses to read, and ``floor``: the
+        reading may stop after the first pose damped less) -> the least damping ratio of
+        that design's sampled loop on the build at each of the case's start and goal and
+        poses over the static workspace (-inf where the loop loses the pose). None
+        (default): the rule reads the ideal plant alone.
     """
 
     stiffness: float | None = None
@@ -502,10 +503,11 @@ class WinchIdaPbc:
     def _unless_bare_is_better(self, robot: Robot, model: SymbolicModel, stages: int) -> int:
         """``stages``, or 0 (no filter) where ``build_judge`` finds the robot's default
         build damps the unfiltered loop by at least MIN_LOOP_DAMPING at every pose it reads
-        (the case's start and goal and poses over the static workspace) and by more than
-        DAMPING_TIE over the filtered one at its worst, and the unfiltered loop on the ideal
-        plant is damped by MIN_LOOP_DAMPING too. Each loop read is the design as it would
-        ship, its integral from its own rule.
+        (the case's start and goal and poses over the static workspace) where the filtered
+        loop holds the robot at rest (where neither does, the build has no rest to judge),
+        and by more than DAMPING_TIE over the filtered one at its worst, and the unfiltered
+        loop on the ideal plant is damped by MIN_LOOP_DAMPING too. Each loop read is the
+        design as it would ship, its integral from its own rule.
 
         Why: the filter keeps the damper off drum-cable modes that the loop's delay would
         feed with negative damping; that needs modes fast against the delay (aras3's at
@@ -535,13 +537,17 @@ class WinchIdaPbc:
         bare = dataclasses.replace(self, feedback_stages=0, build_judge=None, plan=at_rest)
         if bare.loop_modes(model, DEFAULT_DT).least_damping < MIN_LOOP_DAMPING:
             return stages
-        bare_built = self.build_judge(bare, robot, floor=MIN_LOOP_DAMPING)
-        if bare_built < MIN_LOOP_DAMPING:
-            return stages
         filtered = dataclasses.replace(bare, feedback_stages=stages)
-        # read until the filtered loop is found worse by more than the tie, or everywhere
-        worse = bare_built - DAMPING_TIE
-        return 0 if self.build_judge(filtered, robot, floor=worse) < worse else stages
+        filtered_built = self.build_judge(filtered, robot)
+        # poses the filtered loop loses too (the build holds no rest there) decide nothing
+        held = [damping > -math.inf for damping in filtered_built]
+        if not any(held):
+            return stages
+        bare_built = self.build_judge(bare, robot, where=held, floor=MIN_LOOP_DAMPING)
+        if len(bare_built) < sum(held) or min(bare_built) < MIN_LOOP_DAMPING:
+            return stages
+        kept = min(damping for damping in filtered_built if damping > -math.inf)
+        return 0 if min(bare_built) > kept + DAMPING_TIE else stages
 
     def carried_size(self, model: SymbolicModel) -> int:
         """How many of the memory's leading entries the step only carries: the plan and
