@@ -85,7 +85,8 @@ def _filter_text(winch: dict[str, Any], loop: dict[str, Any]) -> str:
     if loop["feedback_stages"] == 0:
         return ("no feedback filter (the robot's build, with these winches, damps every mode "
                 "of the loop by 0.02 without one at the case's start and goal and at poses "
-                "over its workspace, and better than with the stages the ideal plant allows)")
+                "over its workspace where the filtered loop holds, and better than with the "
+                "stages the ideal plant allows)")
     return (f"filter {winch['feedback_cutoff']:.3g} Hz x {loop['feedback_stages']} (the most "
             f"stages, at most 4, whose sampled loop damps every mode by 0.02)")
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from cdpr_sym.as_built import DEFAULT_DRAW, AsBuilt, AsBuiltDraw
 from cdpr_sym.closed_loop.plant import Plant
+from cdpr_sym.errors import InvalidCase
 from cdpr_sym.robot import Robot
 
 if TYPE_CHECKING:  # the modes are read with scipy, loaded where a loop is linearised
@@ -27,6 +28,9 @@ REST_SECONDS = 5.0
 #: point on two cables, unfiltered: damped by 0.25 at its start and goal, -0.05 at poses on
 #: the line between them, where its runs chattered).
 JUDGED_SAMPLES = 8
+#: The share of the weight W T - grad V may miss by at a judged pose (round-off: an exact
+#: solve leaves 1e-12 and less; a distribution clipped into the box misses by newtons).
+STATICS_TOLERANCE = 1e-6
 #: Eigenvalues of magnitude under TINY are the delay's buffer (they come out at 1e-12 to
 #: 1e-9), not motions.
 #: Eigenvalues within AT_ONE of 1 (the plan's clock, what the law only carries, the
@@ -87,13 +91,15 @@ def each_loop(simulator: Any, poses: Sequence[np.ndarray], build: AsBuilt, dt: f
         yield _linearised(simulator, jacobian, np.asarray(pose, dtype=float), plant, steps, dt)
 
 
-def judged_poses(robot: Robot, static_tensions: Callable[[np.ndarray], np.ndarray]
+def judged_poses(robot: Robot, model: Any, static_tensions: Callable[[np.ndarray], np.ndarray]
                  ) -> list[np.ndarray]:
     """The poses a design rule reads the loop as built at (m, rad): the case's start and
     goal, then up to JUDGED_SAMPLES poses drawn uniformly over the frame shrunk by 5 % on
-    every side (a fixed seed: the same for the same robot) where ``static_tensions`` (rows
-    of poses -> rows of tensions, N: the simulator's W^{-1} grad V or its distribution)
-    holds the robot at rest inside [T_min, T_max]. Fewer where 64 draws of 256 find fewer
+    every side (a fixed seed: the same for the same robot) where the tensions of
+    ``static_tensions`` (rows of poses -> rows of tensions, N: the simulator's
+    W^{-1} grad V or its distribution) are in [T_min, T_max] and hold the weight:
+    |W T - grad V| within STATICS_TOLERANCE of |grad V| (``model``'s W and grad V; a
+    distribution clipped into the box does not). Fewer where 64 draws of 256 find fewer
     (a static workspace under a thousandth of the frame)."""
     size = robot.frame_upper - robot.frame_lower
     low, high = robot.frame_lower + 0.05 * size, robot.frame_upper - 0.05 * size
@@ -102,13 +108,24 @@ def judged_poses(robot: Robot, static_tensions: Callable[[np.ndarray], np.ndarra
     for _ in range(64):
         batch = rng.uniform(low, high, size=(256, robot.n))
         tensions = np.asarray(static_tensions(batch), dtype=float)
-        held = np.all(np.isfinite(tensions) & (tensions >= robot.t_min)
-                      & (tensions <= robot.t_max), axis=1)
-        found.extend(batch[held][: JUDGED_SAMPLES - len(found)])
+        in_box = np.all(np.isfinite(tensions) & (tensions >= robot.t_min)
+                        & (tensions <= robot.t_max), axis=1)
+        for pose, tension in zip(batch[in_box], tensions[in_box], strict=True):
+            if len(found) < JUDGED_SAMPLES and _holds_weight(model, pose, tension):
+                found.append(pose)
         if len(found) == JUDGED_SAMPLES:
             break
     return [np.asarray(robot.start, dtype=float), np.asarray(robot.goal, dtype=float),
             *found]
+
+
+def _holds_weight(model: Any, pose: np.ndarray, tension: np.ndarray) -> bool:
+    """Whether ``tension`` (N) holds the robot's weight at ``pose``: W T = grad V to
+    STATICS_TOLERANCE of |grad V|."""
+    structure = np.array(model.functions["structure_matrix"](pose))
+    weight = np.array(model.functions["grad_potential"](pose)).ravel()
+    residual = np.linalg.norm(structure @ tension - weight)
+    return bool(residual <= STATICS_TOLERANCE * max(np.linalg.norm(weight), 1e-300))
 
 
 def build_of(robot: Robot, controller: Any) -> AsBuilt:
@@ -126,7 +143,10 @@ def _linearised(simulator: Any, jacobian: ca.Function, pose: np.ndarray, plant: 
     """The loop run from rest at ``pose`` for ``steps`` periods of ``dt`` s, linearised at
     its end where it stayed in the target's band of the pose."""
     robot = simulator.robot
-    x0, values = simulator.prepared(pose, pose, robot.k, robot.r_d, dt, plant)
+    try:
+        x0, values = simulator.prepared(pose, pose, robot.k, robot.r_d, dt, plant)
+    except InvalidCase as refusal:  # e.g. the build cannot hold this pose at rest
+        return BuiltLoop(pose, None, f"refused: {refusal}")
     states, logs = simulator.rollout(x0, values, steps)
     run = simulator.trajectory(states, logs, steps, dt, pose, robot.k, robot.r_d, plant)
     last_second = run.q[-round(1 / dt) - 1:]

@@ -775,24 +775,23 @@ def build_dampings(controller: Controller, robot: Robot, *,
     model of them where it states one) at each pose of
     :func:`~cdpr_sym.closed_loop.rest_loop.judged_poses` (the case's start and goal and
     poses drawn over the static workspace; ``where``: only those marked True), at the
-    toolkit's 1 kHz; -inf where the loop loses the pose. Read in order, stopping after the
-    first below ``floor``. [-inf] where the build cannot be linearised at that period
-    (:mod:`cdpr_sym.closed_loop.built_loop` explains the method)."""
-    from cdpr_sym.errors import CdprError
-
+    toolkit's 1 kHz; -inf where the loop loses the pose or a run from rest there is
+    refused. Read in order, stopping after the first below ``floor``. [-inf] where the
+    build's step is refused at that period (:mod:`cdpr_sym.closed_loop.built_loop` explains
+    the method); a compiler's failure is raised.""" 
     build = build_of(robot, controller)
-    found: list[float] = []
     try:
         simulator = get_simulator(robot, controller, as_built=build.structure())
-        poses = judged_poses(robot, simulator.static_tensions)
-        if where is not None:
-            poses = [pose for pose, read in zip(poses, where, strict=True) if read]
-        for loop in each_loop(simulator, poses, build, DEFAULT_DT):
-            found.append(loop.least_damping)
-            if found[-1] < floor:
-                break
-    except CdprError:
+    except InvalidCase:  # e.g. the build's torque loop needs substeps this period lacks
         return [-math.inf]
+    poses = judged_poses(robot, simulator.model, simulator.static_tensions)
+    if where is not None:
+        poses = [pose for pose, read in zip(poses, where, strict=True) if read]
+    found: list[float] = []
+    for loop in each_loop(simulator, poses, build, DEFAULT_DT):
+        found.append(loop.least_damping)
+        if found[-1] < floor:
+            break
     return found
 
 
@@ -808,7 +807,9 @@ def built_options(controller: Controller, robot: Robot) -> dict[str, Any]:
     memory's layout has, for the records of an exported package."""
     options = controller.options()
     if options.get("feedback_stages") == "robot" and hasattr(controller, "stages_for"):
-        options["feedback_stages"] = judged(controller).stages_for(robot)
+        # no filter without its corner, whatever the rule would give
+        options["feedback_stages"] = (0 if options.get("feedback_cutoff") is None
+                                      else judged(controller).stages_for(robot))
     return options
 
 

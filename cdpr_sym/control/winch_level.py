@@ -256,7 +256,7 @@ class WinchIdaPbc:
     hold_room: bool = True
     #: (design, robot) -> the least damping ratio of that design's loop as built (see the
     #: class's parameters)
-    build_judge: Callable[..., float] | None = dataclasses.field(
+    build_judge: Callable[..., list[float]] | None = dataclasses.field(
         default=None, compare=False, repr=False)
     name: ClassVar[str] = "ida-winch"
 
@@ -383,7 +383,7 @@ class WinchIdaPbc:
         return _kept(_STAGES_FOUND, self._rule_key(robot),
                      lambda: self._stages_by_rule(robot, model or SymbolicModel(robot)))
 
-    def judged_by(self, judge: Callable[[Any, Robot], float]) -> WinchIdaPbc:
+    def judged_by(self, judge: Callable[..., list[float]]) -> WinchIdaPbc:
         """This design with ``judge`` reading its robot's default build for the filter's
         rule (see ``build_judge``); itself where one is attached already or the stages are
         stated."""
