@@ -778,7 +778,8 @@ def build_dampings(controller: Controller, robot: Robot, *,
     toolkit's 1 kHz; -inf where the loop loses the pose or a run from rest there is
     refused. Read in order, stopping after the first below ``floor``. [-inf] where the
     build's step is refused at that period (:mod:`cdpr_sym.closed_loop.built_loop` explains
-    the method); a compiler's failure is raised.""" 
+    the method); a compiler's failure is raised."""
+
     build = build_of(robot, controller)
     try:
         simulator = get_simulator(robot, controller, as_built=build.structure())
