@@ -269,3 +269,20 @@ def test_the_trials_plan_at_rest_reads_the_loop_the_full_plan_does():
     at_rest = dataclasses.replace(full, plan=dataclasses.replace(full.plan, bows=(),
                                                                  samples=3))
     assert build_damping(at_rest, robot) == build_damping(full, robot)
+
+
+def test_a_pose_refused_is_lost_alone_where_the_judge_asks():
+    """The judge reads a refused run from rest (here a pose of NaN) as that pose
+    lost and goes on; ``tune``'s reading raises it (it says the loop was not worked out)."""
+    from cdpr_sym.closed_loop.rest_loop import each_loop, linearised_build
+
+    robot = preset("aras3")
+    build = linearised_build(robot)
+    simulator = get_simulator(robot, WinchIdaPbc(feedback_stages=4), as_built=build.structure())
+    outside = np.full(robot.n, np.nan)
+    with pytest.raises(InvalidCase):
+        list(each_loop(simulator, [outside], build, 1e-3))
+    lost, kept = each_loop(simulator, [outside, robot.start], build, 1e-3,
+                           lose_refused=True)
+    assert lost.modes is None and lost.stop_reason.startswith("refused: ")
+    assert kept.modes is not None

@@ -78,17 +78,24 @@ def loops_on(simulator: Any, poses: Sequence[np.ndarray], build: AsBuilt, dt: fl
     return list(each_loop(simulator, poses, build, dt))
 
 
-def each_loop(simulator: Any, poses: Sequence[np.ndarray], build: AsBuilt, dt: float
-              ) -> Iterator[BuiltLoop]:
+def each_loop(simulator: Any, poses: Sequence[np.ndarray], build: AsBuilt, dt: float, *,
+              lose_refused: bool = False) -> Iterator[BuiltLoop]:
     """:func:`loops_on`, one pose at a time (a reader may stop early; the loop's Jacobian
-    is built once)."""
+    is built once). ``lose_refused``: a run from rest refused at a pose (an
+    :class:`InvalidCase`) is that pose lost, not raised."""
     plant = Plant(as_built=build)
     step = simulator.step
     x, p = ca.SX.sym("x", step.size1_in(0)), ca.SX.sym("p", step.size1_in(1))
     jacobian = ca.Function("loop_jacobian", [x, p], [ca.jacobian(step(x, p)[0], x)])
     steps = round(REST_SECONDS / dt)
     for pose in poses:
-        yield _linearised(simulator, jacobian, np.asarray(pose, dtype=float), plant, steps, dt)
+        try:
+            yield _linearised(simulator, jacobian, np.asarray(pose, dtype=float), plant,
+                              steps, dt)
+        except InvalidCase as refusal:
+            if not lose_refused:
+                raise
+            yield BuiltLoop(np.asarray(pose, dtype=float), None, f"refused: {refusal}")
 
 
 def judged_poses(robot: Robot, model: Any, static_tensions: Callable[[np.ndarray], np.ndarray]
@@ -143,10 +150,7 @@ def _linearised(simulator: Any, jacobian: ca.Function, pose: np.ndarray, plant: 
     """The loop run from rest at ``pose`` for ``steps`` periods of ``dt`` s, linearised at
     its end where it stayed in the target's band of the pose."""
     robot = simulator.robot
-    try:
-        x0, values = simulator.prepared(pose, pose, robot.k, robot.r_d, dt, plant)
-    except InvalidCase as refusal:  # e.g. the build cannot hold this pose at rest
-        return BuiltLoop(pose, None, f"refused: {refusal}")
+    x0, values = simulator.prepared(pose, pose, robot.k, robot.r_d, dt, plant)
     states, logs = simulator.rollout(x0, values, steps)
     run = simulator.trajectory(states, logs, steps, dt, pose, robot.k, robot.r_d, plant)
     last_second = run.q[-round(1 / dt) - 1:]

@@ -789,7 +789,7 @@ def build_dampings(controller: Controller, robot: Robot, *,
     if where is not None:
         poses = [pose for pose, read in zip(poses, where, strict=True) if read]
     found: list[float] = []
-    for loop in each_loop(simulator, poses, build, DEFAULT_DT):
+    for loop in each_loop(simulator, poses, build, DEFAULT_DT, lose_refused=True):
         found.append(loop.least_damping)
         if found[-1] < floor:
             break
