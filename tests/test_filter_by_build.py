@@ -287,3 +287,57 @@ def test_a_pose_refused_is_lost_alone_where_the_judge_asks():
                            lose_refused=True)
     assert lost.modes is None and lost.stop_reason.startswith("refused: ")
     assert kept.modes is not None
+
+
+def _counting_judge(calls):
+    """A judge that takes the filter away (unfiltered 0.05, filtered 0.01 at 3 poses) and
+    notes the robot of every reading (by its numbers)."""
+    from cdpr_sym.robot.description import robot_key
+
+    def judge(trial, robot, *, where=None, floor=-math.inf):
+        calls.append(robot_key(robot))
+        if trial.feedback_stages != 0:
+            return [0.01] * 3
+        return [0.05] * (3 if where is None else sum(where))
+
+    return judge
+
+
+def test_a_calibrated_model_runs_the_design_judged_on_its_robot(monkeypatch):
+    """judged_on states the count the loops judge on the nominal robot; a model of that
+    robot (a calibration's: other anchors, other mass) then runs that count without
+    reading a build of its own."""
+    from cdpr_sym.closed_loop import simulator as simulator_module
+    from cdpr_sym.closed_loop.simulator import judged_on
+    from cdpr_sym.control.registry import controller_by_name
+
+    calls = []
+    monkeypatch.setattr(simulator_module, "build_dampings", _counting_judge(calls))
+    robot = preset("aras3")
+    pinned = judged_on(WinchIdaPbc(), robot)
+    assert pinned.feedback_stages == 0 and calls
+    calls.clear()
+    other = zoo_robot(1, "zoo0_001_point3_m3")
+    assert judged(pinned) is pinned and pinned.stages_for(other) == 0 and not calls
+    stated, smooth = WinchIdaPbc(feedback_stages=2), controller_by_name("smooth")
+    assert judged_on(stated, robot) is stated and judged_on(smooth, robot) is smooth
+
+
+@pytest.mark.slow
+def test_a_calibrated_sweep_pair_judges_the_nominal_robot_only(monkeypatch):
+    """A calibrated pair of a sweep as built (tracker calibration of aras3) runs
+    ``ida-winch`` with the count judged on the robot file's robot: every reading of a build
+    is of that robot, none of the calibrated model's."""
+    from cdpr_sym.closed_loop import simulator as simulator_module
+    from cdpr_sym.robot.description import robot_key
+    from cdpr_sym.sweep.runner import run_as_built
+
+    calls = []
+    monkeypatch.setattr(simulator_module, "build_dampings", _counting_judge(calls))
+    robot = preset("aras3")
+    config = SweepConfig(robot="aras3", controllers=("ida-winch",), pairs=1, seed=0,
+                         duration=2.0, dt=1e-3, as_built="default", calibration="tracker")
+    starts, goals = draw_pairs(robot, config)
+    row = run_as_built(robot, DEFAULT_DRAW, config, 0, "ida-winch", starts[0], goals[0])
+    assert "error" not in row or not row["error"], row
+    assert calls and set(calls) == {robot_key(robot)}

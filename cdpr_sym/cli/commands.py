@@ -135,10 +135,14 @@ def _as_built_run(checked: SimulateInput, args: argparse.Namespace
     and the calibration."""
     from cdpr_sym.calibration.drawn import drawn_robot
     from cdpr_sym.closed_loop import get_simulator
+    from cdpr_sym.closed_loop.simulator import judged_on
 
     drawn = drawn_robot(checked.robot, checked.as_built, args.seed, 0, args.calibration)
     case = checked.case
-    simulator = get_simulator(drawn.model, checked.controller,
+    controller = checked.controller
+    if args.calibration != "none":  # its model runs the design judged on the robot
+        controller = judged_on(controller, checked.robot)
+    simulator = get_simulator(drawn.model, controller,
                               as_built=drawn.plant.as_built.structure(),
                               build_options=BuildOptions(backend=args.backend))
     held = all(simulator.true_static_held(q, drawn.plant) for q in (case.start, case.goal))

@@ -814,6 +814,20 @@ def built_options(controller: Controller, robot: Robot) -> dict[str, Any]:
     return options
 
 
+def judged_on(controller: Controller, robot: Robot) -> Controller:
+    """``controller`` with the filter stage count its rule gives on ``robot`` (judged as
+    every loop judges it: :func:`built_options`) stated, for a loop on another model of the
+    same robot: a calibrated model runs the design judged on the nominal one. The count
+    answers the build's drum-cable dynamics, which calibrating anchors and mass does not
+    change; judged per calibrated pair it cost two more compiled steps and up to twenty
+    runs from rest each. Other controllers, and stated counts, are returned as they are."""
+    if getattr(controller, "judged_by", None) is None \
+            or controller.options().get("feedback_stages") != "robot":
+        return controller
+    return dataclasses.replace(
+        controller, feedback_stages=built_options(controller, robot)["feedback_stages"])
+
+
 def simulate(robot: Robot | str | Path, controller: Controller | str, *,
              start: npt.ArrayLike | None = None, goal: npt.ArrayLike | None = None,
              k: npt.ArrayLike | None = None, r_d: npt.ArrayLike | None = None,

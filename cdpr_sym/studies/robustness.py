@@ -40,6 +40,7 @@ from cdpr_sym.calibration.drawn import SELF_POSES, TRACKER_NOISE, TRACKER_POSES,
 from cdpr_sym.closed_loop import Plant, get_simulator
 from cdpr_sym.closed_loop.case import check_controller_build
 from cdpr_sym.closed_loop.effects.readout import check_draw_runs
+from cdpr_sym.closed_loop.simulator import judged_on
 from cdpr_sym.control import capabilities, controller_by_name
 from cdpr_sym.errors import InvalidCase
 from cdpr_sym.reporting.text import render_report
@@ -225,7 +226,7 @@ def _calibrated_pair(task: tuple) -> tuple[list[dict[str, Any]], dict[str, Any]]
     rows = []
     for design in designs:
         rows += _effect_rows(drawn.model, design, effect, [drawn.plant], [start], [goal],
-                             first=index)
+                             first=index, nominal=robot)
     record = {key: value for key, value in drawn.record.items() if key != "anchor_offsets"}
     return rows, {**record, "read_error": rows[0]["read_error"]}
 
@@ -302,13 +303,18 @@ def _tag(name: str) -> int:
 
 
 def _effect_rows(robot: Robot, design: str, effect: str, plants: list[Plant],
-                 starts: np.ndarray, goals: np.ndarray, first: int = 0
-                 ) -> list[dict[str, Any]]:
+                 starts: np.ndarray, goals: np.ndarray, first: int = 0,
+                 nominal: Robot | None = None) -> list[dict[str, Any]]:
     """One row per pair (numbered from ``first``): whether the true plant holds start and
-    goal, and the run's verdict on the true tensions against the robot's target."""
+    goal, and the run's verdict on the true tensions against the robot's target.
+    ``nominal``: the robot ``robot`` calibrates (its design judged there:
+    :func:`~cdpr_sym.closed_loop.simulator.judged_on`)."""
     target = robot.design_target
     structure = plants[0].as_built.structure()
-    simulator = get_simulator(robot, controller_by_name(design), as_built=structure)
+    controller = controller_by_name(design)
+    if nominal is not None:
+        controller = judged_on(controller, nominal)
+    simulator = get_simulator(robot, controller, as_built=structure)
     rows = []
     for index, (plant, start, goal) in enumerate(zip(plants, starts, goals, strict=True)):
         held = bool(simulator.true_static_held(start, plant)

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from cdpr_sym.closed_loop import Plant, get_simulator, summarise_many
+from cdpr_sym.closed_loop.simulator import judged_on
 from cdpr_sym.control import CONTROLLERS, controller_by_name
 from cdpr_sym.errors import CdprError, Interrupted, InvalidCase
 from cdpr_sym.results import RunSummary, Trajectory
@@ -119,7 +120,10 @@ def run_as_built(robot: Robot, draw: AsBuiltDraw, config: SweepConfig, pair: int
 
     try:
         drawn = drawn_robot(robot, draw, config.seed, pair, config.calibration)
-        simulator = get_simulator(drawn.model, controller_by_name(controller_name),
+        controller = controller_by_name(controller_name)
+        if config.calibration != "none":  # its model runs the design judged on the robot
+            controller = judged_on(controller, robot)
+        simulator = get_simulator(drawn.model, controller,
                                   as_built=drawn.plant.as_built.structure())
         checked = _as_built_checks(simulator, drawn.plant, start, goal, robot, config.dt)
         run = simulator.run(start, goal, robot.k, robot.r_d, duration=config.duration,
