@@ -108,8 +108,7 @@ def judged_poses(robot: Robot, model: Any, static_tensions: Callable[[np.ndarray
     |W T - grad V| within STATICS_TOLERANCE of |grad V| (``model``'s W and grad V; a
     distribution clipped into the box does not). Fewer where 64 draws of 256 find fewer
     (a static workspace under a thousandth of the frame)."""
-    size = robot.frame_upper - robot.frame_lower
-    low, high = robot.frame_lower + 0.05 * size, robot.frame_upper - 0.05 * size
+    low, high = robot.interior(0.05)
     rng = np.random.default_rng(0)
     found: list[np.ndarray] = []
     for _ in range(64):

@@ -285,6 +285,12 @@ class Robot:
         sides = (self.frame_upper - self.frame_lower)[: self.dimension]
         return float(sides.min())
 
+    def interior(self, margin: float) -> tuple[np.ndarray, np.ndarray]:
+        """The frame shrunk by ``margin`` (share of its size, 0..0.5) on every side: its
+        lower and upper corners, m (rad for angles)."""
+        size = self.frame_upper - self.frame_lower
+        return self.frame_lower + margin * size, self.frame_upper - margin * size
+
     @property
     def box(self) -> TensionBox:
         """The tension box [t_min, t_max], N."""

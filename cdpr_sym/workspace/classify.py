@@ -70,9 +70,9 @@ class WorkspaceEvaluator:
 
 
 def interior_box(robot: Robot, margin: float) -> tuple[np.ndarray, np.ndarray]:
-    """The frame shrunk by ``margin`` (share of its size, 0..0.5) on every side, m."""
-    size = robot.frame_upper - robot.frame_lower
-    return robot.frame_lower + margin * size, robot.frame_upper - margin * size
+    """The frame shrunk by ``margin`` (share of its size, 0..0.5) on every side, m
+    (:meth:`Robot.interior`)."""
+    return robot.interior(margin)
 
 
 def sample_static_workspace(robot: Robot, count: int, rng: np.random.Generator, *,
