@@ -214,15 +214,27 @@ def test_a_loop_damped_at_the_case_s_ends_but_not_between_keeps_the_filter():
 
 
 @pytest.mark.slow  # the build read over ten poses, twice: ~10 s
-def test_tune_says_where_the_build_takes_the_filter_away(capsys, tmp_path):
+def test_tune_says_where_the_build_takes_the_filter_away(capsys, tmp_path, monkeypatch):
     """tune shows the design the loops run: the zoo's 18.7 kg point on 24 m cables without
-    the filter (four stages on its ideal plant), in the JSON and in words."""
+    the filter (four stages on its ideal plant), in the JSON and in words. The build is
+    read once per trial (the loop's modes, read at rest, keep the design's count rather
+    than judging it again: four readings before)."""
     from cdpr_sym.cli import main
+    from cdpr_sym.closed_loop import simulator as simulator_module
 
+    readings = []
+    read = simulator_module.build_dampings
+
+    def counted(*args, **kwargs):
+        readings.append(args[0].feedback_stages)
+        return read(*args, **kwargs)
+
+    monkeypatch.setattr(simulator_module, "build_dampings", counted)
     path = tmp_path / "robot.toml"
     path.write_text(robot_file_text(zoo_robot(1, "zoo0_001_point3_m3")))
     assert main(["tune", "--robot", str(path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["loop"]["feedback_stages"] == 0
+    assert sorted(readings) == [0, 4]
     assert main(["tune", "--robot", str(path)]) == 0
     assert "no feedback filter (the robot's build" in capsys.readouterr().out
 

@@ -469,9 +469,12 @@ class WinchIdaPbc:
         # the symbolic plan the loop is read from, and it is sampled at the fewest points (the
         # memory's layout is the same; the same modes to the last bit on aras3, planar4,
         # spatial4, ipanema8 and two zoo robots, in a half to a sixth of the time: the plan's
-        # functions are most of what building the step costs)
+        # functions are most of what building the step costs). The stage count is this
+        # design's, stated: the trial's other plan would key the rule anew, and a design
+        # judged on its build would read the build again
         at_rest = dataclasses.replace(self, plan=dataclasses.replace(self.plan, bows=(),
-                                                                     samples=3))
+                                                                     samples=3),
+                                      feedback_stages=self._stages(model))
         return least_damping(at_rest, model, (robot.start, robot.goal), dt,
                              carried=at_rest.carried_size(model),
                              ignored_at_one=max(model.m - model.n, 0))
