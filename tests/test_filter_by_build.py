@@ -353,3 +353,41 @@ def test_a_calibrated_sweep_pair_judges_the_nominal_robot_only(monkeypatch):
     row = run_as_built(robot, DEFAULT_DRAW, config, 0, "ida-winch", starts[0], goals[0])
     assert "error" not in row or not row["error"], row
     assert calls and set(calls) == {robot_key(robot)}
+
+
+class _Asked(Exception):
+    """Raised by the spies below once they have recorded what they were asked."""
+
+
+def test_the_judge_builds_its_steps_as_the_caller_builds_its_own(monkeypatch, tmp_path):
+    """The judge attached by ``judged(design, build_options)`` builds the as-built steps it
+    reads with those options (a user whose default cache folder cannot be written, or
+    who chose CasADi's virtual machine, judges as they run); without options, with the
+    defaults; and a Simulator judges its design with the options it builds with."""
+    from cdpr_sym.closed_loop import simulator as simulator_module
+    from cdpr_sym.codegen import BuildOptions
+
+    asked = []
+
+    def recording(robot, controller, **options):
+        asked.append(options["build_options"])
+        raise InvalidCase("as_built", "recorded")  # the judge's "step refused": [-inf]
+
+    monkeypatch.setattr(simulator_module, "get_simulator", recording)
+    mine = BuildOptions(backend="casadi", cache_dir=tmp_path)
+    trial = WinchIdaPbc(feedback_stages=0)
+    robot = preset("planar2")
+    assert judged(WinchIdaPbc(), mine).build_judge(trial, robot) == [-math.inf]
+    assert judged(WinchIdaPbc()).build_judge(trial, robot) == [-math.inf]
+    assert asked == [mine, BuildOptions()]
+
+    def judged_spy(controller, build_options=None):
+        asked.append(build_options)
+        raise _Asked
+
+    monkeypatch.setattr(simulator_module, "judged", judged_spy)
+    with pytest.raises(_Asked):
+        simulator_module.Simulator(robot, WinchIdaPbc(), build_options=mine)
+    with pytest.raises(_Asked):
+        simulator_module.simulate(robot, WinchIdaPbc(), duration=0.1, build_options=mine)
+    assert asked[2:] == [mine, mine]

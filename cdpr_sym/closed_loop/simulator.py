@@ -159,7 +159,7 @@ class Simulator:
                  rate_limited: bool = False, as_built: AsBuiltStructure | None = None
                  ) -> None:
         check_cables(controller, robot.n, robot.m)
-        controller = judged(controller)
+        controller = judged(controller, build_options)
         #: What the step is built for (:class:`PlantKind`): runs take plants of this kind.
         self.plant_kind = PlantKind(rate_limited=rate_limited, as_built=as_built)
         self.robot = robot
@@ -750,7 +750,7 @@ def get_simulator(robot: Robot, controller: Controller, *, chunk: int = 1000,
     return simulator
 
 
-def judged(controller: Controller) -> Controller:
+def judged(controller: Controller, build_options: BuildOptions | None = None) -> Controller:
     """``controller`` with the closed loop's reading of the robot's build attached where its
     rules ask for one (its ``judged_by``: ``ida-winch``'s filter rule reads
     :func:`build_dampings`); else ``controller`` itself.
@@ -762,14 +762,21 @@ def judged(controller: Controller) -> Controller:
     simulator, :func:`simulate`'s and the sweep's period checks, the exports, ``tune`` and
     the zoo study's derived gains call this, so the design they check, run, export and
     report is one; a design made and evaluated by hand (``WinchIdaPbc().stages_for``,
-    ``step_function``) is not judged and its rule reads the ideal plant alone."""
+    ``step_function``) is not judged and its rule reads the ideal plant alone.
+
+    ``build_options``: how the judge builds its as-built steps (the caller's backend, cache
+    folder and compiler; default :class:`BuildOptions`' defaults): a user whose default
+    cache folder cannot be written, or who has no compiler, judges as they run."""
     attach = getattr(controller, "judged_by", None)
-    return controller if attach is None else attach(build_dampings)
+    if attach is None:
+        return controller
+    return attach(build_dampings if build_options is None
+                  else functools.partial(build_dampings, build_options=build_options))
 
 
 def build_dampings(controller: Controller, robot: Robot, *,
-                   where: Sequence[bool] | None = None, floor: float = -math.inf
-                   ) -> list[float]:
+                   where: Sequence[bool] | None = None, floor: float = -math.inf,
+                   build_options: BuildOptions = BuildOptions()) -> list[float]:
     """The least damping ratio of ``controller``'s loop on ``robot``'s default build
     (:func:`~cdpr_sym.closed_loop.rest_loop.build_of`: its winches the controller's own
     model of them where it states one) at each pose of
@@ -778,11 +785,13 @@ def build_dampings(controller: Controller, robot: Robot, *,
     toolkit's 1 kHz; -inf where the loop loses the pose or a run from rest there is
     refused. Read in order, stopping after the first below ``floor``. [-inf] where the
     build's step is refused at that period (:mod:`cdpr_sym.closed_loop.built_loop` explains
-    the method); a compiler's failure is raised."""
+    the method); a compiler's failure is raised. ``build_options``: how its steps are
+    built (:func:`judged`)."""
 
     build = build_of(robot, controller)
     try:
-        simulator = get_simulator(robot, controller, as_built=build.structure())
+        simulator = get_simulator(robot, controller, as_built=build.structure(),
+                                  build_options=build_options)
     except InvalidCase:  # e.g. the build's torque loop needs substeps this period lacks
         return [-math.inf]
     poses = judged_poses(robot, simulator.model, simulator.static_tensions)
@@ -883,7 +892,7 @@ def simulate(robot: Robot | str | Path, controller: Controller | str, *,
     robot, controller = resolve_robot(robot), controller_by_name(controller)
     check_timing(duration, dt, values_per_step=minimal_values_per_step(robot))
     # before building: gains dt can hold, of the design as the loop builds it
-    check_controller_period(judged(controller), robot, dt)
+    check_controller_period(judged(controller, build_options), robot, dt)
     if capabilities(controller).sampled:
         from cdpr_sym.closed_loop.sampled import steps_per_sample
 
