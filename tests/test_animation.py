@@ -129,6 +129,7 @@ def test_simulate_animate_writes_the_gif_and_refuses_bad_formats_first(tmp_path,
     assert capsys.readouterr().err.count("\n") == 1
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_a_controller_that_reads_the_drives_has_no_read_pose():
     """ida-winch reads the winches, not the pose: its as-built run keeps no q_read (it
     would otherwise stay at the start's reading for the whole run)."""

@@ -106,6 +106,7 @@ def test_the_bow_leans_towards_the_frame_centre(body):
                                                       + np.array(body.frame_upper)))
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_the_plan_bows_where_the_straight_segment_leaves_the_workspace(body):
     straight = _held(body, _bowed_poses(body, START, GOAL, 0.0))
     assert not straight.all()  # the straight segment leaves the held poses (LP)
@@ -118,6 +119,7 @@ def test_the_plan_bows_where_the_straight_segment_leaves_the_workspace(body):
     assert _plan(body, SmoothReference(bows=()), START, GOAL)[n + 2] < 0
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_a_straight_segment_the_box_holds_is_kept(body):
     assert _held(body, _bowed_poses(body, STRAIGHT_START, STRAIGHT_GOAL, 0.0)).all()
     bowed = _plan(body, SmoothReference(), STRAIGHT_START, STRAIGHT_GOAL)

@@ -98,6 +98,7 @@ def test_a_loop_that_leaves_the_band_has_no_modes(long_cables):
     assert float(loop.stop_reason.split()[0]) > robot.design_target.error
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_tune_prints_the_loop_as_built(capsys):
     assert main(["tune", "--robot", "aras3", "--json"]) == 0
     built = json.loads(capsys.readouterr().out)["loop_as_built"]

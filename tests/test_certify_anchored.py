@@ -128,6 +128,7 @@ def test_proven_boxes_agree_with_hyperplane_shifting_and_an_lp(rng):
             assert (room >= 0) == feasible, (verdict, room)
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_a_bound_that_leaves_out_most_of_the_slopes_is_caught(monkeypatch, rng):
     """The mean-value form's reach cut to a tenth: boxes are proven feasible and infeasible
     that are not, and the sampled hyperplane shifting finds both."""

@@ -287,6 +287,7 @@ def _pair_rows(certificate) -> dict:
                                                             strict=True)}
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_pairs_out_of_time_keep_their_verdicts_and_leave_the_rest_undecided(monkeypatch):
     whole = pairs.certify_pairs(ARAS3, "ida-ref", starts=SHORT, goals=SHORT, width=0.2 / 3)
     assert whole.stopped == "complete" and whole.shares()["proven"] > 0.1
@@ -306,6 +307,7 @@ def test_pairs_out_of_time_keep_their_verdicts_and_leave_the_rest_undecided(monk
     assert seen[-1].proven == pytest.approx(stopped.shares()["proven"], abs=1e-12)
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_a_grid_too_slow_for_the_time_limit_is_refused_after_its_first_chunk(monkeypatch):
     _slow_pairs(monkeypatch, 1.0)
     seen = []
@@ -336,6 +338,7 @@ def test_a_pair_level_too_large_for_memory_stops_with_the_work_kept(monkeypatch)
     assert certificate.shares()["proven"] > 0.1 and len(certificate.verdicts) == 729
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_the_pairs_command_says_why_it_stopped_and_refuses_in_one_line(capsys, tmp_path):
     status = main(["certify", "pairs", "--robot", "aras3", "--controller", "ida-ref",
                    "--samples", "0", "--json", "--out", str(tmp_path / "p")])

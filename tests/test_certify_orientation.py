@@ -47,6 +47,7 @@ def test_sampled_poses_over_the_range_agree_with_every_box(certificate):
     assert np.all((certificate.witness >= 0) == (certificate.verdicts == "infeasible"))
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_the_range_holds_less_than_any_of_its_orientations(certificate):
     """A position feasible over the whole range is feasible at each fixed orientation of it:
     no point of a range-feasible box lies in a box proven infeasible at -0.2, 0 or 0.2 rad."""
@@ -90,6 +91,7 @@ def _six_dof_range_agrees_with_sampled_poses(name: str, half_range: float) -> No
     assert found.shares()["feasible"] > 0.01 and found.shares()["infeasible"] > 0.01
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_a_six_dof_range_by_krawczyk_agrees_with_sampled_poses():
     _six_dof_range_agrees_with_sampled_poses("spatial6", 0.01)
 

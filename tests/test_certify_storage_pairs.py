@@ -215,6 +215,7 @@ def test_short_moves_are_proven_and_long_ones_are_not(certificate):
     assert np.all(np.isin(certificate.verdicts, ["proven", "undecided"]))
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_sampled_pairs_in_proven_boxes_keep_the_box_in_the_numpy_loop(certificate, rng):
     drawn = draw_proven(certificate, 12, rng)
     check = loop_check(certificate, *drawn, DESIGN)
@@ -222,6 +223,7 @@ def test_sampled_pairs_in_proven_boxes_keep_the_box_in_the_numpy_loop(certificat
     assert 0 < check["largest_coupling_over_bound"] <= 1
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_a_coupling_bound_below_the_real_coupling_is_caught_by_the_loop_check(
         certificate, rng, monkeypatch):
     drawn = draw_proven(certificate, 12, rng)
@@ -287,6 +289,7 @@ def test_the_command_refuses_robots_it_does_not_cover_in_one_line(capsys, tmp_pa
     assert len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_the_command_writes_the_certificate_with_its_checks(capsys, tmp_path):
     status = main(["certify", "pairs", "--robot", "aras3", "--controller", "ida-ref",
                    "--starts", *map(str, [*REGION[0], *REGION[1]]), "--goals",

@@ -208,6 +208,7 @@ def _min_norm_between(W: np.ndarray, w: np.ndarray, lower: np.ndarray, upper: np
     return None if problem.status != cp.OPTIMAL else np.asarray(tau.value)
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_guarded_min_norm_is_the_qp_in_the_shrunk_box_else_in_the_full_one(rng, random_states):
     """Where the box shrunk by the guard (times each cable's room weight) holds a tension,
     the minimum norm there (cvxpy on the shrunk box); where only the full box does, a

@@ -150,6 +150,7 @@ def test_no_filter_is_a_stated_choice_and_below_it_is_refused():
         WinchIdaPbc(feedback_stages=-1)
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_aras3_keeps_its_four_stages_its_bare_loop_as_built_loses_the_pose():
     robot = preset("aras3")
     bare = WinchIdaPbc(feedback_stages=0)
@@ -169,7 +170,7 @@ def _judged_poses(robot):
     return judged_poses(robot, simulator.model, simulator.static_tensions)
 
 
-@pytest.mark.parametrize("name", ["zoo0_000", "spatial4"])
+@pytest.mark.parametrize("name", ["zoo0_000", pytest.param("spatial4", marks=pytest.mark.slow)])
 def test_the_judged_poses_are_the_case_s_ends_and_the_static_workspace(name):
     """Checked by the workspace's own classifier (an LP for m > n): on spatial4 the
     law's distribution, clipped into the box, once let a pose in that no tension in the
@@ -183,6 +184,7 @@ def test_the_judged_poses_are_the_case_s_ends_and_the_static_workspace(name):
     assert all(np.array_equal(a, b) for a, b in zip(poses, _judged_poses(robot), strict=True))
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_a_loop_damped_at_the_case_s_ends_but_not_between_keeps_the_filter():
     """The zoo's 2 kg point on two cables, unfiltered with its own (faster) integral: damped
     at its goal, under 0.02 somewhere in its workspace (measured: 0 at its start, -0.05 to

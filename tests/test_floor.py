@@ -77,7 +77,7 @@ def _numpy_floor(robot, plant, simulator):
 
 # spatial4's cases are slow checks: its integral's rule alone costs 4 s a process
 @pytest.mark.parametrize(("name", "pair"), [
-    ("aras3", 0), ("aras3", 1), ("planar2", 0),
+    ("aras3", 0), ("aras3", 1), pytest.param("planar2", 0, marks=pytest.mark.slow),
     pytest.param("spatial4", 0, marks=pytest.mark.slow),
     pytest.param("spatial4", 2, marks=pytest.mark.slow)])
 def test_the_floor_is_the_minimum_of_the_stored_energy(name, pair):

@@ -63,6 +63,7 @@ def test_redundant_point_masses_take_the_corner_their_loop_allows(name, boost):
     assert k_i == pytest.approx(boost * k_p * 2 * math.pi * 25.0 / 14 / 20, rel=1e-12)
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_tune_reports_the_integral_that_runs(capsys):
     robot = preset("planar4")
     assert main(["tune", "--robot", "planar4", "--json"]) == 0

@@ -56,6 +56,7 @@ def _first_solve(problem, function, z0, goal, tau_goal):
     return np.array(v).ravel(), float(residual)
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_qrqp_fails_where_daqp_solves_and_ipopt_agrees(body):
     robot, problem, z0, goal, tau_goal = body
     for scaled in (True, False):

@@ -64,6 +64,7 @@ def test_nearest_to_is_the_pseudo_inverse_closed_form():
     assert np.allclose(W @ got, w, atol=1e-9)
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_the_plan_holds_where_the_box_middle_left_the_box():
     robot = preset("ipanema8")
     model = SymbolicModel(robot)

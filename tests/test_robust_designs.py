@@ -182,6 +182,7 @@ def test_guard_never_clips_past_the_static_tension(aras3, aras3_model):
     np.testing.assert_allclose(out.tau, static, atol=1e-9)
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_a_redundant_robot_distributes_inside_the_guard_where_it_can(rng):
     """m > n: the guarded command produces the unguarded one's force, from tensions 2 N
     inside the box, or is the unguarded command itself where the shrunk box cannot; on

@@ -229,6 +229,7 @@ def test_ipanemas_integral_share_keeps_its_slow_modes_from_growing():
 
 # -- the rule's stages at another period ---------------------------------------------------------
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_stages_chosen_at_1khz_that_grow_at_another_period_are_refused(build_options):
     """The 1 kg body's 2 stages damp its loop at 1 ms and 2 ms; at 4 ms a mode grows
     (8.8 Hz, -0.008), and the run is refused in one line naming feedback_stages. The

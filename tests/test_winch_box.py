@@ -8,6 +8,7 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
+import pytest
 
 from cdpr_sym.as_built import DEFAULT_DRAW
 from cdpr_sym.as_built.cable_law import drum_pull
@@ -67,6 +68,7 @@ def test_a_drive_whose_friction_fills_the_box_is_refused():
     WinchIdaPbc().kept_in_box(pull, ca.SX.zeros(3), model, Actuation(coulomb=0.8))
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_a_cable_reeled_in_at_the_floor_stays_in_the_box_as_built():
     """zoo0_004 (36.6 kg on 3 cables, box [12, 767] N, 4.3 N of winch friction at the
     cable), pair 3 as built: its third cable is reeled in at the floor for 1.5 s. With the

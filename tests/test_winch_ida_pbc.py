@@ -117,6 +117,7 @@ def test_true_tensions_stay_within_the_storage_bound(aras3, build_options):
     assert np.all(deviation <= 1.01 * bound + 1e-6)
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_reads_the_winches_not_the_pose(aras3, build_options):
     """With encoders, no forward kinematics is solved for it (its step does not depend on
     the pose estimate forward kinematics would start from, a pose-reading design's does),
@@ -230,6 +231,7 @@ def test_a_gain_no_sampled_loop_holds_is_refused_before_building(monkeypatch):
     assert WinchIdaPbc().check_period(4.0, 1e-3) is None  # the defaults at 1 kHz
 
 
+@pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_on_the_ideal_plant_the_goal_is_the_rigid_cables_whatever_stretch_the_winches_model(
         build_options):
     """The ideal plant's cables are rigid and its tension is the command: ida-winch must not

@@ -87,7 +87,8 @@ def test_the_feed_forward_moves_continuously_where_the_default_distribution_jump
     assert np.abs(np.diff(tensions, axis=0)).max() <= 0.02 * (robot.t_max - robot.t_min)
 
 
-@pytest.mark.parametrize("name", ["planar4", pytest.param("spatial4", marks=pytest.mark.slow),
+@pytest.mark.parametrize("name", [pytest.param("planar4", marks=pytest.mark.slow),
+                                  pytest.param("spatial4", marks=pytest.mark.slow),
                                   pytest.param("ipanema8", marks=pytest.mark.slow)])
 def test_the_first_command_is_the_static_tension_the_plant_holds(name, build_options):
     """No start jump on the ideal plant: the plan's distribution of the weight differs from
