@@ -361,3 +361,16 @@ def test_offset_free_nmpc_reaches_the_goal_of_a_heavier_plant(aras3, build_optio
     np.testing.assert_allclose(estimate, [0.0, 0.0, -0.1 * weight], atol=0.02 * weight)
     assert np.linalg.norm(ends["nmpc-of"]["q"][0] - goal) < 2e-3
     assert np.linalg.norm(ends["nmpc"]["q"][0] - goal) > 1e-2
+
+
+def test_the_record_keeps_the_worst_solve_after_the_first_ones_apart():
+    """A run's record: the worst solve over all, and the worst after the first
+    FIRST_SOLVES (which start the QP's working set from rest); nan without later ones."""
+    from cdpr_sym.closed_loop.sampled import FIRST_SOLVES, _record
+
+    seconds = [0.7, 0.6, 0.01, 0.03, 0.02]
+    record = _record(Nmpc(), seconds, 0, 0)
+    assert FIRST_SOLVES == 2 and record["samples"] == 5
+    assert record["solve_time_max"] == 0.7 and record["solve_time_max_later"] == 0.03
+    assert record["solve_time_median"] == 0.03
+    assert np.isnan(_record(Nmpc(), seconds[:2], 0, 0)["solve_time_max_later"])
