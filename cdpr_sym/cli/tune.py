@@ -25,8 +25,11 @@ def add_parser(command: Callable[..., argparse.ArgumentParser]) -> None:
                      "sampled loop's least damped mode")
     parser.add_argument("--robot", default="aras3", help="a preset or a robot file")
     parser.add_argument("--as-built", default="default", metavar="SPEC",
-                        help="the winches: 'default' (the robot's default build) or an "
-                             "as-built TOML file")
+                        help="the winches the gains are derived for: 'default' (the "
+                             "robot's default build, which simulate and sweep design "
+                             "ida-winch on) or an as-built TOML file (a what-if: simulate "
+                             "and sweep still design on the default build; in Python, "
+                             "WinchIdaPbc(drive=...) designs on the file's winches)")
     parser.add_argument("--dt", type=float, default=1e-3, help="control period, s")
 
 
