@@ -365,7 +365,8 @@ def test_the_judge_builds_its_steps_as_the_caller_builds_its_own(monkeypatch, tm
     """The judge attached by ``judged(design, build_options)`` builds the as-built steps it
     reads with those options (a user whose default cache folder cannot be written, or
     who chose CasADi's virtual machine, judges as they run); without options, with the
-    defaults; and a Simulator judges its design with the options it builds with."""
+    defaults; and a Simulator, simulate and judged_on judge with the options they are
+    given."""
     from cdpr_sym.closed_loop import simulator as simulator_module
     from cdpr_sym.codegen import BuildOptions
 
@@ -392,4 +393,6 @@ def test_the_judge_builds_its_steps_as_the_caller_builds_its_own(monkeypatch, tm
         simulator_module.Simulator(robot, WinchIdaPbc(), build_options=mine)
     with pytest.raises(_Asked):
         simulator_module.simulate(robot, WinchIdaPbc(), duration=0.1, build_options=mine)
-    assert asked[2:] == [mine, mine]
+    with pytest.raises(_Asked):  # a calibrated model's design, judged on the nominal robot
+        simulator_module.judged_on(WinchIdaPbc(), robot, mine)
+    assert asked[2:] == [mine, mine, mine]

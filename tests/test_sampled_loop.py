@@ -229,6 +229,19 @@ def test_ipanemas_integral_share_keeps_its_slow_modes_from_growing():
 
 # -- the rule's stages at another period ---------------------------------------------------------
 
+def test_the_rules_stages_are_checked_at_the_runs_period():
+    """The quick form of the check below (no build judged, no run): the 1 kg body's rule
+    stages, damped at 1 ms, grow at 4 ms, and check_loop refuses that period in one line
+    naming feedback_stages."""
+    from cdpr_sym.errors import InvalidCase
+
+    robot = _planar_body()
+    WinchIdaPbc().check_loop(robot, 1e-3)
+    with pytest.raises(InvalidCase, match=r"^feedback_stages: the 2 filter stages") as refused:
+        WinchIdaPbc().check_loop(robot, 4e-3)
+    assert "\n" not in str(refused.value)
+
+
 @pytest.mark.slow  # over 2 s in a quick run (fresh build cache)
 def test_stages_chosen_at_1khz_that_grow_at_another_period_are_refused(build_options):
     """The 1 kg body's 2 stages damp its loop at 1 ms and 2 ms; at 4 ms a mode grows

@@ -140,11 +140,12 @@ def _as_built_run(checked: SimulateInput, args: argparse.Namespace
     drawn = drawn_robot(checked.robot, checked.as_built, args.seed, 0, args.calibration)
     case = checked.case
     controller = checked.controller
+    options = BuildOptions(backend=args.backend)
     if args.calibration != "none":  # its model runs the design judged on the robot
-        controller = judged_on(controller, checked.robot)
+        controller = judged_on(controller, checked.robot, options)
     simulator = get_simulator(drawn.model, controller,
                               as_built=drawn.plant.as_built.structure(),
-                              build_options=BuildOptions(backend=args.backend))
+                              build_options=options)
     held = all(simulator.true_static_held(q, drawn.plant) for q in (case.start, case.goal))
     run = simulator.run(case.start, case.goal, case.k, case.r_d, duration=args.duration,
                         dt=args.dt, plant=drawn.plant)

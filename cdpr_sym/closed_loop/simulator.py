@@ -811,30 +811,35 @@ def build_damping(controller: Controller, robot: Robot, floor: float = -math.inf
     return min(build_dampings(controller, robot, floor=floor))
 
 
-def built_options(controller: Controller, robot: Robot) -> dict[str, Any]:
-    """``controller``'s options as a loop builds it on ``robot`` (:func:`judged`): a filter
-    stage count its rule chose (``feedback_stages="robot"``) written as the count the
-    memory's layout has, for the records of an exported package."""
+def built_options(controller: Controller, robot: Robot,
+                  build_options: BuildOptions | None = None) -> dict[str, Any]:
+    """``controller``'s options as a loop builds it on ``robot`` (:func:`judged`, its steps
+    built with ``build_options``): a filter stage count its rule chose
+    (``feedback_stages="robot"``) written as the count the memory's layout has, for the
+    records of an exported package."""
     options = controller.options()
     if options.get("feedback_stages") == "robot" and hasattr(controller, "stages_for"):
         # no filter without its corner, whatever the rule would give
         options["feedback_stages"] = (0 if options.get("feedback_cutoff") is None
-                                      else judged(controller).stages_for(robot))
+                                      else judged(controller, build_options).stages_for(robot))
     return options
 
 
-def judged_on(controller: Controller, robot: Robot) -> Controller:
+def judged_on(controller: Controller, robot: Robot,
+              build_options: BuildOptions | None = None) -> Controller:
     """``controller`` with the filter stage count its rule gives on ``robot`` (judged as
     every loop judges it: :func:`built_options`) stated, for a loop on another model of the
     same robot: a calibrated model runs the design judged on the nominal one. The count
     answers the build's drum-cable dynamics, which calibrating anchors and mass does not
     change; judged per calibrated pair it cost two more compiled steps and up to twenty
-    runs from rest each. Other controllers, and stated counts, are returned as they are."""
+    runs from rest each. Other controllers, and stated counts, are returned as they are.
+    ``build_options``: how the judge builds its steps (:func:`judged`)."""
     if getattr(controller, "judged_by", None) is None \
             or controller.options().get("feedback_stages") != "robot":
         return controller
     return dataclasses.replace(
-        controller, feedback_stages=built_options(controller, robot)["feedback_stages"])
+        controller,
+        feedback_stages=built_options(controller, robot, build_options)["feedback_stages"])
 
 
 def simulate(robot: Robot | str | Path, controller: Controller | str, *,

@@ -482,7 +482,10 @@ class WinchIdaPbc:
     def _rule_key(self, robot: Robot) -> tuple[str, str, bool]:
         """What the rule's findings are kept by: the robot's numbers, the options and
         whether a build judge reads the robot's build (the stages, and so the integral's
-        boost and the loop at another period, may differ with it)."""
+        boost and the loop at another period, may differ with it). Not by how the judge
+        builds its steps (backend, compiler, cache folder): those change its readings by
+        rounding at most (the default flags round every operation as written), so the first
+        judge in a process decides for every later one."""
         return (robot_key(robot), json.dumps(self.options(), sort_keys=True, default=str),
                 self.build_judge is not None)
 
