@@ -5,17 +5,17 @@ Run from the repository root (do-mpc installed: ``pip install -e '.[bench]'``):
 ``reports/bench/nmpc_do_mpc.md``.
 
 The problem is :class:`~cdpr_sym.control.nmpc.NmpcProblem`'s for the default ``nmpc`` design
-(50 Hz, the horizon its rule derives from the robot, state (q, dq, tau), input the
-tension rate, the same weights, the same bounds), given to do-mpc as a discrete-time model whose transition is the
-same two-step RK4 expression; do-mpc solves it with IPOPT (its default, warm-started from its
-previous solution). Its stage cost is over x_0..x_{N-1} and its terminal cost on x_N, which
-differs from ours (stages 1..N, the last with the terminal factor) by a constant, x_0 being
-fixed. The closed loop is the same Python loop for every solver: every 20 ms the solver
-gets the exact state and its last command, and the plant (the model, RK4 at 1 ms) runs 20 ms
-with the planned rate held. ``nmpc`` is one real-time iteration generated to C (``qrqp``),
-``nmpc-ipopt`` the same problem solved to convergence by IPOPT through CasADi's ``nlpsol``.
-Times are wall clock per solve, the Python call included, one core.
-"""
+(50 Hz, the horizon its rule derives from the robot, state (q, dq, tau), input the tension
+rate, the same weights, the same bounds: the poses' follow the pose each solve starts from, as
+ours), given to do-mpc as a discrete-time model whose
+transition is the same two-step RK4 expression; do-mpc solves it with IPOPT (its default,
+warm-started from its previous solution). Its stage cost is over x_0..x_{N-1} and its terminal
+cost on x_N, which differs from ours (stages 1..N, the last with the terminal factor) by a
+constant, x_0 being fixed. The closed loop is the same Python loop for every solver: every 20
+ms the solver gets the exact state and its last command, and the plant (the model, RK4 at 1 ms)
+runs 20 ms with the planned rate held. ``nmpc`` is one real-time iteration generated to C
+(``qrqp``), ``nmpc-ipopt`` the same problem solved to convergence by IPOPT through CasADi's
+``nlpsol``. Times are wall clock per solve, the Python call included, one core. """
 
 from __future__ import annotations
 
@@ -62,24 +62,30 @@ class DoMpc:
         mpc.settings.t_step = design.period
         mpc.settings.store_full_solution = False
         mpc.settings.supress_ipopt_output()
-        position = ca.sumsqr(q - q_goal)
-        velocity = ca.sumsqr(dq)
+        # the weights the rule derives for this robot, per coordinate (the problem's)
+        position = ca.dot(ca.DM(problem.position_weight), (q - q_goal) ** 2)
+        velocity = ca.dot(ca.DM(problem.velocity_weight), dq**2)
         tension = problem.tension_weight * ca.sumsqr(tau - tau_goal)
-        stage = (design.position_weight * position + design.velocity_weight * velocity
-                 + tension + problem.rate_weight * ca.sumsqr(u))
-        terminal = design.terminal_factor * (design.position_weight * position
-                                             + design.velocity_weight * velocity) + tension
+        stage = position + velocity + tension + problem.rate_weight * ca.sumsqr(u)
+        terminal = design.terminal_factor * (position + velocity) + tension
         mpc.set_objective(lterm=stage, mterm=terminal)
         mpc.bounds["lower", "_x", "tau"] = robot.t_min
         mpc.bounds["upper", "_x", "tau"] = robot.t_max
-        mpc.bounds["lower", "_x", "q"] = robot.frame_lower
-        mpc.bounds["upper", "_x", "q"] = robot.frame_upper
-        mpc.bounds["lower", "_u", "u"] = -design.max_rate
-        mpc.bounds["upper", "_u", "u"] = design.max_rate
+        # the poses' bounds are the problem's prediction bounds, set before each solve (they
+        # follow the pose the solve starts from: see rate())
+        mpc.bounds["lower", "_u", "u"] = -problem.tuning.max_rate
+        mpc.bounds["upper", "_u", "u"] = problem.tuning.max_rate
         mpc.setup()
         self.mpc, self.started = mpc, False
+        self.problem, self.q_goal = problem, np.asarray(q_goal, dtype=float)
 
     def rate(self, z0: np.ndarray) -> np.ndarray | None:
+        # NmpcProblem.prediction_bounds: the poses kept a band inside the frame, unless the
+        # pose the solve starts from or the goal lies in it (one stage's pose slice of v)
+        lower, upper = self.problem.prediction_bounds(np.asarray(z0, dtype=float), self.q_goal)
+        pose = slice(self.problem.m, self.problem.m + self.problem.n)
+        self.mpc.bounds["lower", "_x", "q"] = lower[pose]
+        self.mpc.bounds["upper", "_x", "q"] = upper[pose]
         if not self.started:
             self.mpc.x0 = z0
             self.mpc.set_initial_guess()
