@@ -9,8 +9,9 @@ from cdpr_sym.workspace.zoo import zoo
 SEED, COUNT = 0, 8
 
 
-def zoo_robot(index: int, name: str) -> Robot:
-    """Robot ``index`` of the zoo's draw, which must be ``name`` (the draw changed else)."""
-    robot = zoo(SEED, COUNT)[index]
+def zoo_robot(index: int, name: str, seed: int = SEED) -> Robot:
+    """Robot ``index`` of the zoo's draw (of ``seed``), which must be ``name`` (the draw
+    changed else)."""
+    robot = zoo(seed, COUNT)[index]
     assert robot.name == name, f"the zoo's robot {index} is {robot.name}, not {name}"
     return robot
