@@ -27,15 +27,15 @@ from pathlib import Path
 
 from benchmarks.peers.timing import pin_to_one_core
 from benchmarks.tables import best_seconds, one_core_run, publish
-from cdpr_sym import Plant, preset
+from cdpr_sym import Nmpc, Plant, preset
 from cdpr_sym.closed_loop import get_simulator
 from cdpr_sym.control import controller_by_name
 
 ROBOTS = ("aras3", "planar3", "planar4", "spatial6", "ipanema8")
 CLOSED_FORM = ("smooth", "pd-td")
 DURATION, DT = 5.0, 1e-3
-#: The time a solve has at NMPC's 50 Hz, ms.
-PERIOD_MS = 20.0
+#: The time a solve has: the default NMPC's sample period, ms.
+PERIOD_MS = 1e3 * Nmpc().period
 SWEEP_PAIRS = 200
 OUT = Path(__file__).resolve().parents[1] / "reports" / "bench" / "nmpc.md"
 
@@ -99,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
              "times are per solve, wall clock, the Python call included, over the 250 "
              "solves of each preset's 5 s case (second run). The closed-form column is a "
              "whole 1 ms step (law + RK4 plant) of `smooth` (`pd-td` where m > n), a run's "
-             "time / 5,000. A solve has 20 ms at 50 Hz; the first two start the QP's working "
+             f"time / 5,000. A solve has {PERIOD_MS:g} ms; the first two start the QP's working "
              "set from the robot at rest, and \"worst later\" leaves them out.", "",
              "| robot | n | cables | NMPC median [ms] | NMPC worst [ms] | worst later [ms] | "
              "failed / retried solves | settle [s] | closed-form step [µs] | "
@@ -122,12 +122,13 @@ def main(argv: list[str] | None = None) -> int:
                      f"{step:.2f} | "
                      f"{times['median'] * 1e3 / step:.0f}x |")
     if over:
-        lines += ["", "Over the 20 ms a sample has, on this core: " + "; ".join(over)
+        lines += ["", f"Over the {PERIOD_MS:g} ms a sample has, on this core: "
+                  + "; ".join(over)
                   + ". There the derived horizon is not real-time: it needs a shorter one "
                   "(`Nmpc(horizon=...)`) or a faster core."]
     else:
-        lines += ["", "No solve after the first two takes more than the 20 ms a sample has, "
-                  "on this core."]
+        lines += ["", "No solve after the first two takes more than the "
+                  f"{PERIOD_MS:g} ms a sample has, on this core."]
     if minutes is not None:
         lines += ["", f"200-pair `nmpc` sweep of aras3 (5 s runs), `cdpr-sym sweep` on "
                   f"{os.cpu_count()} cores, start-up included: **{minutes:.1f} min** "

@@ -6,9 +6,9 @@ Run from the repository root (do-mpc installed: ``pip install -e '.[bench]'``):
 
 The problem is :class:`~cdpr_sym.control.nmpc.NmpcProblem`'s for the default ``nmpc`` design
 (50 Hz, the horizon its rule derives from the robot, state (q, dq, tau), input the tension
-rate, the same weights, the same bounds: the poses' follow the pose each solve starts from, as
-ours), given to do-mpc as a discrete-time model whose
-transition is the same two-step RK4 expression; do-mpc solves it with IPOPT (its default,
+rate, the same weights, the same bounds, the poses' set before each solve from the pose it
+starts from as ours are), given to do-mpc as a discrete-time model whose transition is the
+same two-step RK4 expression; do-mpc solves it with IPOPT (its default,
 warm-started from its previous solution). Its stage cost is over x_0..x_{N-1} and its terminal
 cost on x_N, which differs from ours (stages 1..N, the last with the terminal factor) by a
 constant, x_0 being fixed. The closed loop is the same Python loop for every solver: every 20

@@ -124,7 +124,7 @@ def test_where_the_filtered_loop_holds_no_pose_the_bare_one_is_read_at_every_pos
 
     assert WinchIdaPbc().judged_by(judge).stages_for(robot) == stages
     assert [call[:2] for call in calls] == [(4, None), (0, None)]
-    assert -math.inf < calls[1][2] < -1e300  # read until the first pose it loses
+    assert calls[1][2] == winch_level.UNTIL_LOST  # read until the first pose it loses
 
 
 def test_the_filter_stays_where_the_bare_loop_on_the_ideal_plant_is_damped_too_little(

@@ -118,6 +118,8 @@ MIN_LOOP_DAMPING = 0.02
 #: Where no stage count reaches MIN_LOOP_DAMPING: least dampings within this of the best
 #: count's are taken as equal, and the most stages among them kept (a tenth of the target).
 DAMPING_TIE = 0.002
+#: A judge's floor only a lost pose (read -inf) is under: it reads until the first one.
+UNTIL_LOST = -sys.float_info.max
 #: The integral's corner may be these multiples of the rule's (a twentieth of the platform's
 #: mode: a tenth or a fifth), the largest whose linearised sampled loop still damps every
 #: mode by MIN_INTEGRAL_DAMPING (:meth:`WinchIdaPbc.integral_boost`).
@@ -556,7 +558,7 @@ class WinchIdaPbc:
             # frame from rest at every pose read and on every pair as built; unfiltered it
             # held each pose, damped by 0.03-0.07 and by -0.002 at one, and 4 pairs as built
             # ran 10 s in the box without a tension step over its limit)
-            bare_everywhere = self.build_judge(bare, robot, floor=-sys.float_info.max)
+            bare_everywhere = self.build_judge(bare, robot, floor=UNTIL_LOST)
             return 0 if (len(bare_everywhere) == len(filtered_built)
                          and min(bare_everywhere) > -math.inf) else stages
         bare_built = self.build_judge(bare, robot, where=held, floor=MIN_LOOP_DAMPING)
